@@ -1,0 +1,21 @@
+"""Measurements on simulated (or experimental) trajectories: passages and specific flow (Eq. 22),
+density, lanes, calibration errors (Eq. 23-24) and the Seyfried et al. (2009) reference. Knows nothing of RL."""
+from .calibration import CalibrationError, RangeCheck, epsilon_j, epsilon_total, in_range_check, relative_squared_errors
+from .density import DensityError, as_polygon, density_in_area, density_time_series, stationary_mean
+from .experiment import (DIP_N20_WIDTH_M, GROUP_SIZES, PUBLISHED_SPECIFIC_FLOW_N60_PER_M_S, RESIDUAL_NORM_BY_GROUP,
+                         SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, WIDTHS_M, ExperimentError, ExperimentTable, seyfried_2009)
+from .flow import (FlowError, FlowResult, LinearFit, MeasurementLine, PassageCounter, line_crossings, linear_fit,
+                   linear_fit_residual_norm, specific_flow, trajectory_crossings)
+from .lanes import LaneError, LaneResult, LateralHistogram, detect_lanes, lateral_histogram
+from .recorder import RecorderError, TrajectoryRecorder
+
+__all__ = [
+    "CalibrationError", "RangeCheck", "epsilon_j", "epsilon_total", "in_range_check", "relative_squared_errors",
+    "DensityError", "as_polygon", "density_in_area", "density_time_series", "stationary_mean",
+    "DIP_N20_WIDTH_M", "GROUP_SIZES", "PUBLISHED_SPECIFIC_FLOW_N60_PER_M_S", "RESIDUAL_NORM_BY_GROUP",
+    "SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S", "WIDTHS_M", "ExperimentError", "ExperimentTable", "seyfried_2009",
+    "FlowError", "FlowResult", "LinearFit", "MeasurementLine", "PassageCounter", "line_crossings", "linear_fit",
+    "linear_fit_residual_norm", "specific_flow", "trajectory_crossings",
+    "LaneError", "LaneResult", "LateralHistogram", "detect_lanes", "lateral_histogram",
+    "RecorderError", "TrajectoryRecorder",
+]

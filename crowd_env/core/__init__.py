@@ -1,0 +1,8 @@
+"""Simulation core: rigid-disk pedestrians with Frémond non-smooth collisions. Knows nothing of RL."""
+from .params import ModelParams, ParameterError, PedestrianDefaults
+from .state import CrowdState, StateError, min_gap_m, sample_desired_speeds
+from .segments import GeometryError
+from .simulator import SimulationError, Simulator, StepResult
+
+__all__ = ["ModelParams", "ParameterError", "PedestrianDefaults", "CrowdState", "StateError", "min_gap_m",
+           "sample_desired_speeds", "GeometryError", "SimulationError", "Simulator", "StepResult"]

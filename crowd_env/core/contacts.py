@@ -1,0 +1,197 @@
+"""Contact detection and the contact operator rows (Kabalan Eq. 1, 2 and 8).
+
+Narrow phase: disk-disk and disk-wall candidates whose gap is within a speculative margin
+(``collision-problem.md``: δ = ε + 2 h (|u_i| + |u_j|)). The contact operator B (Δ = B v) is stored
+row by row in a two-body sparse form that both Frémond solvers (compiled and cvxpy) take as input:
+
+* ``row_a``/``row_b``: local body indices (``row_b = -1`` for a wall, which has infinite mass);
+* ``coef_a``/``coef_b``: the three coefficients (x, y, θ) of each body in the row;
+* ``row_k``: the dissipation coefficient of the row (K_n, K_tg or K_v);
+* ``row_kind``: 0 normal (carries the non-interpenetration constraint), 1 tangent, 2 hand link.
+
+Conventions: the normal n points from j to i (from the wall into i); t = e_z × n; the contact
+point lies on the line of centres at ρ_i = d r_i/(r_i + r_j) from i (ρ_i = r_i against a wall), so
+that angular momentum is conserved exactly. Velocities are (u_x, u_y, ω) per body.
+"""
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from .segments import wall_proximity
+
+NORMAL, TANGENT, LINK = 0, 1, 2
+
+
+@nb.njit(cache=True)
+def pair_candidates(position, radius, velocity, pairs, index, eps_m, dt_s, margin_out):
+    """Disk-disk candidates among ``pairs`` (rows into ``index``) with gap ≤ ε + 2h(|u_i|+|u_j|).
+
+    Returns ``(a, b, gap, nx, ny, d)`` with a, b rows into ``index``; also writes each
+    pedestrian's own margin ε + 2h|u_i| into ``margin_out`` (used for walls).
+    """
+    n = index.shape[0]
+    for k in range(n):
+        i = index[k]
+        margin_out[k] = eps_m + 2.0 * dt_s * np.sqrt(velocity[i, 0] ** 2 + velocity[i, 1] ** 2)
+    p = pairs.shape[0]
+    a_out = np.empty(p, np.int64)
+    b_out = np.empty(p, np.int64)
+    geo = np.empty((p, 4))
+    m = 0
+    for k in range(p):
+        a = pairs[k, 0]
+        b = pairs[k, 1]
+        i = index[a]
+        j = index[b]
+        dx = position[i, 0] - position[j, 0]
+        dy = position[i, 1] - position[j, 1]
+        d = np.sqrt(dx * dx + dy * dy)
+        gap = d - radius[i] - radius[j]
+        if gap > margin_out[a] + margin_out[b] - eps_m:
+            continue
+        a_out[m] = a
+        b_out[m] = b
+        geo[m, 0] = gap
+        if d > 1e-12:
+            geo[m, 1] = dx / d
+            geo[m, 2] = dy / d
+        else:  # coincident centres (only reachable from corrupted input): any unit normal
+            geo[m, 1] = 1.0
+            geo[m, 2] = 0.0
+        geo[m, 3] = d
+        m += 1
+    return a_out[:m], b_out[:m], geo[:m, 0].copy(), geo[:m, 1].copy(), geo[:m, 2].copy(), geo[:m, 3].copy()
+
+
+def detect_contacts(position, radius, velocity, index, pairs, walls, wall_owner, eps_m, dt_s):
+    """All candidate contacts (pedestrian pairs and walls) among the pedestrians ``index``.
+
+    ``pairs`` are rows into ``index`` (from a k-d tree). Returns a dict of arrays, one entry per
+    contact: ``a``/``b`` rows into ``index`` (b = -1 for a wall), ``gap`` (m), ``nx``/``ny``
+    (unit normal from b to a), ``rho_a``/``rho_b`` (distances of the contact point from the centres),
+    ``wall`` (segment id or -1).
+    """
+    n = index.shape[0]
+    margin = np.empty(n)
+    a, b, gap, nx, ny, d = pair_candidates(position, radius, velocity, pairs, index, eps_m, dt_s, margin)
+    ra = radius[index[a]]
+    rb = radius[index[b]]
+    rho_a = d * ra / (ra + rb)
+    rho_b = d - rho_a
+    if walls.shape[0]:
+        wa, wseg, wgap, wnx, wny, _, _ = wall_proximity(position, radius, index, walls, wall_owner, margin)
+    else:
+        wa = np.zeros(0, np.int64)
+        wseg = np.zeros(0, np.int64)
+        wgap = wnx = wny = np.zeros(0)
+    return {
+        "a": np.concatenate([a, wa]),
+        "b": np.concatenate([b, np.full(wa.shape[0], -1, np.int64)]),
+        "gap": np.concatenate([gap, wgap]),
+        "nx": np.concatenate([nx, wnx]),
+        "ny": np.concatenate([ny, wny]),
+        "rho_a": np.concatenate([rho_a, radius[index[wa]]]),
+        "rho_b": np.concatenate([rho_b, np.zeros(wa.shape[0])]),
+        "wall": np.concatenate([np.full(a.shape[0], -1, np.int64), wseg]),
+    }
+
+
+@nb.njit(cache=True)
+def link_geometry(position, heading, links, offsets):
+    """Shoulder points of hand links (Eq. 2): returns d = A_i − A_j, g_i = A_i − x_i, g_j = A_j − x_j."""
+    nl = links.shape[0]
+    dvec = np.empty((nl, 2))
+    gi = np.empty((nl, 2))
+    gj = np.empty((nl, 2))
+    for l in range(nl):
+        i = links[l, 0]
+        j = links[l, 1]
+        ci = np.cos(heading[i])
+        si = np.sin(heading[i])
+        cj = np.cos(heading[j])
+        sj = np.sin(heading[j])
+        gi[l, 0] = ci * offsets[l, 0] - si * offsets[l, 1]
+        gi[l, 1] = si * offsets[l, 0] + ci * offsets[l, 1]
+        gj[l, 0] = cj * offsets[l, 2] - sj * offsets[l, 3]
+        gj[l, 1] = sj * offsets[l, 2] + cj * offsets[l, 3]
+        dvec[l, 0] = position[i, 0] + gi[l, 0] - position[j, 0] - gj[l, 0]
+        dvec[l, 1] = position[i, 1] + gi[l, 1] - position[j, 1] - gj[l, 1]
+    return dvec, gi, gj
+
+
+@nb.njit(cache=True)
+def build_rows(contact_ids, c_a, c_b, c_nx, c_ny, c_rho_a, c_rho_b, link_ids, l_a, l_b, dvec, gi, gj,
+               local, k_n, k_tg, k_v, rotation):
+    """Rows of B for the given contacts and links, with bodies renumbered by ``local``.
+
+    Normal rows come first (one per contact, in the order of ``contact_ids``), then tangent rows
+    (only when K_tg > 0), then link rows (only when K_v > 0). Without rotation the θ coefficients
+    are zero, so the impact cannot spin anyone.
+    """
+    nc = contact_ids.shape[0]
+    nl = link_ids.shape[0] if k_v > 0.0 else 0
+    nt = nc if k_tg > 0.0 else 0
+    m = nc + nt + nl
+    row_a = np.empty(m, np.int64)
+    row_b = np.empty(m, np.int64)
+    coef_a = np.zeros((m, 3))
+    coef_b = np.zeros((m, 3))
+    row_k = np.empty(m)
+    row_kind = np.empty(m, np.int64)
+    rot = 1.0 if rotation else 0.0
+    for r in range(nc):
+        c = contact_ids[r]
+        a = local[c_a[c]]
+        b = -1 if c_b[c] < 0 else local[c_b[c]]
+        nx = c_nx[c]
+        ny = c_ny[c]
+        row_a[r] = a
+        row_b[r] = b
+        coef_a[r, 0] = nx
+        coef_a[r, 1] = ny
+        coef_b[r, 0] = -nx
+        coef_b[r, 1] = -ny
+        row_k[r] = k_n
+        row_kind[r] = NORMAL
+        if nt:
+            t = nc + r
+            tx = -ny
+            ty = nx
+            row_a[t] = a
+            row_b[t] = b
+            coef_a[t, 0] = tx
+            coef_a[t, 1] = ty
+            coef_a[t, 2] = -c_rho_a[c] * rot
+            coef_b[t, 0] = -tx
+            coef_b[t, 1] = -ty
+            coef_b[t, 2] = -c_rho_b[c] * rot
+            row_k[t] = k_tg
+            row_kind[t] = TANGENT
+    for q in range(nl):
+        l = link_ids[q]
+        r = nc + nt + q
+        dx = dvec[l, 0]
+        dy = dvec[l, 1]
+        row_a[r] = local[l_a[l]]
+        row_b[r] = local[l_b[l]]
+        coef_a[r, 0] = 2.0 * dx
+        coef_a[r, 1] = 2.0 * dy
+        coef_a[r, 2] = 2.0 * (gi[l, 0] * dy - gi[l, 1] * dx) * rot
+        coef_b[r, 0] = -2.0 * dx
+        coef_b[r, 1] = -2.0 * dy
+        coef_b[r, 2] = -2.0 * (gj[l, 0] * dy - gj[l, 1] * dx) * rot
+        row_k[r] = k_v
+        row_kind[r] = LINK
+    return row_a, row_b, coef_a, coef_b, row_k, row_kind
+
+
+def rows_to_dense(n_bodies, row_a, row_b, coef_a, coef_b):
+    """Dense B (m, 3n) from the two-body row form (for the reference solver and tests)."""
+    m = row_a.shape[0]
+    B = np.zeros((m, 3 * n_bodies))
+    for r in range(m):
+        B[r, 3 * row_a[r]:3 * row_a[r] + 3] += coef_a[r]
+        if row_b[r] >= 0:
+            B[r, 3 * row_b[r]:3 * row_b[r] + 3] += coef_b[r]
+    return B

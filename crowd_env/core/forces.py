@@ -1,0 +1,193 @@
+"""Social repulsion between pedestrians and from walls (Kabalan et al. 2016, Eq. 16).
+
+After Helbing, Farkas & Vicsek (2000), the force on pedestrian i from pedestrian j is
+
+    f_ij = A exp((R_ij - d_ij) / B) · w_i(φ_ij) · n_ji,   w_i(φ) = λ + (1 - λ)(1 + cos φ) / 2,
+
+with R_ij = r_i + r_j, d_ij the centre distance, n_ji the unit vector from j to i and φ_ij the angle
+between i's desired direction e_d,i and the direction from i to j: a neighbour straight ahead counts
+fully, one straight behind with weight λ (λ = 1 is isotropic). The force on j from i uses j's own
+weight, so Newton's third law holds only for λ = 1. A wall acts the same way with R = r_i, d the
+distance to the wall's closest point and n the wall's normal into the pedestrian; its weight uses the
+direction from i to that point. Forces act at the centre (no torque).
+
+Neighbour pairs come from the simulator (``scipy.spatial.cKDTree.query_pairs``); pedestrian/wall
+pairs from :func:`crowd_env.core.segments.wall_proximity`. Pairs whose surface gap exceeds
+``cutoff_m`` contribute nothing.
+"""
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from .segments import as_segments, closest_point_on_segment, wall_proximity
+
+_TINY_M = 1e-12  # centre distances below this have no defined direction: the pair is skipped
+
+
+@nb.njit(cache=True, inline="always")
+def _anisotropy_weight(ex, ey, ux, uy, anisotropy):
+    """w = λ + (1 - λ)(1 + cos φ)/2 (Eq. 16), φ between desired direction e and unit vector u.
+
+    A zero desired direction gives cos φ = 0 (weight (1 + λ)/2).
+    """
+    norm = np.sqrt(ex * ex + ey * ey)
+    cos_phi = 0.0
+    if norm > 0.0:
+        cos_phi = (ex * ux + ey * uy) / norm
+        if cos_phi > 1.0:
+            cos_phi = 1.0
+        elif cos_phi < -1.0:
+            cos_phi = -1.0
+    return anisotropy + (1.0 - anisotropy) * 0.5 * (1.0 + cos_phi)
+
+
+@nb.njit(cache=True)
+def social_forces(position, radius, desired_direction, pairs, strength_n, range_m, anisotropy, cutoff_m, out):
+    """Accumulate pedestrian-pedestrian repulsion (Eq. 16) into ``out`` (N, 2), in newtons.
+
+    ``pairs`` (P, 2) int: unordered index pairs (i, j); each contributes f_ij to i and f_ji to j.
+    Pairs with surface gap d_ij - R_ij > ``cutoff_m`` or coincident centres are skipped.
+    """
+    for p in range(pairs.shape[0]):
+        i = pairs[p, 0]
+        j = pairs[p, 1]
+        dx = position[i, 0] - position[j, 0]  # from j to i
+        dy = position[i, 1] - position[j, 1]
+        d = np.sqrt(dx * dx + dy * dy)
+        gap = d - radius[i] - radius[j]
+        if gap > cutoff_m or d < _TINY_M:
+            continue
+        nx = dx / d  # n_ji: unit vector from j to i
+        ny = dy / d
+        mag = strength_n * np.exp(-gap / range_m)
+        # i sees j in direction -n_ji; j sees i in direction +n_ji.
+        wi = _anisotropy_weight(desired_direction[i, 0], desired_direction[i, 1], -nx, -ny, anisotropy)
+        wj = _anisotropy_weight(desired_direction[j, 0], desired_direction[j, 1], nx, ny, anisotropy)
+        out[i, 0] += mag * wi * nx
+        out[i, 1] += mag * wi * ny
+        out[j, 0] -= mag * wj * nx
+        out[j, 1] -= mag * wj * ny
+    return out
+
+
+@nb.njit(cache=True)
+def wall_social_forces(desired_direction, index, ped, gap, normal_x, normal_y, strength_n, range_m, anisotropy,
+                       cutoff_m, out):
+    """Accumulate wall repulsion (Eq. 16 with R = r_i) into ``out`` (N, 2), in newtons.
+
+    ``ped, gap, normal_x, normal_y`` are the first, third, fourth and fifth outputs of
+    :func:`~crowd_env.core.segments.wall_proximity` (rows into ``index``, surface gap, unit normal
+    from the wall into the pedestrian); ``index`` maps rows to pedestrians. The direction from the
+    pedestrian to the wall's closest point is -normal, so closest points are not needed.
+    """
+    for k in range(ped.shape[0]):
+        if gap[k] > cutoff_m:
+            continue
+        i = index[ped[k]]
+        nx = normal_x[k]
+        ny = normal_y[k]
+        w = _anisotropy_weight(desired_direction[i, 0], desired_direction[i, 1], -nx, -ny, anisotropy)
+        mag = strength_n * np.exp(-gap[k] / range_m) * w
+        out[i, 0] += mag * nx
+        out[i, 1] += mag * ny
+    return out
+
+
+def wall_repulsion(position, radius, desired_direction, segments, owner, strength_n, range_m, anisotropy,
+                   cutoff_m, out, index=None):
+    """Query :func:`wall_proximity` within ``cutoff_m`` and accumulate wall repulsion into ``out``.
+
+    ``index`` (int array) restricts to those pedestrians (e.g. the active ones); default all.
+    ``owner`` comes from :func:`~crowd_env.core.segments.endpoint_owners` (shared corners once).
+    """
+    if segments.shape[0] == 0:
+        return out
+    if index is None:
+        index = np.arange(position.shape[0], dtype=np.int64)
+    index = np.ascontiguousarray(index, dtype=np.int64)
+    margin = np.full(index.shape[0], float(cutoff_m))
+    ped, _seg, gap, nx, ny, _cx, _cy = wall_proximity(position, radius, index, segments, owner, margin)
+    return wall_social_forces(desired_direction, index, ped, gap, nx, ny, float(strength_n), float(range_m),
+                              float(anisotropy), float(cutoff_m), out)
+
+
+def social_repulsion(position, radius, desired_direction, pairs, segments, owner, params, index=None, out=None):
+    """Total social force (N, 2) in newtons from pedestrians and walls with :class:`ModelParams` ``params``.
+
+    Uses ``social_strength_n``/``social_range_m`` between pedestrians, ``wall_strength_n``/
+    ``wall_range_m`` for walls, ``social_anisotropy`` and ``social_cutoff_m`` for both. ``pairs`` must
+    only hold pedestrians that should interact (e.g. active ones); ``index`` restricts wall queries.
+    """
+    n = position.shape[0]
+    if out is None:
+        out = np.zeros((n, 2))
+    elif out.shape != (n, 2):
+        raise ValueError(f"out must have shape {(n, 2)}, got {out.shape}")
+    if isinstance(pairs, (set, frozenset)):  # cKDTree.query_pairs' default output
+        pairs = sorted(pairs)
+    pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
+    if pairs.size and (pairs.min() < 0 or pairs.max() >= n):
+        raise ValueError(f"neighbour pairs index pedestrians outside 0..{n - 1}")
+    social_forces(position, radius, desired_direction, pairs, float(params.social_strength_n),
+                  float(params.social_range_m), float(params.social_anisotropy), float(params.social_cutoff_m), out)
+    wall_repulsion(position, radius, desired_direction, segments, owner, params.wall_strength_n,
+                   params.wall_range_m, params.social_anisotropy, params.social_cutoff_m, out, index=index)
+    return out
+
+
+def social_forces_dense_reference(position, radius, desired_direction, segments, strength_n, range_m, anisotropy,
+                                  cutoff_m, wall_strength_n=None, wall_range_m=None, corner_tol_m=1e-9):
+    """Slow dense reference of Eq. 16 for tests: all N² pairs and all walls, plain loops.
+
+    Independent of the kernels' pair lists; walls follow the convention of
+    :func:`~crowd_env.core.segments.endpoint_owners`: a closest point at a segment endpoint that a
+    lower-index segment also has as an endpoint is skipped, so a shared corner counts once.
+    """
+    position = np.asarray(position, dtype=np.float64)
+    n = position.shape[0]
+    segments = as_segments(segments)
+    wall_strength_n = strength_n if wall_strength_n is None else wall_strength_n
+    wall_range_m = range_m if wall_range_m is None else wall_range_m
+    lam = anisotropy
+    force = np.zeros((n, 2))
+
+    def weight(i, u):
+        e = desired_direction[i]
+        ne = np.linalg.norm(e)
+        cos_phi = 0.0 if ne == 0 else float(np.clip(e @ u / ne, -1.0, 1.0))
+        return lam + (1.0 - lam) * (1.0 + cos_phi) / 2.0
+
+    for i in range(n):
+        for j in range(n):
+            if i == j:
+                continue
+            diff = position[i] - position[j]
+            d = np.linalg.norm(diff)
+            if d < _TINY_M or d - radius[i] - radius[j] > cutoff_m:
+                continue
+            n_ji = diff / d
+            force[i] += strength_n * np.exp((radius[i] + radius[j] - d) / range_m) * weight(i, -n_ji) * n_ji
+        for k in range(segments.shape[0]):
+            cx, cy, t = closest_point_on_segment(position[i, 0], position[i, 1], *segments[k])
+            c = np.array([cx, cy])
+            if t in (0.0, 1.0):
+                earlier = segments[:k].reshape(-1, 2)
+                if np.any(np.all(np.abs(earlier - c) <= corner_tol_m, axis=1)):
+                    continue
+            diff = position[i] - c
+            d = np.linalg.norm(diff)
+            if d < _TINY_M or d - radius[i] > cutoff_m:
+                continue
+            normal = diff / d
+            force[i] += wall_strength_n * np.exp((radius[i] - d) / wall_range_m) * weight(i, -normal) * normal
+    return force
+
+
+__all__ = [
+    "social_forces",
+    "wall_social_forces",
+    "wall_repulsion",
+    "social_repulsion",
+    "social_forces_dense_reference",
+]

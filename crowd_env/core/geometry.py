@@ -1,0 +1,328 @@
+"""Walkable area, walls, exits and measurement lines/areas of a scenario (shapely 2 based).
+
+The walkable area is the domain Υ of the paper's Section 2.3 with the obstacles Γ removed; exits are
+the areas ∂Υ where the travel time vanishes (Eq. 12) and where pedestrians leave the simulation when
+their centre enters. Walls are the boundary of the walkable area minus the parts lying in or on an
+exit, as ``(S, 4)`` segments (see :mod:`crowd_env.core.segments`), so pedestrians can walk into exits.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import MappingProxyType
+
+import numba as nb
+import numpy as np
+import shapely
+from shapely import wkt as shapely_wkt
+from shapely.geometry import MultiPolygon, Polygon
+from shapely.geometry.base import BaseGeometry
+from shapely.validation import explain_validity
+
+from .segments import GeometryError, as_segments, closest_point_on_segment
+
+__all__ = ["Geometry", "Raster", "GeometryError", "as_polygon"]
+
+
+def as_polygon(obj, what: str):
+    """A valid, non-empty shapely (Multi)Polygon from a shapely geometry, WKT string or (K, 2) coordinates."""
+    if isinstance(obj, BaseGeometry):
+        geom = obj
+    elif isinstance(obj, str):
+        try:
+            geom = shapely_wkt.loads(obj)
+        except Exception as exc:  # shapely raises its own error types
+            raise GeometryError(f"{what}: cannot parse WKT ({exc})") from exc
+    else:
+        coords = np.asarray(obj, dtype=np.float64)
+        if coords.ndim != 2 or coords.shape[1] != 2:
+            raise GeometryError(f"{what}: coordinates must have shape (K, 2), got {coords.shape}")
+        if coords.shape[0] < 3:
+            raise GeometryError(f"{what}: a polygon needs at least 3 vertices, got {coords.shape[0]}")
+        if not np.all(np.isfinite(coords)):
+            raise GeometryError(f"{what}: coordinates contain non-finite values")
+        geom = Polygon(coords)
+    if not isinstance(geom, (Polygon, MultiPolygon)):
+        raise GeometryError(f"{what}: expected a Polygon or MultiPolygon, got {geom.geom_type}")
+    if geom.is_empty:
+        raise GeometryError(f"{what} is empty")
+    if not geom.is_valid:
+        zero = " and is empty (zero area)" if geom.area <= 0.0 else ""
+        raise GeometryError(f"{what} is not a valid polygon: {explain_validity(geom)}{zero}")
+    if geom.area <= 0.0:
+        raise GeometryError(f"{what} is empty (zero area)")
+    return geom
+
+
+def _as_line(name: str, value) -> np.ndarray:
+    line = np.array(value, dtype=np.float64)
+    if line.shape != (2, 2):
+        raise GeometryError(f"measurement line {name!r} must be two end points of shape (2, 2), got {line.shape}")
+    if not np.all(np.isfinite(line)):
+        raise GeometryError(f"measurement line {name!r} has non-finite coordinates")
+    if np.hypot(*(line[1] - line[0])) <= 1e-12:
+        raise GeometryError(f"measurement line {name!r} has zero length")
+    line.setflags(write=False)
+    return line
+
+
+def _lines_to_segments(lines) -> np.ndarray:
+    """(S, 4) segments of every consecutive vertex pair of the line parts of ``lines``."""
+    parts = [p for p in shapely.get_parts(lines) if p.geom_type in ("LineString", "LinearRing") and not p.is_empty]
+    if not parts:
+        return np.zeros((0, 4))
+    coords, index = shapely.get_coordinates(parts, return_index=True)
+    same = index[1:] == index[:-1]
+    seg = np.hstack([coords[:-1][same], coords[1:][same]])
+    length = np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1])
+    return np.ascontiguousarray(seg[length > 1e-9])
+
+
+@nb.njit(cache=True)
+def _nearest_wall(points, segments):
+    """Distance from each point to the closest segment and the unit normal from that wall point to the point."""
+    n = points.shape[0]
+    dist = np.full(n, np.inf)
+    normal = np.zeros((n, 2))
+    for a in range(n):
+        px = points[a, 0]
+        py = points[a, 1]
+        best = np.inf
+        bx = 0.0
+        by = 0.0
+        bk = -1
+        for k in range(segments.shape[0]):
+            cx, cy, _ = closest_point_on_segment(px, py, segments[k, 0], segments[k, 1], segments[k, 2], segments[k, 3])
+            d = np.sqrt((px - cx) ** 2 + (py - cy) ** 2)
+            if d < best:
+                best = d
+                bx = cx
+                by = cy
+                bk = k
+        dist[a] = best
+        if bk >= 0:
+            if best > 1e-12:
+                normal[a, 0] = (px - bx) / best
+                normal[a, 1] = (py - by) / best
+            else:  # on the wall: the segment's left normal
+                lx = segments[bk, 2] - segments[bk, 0]
+                ly = segments[bk, 3] - segments[bk, 1]
+                ll = np.sqrt(lx * lx + ly * ly)
+                normal[a, 0] = -ly / ll
+                normal[a, 1] = lx / ll
+    return dist, normal
+
+
+def _as_points(points) -> np.ndarray:
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim == 1 and pts.shape == (2,):
+        pts = pts[None, :]
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise GeometryError(f"points must have shape (N, 2), got {pts.shape}")
+    return np.ascontiguousarray(pts)
+
+
+@dataclass(frozen=True)
+class Raster:
+    """Nodes of a regular grid covering a geometry: node (i, j) is at ``origin_m + (i, j) * resolution_m``.
+
+    Arrays are indexed ``[i, j]`` = ``[x index, y index]``. ``walkable`` marks nodes in the walkable area
+    or in an exit (boundary included), ``exit`` nodes in an exit.
+    """
+
+    origin_m: np.ndarray
+    resolution_m: float
+    walkable: np.ndarray
+    exit: np.ndarray
+
+    @property
+    def shape(self) -> tuple:
+        return self.walkable.shape
+
+    @property
+    def x_m(self) -> np.ndarray:
+        return self.origin_m[0] + np.arange(self.shape[0]) * self.resolution_m
+
+    @property
+    def y_m(self) -> np.ndarray:
+        return self.origin_m[1] + np.arange(self.shape[1]) * self.resolution_m
+
+    def node_points(self) -> np.ndarray:
+        """(nx * ny, 2) coordinates of every node in C order (x index major)."""
+        xx, yy = np.meshgrid(self.x_m, self.y_m, indexing="ij")
+        return np.column_stack([xx.ravel(), yy.ravel()])
+
+
+class Geometry:
+    """Walkable area with obstacles, exits, walls and named measurement lines and areas (immutable).
+
+    ``walkable_area``: shapely (Multi)Polygon, WKT string or (K, 2) outer-ring coordinates; holes of a
+    polygon are obstacles. ``obstacles``: polygons subtracted from it. ``exits``: one or more polygons
+    where pedestrians leave (each must overlap the walkable area or share a boundary stretch with it).
+    ``measurement_lines``: name -> two end points. ``measurement_areas``: name -> polygon (density).
+    Raises :class:`GeometryError` naming the problem.
+    """
+
+    def __init__(self, walkable_area, exits, obstacles=(), measurement_lines=None, measurement_areas=None,
+                 name: str = "geometry"):
+        area = as_polygon(walkable_area, "walkable area")
+        if obstacles is not None and not isinstance(obstacles, (list, tuple)):
+            obstacles = [obstacles]
+        obs = [as_polygon(o, f"obstacle {k}") for k, o in enumerate(obstacles or ())]
+        if obs:
+            area = area.difference(shapely.union_all(obs))
+            area = shapely.normalize(area)
+            if area.is_empty or area.area <= 0.0:
+                raise GeometryError("walkable area is empty once the obstacles are removed")
+            if not area.is_valid:
+                raise GeometryError(f"walkable area minus obstacles is not valid: {explain_validity(area)}")
+        if isinstance(exits, (BaseGeometry, str)):
+            exits = [exits]
+        exits = list(exits) if exits is not None else []
+        if not exits:
+            raise GeometryError("the geometry has no exit: give at least one exit polygon")
+        exit_polys = []
+        for k, e in enumerate(exits):
+            poly = as_polygon(e, f"exit {k}")
+            overlap = poly.intersection(area).area
+            shared = poly.intersection(area.boundary).length
+            if overlap <= 1e-12 and shared <= 1e-9:
+                raise GeometryError(f"exit {k} does not touch the walkable area (distance "
+                                    f"{poly.distance(area):.4g} m; it must overlap it or share a boundary stretch)")
+            exit_polys.append(poly)
+        exit_union = shapely.union_all(exit_polys)
+        walls = _lines_to_segments(area.boundary.difference(exit_union))
+        self._walls = as_segments(walls) if walls.shape[0] else np.zeros((0, 4))
+        self._walls.setflags(write=False)
+        self._area = area
+        self._exits = tuple(exit_polys)
+        self._exit_union = exit_union
+        self._navigable = shapely.union_all([area, exit_union])
+        for g in (self._area, self._exit_union, self._navigable):
+            shapely.prepare(g)
+        lines = {str(k): _as_line(str(k), v) for k, v in dict(measurement_lines or {}).items()}
+        for k, line in lines.items():
+            if not shapely.LineString(line).intersects(self._navigable):
+                raise GeometryError(f"measurement line {k!r} {line.tolist()} does not cross the walkable area")
+        areas = {}
+        for k, v in dict(measurement_areas or {}).items():
+            poly = as_polygon(v, f"measurement area {k!r}")
+            if poly.intersection(self._navigable).area <= 1e-12:
+                raise GeometryError(f"measurement area {k!r} does not overlap the walkable area")
+            areas[str(k)] = poly
+        self._lines = MappingProxyType(lines)
+        self._areas = MappingProxyType(areas)
+        self.name = str(name)
+
+    # -- constructors -------------------------------------------------------------------------------
+    @classmethod
+    def from_wkt(cls, walkable_area: str, exits, obstacles=(), measurement_lines=None, measurement_areas=None,
+                 name: str = "geometry") -> "Geometry":
+        """Build from WKT strings (``exits``/``obstacles``: one string or a list of them)."""
+        for what, value in (("walkable_area", walkable_area),):
+            if not isinstance(value, str):
+                raise GeometryError(f"{what} must be a WKT string, got {type(value).__name__}")
+        return cls(walkable_area, exits, obstacles, measurement_lines, measurement_areas, name)
+
+    @classmethod
+    def from_coordinates(cls, walkable_area, exits, obstacles=(), measurement_lines=None, measurement_areas=None,
+                         name: str = "geometry") -> "Geometry":
+        """Build from (K, 2) vertex lists: the walkable outer ring, a list of exit rings, obstacle rings."""
+        return cls(np.asarray(walkable_area, dtype=np.float64), [np.asarray(e, dtype=np.float64) for e in exits],
+                   [np.asarray(o, dtype=np.float64) for o in obstacles], measurement_lines, measurement_areas, name)
+
+    # -- properties ---------------------------------------------------------------------------------
+    @property
+    def walkable_area(self):
+        """Walkable area (obstacles removed), a shapely (Multi)Polygon."""
+        return self._area
+
+    @property
+    def navigable_area(self):
+        """Walkable area united with the exits: where the travel time is computed."""
+        return self._navigable
+
+    @property
+    def walls(self) -> np.ndarray:
+        """(S, 4) read-only wall segments: the walkable boundary minus the stretches in or on an exit."""
+        return self._walls
+
+    @property
+    def exits(self) -> tuple:
+        return self._exits
+
+    @property
+    def exit_area(self):
+        """Union of all exits (shapely)."""
+        return self._exit_union
+
+    @property
+    def measurement_lines(self):
+        """Read-only mapping name -> (2, 2) end points."""
+        return self._lines
+
+    @property
+    def measurement_areas(self):
+        """Read-only mapping name -> shapely polygon."""
+        return self._areas
+
+    @property
+    def bounds(self) -> tuple:
+        """(min_x, min_y, max_x, max_y) in metres of the walkable area and exits together."""
+        return tuple(float(v) for v in self._navigable.bounds)
+
+    def __repr__(self) -> str:
+        b = ", ".join(f"{v:.3g}" for v in self.bounds)
+        return (f"Geometry({self.name!r}, area={self._area.area:.4g} m², bounds=({b}), walls={self._walls.shape[0]}, "
+                f"exits={len(self._exits)}, lines={list(self._lines)}, areas={list(self._areas)})")
+
+    # -- queries ------------------------------------------------------------------------------------
+    def contains(self, points) -> np.ndarray:
+        """(N,) bool: point strictly inside the walkable area (shapely.contains_xy)."""
+        pts = _as_points(points)
+        return shapely.contains_xy(self._area, pts[:, 0], pts[:, 1])
+
+    def in_exit(self, points) -> np.ndarray:
+        """(N,) bool: point inside an exit (a pedestrian whose centre is there leaves)."""
+        pts = _as_points(points)
+        return shapely.contains_xy(self._exit_union, pts[:, 0], pts[:, 1])
+
+    def exit_index(self, points) -> np.ndarray:
+        """(N,) int: index of the exit containing each point, -1 for none."""
+        pts = _as_points(points)
+        out = np.full(pts.shape[0], -1, dtype=np.int64)
+        for k in range(len(self._exits) - 1, -1, -1):
+            out[shapely.contains_xy(self._exits[k], pts[:, 0], pts[:, 1])] = k
+        return out
+
+    def distance_to_walls(self, points, return_normal: bool = False):
+        """(N,) distance (m) from each point to the closest wall; with ``return_normal`` also the (N, 2)
+        unit normal from that wall point towards the point. ``inf`` (and zero normals) without walls."""
+        pts = _as_points(points)
+        dist, normal = _nearest_wall(pts, self._walls)
+        return (dist, normal) if return_normal else dist
+
+    def rasterize(self, resolution_m: float, padding_cells: int = 2) -> Raster:
+        """Grid of nodes every ``resolution_m`` covering :attr:`bounds` plus ``padding_cells`` on each side.
+
+        Node coordinates are integer multiples of ``resolution_m`` so that walls on such multiples fall
+        exactly on nodes. Nodes on a boundary count as walkable (shapely.intersects_xy).
+        """
+        if not (isinstance(resolution_m, (int, float, np.floating)) and np.isfinite(resolution_m) and resolution_m > 0):
+            raise GeometryError(f"resolution_m must be a positive finite number, got {resolution_m!r}")
+        if int(padding_cells) < 1:
+            raise GeometryError(f"padding_cells must be >= 1, got {padding_cells!r}")
+        h = float(resolution_m)
+        x0, y0, x1, y1 = self.bounds
+        i0 = int(np.floor(x0 / h)) - int(padding_cells)
+        j0 = int(np.floor(y0 / h)) - int(padding_cells)
+        i1 = int(np.ceil(x1 / h)) + int(padding_cells)
+        j1 = int(np.ceil(y1 / h)) + int(padding_cells)
+        nx, ny = i1 - i0 + 1, j1 - j0 + 1
+        if nx * ny > 50_000_000:
+            raise GeometryError(f"navigation grid of {nx} x {ny} nodes at {h} m is too large; use a coarser resolution")
+        x = np.arange(i0, i1 + 1) * h
+        y = np.arange(j0, j1 + 1) * h
+        xx, yy = np.meshgrid(x, y, indexing="ij")
+        walkable = shapely.intersects_xy(self._navigable, xx, yy)
+        exit_mask = shapely.intersects_xy(self._exit_union, xx, yy) & walkable
+        return Raster(origin_m=np.array([i0 * h, j0 * h]), resolution_m=h, walkable=walkable, exit=exit_mask)

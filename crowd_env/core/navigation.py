@@ -1,0 +1,309 @@
+"""Eikonal navigation: travel time T to the nearest exit and the desired direction (Eq. 11-13).
+
+‖∇T‖ = 1/V in the walkable area (Eq. 11), T = 0 on the exits (Eq. 12), V = 0 in walls and obstacles
+(masked grid nodes), solved once per geometry with scikit-fmm's fast marching; the desired direction
+is e_d = -∇T / ‖∇T‖ (Eq. 13), sampled at arbitrary points by bilinear interpolation in a compiled kernel.
+
+Grid conventions and how the field is completed outside the walkable area:
+
+- nodes on the boundary of the walkable area are walkable; the exit boundary is located with sub-cell
+  accuracy (φ is the signed distance to the exit boundary in the nodes next to it);
+- node directions use central differences of T where both axis neighbours are walkable, one-sided
+  differences next to a masked neighbour (so they never mix in wall values) and the steeper
+  descending side at a ridge where T is a local maximum along an axis; at a node next to a masked
+  neighbour the component pointing into it is dropped (a geodesic never crosses a wall), so that
+  directions sampled within a cell of a wall run along it instead of into it;
+- inside an exit T = 0 and the direction is that of the nearest walkable node outside the exit (the
+  direction the pedestrian entered with: "keep walking through");
+- masked nodes (walls, obstacles, padding) take the direction of the nearest walkable node and
+  T_nearest + distance / V, so interpolation within one cell of a wall is sensible and never
+  mixes in undefined values;
+- walkable nodes that no exit can reach have T = inf; points sampled there get T = inf and a NaN
+  direction (:meth:`NavigationField.check_reachable` raises for them);
+- points outside the grid (the geometry's bounds plus two cells) raise :class:`GeometryError`.
+"""
+from __future__ import annotations
+
+import weakref
+
+import numba as nb
+import numpy as np
+import shapely
+from scipy import ndimage
+
+from .geometry import Geometry
+from .segments import GeometryError
+
+__all__ = ["NavigationField", "GeometryError"]
+
+
+@nb.njit(cache=True)
+def _bilinear_sample(points, x0, y0, h, travel_time, direction, out_dir, out_time):
+    """Bilinear interpolation of T and of the node directions; returns the first bad point or -1.
+
+    A point is bad when it is non-finite or outside the grid. Corners with zero weight are ignored;
+    if a weighted corner has T = inf (unreachable) the point gets T = inf and a NaN direction.
+    """
+    nx = travel_time.shape[0]
+    ny = travel_time.shape[1]
+    for a in range(points.shape[0]):
+        fx = (points[a, 0] - x0) / h
+        fy = (points[a, 1] - y0) / h
+        if not (fx >= 0.0 and fx <= nx - 1 and fy >= 0.0 and fy <= ny - 1):
+            return a
+        i = min(int(fx), nx - 2)
+        j = min(int(fy), ny - 2)
+        tx = fx - i
+        ty = fy - j
+        t = 0.0
+        gx = 0.0
+        gy = 0.0
+        ok = True
+        wbest = -1.0
+        bx = np.nan
+        by = np.nan
+        for c in range(4):
+            di = c // 2
+            dj = c % 2
+            w = (tx if di else 1.0 - tx) * (ty if dj else 1.0 - ty)
+            if w <= 0.0:
+                continue
+            v = travel_time[i + di, j + dj]
+            if not np.isfinite(v):
+                ok = False
+                break
+            dx = direction[i + di, j + dj, 0]
+            dy = direction[i + di, j + dj, 1]
+            t += w * v
+            gx += w * dx
+            gy += w * dy
+            if w > wbest and dx * dx + dy * dy > 0.0:
+                wbest = w
+                bx = dx
+                by = dy
+        if not ok:
+            out_time[a] = np.inf
+            out_dir[a, 0] = np.nan
+            out_dir[a, 1] = np.nan
+            continue
+        norm = np.sqrt(gx * gx + gy * gy)
+        if norm > 1e-9:
+            out_dir[a, 0] = gx / norm
+            out_dir[a, 1] = gy / norm
+        else:  # opposite corner directions cancel (a ridge): use the heaviest corner's direction
+            nb_ = np.sqrt(bx * bx + by * by)
+            out_dir[a, 0] = bx / nb_
+            out_dir[a, 1] = by / nb_
+        out_time[a] = t
+    return -1
+
+
+def _axis_gradient(t: np.ndarray, h: float, axis: int) -> np.ndarray:
+    """dT/d(axis) at every node from walkable neighbours only (inf marks invalid nodes)."""
+    pad = [(0, 0), (0, 0)]
+    pad[axis] = (1, 1)
+    tp = np.pad(t, pad, constant_values=np.inf)
+    n = t.shape[axis]
+    a = np.take(tp, np.arange(0, n), axis=axis)  # T at i - 1
+    b = np.take(tp, np.arange(2, n + 2), axis=axis)  # T at i + 1
+    fa = np.isfinite(a)
+    fb = np.isfinite(b)
+    with np.errstate(invalid="ignore"):
+        back = (t - a) / h
+        fwd = (b - t) / h
+        cen = (b - a) / (2.0 * h)
+    both = fa & fb
+    g = np.where(both, cen, np.where(fa, back, np.where(fb, fwd, 0.0)))
+    ridge = both & (t >= a) & (t >= b)  # local maximum along this axis: descend the steeper side
+    g = np.where(ridge, np.where(a <= b, back, fwd), g)
+    g[~np.isfinite(t)] = np.nan
+    return g
+
+
+def _block_wall_ward(direction: np.ndarray, nav: np.ndarray) -> None:
+    """At nodes next to a masked axis neighbour, drop the direction component pointing into it (in place).
+
+    A geodesic never leaves the domain through a wall, so this only removes discretisation error of the
+    one-sided differences there; interpolated directions then cannot carry a pedestrian through a wall.
+    """
+    pad = np.pad(nav, 1, constant_values=False)
+    blocked = {(0, +1): ~pad[2:, 1:-1], (0, -1): ~pad[:-2, 1:-1], (1, +1): ~pad[1:-1, 2:], (1, -1): ~pad[1:-1, :-2]}
+    new = direction.copy()
+    for (axis, sign), mask in blocked.items():
+        comp = new[..., axis]
+        comp[nav & mask & (sign * comp > 0)] = 0.0
+    norm = np.hypot(new[..., 0], new[..., 1])
+    ok = norm > 1e-12
+    direction[ok] = new[ok] / norm[ok, None]
+
+
+def _nearest_index(source: np.ndarray):
+    """For every node, the distance (in cells) to and the index of the nearest ``source`` node."""
+    dist, idx = ndimage.distance_transform_edt(~source, return_distances=True, return_indices=True)
+    return dist, idx[0], idx[1]
+
+
+class NavigationField:
+    """Travel time T (s) to the nearest exit and desired directions e_d on a grid (Eq. 11-13).
+
+    ``resolution_m``: grid spacing h. ``speed_m_s``: wavefront speed V in the walkable area (1 m/s in
+    the paper, making T the geodesic distance in metres). ``wall_slowdown=(distance_m, speed_factor)``:
+    V is multiplied by ``speed_factor`` in (0, 1] within ``distance_m`` of a wall (the paper's optional
+    slower V near walls). Built once per geometry; see :meth:`cached`.
+    """
+
+    _cache: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+    def __init__(self, geometry: Geometry, resolution_m: float = 0.05, wall_slowdown=None, speed_m_s: float = 1.0):
+        if not isinstance(geometry, Geometry):
+            raise GeometryError(f"NavigationField needs a Geometry, got {type(geometry).__name__}")
+        if not (np.isfinite(speed_m_s) and speed_m_s > 0):
+            raise GeometryError(f"speed_m_s must be a positive finite number, got {speed_m_s!r}")
+        self.geometry = geometry
+        self.speed_m_s = float(speed_m_s)
+        self.wall_slowdown = self._check_slowdown(wall_slowdown)
+        raster = geometry.rasterize(resolution_m)
+        self.raster = raster
+        self.resolution_m = h = raster.resolution_m
+        self.origin_m = raster.origin_m
+        nav, ex = raster.walkable, raster.exit
+        if not ex.any():
+            raise GeometryError(f"no grid node lies inside an exit at resolution {h} m: exits must be at least "
+                                "one cell wide; use a finer resolution_m")
+        if not (nav & ~ex).any():
+            raise GeometryError("the walkable area lies entirely inside the exits")
+
+        # phi < 0 inside exits; the signed distance to the exit boundary in the nodes next to it (Eq. 12).
+        band = ex ^ ndimage.binary_dilation(ex)
+        band |= ex & ~ndimage.binary_erosion(ex, border_value=1)
+        pts = raster.node_points().reshape(*nav.shape, 2)
+        d = np.full(nav.shape, 10.0 * h)
+        d[band] = shapely.distance(self._exit_interface(geometry), shapely.points(pts[band]))
+        phi = np.where(ex, -d, d)
+
+        speed = np.full(nav.shape, self.speed_m_s)
+        if self.wall_slowdown is not None and geometry.walls.shape[0]:
+            dist_m, factor = self.wall_slowdown
+            cells_to_mask = ndimage.distance_transform_edt(nav) * h
+            near = nav & (cells_to_mask <= dist_m + 2.0 * h)
+            slow = np.zeros(nav.shape, dtype=bool)
+            slow[near] = geometry.distance_to_walls(pts[near]) < dist_m
+            speed[slow] *= factor
+
+        try:
+            t = self._fmm(np.ma.MaskedArray(phi, ~nav), speed, h)
+        except ValueError as exc:
+            raise GeometryError(f"fast marching failed on the navigation grid ({exc})") from exc
+        reachable = nav & ~np.ma.getmaskarray(t) & np.isfinite(np.ma.getdata(t))
+        t_signed = np.where(reachable, np.where(ex, -1.0, 1.0) * np.ma.getdata(t), np.inf)
+
+        # Node directions -grad T / |grad T| (Eq. 13).
+        gx = _axis_gradient(t_signed, h, 0)
+        gy = _axis_gradient(t_signed, h, 1)
+        norm = np.hypot(gx, gy)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            direction = np.stack([np.where(norm > 0, -gx / norm, 0.0), np.where(norm > 0, -gy / norm, 0.0)], axis=-1)
+        direction[~reachable] = np.nan
+        _block_wall_ward(direction, nav)
+        travel = np.where(reachable, np.maximum(t_signed, 0.0), np.inf)
+
+        # Inside exits: the direction of the nearest reachable node outside them ("keep walking through").
+        outside = reachable & ~ex
+        if outside.any():
+            _, ii, jj = _nearest_index(outside)
+            direction[ex] = direction[ii[ex], jj[ex]]
+        # Masked nodes: nearest walkable node's direction, T_nearest + distance / V.
+        dist, ii, jj = _nearest_index(nav)
+        masked = ~nav
+        direction[masked] = direction[ii[masked], jj[masked]]
+        travel[masked] = travel[ii[masked], jj[masked]] + dist[masked] * h / self.speed_m_s
+        travel.setflags(write=False)
+        direction.setflags(write=False)
+        self.travel_time_s_grid = travel
+        self.direction_grid = direction
+        self.reachable = reachable
+        self.reachable.setflags(write=False)
+
+    @staticmethod
+    def _exit_interface(geometry: Geometry):
+        """The exit boundary stretches inside the navigable area (where pedestrians cross into exits).
+
+        Exit edges lying on the outer boundary (along walls) are left out: measuring φ from them would
+        put T = 0 on nodes along the wall deep inside the exit and spoil the second-order stencil.
+        """
+        interface = geometry.exit_area.boundary.difference(geometry.navigable_area.boundary)
+        if interface.is_empty or interface.length <= 1e-12:
+            return geometry.exit_area.boundary
+        return interface
+
+    @staticmethod
+    def _fmm(phi, speed, h):
+        import skfmm  # lazy: keeps `import crowd_env` light
+
+        return skfmm.travel_time(phi, speed, dx=h)
+
+    @staticmethod
+    def _check_slowdown(wall_slowdown):
+        if wall_slowdown is None:
+            return None
+        try:
+            dist_m, factor = (float(v) for v in wall_slowdown)
+        except (TypeError, ValueError) as exc:
+            raise GeometryError(f"wall_slowdown must be (distance_m, speed_factor), got {wall_slowdown!r}") from exc
+        if not (np.isfinite(dist_m) and dist_m > 0):
+            raise GeometryError(f"wall_slowdown distance_m must be > 0, got {dist_m!r}")
+        if not (0.0 < factor <= 1.0):
+            raise GeometryError(f"wall_slowdown speed_factor must lie in (0, 1], got {factor!r}")
+        return dist_m, factor
+
+    @classmethod
+    def cached(cls, geometry: Geometry, resolution_m: float = 0.05, wall_slowdown=None,
+               speed_m_s: float = 1.0) -> "NavigationField":
+        """The field for ``geometry`` with these settings, computed on first use and then reused."""
+        key = (float(resolution_m), cls._check_slowdown(wall_slowdown), float(speed_m_s))
+        per_geometry = cls._cache.setdefault(geometry, {})
+        if key not in per_geometry:
+            per_geometry[key] = cls(geometry, resolution_m, wall_slowdown, speed_m_s)
+        return per_geometry[key]
+
+    @property
+    def shape(self) -> tuple:
+        return self.travel_time_s_grid.shape
+
+    def sample(self, points):
+        """Desired directions e_d (N, 2) (unit vectors, Eq. 13) and travel times T (N,) in s at ``points``.
+
+        Raises :class:`GeometryError` for non-finite points or points outside the grid.
+        """
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 2:
+            raise GeometryError(f"points must have shape (N, 2), got {pts.shape}")
+        n = pts.shape[0]
+        out_dir = np.empty((n, 2))
+        out_time = np.empty(n)
+        bad = _bilinear_sample(pts, float(self.origin_m[0]), float(self.origin_m[1]), self.resolution_m,
+                               self.travel_time_s_grid, self.direction_grid, out_dir, out_time)
+        if bad >= 0:
+            x0, y0 = self.origin_m
+            x1 = x0 + (self.shape[0] - 1) * self.resolution_m
+            y1 = y0 + (self.shape[1] - 1) * self.resolution_m
+            raise GeometryError(f"point {bad} at {pts[bad].tolist()} is outside the navigation grid "
+                                f"x in [{x0:.4g}, {x1:.4g}], y in [{y0:.4g}, {y1:.4g}] (or not finite)")
+        return out_dir, out_time
+
+    def direction(self, points) -> np.ndarray:
+        """Desired directions e_d (N, 2) only."""
+        return self.sample(points)[0]
+
+    def travel_time(self, points) -> np.ndarray:
+        """Travel times T (N,) in s only."""
+        return self.sample(points)[1]
+
+    def check_reachable(self, points, what: str = "point") -> None:
+        """Raise :class:`GeometryError` naming the first of ``points`` from which no exit can be reached."""
+        _, t = self.sample(points)
+        bad = np.flatnonzero(~np.isfinite(t))
+        if bad.size:
+            p = np.asarray(points, dtype=np.float64)[bad[0]]
+            raise GeometryError(f"{what} {int(bad[0])} at {p.tolist()} cannot reach any exit "
+                                f"({bad.size} such point(s); the travel time is infinite there)")

@@ -1,0 +1,107 @@
+"""Model parameters of the Kabalan et al. (2016) crowd model.
+
+Defaults are the paper's Table 2 (K_n = 1e5 kg, K_tg = 0, h = 0.01 s) and its validation point of the
+social repulsion (A = 790 N, B = 0.08 m, Section 4.1.3). Every field carries its unit in its name.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field, fields
+
+SOLVERS = ("dual", "cvxpy")
+
+
+class ParameterError(ValueError):
+    """A model or scenario parameter is out of its admissible range or unknown."""
+
+
+@dataclass(frozen=True)
+class ModelParams:
+    """Global parameters of the dynamics (per-pedestrian ones live in :class:`CrowdState`).
+
+    Collision (Eq. 7-8): ``normal_dissipation_kg`` K_n, ``tangential_dissipation_kg`` K_tg,
+    ``link_dissipation_kg_per_m2`` K_v. Social repulsion (Eq. 16): ``social_strength_n`` A,
+    ``social_range_m`` B, ``social_anisotropy`` λ (1 = isotropic), applied between pedestrians whose
+    surface gap is below ``social_cutoff_m`` and from walls closer than that.
+    """
+
+    dt_s: float = 0.01
+    normal_dissipation_kg: float = 1.0e5
+    tangential_dissipation_kg: float = 0.0
+    link_dissipation_kg_per_m2: float = 1.0e5
+    # Contacts: a pair "touches" when its gap is below this (projection leaves O(h^2 v^2 / R) residue).
+    contact_tolerance_m: float = 1.0e-3
+    # Social repulsion (Helbing, Farkas, Vicsek 2000; Kabalan Eq. 16).
+    social_strength_n: float = 790.0
+    social_range_m: float = 0.08
+    social_anisotropy: float = 1.0
+    social_cutoff_m: float = 1.0
+    wall_social_strength_n: float | None = None  # None: same A as between pedestrians
+    wall_social_range_m: float | None = None  # None: same B as between pedestrians
+    social_forces: bool = True
+    rotation: bool = True  # False: headings frozen (paper Section 4.1.1, "without rotation")
+    solver: str = "dual"
+    extra: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.extra:
+            raise ParameterError(f"unknown model parameter(s): {sorted(self.extra)}")
+        positive = ("dt_s", "normal_dissipation_kg", "contact_tolerance_m", "social_range_m", "social_cutoff_m")
+        non_negative = ("tangential_dissipation_kg", "link_dissipation_kg_per_m2", "social_strength_n")
+        for name in positive + non_negative:
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ParameterError(f"{name} must be a finite number, got {value!r}")
+            if name in positive and value <= 0:
+                raise ParameterError(f"{name} must be > 0, got {value!r}")
+            if name in non_negative and value < 0:
+                raise ParameterError(f"{name} must be >= 0, got {value!r}")
+        if not 0.0 <= self.social_anisotropy <= 1.0:
+            raise ParameterError(f"social_anisotropy (lambda) must lie in [0, 1], got {self.social_anisotropy!r}")
+        for name in ("wall_social_strength_n", "wall_social_range_m"):
+            value = getattr(self, name)
+            if value is not None and (not math.isfinite(value) or value < 0 or (name.endswith("_m") and value == 0)):
+                raise ParameterError(f"{name} must be a positive finite number or None, got {value!r}")
+        if self.solver not in SOLVERS:
+            raise ParameterError(f"unknown solver {self.solver!r}; choose one of {SOLVERS}")
+
+    @property
+    def wall_strength_n(self) -> float:
+        return self.social_strength_n if self.wall_social_strength_n is None else self.wall_social_strength_n
+
+    @property
+    def wall_range_m(self) -> float:
+        return self.social_range_m if self.wall_social_range_m is None else self.wall_social_range_m
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "ModelParams":
+        """Build from a mapping, rejecting unknown keys by name."""
+        known = {f.name for f in fields(cls)} - {"extra"}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ParameterError(f"unknown model parameter(s): {unknown}; known: {sorted(known)}")
+        return cls(**values)
+
+    def replace(self, **changes) -> "ModelParams":
+        """A copy with some fields changed (unknown names raise :class:`ParameterError`)."""
+        known = {f.name for f in fields(self)} - {"extra"}
+        unknown = sorted(set(changes) - known)
+        if unknown:
+            raise ParameterError(f"unknown model parameter(s): {unknown}; known: {sorted(known)}")
+        return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class PedestrianDefaults:
+    """Per-pedestrian defaults (Kabalan Table 2; Henderson 1971 speeds)."""
+
+    radius_m: float = 0.23
+    mass_kg: float = 83.0
+    tau_s: float = 0.5
+    desired_speed_mean_m_s: float = 1.34
+    desired_speed_std_m_s: float = 0.26
+    # Desired speeds are drawn from N(mean, std) truncated to [mean - 2 std, mean + 2 std] = [0.82, 1.86].
+    desired_speed_truncation_sigma: float = 2.0
+    heading_stiffness_n_m_per_rad: float = 5.0  # k, inside the paper's range [0.5, 18.5]
+    heading_damping_ratio: float = 1.0  # zeta = c / (2 sqrt(I k)); 1 = critically damped (Section 2.3)

@@ -1,0 +1,190 @@
+"""Scenarios: the Seyfried bottleneck, pedestrian placement, validation and the registry."""
+import numpy as np
+import pytest
+from shapely.geometry import Point, box
+
+from crowd_env.core.geometry import Geometry
+from crowd_env.core.segments import GeometryError
+from crowd_env.core.state import CrowdState, first_overlap, min_gap_m
+from crowd_env.scenarios import (Scenario, ScenarioError, list_scenarios, make_scenario, place_pedestrians,
+                                 register_scenario, scenario_options, seyfried_bottleneck)
+
+R = 0.23
+
+
+@pytest.fixture(scope="module")
+def b60():
+    return seyfried_bottleneck(width_m=1.0, n_pedestrians=60, seed=0)
+
+
+def test_bottleneck_geometry_measures(b60):
+    g = b60.geometry
+    x0, y0, x1, y1 = g.walkable_area.bounds
+    assert (y0, y1) == (-2.0, 2.0)  # 4 m corridor
+    assert x0 == pytest.approx(-(2.24 + 3 * 1.515))
+    walls = g.walls
+    # channel side walls: y = +-b/2 from x = 0 to 2.8
+    for y in (-0.5, 0.5):
+        side = walls[(walls[:, 1] == y) & (walls[:, 3] == y)]
+        assert side.shape[0] == 1
+        assert sorted([side[0, 0], side[0, 2]]) == [0.0, 2.8]
+    # entrance walls perpendicular to the flow at x = 0 from the channel to the corridor sides
+    front = walls[(walls[:, 0] == 0) & (walls[:, 2] == 0)]
+    assert sorted(np.abs(front[:, [1, 3]]).ravel().tolist()) == [0.5, 0.5, 2.0, 2.0]
+    line = g.measurement_lines["bottleneck"]
+    np.testing.assert_allclose(line, [[1.4, -0.5], [1.4, 0.5]])
+    assert g.measurement_areas["inside"].equals(box(0, -0.5, 2.8, 0.5))
+    fx0, fy0, fx1, fy1 = g.measurement_areas["front"].bounds
+    assert fx1 <= 0.0 and (fx0 + fx1) / 2 == pytest.approx(-1.0) and fy1 - fy0 == pytest.approx(1.2)
+    # the exit lies beyond the channel; walls do not close it
+    assert g.in_exit([[4.5, 0.0]])[0] and not g.in_exit([[3.0, 0.0]])[0]
+    assert not np.any((walls[:, 0] > 4.3 + 1e-9) | (walls[:, 2] > 4.3 + 1e-9))
+    assert g.contains([[3.5, 1.8]])[0]  # open outflow area
+
+
+def test_bottleneck_starts_valid(b60):
+    pos = b60.position_m
+    assert pos.shape == (60, 2)
+    assert b60.geometry.contains(pos).all()
+    assert (b60.geometry.distance_to_walls(pos) >= R - 1e-12).all()
+    assert min_gap_m(pos, np.full(60, R)) >= 0.0
+    assert first_overlap(pos, np.full(60, R)) is None
+    # headings: the desired direction, towards the entrance
+    assert np.all(np.cos(b60.heading_rad) > 0.5)
+    state = b60.make_state()
+    assert isinstance(state, CrowdState) and state.n == 60
+    np.testing.assert_allclose(state.radius_m, R)
+
+
+@pytest.mark.parametrize("n, counts", [(20, [20, 0, 0]), (40, [20, 20, 0]), (60, [20, 20, 20]), (50, [20, 20, 10])])
+def test_bottleneck_sections_filled_in_order_at_3_3(n, counts):
+    sc = seyfried_bottleneck(width_m=0.9, n_pedestrians=n, seed=5)
+    x = sc.position_m[:, 0]
+    edges = [-(2.24 + k * 1.515) for k in range(4)]
+    got = [int(np.sum((x < edges[k]) & (x > edges[k + 1]))) for k in range(3)]
+    assert got == counts
+    assert sc.metadata["section_counts"] == counts
+    assert 20 / (4.0 * 1.515) == pytest.approx(3.3, abs=0.01)
+    # the nearest section spans 2.24-3.755 m upstream; disks lie inside their sections
+    assert x.max() <= -2.24 - R + 1e-9
+    if n == 50:  # the partial section is filled from its downstream side
+        third = x[x < edges[2]]
+        assert third.mean() > (edges[2] + edges[3]) / 2
+
+
+def test_bottleneck_more_than_three_sections():
+    sc = seyfried_bottleneck(n_pedestrians=70, seed=1)
+    assert sc.metadata["section_counts"] == [20, 20, 20, 10]
+    assert sc.geometry.walkable_area.bounds[0] == pytest.approx(-(2.24 + 4 * 1.515))
+
+
+def test_bottleneck_seeds():
+    a = seyfried_bottleneck(n_pedestrians=40, seed=7)
+    b = seyfried_bottleneck(n_pedestrians=40, seed=7)
+    c = seyfried_bottleneck(n_pedestrians=40, seed=8)
+    np.testing.assert_array_equal(a.position_m, b.position_m)
+    assert not np.allclose(a.position_m, c.position_m)
+    np.testing.assert_array_equal(a.make_state().desired_speed_m_s, b.make_state().desired_speed_m_s)
+
+
+@pytest.mark.parametrize("kwargs, error, match", [
+    (dict(width_m=0.4), GeometryError, "not wider than a pedestrian"),
+    (dict(width_m=0.46), GeometryError, "not wider than a pedestrian"),
+    (dict(width_m=5.0), GeometryError, "larger than the corridor"),
+    (dict(width_m=-1.0), ScenarioError, "width_m must be a positive"),
+    (dict(channel_length_m=0.0), ScenarioError, "channel_length_m must be a positive"),
+    (dict(initial_density_per_m2=float("nan")), ScenarioError, "initial_density_per_m2"),
+    (dict(n_pedestrians=0), ScenarioError, "n_pedestrians must be a positive integer"),
+    (dict(n_pedestrians=2.5), ScenarioError, "n_pedestrians"),
+    (dict(n_pedestrians=60, n_sections=2), ScenarioError, "more pedestrians than fit"),
+    (dict(initial_density_per_m2=5.0), ScenarioError, "more pedestrians than fit in the holding area"),
+    (dict(exit_depth_m=3.0), GeometryError, "exit_depth_m"),
+])
+def test_bottleneck_bad_inputs(kwargs, error, match):
+    with pytest.raises(error, match=match):
+        seyfried_bottleneck(**kwargs)
+
+
+def test_place_pedestrians_dense_section():
+    sec = box(-3.755, -2, -2.24, 2)
+    rng = np.random.default_rng(0)
+    pos = place_pedestrians(sec, 20, R, rng, density_per_m2=3.3)
+    assert pos.shape == (20, 2)
+    assert first_overlap(pos, np.full(20, R)) is None
+    inner = sec.buffer(-R + 1e-9)
+    assert all(inner.covers(Point(p)) for p in pos)
+    again = place_pedestrians(sec, 20, R, np.random.default_rng(0), density_per_m2=3.3)
+    np.testing.assert_array_equal(pos, again)
+    by_density = place_pedestrians(sec, radius_m=R, rng=rng, density_per_m2=3.3)
+    assert by_density.shape == (20, 2)
+
+
+def test_place_pedestrians_other_shapes_and_limits():
+    disk = Point(0, 0).buffer(2.0)
+    pos = place_pedestrians(disk, 30, R, np.random.default_rng(1), min_gap_m=0.02)
+    assert pos.shape == (30, 2)
+    assert min_gap_m(pos, np.full(30, R)) >= 0.02 - 1e-12
+    assert np.all(np.hypot(pos[:, 0], pos[:, 1]) <= 2.0 - R + 1e-9)
+    with pytest.raises(ScenarioError, match=r"more pedestrians than fit in the holding area: 40 requested.*at most \d+"):
+        place_pedestrians(box(0, 0, 2, 2), 40, R, np.random.default_rng(0))
+    with pytest.raises(ScenarioError, match="too small"):
+        place_pedestrians(box(0, 0, 0.3, 0.3), 1, R, np.random.default_rng(0))
+    with pytest.raises(ScenarioError, match="exceed the requested density"):
+        place_pedestrians(box(0, 0, 2, 2), 10, R, np.random.default_rng(0), density_per_m2=1.0)
+    assert place_pedestrians(box(0, 0, 2, 2), 0, R).shape == (0, 2)
+
+
+def simple_geometry():
+    return Geometry(box(0, 0, 10, 4), exits=[box(10, 0, 11, 4)])
+
+
+def test_scenario_validation_names_the_pedestrian():
+    g = simple_geometry()
+    ok = Scenario(g, [[1, 1], [2, 2]])
+    np.testing.assert_allclose(ok.heading_rad, 0.0, atol=1e-6)  # towards the exit on the right
+    with pytest.raises(ScenarioError, match="pedestrian 1 starts at \\[12.0, 2.0\\], outside the walkable area"):
+        Scenario(g, [[1, 1], [12, 2]])
+    with pytest.raises(ScenarioError, match="pedestrians 0 and 1 overlap"):
+        Scenario(g, [[1, 1], [1.3, 1]])
+    with pytest.raises(ScenarioError, match="pedestrian 0 .* overlaps a wall"):
+        Scenario(g, [[0.1, 1]])
+    with pytest.raises(ScenarioError, match="unknown pedestrian parameter"):
+        Scenario(g, [[1, 1]], pedestrian_params={"speed": 1.0})
+    with pytest.raises(ScenarioError, match="shape"):
+        Scenario(g, [1, 1, 1])
+    walled = Geometry(box(0, 0, 10, 4), exits=[box(10, 0, 11, 4)], obstacles=[box(4, -1, 4.5, 5)])
+    with pytest.raises(GeometryError, match="pedestrian 1 .* cannot reach any exit"):
+        Scenario(walled, [[8, 2], [2, 2]])
+    inexit = Geometry(box(0, 0, 10, 4), exits=[box(9, 0, 10, 4)])
+    with pytest.raises(ScenarioError, match="inside an exit"):
+        Scenario(inexit, [[9.5, 2]])
+
+
+def test_scenario_links_and_state():
+    g = simple_geometry()
+    sc = Scenario(g, [[1, 1], [1, 1.5]], links=[[0, 1]], pedestrian_params={"radius_m": [0.2, 0.22]})
+    # heading +x: pedestrian 1 is on 0's left, so 0's left shoulder (0, +r0) and 1's right one (0, -r1)
+    np.testing.assert_allclose(sc.link_offsets_m, [[0, 0.2, 0, -0.22]], atol=1e-9)
+    state = sc.make_state(np.random.default_rng(0))
+    assert state.links.tolist() == [[0, 1]]
+    with pytest.raises(ScenarioError, match="joins pedestrian 0 to itself"):
+        Scenario(g, [[1, 1], [1, 1.5]], links=[[0, 0]])
+
+
+def test_registry():
+    assert {"seyfried_bottleneck", "bottleneck"} <= set(list_scenarios())
+    sc = make_scenario("bottleneck", width_m=0.8, n_pedestrians=20, seed=3)
+    assert sc.n_pedestrians == 20 and sc.metadata["width_m"] == 0.8
+    assert scenario_options("seyfried_bottleneck")["width_m"] == 1.0
+    with pytest.raises(ScenarioError, match="unknown scenario 'nope'; known: .*seyfried_bottleneck"):
+        make_scenario("nope")
+    with pytest.raises(ScenarioError, match=r"unknown option\(s\) \['widht_m'\].*known: .*width_m"):
+        make_scenario("bottleneck", widht_m=1.0)
+    with pytest.raises(ScenarioError, match="already registered"):
+        register_scenario("bottleneck", lambda: None)
+
+    def tiny(seed=0):
+        return Scenario(simple_geometry(), [[1.0, 1.0]], seed=seed)
+
+    register_scenario("test_tiny", tiny, overwrite=True)
+    assert make_scenario("test_tiny").n_pedestrians == 1
