@@ -28,7 +28,7 @@ def _as_array(name: str, value, shape: tuple, n: int) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         bad = np.flatnonzero(~np.isfinite(arr.reshape(n, -1)).all(axis=1))
         raise StateError(f"{name} has non-finite values for pedestrian(s) {bad[:10].tolist()}")
-    return np.ascontiguousarray(arr)
+    return np.array(arr, dtype=np.float64, order="C", copy=True)  # the state owns its arrays: never alias input
 
 
 def sample_desired_speeds(n: int, rng: np.random.Generator, defaults: PedestrianDefaults = PedestrianDefaults()) -> np.ndarray:
@@ -106,8 +106,8 @@ class CrowdState:
             tau_s=_as_array("tau_s", defaults.tau_s if tau_s is None else tau_s, (n,), n),
             heading_stiffness=stiffness, heading_damping=damping,
             active=np.ones(n, dtype=bool),
-            links=np.zeros((0, 2), dtype=np.int64) if links is None else np.asarray(links, dtype=np.int64).reshape(-1, 2),
-            link_offsets_m=np.zeros((0, 4)) if link_offsets_m is None else np.asarray(link_offsets_m, dtype=np.float64),
+            links=np.zeros((0, 2), dtype=np.int64) if links is None else np.array(links, dtype=np.int64).reshape(-1, 2),
+            link_offsets_m=np.zeros((0, 4)) if link_offsets_m is None else np.array(link_offsets_m, dtype=np.float64),
         )
         state.validate(overlap_tolerance_m=overlap_tolerance_m)
         return state

@@ -1,0 +1,98 @@
+"""Figures of Kabalan et al. (2016) Section 4 from bottleneck run records (matplotlib, Agg)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .experiment import SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, seyfried_2009
+from .flow import linear_fit
+from .lanes import detect_lanes
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def bottleneck_figures(records: list, rows: list, out: Path) -> list:
+    """Write Figs. 11-14 analogues into ``out``; returns the paths written."""
+    plt = _plt()
+    out = Path(out)
+    exp = seyfried_2009()
+    sizes = sorted({r["n_pedestrians"] for r in rows})
+    paths = []
+    # Fig. 11: J_s vs b per N against experiment.
+    fig, axes = plt.subplots(1, len(sizes), figsize=(4.2 * len(sizes), 3.6), squeeze=False)
+    for ax, n in zip(axes[0], sizes):
+        sub = [r for r in rows if r["n_pedestrians"] == n]
+        b = [r["width_m"] for r in sub]
+        ax.errorbar(b, [r["specific_flow_mean"] for r in sub], yerr=[r["specific_flow_std"] for r in sub],
+                    fmt="o-", capsize=3, label="crowd_env")
+        if n == 60:
+            ax.plot(exp.width_m[exp.n_pedestrians == 60], exp.specific_flow_per_m_s[exp.n_pedestrians == 60],
+                    "ks--", label="Seyfried 2009")
+        else:
+            lo, hi = SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S
+            ax.axhspan(lo, hi, color="0.85", label="experimental range")
+        ax.set(title=f"N = {n}", xlabel="b (m)", ylabel="J_s (1/(m s))", ylim=(1.0, 3.0))
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    paths.append(out / "fig11_specific_flow.png")
+    fig.savefig(paths[-1], dpi=120)
+    plt.close(fig)
+    # Fig. 12: densities in front of and inside the bottleneck (N = 60 where present).
+    n_d = 60 if 60 in sizes else sizes[-1]
+    sub = [r for r in rows if r["n_pedestrians"] == n_d]
+    fig, axes = plt.subplots(1, 2, figsize=(8.4, 3.6))
+    for ax, key, band, title in ((axes[0], "density_front", (4.0, 6.0), "1 m in front"),
+                                 (axes[1], "density_inside", (1.42, 1.73), "inside the bottleneck")):
+        ax.plot([r["width_m"] for r in sub], [r[key] for r in sub], "o-", label="crowd_env")
+        ax.axhspan(*band, color="0.85", label="experiment")
+        ax.set(title=f"density {title}, N = {n_d}", xlabel="b (m)", ylabel="ρ (1/m²)", ylim=(0, 7))
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    paths.append(out / "fig12_density.png")
+    fig.savefig(paths[-1], dpi=120)
+    plt.close(fig)
+    # Fig. 13: J vs b with linear fits and residual norms.
+    fig, axes = plt.subplots(1, len(sizes), figsize=(4.2 * len(sizes), 3.6), squeeze=False)
+    for ax, n in zip(axes[0], sizes):
+        sub = [r for r in rows if r["n_pedestrians"] == n]
+        b = np.array([r["width_m"] for r in sub])
+        j = np.array([r["flow_mean"] for r in sub])
+        ax.plot(b, j, "o", label="crowd_env")
+        if b.size >= 2:
+            fit = linear_fit(b, j)
+            ax.plot(b, fit.slope * b + fit.intercept, "-", label=f"fit, residual norm {fit.residual_norm:.3f}")
+        if n == 60:
+            sel = exp.n_pedestrians == 60
+            ax.plot(exp.width_m[sel], exp.flow_per_s[sel], "ks", label="Seyfried 2009")
+        ax.set(title=f"N = {n}", xlabel="b (m)", ylabel="J (1/s)")
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    paths.append(out / "fig13_flow_linear.png")
+    fig.savefig(paths[-1], dpi=120)
+    plt.close(fig)
+    # Fig. 14: lateral-position histograms (N = 60) at each simulated width.
+    widths = sorted({r["width_m"] for r in records if r["n_pedestrians"] == n_d})
+    fig, axes = plt.subplots(1, len(widths), figsize=(3.2 * len(widths), 3.2), squeeze=False, sharey=True)
+    for ax, b in zip(axes[0], widths):
+        recs = [r for r in records if r["n_pedestrians"] == n_d and r["width_m"] == b]
+        counts = np.sum([r["lane_counts"] for r in recs], axis=0).astype(float)
+        start, step, n_edges = recs[0]["lane_bin_edges_m"]
+        centers = start + step * (np.arange(n_edges - 1) + 0.5)
+        prob = counts / max(counts.sum(), 1.0)
+        lanes = detect_lanes(centers, prob)
+        ax.bar(centers, prob, width=step)
+        ax.set(title=f"b = {b:.1f} m: {lanes.n_lanes} lane(s)", xlabel="y (m)", xlim=(-b / 2 - 0.05, b / 2 + 0.05))
+    axes[0][0].set_ylabel("probability")
+    fig.tight_layout()
+    paths.append(out / "fig14_lanes.png")
+    fig.savefig(paths[-1], dpi=120)
+    plt.close(fig)
+    return paths

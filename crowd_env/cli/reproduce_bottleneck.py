@@ -1,0 +1,281 @@
+"""Reproduce Kabalan et al. (2016) Section 4 on the Seyfried et al. (2009) bottleneck.
+
+Runs widths × group sizes × seeds in parallel (all cores by default) with a progress bar, saves each
+finished run at once under ``OUT/runs/`` (a rerun skips finished runs: resumable), then writes
+``OUT/results.csv`` (one row per run), ``OUT/summary.csv`` and the figures of Figs. 11-14
+(specific flow vs width against the experiment, densities, flow vs width with linear fits and
+residual norms, lateral-position histograms), and prints the J_s table beside the experiment.
+
+Example::
+
+    python scripts/reproduce_bottleneck.py --widths 0.8 1.0 --sizes 60 --seeds 10 --out out/bottleneck
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import hashlib
+import json
+import os
+import sys
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+import numpy as np
+
+from crowd_env.core.params import ModelParams, ParameterError
+
+GEOMETRY_OPTIONS = {  # CLI flag -> seyfried_bottleneck option, with the Seyfried defaults
+    "corridor_width": ("corridor_width_m", 4.0),
+    "channel_length": ("channel_length_m", 2.8),
+    "initial_density": ("initial_density_per_m2", 3.3),
+    "section_depth": ("section_depth_m", 1.515),
+    "block_start_upstream": ("block_start_upstream_m", 2.24),
+    "radius": ("radius_m", 0.23),
+}
+LANE_BIN_M = 0.01  # Kabalan Section 4.2
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="crowd-bottleneck", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--widths", type=float, nargs="+", default=[0.8, 0.9, 1.0, 1.1, 1.2], help="bottleneck widths b (m)")
+    ap.add_argument("--sizes", type=int, nargs="+", default=[20, 40, 60], help="group sizes N")
+    ap.add_argument("--seeds", type=int, default=10, help="number of seeds per (b, N): seeds 0..S-1")
+    ap.add_argument("--first-seed", type=int, default=0, help="first seed (seeds first..first+S-1)")
+    ap.add_argument("--out", type=Path, default=Path("out/bottleneck"), help="output folder")
+    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel worker processes")
+    ap.add_argument("--max-time", type=float, default=300.0, help="simulated time limit per run (s)")
+    ap.add_argument("--quick", action="store_true",
+                    help="quick check for a fresh machine: N = 60, the 5 widths, 2 seeds (overrides --sizes/--seeds)")
+    g = ap.add_argument_group("geometry (Seyfried 2009 defaults)")
+    for flag, (_, default) in GEOMETRY_OPTIONS.items():
+        g.add_argument(f"--{flag.replace('_', '-')}", type=float, default=default, dest=flag,
+                       help=f"default {default}")
+    m = ap.add_argument_group("model (Kabalan Table 2 and A = 790 N, B = 0.08 m by default)")
+    m.add_argument("--A", type=float, default=None, dest="social_strength_n", help="social strength A (N)")
+    m.add_argument("--B", type=float, default=None, dest="social_range_m", help="social range B (m)")
+    m.add_argument("--anisotropy", type=float, default=None, dest="social_anisotropy", help="λ in [0, 1]")
+    m.add_argument("--kn", type=float, default=None, dest="normal_dissipation_kg", help="K_n (kg)")
+    m.add_argument("--no-social", action="store_true", help="switch social repulsion off (paper Fig. 9)")
+    m.add_argument("--no-rotation", action="store_true", help="freeze headings (paper Section 4.1.1)")
+    m.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                   help="any other ModelParams field, e.g. --param tangential_dissipation_kg=100")
+    ap.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    return ap
+
+
+def model_params_from_args(args) -> ModelParams:
+    changes = {}
+    for name in ("social_strength_n", "social_range_m", "social_anisotropy", "normal_dissipation_kg"):
+        if getattr(args, name) is not None:
+            changes[name] = getattr(args, name)
+    for item in args.param:
+        if "=" not in item:
+            raise ParameterError(f"--param expects NAME=VALUE, got {item!r}")
+        key, value = item.split("=", 1)
+        try:
+            changes[key] = json.loads(value)
+        except json.JSONDecodeError:
+            changes[key] = value
+    if args.no_social:
+        changes["social_forces"] = False
+    if args.no_rotation:
+        changes["rotation"] = False
+    return ModelParams().replace(**changes)
+
+
+def run_one(task: dict) -> dict:
+    """One bottleneck run (executed in a worker process); returns a JSON-able record."""
+    from baselines.social_force import SocialForceAgent
+    from crowd_env.runner import run_scenario
+    from crowd_env.scenarios import make_scenario
+
+    params = ModelParams.from_dict(task["params"])
+    scenario = make_scenario("seyfried_bottleneck", width_m=task["width_m"], n_pedestrians=task["n_pedestrians"],
+                             seed=task["seed"], **task["geometry"])
+    agent = SocialForceAgent(scenario.navigation())
+    r = run_scenario(scenario, agent, params, max_time_s=task["max_time_s"])
+    half = task["geometry"]["corridor_width_m"] / 2.0
+    edges = np.arange(-half, half + LANE_BIN_M / 2, LANE_BIN_M)
+    counts, _ = np.histogram(r.lateral_positions_m, bins=edges)
+    return {
+        "width_m": task["width_m"], "n_pedestrians": task["n_pedestrians"], "seed": task["seed"],
+        "specific_flow_per_m_s": r.specific_flow_per_m_s, "flow_per_s": r.flow_per_s,
+        "evacuation_time_s": r.evacuation_time_s, "n_evacuated": r.n_evacuated, "min_gap_m": r.min_gap_m,
+        "density_front_per_m2": r.mean_density_per_m2("front"), "density_inside_per_m2": r.mean_density_per_m2("inside"),
+        "first_passage_s": float(r.crossing_times_s.min()) if r.crossing_times_s.size else float("nan"),
+        "last_passage_s": float(r.crossing_times_s.max()) if r.crossing_times_s.size else float("nan"),
+        "n_passages": int(r.crossing_times_s.size), "wall_time_s": r.wall_time_s, "n_steps": r.n_steps,
+        "n_fallback_solves": r.n_fallback_solves,
+        "lane_bin_edges_m": [float(edges[0]), LANE_BIN_M, int(edges.size)], "lane_counts": counts.tolist(),
+    }
+
+
+RESULT_COLUMNS = ["width_m", "n_pedestrians", "seed", "specific_flow_per_m_s", "flow_per_s", "evacuation_time_s",
+                  "n_evacuated", "min_gap_m", "density_front_per_m2", "density_inside_per_m2", "first_passage_s",
+                  "last_passage_s", "n_passages", "wall_time_s", "n_steps", "n_fallback_solves"]
+
+
+def config_of(args, params: ModelParams) -> dict:
+    geometry = {opt: float(getattr(args, flag)) for flag, (opt, _) in GEOMETRY_OPTIONS.items()}
+    p = {f.name: getattr(params, f.name) for f in dataclasses.fields(params) if f.name != "extra"}
+    return {"geometry": geometry, "params": p, "max_time_s": float(args.max_time)}
+
+
+def config_hash(config: dict) -> str:
+    return hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def run_sweep(tasks: list, out: Path, jobs: int, desc: str = "bottleneck runs") -> list:
+    """Run the tasks not yet saved under ``out/runs`` in parallel; returns all records."""
+    from tqdm import tqdm
+
+    runs_dir = out / "runs"
+    runs_dir.mkdir(parents=True, exist_ok=True)
+
+    def path_of(t):
+        return runs_dir / f"b{t['width_m']:.3f}_n{t['n_pedestrians']}_s{t['seed']}.json"
+
+    todo = [t for t in tasks if not path_of(t).exists()]
+    with tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc=desc, unit="run", file=sys.stderr) as bar:
+        if jobs <= 1:
+            for t in todo:
+                _save(path_of(t), run_one(t))
+                bar.update()
+        elif todo:
+            with ProcessPoolExecutor(max_workers=jobs) as pool:
+                futures = {pool.submit(run_one, t): t for t in todo}
+                for fut in as_completed(futures):
+                    _save(path_of(futures[fut]), fut.result())
+                    bar.update()
+    return [json.loads(path_of(t).read_text()) for t in tasks]
+
+
+def _save(path: Path, record: dict) -> None:
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(record))
+    tmp.replace(path)  # atomic: a killed run never leaves a half-written record
+
+
+def check_config(out: Path, config: dict) -> None:
+    """Refuse to mix runs of different configurations in one output folder."""
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "config.json"
+    if path.exists():
+        old = json.loads(path.read_text())
+        if config_hash(old) != config_hash(config):
+            diff = sorted(k for k in set(old["params"]) | set(config["params"])
+                          if old["params"].get(k) != config["params"].get(k))
+            diff += sorted(k for k in config["geometry"] if old["geometry"].get(k) != config["geometry"][k])
+            raise SystemExit(f"error: {out} holds runs of a different configuration (differs in {diff}); "
+                             f"choose another --out or delete the folder")
+    else:
+        path.write_text(json.dumps(config, indent=2, sort_keys=True))
+
+
+def write_results(records: list, out: Path) -> None:
+    with open(out / "results.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=RESULT_COLUMNS, extrasaction="ignore")
+        w.writeheader()
+        for r in sorted(records, key=lambda r: (r["n_pedestrians"], r["width_m"], r["seed"])):
+            w.writerow(r)
+
+
+def summarise(records: list) -> list:
+    """Mean and standard deviation per (b, N), with the experiment where it is known."""
+    from crowd_env.analysis.experiment import seyfried_2009
+
+    exp = seyfried_2009()
+    groups: dict = {}
+    for r in records:
+        groups.setdefault((r["n_pedestrians"], r["width_m"]), []).append(r)
+    rows = []
+    for (n, b), rs in sorted(groups.items()):
+        js = np.array([r["specific_flow_per_m_s"] for r in rs])
+        try:
+            js_exp = float(exp.specific_flow_per_m_s[exp.lookup(b, n)[0]])
+        except ValueError:  # ExperimentError: not measured exactly (N = 20, 40): range check instead
+            js_exp = float("nan")
+        rows.append({
+            "n_pedestrians": n, "width_m": b, "runs": len(rs), "specific_flow_mean": float(np.nanmean(js)),
+            "specific_flow_std": float(np.nanstd(js)), "specific_flow_exp": js_exp,
+            "relative_error": float(np.nanmean(js) / js_exp - 1.0) if np.isfinite(js_exp) else float("nan"),
+            "flow_mean": float(np.nanmean([r["flow_per_s"] for r in rs])),
+            "density_front": float(np.nanmean([r["density_front_per_m2"] for r in rs])),
+            "density_inside": float(np.nanmean([r["density_inside_per_m2"] for r in rs])),
+            "all_evacuated": all(r["n_evacuated"] == r["n_pedestrians"] for r in rs),
+            "min_gap_m": float(min(r["min_gap_m"] for r in rs)),
+        })
+    return rows
+
+
+def print_summary(rows: list, records: list) -> None:
+    from crowd_env.analysis.calibration import in_range_check
+    from crowd_env.analysis.experiment import SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, RESIDUAL_NORM_BY_GROUP
+    from crowd_env.analysis.flow import linear_fit
+
+    print("\nSpecific flow J_s = N/(Δt b) (1/(m s)), model mean ± std over seeds vs Seyfried et al. (2009)")
+    print(f"{'N':>4} {'b (m)':>6} {'runs':>5} {'model':>14} {'experiment':>11} {'error':>8} {'front /m²':>10} "
+          f"{'inside /m²':>10} {'evacuated':>9} {'min gap (m)':>12}")
+    for r in rows:
+        exp = f"{r['specific_flow_exp']:.3f}" if np.isfinite(r["specific_flow_exp"]) else "[1.77,2.31]"
+        err = f"{100 * r['relative_error']:+.1f}%" if np.isfinite(r["relative_error"]) else (
+            "in" if in_range_check(np.array([r["specific_flow_mean"]]), SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S).all_inside
+            else "OUT")
+        print(f"{r['n_pedestrians']:>4} {r['width_m']:>6.2f} {r['runs']:>5} {r['specific_flow_mean']:>7.3f} ± "
+              f"{r['specific_flow_std']:.3f} {exp:>11} {err:>8} {r['density_front']:>10.2f} {r['density_inside']:>10.2f} "
+              f"{str(r['all_evacuated']):>9} {r['min_gap_m']:>12.2e}")
+    for n in sorted({r["n_pedestrians"] for r in rows}):
+        sub = [r for r in rows if r["n_pedestrians"] == n]
+        if len(sub) >= 3:
+            fit = linear_fit([r["width_m"] for r in sub], [r["flow_mean"] for r in sub])
+            ref = RESIDUAL_NORM_BY_GROUP.get(n)
+            print(f"N = {n}: flow J(b) = {fit.slope:.3f} b + {fit.intercept:+.3f}, residual norm {fit.residual_norm:.3f}"
+                  + (f" (experiment {ref})" if ref is not None else ""))
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    if args.quick:
+        args.sizes, args.seeds = [60], 2
+    try:
+        params = model_params_from_args(args)
+    except ParameterError as exc:
+        raise SystemExit(f"error: {exc}")
+    for b in args.widths:
+        if not 0 < b < args.corridor_width:
+            raise SystemExit(f"error: width {b} m must lie in (0, corridor width {args.corridor_width} m)")
+    for n in args.sizes:
+        if n < 2:
+            raise SystemExit(f"error: group size {n} must be at least 2 (J = N/Δt needs two passages)")
+    if args.seeds < 1 or args.jobs < 1:
+        raise SystemExit("error: --seeds and --jobs must be >= 1")
+    config = config_of(args, params)
+    check_config(args.out, config)
+    tasks = [dict(width_m=b, n_pedestrians=n, seed=s, **config)
+             for n in args.sizes for b in args.widths for s in range(args.first_seed, args.first_seed + args.seeds)]
+    # Fail fast on impossible geometry before spawning workers.
+    from crowd_env.scenarios import make_scenario
+    for b in args.widths:
+        for n in args.sizes:
+            make_scenario("seyfried_bottleneck", width_m=b, n_pedestrians=n, seed=args.first_seed, **config["geometry"])
+    records = run_sweep(tasks, args.out, args.jobs)
+    write_results(records, args.out)
+    rows = summarise(records)
+    with open(args.out / "summary.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    print_summary(rows, records)
+    if not args.no_figures:
+        from crowd_env.analysis.figures import bottleneck_figures
+        for path in bottleneck_figures(records, rows, args.out):
+            print(f"figure: {path}")
+    print(f"results: {args.out / 'results.csv'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
