@@ -21,7 +21,7 @@ from .contacts import NORMAL, build_rows
 STATUS_OK = 0
 STATUS_MAX_ITER = 1
 STATUS_TOO_LARGE = 2
-MAX_DENSE_ROWS = 200  # clusters with more constraint rows go to the sparse interior-point path
+MAX_DENSE_ROWS = 200  # clusters with more normal rows go to the sparse pivoting path (qp_bpp_sparse)
 REG_RELATIVE = 1e-8  # Tikhonov regularisation of W relative to its mean diagonal (W is singular in dense packings)
 
 
@@ -527,8 +527,136 @@ def project_gaps(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, tol):
                     active[c] = True
                     added += 1
         if added == 0:
-            break
-    return lam_out, rounds, status
+            return lam_out, rounds, status
+    # The active set still grew in the last round: the last solve missed some constraints.
+    vel[:, :2] = v0
+    return lam_out, rounds, STATUS_MAX_ITER
+
+
+def qp_bpp_sparse(H, c, B, d, free0=None, max_iter=None):
+    """Exact solution of  min ½ xᵀ H x − cᵀ x  s.t.  B x ≥ d  for large sparse problems.
+
+    The same block principal pivoting as :func:`lcp_bpp` (block flips, then Murty single pivots) on
+    the dual, but each trial active set F is solved through the sparse quasi-definite KKT system
+    [[H, B_Fᵀ], [B_F, −εI]] (SuperLU), never forming the dense Delassus matrix B H⁻¹ Bᵀ, followed
+    by iterative refinement on the unregularised system (ε = 1e-8 · a Jacobi estimate of its mean
+    diagonal: dependent rows make it singular in jams). ``H`` (n, n) sparse symmetric positive
+    definite, ``B`` (m, n) sparse, ``free0`` an optional initial active set (bool (m,), e.g. last
+    step's: a good guess needs one or two factorisations). Returns ``(x, ν, status, iterations)``
+    with ν ≥ 0 the multipliers (H x = c + Bᵀ ν).
+    """
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import splu
+
+    n = H.shape[0]
+    m = B.shape[0]
+    H = sp.csc_matrix(H)
+    B = sp.csr_matrix(B)
+    c = np.asarray(c, dtype=np.float64)
+    d = np.asarray(d, dtype=np.float64)
+    free = np.zeros(m, np.bool_) if free0 is None else np.array(free0, dtype=np.bool_)
+    if m:
+        diag_mean = float((B.multiply(B) @ (1.0 / H.diagonal())).mean())
+    else:
+        diag_mean = 1.0
+    diag_mean = diag_mean if diag_mean > 0.0 else 1.0
+    eps = REG_RELATIVE * diag_mean
+    max_iter = 2 * m + 20 if max_iter is None else max_iter
+    best = m + 1
+    backup = 3
+    x = np.zeros(n)
+    nu = np.zeros(m)
+    for it in range(1, max_iter + 1):
+        F = np.flatnonzero(free)
+        nf = F.shape[0]
+        rhs = np.concatenate([c, d[F]])
+        if nf:
+            BF = B[F]
+            K = sp.bmat([[H, BF.T], [BF, -eps * sp.identity(nf)]], format="csc")
+            K0 = sp.bmat([[H, BF.T], [BF, None]], format="csc")
+        else:
+            K = K0 = H
+        lu = splu(K)
+        sol = lu.solve(rhs)
+        for _ in range(4):  # refinement towards the unregularised (consistent) system
+            sol += lu.solve(rhs - K0 @ sol)
+        x = sol[:n]
+        nu = np.zeros(m)
+        nu[F] = -sol[n:]
+        w = B @ x - d
+        scale = (float(np.abs(w[~free]).max()) if nf < m else 0.0) + diag_mean * (float(np.abs(nu).max()) if m else 0.0)
+        tol_w = 1e-11 * scale + 1e-300
+        tol_l = tol_w / diag_mean
+        bad = (free & (nu < -tol_l)) | (~free & (w < -tol_w))
+        n_bad = int(bad.sum())
+        if n_bad == 0:
+            return x, np.maximum(nu, 0.0), STATUS_OK, it
+        if n_bad < best:
+            best = n_bad
+            backup = 3
+            free ^= bad
+        elif backup > 0:
+            backup -= 1
+            free ^= bad
+        else:
+            k = int(np.flatnonzero(bad)[-1])
+            free[k] = not free[k]
+    return x, np.maximum(nu, 0.0), STATUS_MAX_ITER, max_iter
+
+
+def solve_rows_sparse(mass_diag, row_a, row_b, coef_a, coef_b, row_k, row_kind, v_minus, p_ext=None, free0=None):
+    """Same problem, inputs and outputs as :func:`solve_rows` (plus ``status``), for large clusters:
+    the primal  min ½ Yᵀ H Y − rᵀ Y  s.t.  B_n Y ≥ ½ B_n v⁻  by :func:`qp_bpp_sparse` (exact, sparse).
+    Returns ``(v_plus, λ, status)``; λ = 2ν are the reactive percussions of the normal rows."""
+    import scipy.sparse as sp
+
+    nd = mass_diag.shape[0]
+    p_ext = np.zeros(nd) if p_ext is None else p_ext
+    B = _sparse_rows(nd // 3, row_a, row_b, coef_a, coef_b)
+    H = (sp.diags(mass_diag) + B.T @ sp.diags(row_k) @ B).tocsc()
+    Bn = B[np.flatnonzero(row_kind == NORMAL)]
+    y, nu, status, _ = qp_bpp_sparse(H, mass_diag * v_minus + 0.5 * p_ext, Bn, 0.5 * (Bn @ v_minus), free0)
+    return 2.0 * y - v_minus, 2.0 * nu, status
+
+
+def _normal_rows_sparse(n, c_a, c_b, c_nx, c_ny):
+    """B_n (m, 2n) on translational velocities only (the projection leaves ω alone)."""
+    import scipy.sparse as sp
+
+    m = c_a.shape[0]
+    rows = np.repeat(np.arange(m), 2)
+    cols_a = np.stack([2 * c_a, 2 * c_a + 1], axis=1).ravel()
+    vals_a = np.stack([c_nx, c_ny], axis=1).ravel()
+    wall = c_b < 0
+    bb = np.where(wall, 0, c_b)
+    cols_b = np.stack([2 * bb, 2 * bb + 1], axis=1).ravel()
+    vals_b = -np.stack([c_nx, c_ny], axis=1).ravel() * np.repeat(~wall, 2)
+    return sp.csr_matrix((np.concatenate([vals_a, vals_b]), (np.concatenate([rows, rows]), np.concatenate([cols_a, cols_b]))),
+                         shape=(m, 2 * n))
+
+
+def project_gaps_sparse(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, free0=None):
+    """The projection of :func:`project_gaps` on all candidates at once, solved exactly by
+    :func:`qp_bpp_sparse` (for clusters too large for the dense path). Only the pedestrians that
+    appear in a candidate take part. Modifies ``vel[:, :2]`` in place when it succeeds; returns
+    ``(λ per contact, status)``. ``free0``: optional initial active set (e.g. last step's)."""
+    import scipy.sparse as sp
+
+    m = c_a.shape[0]
+    if m == 0:
+        return np.zeros(0), STATUS_OK
+    bodies = np.unique(np.concatenate([c_a, c_b[c_b >= 0]]))
+    local = np.full(vel.shape[0], -1, np.int64)
+    local[bodies] = np.arange(bodies.shape[0])
+    la = local[c_a]
+    lb = np.where(c_b >= 0, local[np.maximum(c_b, 0)], -1)
+    B = _normal_rows_sparse(bodies.shape[0], la, lb, c_nx, c_ny)
+    mdiag = np.repeat(mass[bodies], 2)
+    x, nu, status, _ = qp_bpp_sparse(sp.diags(mdiag), mdiag * vel[bodies, :2].ravel(), B, -np.asarray(c_gap) / dt_s,
+                                     free0)
+    if status == STATUS_OK:
+        vel[bodies, :2] = x.reshape(-1, 2)
+    return nu, status
 
 
 def project_gaps_qp(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s):

@@ -141,8 +141,8 @@ def social_forces_dense_reference(position, radius, desired_direction, segments,
     """Slow dense reference of Eq. 16 for tests: all N² pairs and all walls, plain loops.
 
     Independent of the kernels' pair lists; walls follow the convention of
-    :func:`~crowd_env.core.segments.endpoint_owners`: a closest point at a segment endpoint that a
-    lower-index segment also has as an endpoint is skipped, so a shared corner counts once.
+    :func:`~crowd_env.core.segments.endpoint_owners`: a closest point at a segment endpoint shared
+    with other segments counts only when it is also their closest point, and then once.
     """
     position = np.asarray(position, dtype=np.float64)
     n = position.shape[0]
@@ -172,8 +172,18 @@ def social_forces_dense_reference(position, radius, desired_direction, segments,
             cx, cy, t = closest_point_on_segment(position[i, 0], position[i, 1], *segments[k])
             c = np.array([cx, cy])
             if t in (0.0, 1.0):
-                earlier = segments[:k].reshape(-1, 2)
-                if np.any(np.all(np.abs(earlier - c) <= corner_tol_m, axis=1)):
+                # Other segments sharing this vertex: skip it unless it is the closest point of every
+                # one of them, and then count it once (lowest index).
+                skip = False
+                for k2 in range(segments.shape[0]):
+                    ends = segments[k2].reshape(2, 2)
+                    shared = np.all(np.abs(ends - c) <= corner_tol_m, axis=1)
+                    if k2 == k or not shared.any():
+                        continue
+                    t2 = closest_point_on_segment(position[i, 0], position[i, 1], *segments[k2])[2]
+                    if t2 != (1.0 if shared[1] else 0.0) or k2 < k:
+                        skip = True
+                if skip:
                     continue
             diff = position[i] - c
             d = np.linalg.norm(diff)

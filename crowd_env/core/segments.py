@@ -30,25 +30,31 @@ def as_segments(segments) -> np.ndarray:
 
 
 def endpoint_owners(segments: np.ndarray, tol: float = 1e-9) -> np.ndarray:
-    """``(S, 2)`` bool: True where this segment is the lowest-index one sharing that endpoint.
+    """Shared corner vertices: ``(S, 2, D)`` int64, for each (segment, endpoint) the other endpoints
+    at the same vertex, each encoded as ``2 * segment + endpoint``, padded with −1 (D ≥ 1).
 
-    A point whose closest wall point is a shared corner vertex is then counted once, not once per
-    segment meeting there (for contacts and for wall repulsion alike).
+    :func:`wall_proximity` uses it so that a point whose closest point on segment k is a shared
+    vertex V counts V only when *every* segment meeting at V also has V as its closest point, and
+    then once (for the lowest segment index). When a neighbour's closest point is elsewhere, that
+    neighbour is at least as close as V (V belongs to it), so its own contact covers V. The result
+    is independent of the order of the segments (for contacts and for wall repulsion alike).
+    Vertices are matched to within ``tol`` metres.
     """
     s = segments.shape[0]
-    owner = np.ones((s, 2), dtype=np.bool_)
     if s == 0:
-        return owner
+        return np.full((0, 2, 1), -1, dtype=np.int64)
     pts = segments.reshape(s * 2, 2)
     keys = np.round(pts / tol).astype(np.int64)
-    seen: dict = {}
+    groups: dict = {}
     for k in range(s * 2):
-        key = (int(keys[k, 0]), int(keys[k, 1]))
-        if key in seen:
-            owner[k // 2, k % 2] = False
-        else:
-            seen[key] = k
-    return owner
+        groups.setdefault((int(keys[k, 0]), int(keys[k, 1])), []).append(k)
+    depth = max(1, max(len(g) for g in groups.values()) - 1)
+    out = np.full((s, 2, depth), -1, dtype=np.int64)
+    for members in groups.values():
+        for k in members:
+            others = [o for o in members if o // 2 != k // 2]  # a segment never neighbours itself
+            out[k // 2, k % 2, :len(others)] = others
+    return out
 
 
 @nb.njit(cache=True, inline="always")
@@ -64,13 +70,32 @@ def closest_point_on_segment(px, py, x0, y0, x1, y1):
     return x0 + t * dx, y0 + t * dy, t
 
 
+@nb.njit(cache=True, inline="always")
+def _counts_vertex(px, py, k, end, segments, owner):
+    """Whether segment k's clamped endpoint ``end`` (its closest point to (px, py)) is reported:
+    only if every other segment sharing that vertex also has it as closest point and k is the
+    lowest index among them."""
+    for q in range(owner.shape[2]):
+        code = owner[k, end, q]
+        if code < 0:
+            break
+        k2 = code // 2
+        _, _, t2 = closest_point_on_segment(px, py, segments[k2, 0], segments[k2, 1], segments[k2, 2], segments[k2, 3])
+        if t2 != (1.0 if code % 2 == 1 else 0.0):
+            return False  # k2 is closer elsewhere (V belongs to k2): its own contact covers V
+        if k2 < k:
+            return False  # counted once, by the lowest index
+    return True
+
+
 @nb.njit(cache=True)
 def wall_proximity(position, radius, index, segments, owner, margin):
     """All (pedestrian, wall) pairs whose surface gap is at most ``margin[k]`` for pedestrian ``index[k]``.
 
     Returns ``(ped, seg, gap, nx, ny, cx, cy)``: row into ``index``, segment, gap (m), unit normal
-    from the wall into the pedestrian, and the closest wall point. Shared corner vertices are reported
-    once (see :func:`endpoint_owners`).
+    from the wall into the pedestrian, and the closest wall point. ``owner`` comes from
+    :func:`endpoint_owners`: a shared corner vertex is reported only when it is the closest point of
+    every segment meeting there, and then once, so results do not depend on segment order.
     """
     n = index.shape[0]
     s = segments.shape[0]
@@ -86,7 +111,8 @@ def wall_proximity(position, radius, index, segments, owner, margin):
         r = radius[i]
         for k in range(s):
             cx, cy, t = closest_point_on_segment(px, py, segments[k, 0], segments[k, 1], segments[k, 2], segments[k, 3])
-            if (t == 0.0 and not owner[k, 0]) or (t == 1.0 and not owner[k, 1]):
+            if (t == 0.0 and not _counts_vertex(px, py, k, 0, segments, owner)) or \
+                    (t == 1.0 and not _counts_vertex(px, py, k, 1, segments, owner)):
                 continue
             dx = px - cx
             dy = py - cy

@@ -18,12 +18,15 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .collision import (MAX_DENSE_ROWS, STATUS_OK, project_gaps, project_gaps_qp, resolve_impacts, solve_clusters,
-                        solve_rows_qp)
+from .collision import (MAX_DENSE_ROWS, STATUS_OK, project_gaps, project_gaps_qp, project_gaps_sparse, resolve_impacts,
+                        solve_clusters, solve_rows_qp, solve_rows_sparse)
 from .contacts import detect_contacts, link_geometry
 from .params import ModelParams, ParameterError
 from .segments import as_segments, endpoint_owners, wall_proximity
 from .state import CrowdState, StateError
+
+
+MAX_REDETECT = 10  # re-detection rounds per step (speeds are bounded: one or two rounds suffice in practice)
 
 
 class SimulationError(RuntimeError):
@@ -79,6 +82,9 @@ class Simulator:
         self.time_s = 0.0
         self.step_count = 0
         self.n_fallback_solves = 0
+        self.n_redetections = 0  # steps where faster post-impact speeds called for more candidates
+        self.n_sparse_solves = 0  # impact clusters / projections too large for the dense path
+        self._proj_keys = np.zeros(0, np.int64)  # contacts active in last step's projection (warm start)
         self.profile = profile
         self._tree_key = -1
         self._tree = None
@@ -190,6 +196,7 @@ class Simulator:
         mass = st.mass_kg[idx]
         inertia = st.inertia_kg_m2[idx]
         ke0 = kinetic_energy(vel, mass, inertia)
+        speed_star = np.hypot(vel[:, 0], vel[:, 1])
         # 3. impacts
         cluster_args = (con["a"], con["b"], con["nx"], con["ny"], con["rho_a"], con["rho_b"], links_a, links_b,
                         dvec, gi, gj, p.normal_dissipation_kg, p.tangential_dissipation_kg,
@@ -203,20 +210,38 @@ class Simulator:
             if p.solver == "cvxpy":
                 from .reference import solve_rows_cvxpy as solve
             else:
-                solve = solve_rows_qp
-                self.n_fallback_solves += unsolved.shape[0]
+                solve = self._solve_large_cluster
             solve_clusters(unsolved, root, vel, mass, inertia, in_impact, *cluster_args, solve, p_n, p_t)
         ke1 = kinetic_energy(vel, mass, inertia)
         t4 = time.perf_counter()
         timings["impacts"] = t4 - t3
         # 4. projection
-        v_smooth = vel[:, :2].copy()
-        lam_p, _, status = project_gaps(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h, 1e-10)
-        if status != STATUS_OK:  # degenerate jam: pivoting could not certify; interior point on the primal
-            vel[:, :2] = v_smooth
-            lam_p = project_gaps_qp(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h)
-            self.n_fallback_solves += 1
+        v_impact = vel[:, :2].copy()
+        lam_p = self._project(vel, mass, con, h, idx)
+        # 4b. The candidates were chosen with margins from the pre-impact speeds s_i. A pair left out has
+        # gap > ε + 2h (s_i + s_j), so it cannot close within the step while every final speed satisfies
+        # |u_i| ≤ 2 s_i + ε/(2h). Impacts and the projection can speed a pedestrian up beyond that
+        # (a push passed along a jammed chain): then detect again with the larger speeds and project
+        # again from the post-impact velocities on the enlarged candidate set.
+        det_speed = speed_star
+        for _ in range(MAX_REDETECT):
+            final = np.hypot(vel[:, 0], vel[:, 1])
+            if not np.any(final > 2.0 * det_speed + 0.5 * p.contact_tolerance_m / h):
+                break
+            det_speed = np.maximum(det_speed, final)
+            merged = self._redetect(con, det_speed, idx, n_all, r_max, h)
+            if merged is None:
+                break
+            extra = merged["a"].shape[0] - con["a"].shape[0]
+            con = merged
+            p_n = np.concatenate([p_n, np.zeros(extra)])
+            p_t = np.concatenate([p_t, np.zeros(extra)])
+            in_impact = np.concatenate([in_impact, np.zeros(extra, dtype=bool)])
+            vel[:, :2] = v_impact
+            lam_p = self._project(vel, mass, con, h, idx)
+            self.n_redetections += 1
         ke2 = kinetic_energy(vel, mass, inertia)
+        self._proj_keys = self._contact_keys(con, idx)[lam_p > 0]
         t5 = time.perf_counter()
         timings["projection"] = t5 - t4
         # 5. integrate and leave at exits
@@ -250,6 +275,64 @@ class Simulator:
             exited=exited,
             timings_s=timings,
         )
+
+    def _solve_large_cluster(self, *rows):
+        """Impact of a cluster too large for the dense path: sparse pivoting, Clarabel if that fails."""
+        self.n_sparse_solves += 1
+        v_plus, lam, status = solve_rows_sparse(*rows)
+        if status != STATUS_OK:
+            self.n_fallback_solves += 1
+            v_plus, lam = solve_rows_qp(*rows)
+        return v_plus, lam
+
+    def _contact_keys(self, con, idx):
+        """Stable integer key per contact (global pedestrian indices, wall segment)."""
+        n_all = self.state.n
+        ia = idx[con["a"]]
+        ib = idx[np.maximum(con["b"], 0)]
+        return np.where(con["b"] >= 0, ia * n_all + ib, n_all * n_all + ia * max(1, self.walls.shape[0]) + con["wall"])
+
+    def _project(self, vel, mass, con, h, idx):
+        """Gap projection (step 4) in place on ``vel``; returns the projection percussion per contact.
+
+        Components of active constraints small enough are solved densely (:func:`project_gaps`);
+        otherwise the whole projection is solved by sparse pivoting, warm-started from the contacts
+        active in the previous step's projection, and by Clarabel only if pivoting fails.
+        """
+        v_impact = vel[:, :2].copy()
+        lam_p, _, status = project_gaps(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h, 1e-10)
+        if status != STATUS_OK:
+            vel[:, :2] = v_impact
+            keys = self._contact_keys(con, idx)
+            warm = np.isin(keys, self._proj_keys)
+            self.n_sparse_solves += 1
+            lam_p, status = project_gaps_sparse(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h,
+                                                warm)
+            if status != STATUS_OK:
+                vel[:, :2] = v_impact
+                lam_p = project_gaps_qp(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h)
+                self.n_fallback_solves += 1
+        return lam_p
+
+    def _redetect(self, con, speed, idx, n_all, r_max, h):
+        """Candidates with margins from the speeds ``speed`` (compact, (n,)) appended to ``con``;
+        None when there is no new one."""
+        p = self.params
+        pairs = self.neighbor_pairs(2.0 * r_max + p.contact_tolerance_m + 4.0 * h * float(speed.max()))
+        as_velocity = np.zeros((n_all, 2))
+        as_velocity[idx, 0] = speed  # detect_contacts only uses the norm of each velocity
+        con2 = detect_contacts(self.state.position_m, self.state.radius_m, as_velocity, idx, pairs, self.walls,
+                               self._wall_owner, p.contact_tolerance_m, h)
+        n = idx.shape[0]
+        n_seg = max(1, self.walls.shape[0])
+
+        def key(c):
+            return np.where(c["b"] >= 0, c["a"] * n + c["b"], n * n + c["a"] * n_seg + c["wall"])
+
+        new = ~np.isin(key(con2), key(con))
+        if not new.any():
+            return None
+        return {k: np.concatenate([con[k], con2[k][new]]) for k in con}
 
     def _active_links(self, idx):
         st = self.state

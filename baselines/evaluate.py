@@ -1,0 +1,289 @@
+"""Evaluation harness: run any policy through the same scenarios and seeds and report the same metrics.
+
+Policies: anything :func:`baselines.reference_policies.as_policy` accepts (``"baseline"`` — the
+calibrated social-force model —, ``"random"``, ``"zero"``, a saved SB3 model ``.zip``, an SB3 model,
+an :class:`~baselines.reference_policies.EnvPolicy`, or a callable ``fn(obs (n, D)) -> (n, 2)``).
+
+Each episode runs the parallel environment (every pedestrian controlled by the policy by default)
+for at most ``max_time_s`` of simulated time, measuring at every simulator step (through the
+environment's ``substep_hooks``):
+
+- ``specific_flow_per_m_s`` J_s = N / (Δt b) at the scenario's measurement line (Kabalan Eq. 22;
+  NaN with fewer than two passages or no width in the scenario metadata);
+- ``evacuation_time_s``: time of the last exit if everybody left, else NaN (``n_evacuated`` says
+  how many did);
+- ``mean_speed_m_s``: mean speed over pedestrians on the floor and simulator steps;
+- ``n_percussions`` and ``mean_percussion_kg_m_s``: number and mean size of the non-zero normal
+  contact percussions (pedestrian-pedestrian and pedestrian-wall; impacts and the sustained-contact
+  projection, each simulator step counted);
+- ``min_gap_m``: smallest gap between two pedestrians or a pedestrian and a wall (negative = overlap);
+- ``mean_return``: mean over agents of the summed environment reward.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import time
+from dataclasses import asdict, dataclass, fields
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from crowd_env.analysis.flow import MeasurementLine, PassageCounter, specific_flow
+from crowd_env.envs.crowd_v0 import CrowdParallelEnv
+
+from .reference_policies import as_policy
+
+__all__ = ["EpisodeMetrics", "ScenarioSpec", "run_episode", "evaluate", "summarize", "format_table", "write_csv",
+           "plot_results", "METRICS"]
+
+METRICS = (
+    ("specific_flow_per_m_s", "J_s (1/m/s)"),
+    ("evacuation_time_s", "evac. time (s)"),
+    ("mean_speed_m_s", "mean speed (m/s)"),
+    ("n_percussions", "# percussions"),
+    ("mean_percussion_kg_m_s", "mean perc. (kg m/s)"),
+    ("min_gap_m", "min gap (m)"),
+    ("mean_return", "mean return"),
+)
+
+
+@dataclass
+class EpisodeMetrics:
+    policy: str
+    scenario: str
+    seed: int
+    n_pedestrians: int
+    n_evacuated: int
+    simulated_time_s: float
+    evacuation_time_s: float
+    specific_flow_per_m_s: float
+    flow_per_s: float
+    mean_speed_m_s: float
+    n_percussions: int
+    mean_percussion_kg_m_s: float
+    min_gap_m: float
+    mean_return: float
+    wall_time_s: float
+
+
+@dataclass
+class ScenarioSpec:
+    """A scenario to evaluate on: a registered name (+ options) or a Scenario object, and a label."""
+
+    scenario: object = "seyfried_bottleneck"
+    scenario_options: dict | None = None
+    label: str | None = None
+
+    def __post_init__(self):
+        if self.label is None:
+            if isinstance(self.scenario, str):
+                opts = ",".join(f"{k}={v}" for k, v in sorted((self.scenario_options or {}).items()))
+                self.label = f"{self.scenario}({opts})" if opts else self.scenario
+            else:
+                self.label = getattr(self.scenario, "name", "scenario")
+
+    def env_options(self) -> dict:
+        out = {"scenario": self.scenario}
+        if self.scenario_options:
+            out["scenario_options"] = dict(self.scenario_options)
+        return out
+
+
+class _Probe:
+    """Substep hook collecting the metrics."""
+
+    def __init__(self, env: CrowdParallelEnv, line_name: str):
+        geom = env.geometry
+        self.counter = None
+        if line_name in geom.measurement_lines:
+            ends = np.asarray(geom.measurement_lines[line_name], dtype=float)
+            self.counter = PassageCounter(MeasurementLine(ends[0], ends[1]))
+        self.ids = np.arange(env.n_pedestrians)
+        self.speed_sum = 0.0
+        self.speed_n = 0
+        self.n_perc = 0
+        self.perc_sum = 0.0
+        self.last_exit_s = float("nan")
+        self.min_gap = self._gap(env)
+
+    @staticmethod
+    def _gap(env) -> float:
+        st = env.sim.state
+        idx = np.flatnonzero(st.active)
+        if idx.size == 0:
+            return float("inf")
+        pos, r = st.position_m[idx], st.radius_m[idx]
+        best = float("inf")
+        if idx.size >= 2:
+            pairs = cKDTree(pos).query_pairs(2.0 * float(r.max()) + 0.05, output_type="ndarray")
+            if pairs.size:
+                d = np.hypot(*(pos[pairs[:, 0]] - pos[pairs[:, 1]]).T)
+                best = float(np.min(d - r[pairs[:, 0]] - r[pairs[:, 1]]))
+        if env.geometry.walls.shape[0]:
+            best = min(best, float(np.min(env.geometry.distance_to_walls(pos) - r)))
+        return best
+
+    def __call__(self, env, res, prev_pos, prev_t):
+        st = env.sim.state
+        if self.counter is not None:
+            self.counter.update(prev_pos, st.position_m, prev_t, env.sim.time_s, self.ids)
+        v = st.velocity_m_s[st.active]
+        if v.shape[0]:
+            self.speed_sum += float(np.hypot(v[:, 0], v[:, 1]).sum())
+            self.speed_n += v.shape[0]
+        pn = res.percussion_normal
+        nz = pn[np.abs(pn) > 0]
+        self.n_perc += int(nz.size)
+        self.perc_sum += float(np.abs(nz).sum())
+        if res.exited.size:
+            self.last_exit_s = env.sim.time_s
+        self.min_gap = min(self.min_gap, self._gap(env))
+
+
+def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", seed: int = 0, *,
+                env_options: dict | None = None, max_time_s: float = 90.0, line: str = "bottleneck") -> EpisodeMetrics:
+    """Run one episode of ``policy`` on ``scenario`` with ``seed``; see the module docstring for the metrics.
+
+    ``env_options`` go to :class:`~crowd_env.envs.crowd_v0.CrowdParallelEnv` (``controlled`` defaults to
+    ``"all"``); the policy's ``env_overrides`` win over them; ``max_steps`` is set from ``max_time_s``.
+    """
+    policy = as_policy(policy)
+    spec = scenario if isinstance(scenario, ScenarioSpec) else ScenarioSpec(scenario)
+    opts = {"controlled": "all", **(env_options or {}), **spec.env_options(), **getattr(policy, "env_overrides", {})}
+    opts.pop("max_steps", None)
+    env = CrowdParallelEnv(**opts)
+    env.max_steps = max(1, int(math.ceil(max_time_s / env.dt_s - 1e-9)))  # frame_skip and dt resolved
+    t0 = time.perf_counter()
+    obs, _ = env.reset(seed=seed)
+    policy.reset(env, seed)
+    probe = _Probe(env, line)
+    env.substep_hooks.append(probe)
+    returns = dict.fromkeys(env.possible_agents, 0.0)
+    while env.agents:
+        actions = policy.act(env, obs)
+        obs, rewards, _, _, _ = env.step(actions)
+        for a, r in rewards.items():
+            returns[a] += r
+    env.substep_hooks.remove(probe)
+    n = env.n_pedestrians
+    n_out = int(np.count_nonzero(~env.sim.state.active))
+    times = np.sort(probe.counter.times_s) if probe.counter is not None else np.zeros(0)
+    width = env.scenario.metadata.get("width_m")
+    j = js = float("nan")
+    if times.size >= 2 and times[-1] > times[0]:
+        fr = specific_flow(times, width if width else 1.0)
+        j = fr.flow_per_s
+        js = fr.specific_flow_per_m_s if width else float("nan")
+    result = EpisodeMetrics(
+        policy=policy.name, scenario=spec.label, seed=int(seed), n_pedestrians=n, n_evacuated=n_out,
+        simulated_time_s=env.sim.time_s,
+        evacuation_time_s=probe.last_exit_s if n_out == n else float("nan"),
+        specific_flow_per_m_s=js, flow_per_s=j,
+        mean_speed_m_s=probe.speed_sum / probe.speed_n if probe.speed_n else float("nan"),
+        n_percussions=probe.n_perc,
+        mean_percussion_kg_m_s=probe.perc_sum / probe.n_perc if probe.n_perc else 0.0,
+        min_gap_m=probe.min_gap, mean_return=float(np.mean(list(returns.values()))),
+        wall_time_s=time.perf_counter() - t0)
+    env.close()
+    return result
+
+
+def evaluate(policies, scenarios=("seyfried_bottleneck",), seeds=(0, 1, 2), *, env_options: dict | None = None,
+             max_time_s: float = 90.0, line: str = "bottleneck", progress=print) -> list:
+    """Every policy x scenario x seed; ``policies``: a list of policy specs or a dict label -> spec."""
+    items = list(policies.items()) if isinstance(policies, dict) else [(None, p) for p in policies]
+    specs = [s if isinstance(s, ScenarioSpec) else ScenarioSpec(s) for s in scenarios]
+    results = []
+    for label, p in items:
+        pol = as_policy(p, name=label)
+        for spec in specs:
+            for seed in seeds:
+                r = run_episode(pol, spec, seed, env_options=env_options, max_time_s=max_time_s, line=line)
+                results.append(r)
+                if progress is not None:
+                    progress(f"  {r.policy:>12s} | {r.scenario} | seed {seed}: J_s {r.specific_flow_per_m_s:.3f}, "
+                             f"evacuated {r.n_evacuated}/{r.n_pedestrians} ({r.wall_time_s:.1f} s wall)")
+    return results
+
+
+def summarize(results) -> list:
+    """Mean (and std) of every metric per (scenario, policy), in first-seen order."""
+    groups: dict = {}
+    for r in results:
+        groups.setdefault((r.scenario, r.policy), []).append(r)
+    rows = []
+    for (scen, pol), rs in groups.items():
+        row = {"scenario": scen, "policy": pol, "n_episodes": len(rs),
+               "evacuated_fraction": float(np.mean([r.n_evacuated / r.n_pedestrians for r in rs]))}
+        for key, _ in METRICS:
+            vals = np.array([getattr(r, key) for r in rs], dtype=float)
+            finite = vals[np.isfinite(vals)]
+            row[key] = float(finite.mean()) if finite.size else float("nan")
+            row[key + "_std"] = float(finite.std()) if finite.size > 1 else float("nan")
+            row[key + "_n"] = int(finite.size)
+        rows.append(row)
+    return rows
+
+
+def format_table(rows) -> str:
+    """One plain-text table of the summary (means over seeds; NaN-valued episodes left out, counted in [k/n])."""
+    head = ["scenario", "policy", "evac."] + [label for _, label in METRICS]
+    lines = []
+    for row in rows:
+        cells = [row["scenario"], row["policy"], f"{100 * row['evacuated_fraction']:.0f}%"]
+        for key, _ in METRICS:
+            v, k, n = row[key], row[key + "_n"], row["n_episodes"]
+            s = "nan" if not np.isfinite(v) else (f"{v:.0f}" if key == "n_percussions" else
+                                                   f"{v:.4f}" if key == "min_gap_m" else f"{v:.3f}")
+            if k < n:
+                s += f" [{k}/{n}]"
+            cells.append(s)
+        lines.append(cells)
+    widths = [max(len(h), *(len(c[i]) for c in lines)) if lines else len(h) for i, h in enumerate(head)]
+    fmt = " | ".join("{:<%d}" % w if i < 2 else "{:>%d}" % w for i, w in enumerate(widths))
+    out = [fmt.format(*head), "-+-".join("-" * w for w in widths)]
+    out += [fmt.format(*c) for c in lines]
+    return "\n".join(out)
+
+
+def write_csv(results, path) -> None:
+    names = [f.name for f in fields(EpisodeMetrics)]
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=names)
+        w.writeheader()
+        for r in results:
+            w.writerow(asdict(r))
+
+
+def plot_results(results, path) -> None:
+    """Bar chart per metric (mean ± std over seeds), one bar per policy, grouped by scenario."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    rows = summarize(results)
+    scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
+    policies = list(dict.fromkeys(r["policy"] for r in rows))
+    fig = Figure(figsize=(3.2 * len(METRICS), 3.6))
+    FigureCanvasAgg(fig)
+    width = 0.8 / max(len(policies), 1)
+    for m, (key, label) in enumerate(METRICS):
+        ax = fig.add_subplot(1, len(METRICS), m + 1)
+        for p, pol in enumerate(policies):
+            xs, ys, es = [], [], []
+            for s, scen in enumerate(scenarios):
+                row = next((r for r in rows if r["scenario"] == scen and r["policy"] == pol), None)
+                if row is None:
+                    continue
+                xs.append(s + (p - (len(policies) - 1) / 2) * width)
+                ys.append(row[key] if np.isfinite(row[key]) else 0.0)
+                es.append(row[key + "_std"] if np.isfinite(row[key + "_std"]) else 0.0)
+            ax.bar(xs, ys, width, yerr=es, label=pol, capsize=2)
+        ax.set_title(label, fontsize=9)
+        ax.set_xticks(range(len(scenarios)))
+        ax.set_xticklabels([f"S{s}" for s in range(len(scenarios))], fontsize=8)
+        ax.tick_params(labelsize=8)
+    fig.axes[0].legend(fontsize=7)
+    fig.suptitle("; ".join(f"S{s}: {scen}" for s, scen in enumerate(scenarios)) + "  (NaN shown as 0)", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)

@@ -1,0 +1,109 @@
+#!/usr/bin/env python
+"""Speed of the PettingZoo parallel environment: env steps/s and agent-steps/s on one core.
+
+Every pedestrian is controlled (observations, rewards and dicts for all of them), ``frame_skip=1``
+(one simulator step of 0.01 s per environment step). Actions (their computation is not timed):
+
+- ``--policy baseline`` (default): the calibrated social-force agent's intents, fed as actions (the
+  paper's crowd: it moves, queues at the bottleneck, few contacts);
+- ``--policy walk``: everyone walks along its observed desired direction at 1.3 m/s with no social
+  repulsion: the crowd pushes into a dense jam at the bottleneck with many simultaneous contacts,
+  the simulator's worst case (its impact solver then dominates).
+
+Each case
+reports the mean over ``--steps`` steps after ``--warmup`` steps and splits the time into the
+simulator step and the rest (observations, validation, rewards, dicts).
+
+Scenarios: the Seyfried bottleneck (b = 1 m) with N pedestrians (N > 60 fills holding sections further
+upstream, so N = 1000 is a 4 m x 78 m corridor in front of the bottleneck).
+
+    python benchmarks/env_speed.py                    # N = 10, 60, 100, 1000
+    python benchmarks/env_speed.py --n 100 --steps 2000
+"""
+from __future__ import annotations
+
+import argparse
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+
+def bench(n: int, steps: int, warmup: int, n_neighbors: int, n_rays: int, policy: str = "baseline") -> dict:
+    from crowd_env.envs import crowd_v0
+
+    env = crowd_v0.parallel_env(scenario="seyfried_bottleneck", scenario_options={"n_pedestrians": n, "width_m": 1.0},
+                                controlled="all", frame_skip=1, max_steps=10**9, n_neighbors=n_neighbors,
+                                n_rays=n_rays, action_max_m_s=50.0)
+    obs, _ = env.reset(seed=0)
+    ed = env.observation_layout["desired_direction"]
+    agent = None
+    if policy == "baseline":
+        from baselines.social_force import SocialForceAgent
+
+        agent = SocialForceAgent(env.navigation)
+    sim_time = [0.0]
+    step = env.sim.step
+
+    def timed_step(*a, **k):  # measure the simulator's share
+        t = time.perf_counter()
+        out = step(*a, **k)
+        sim_time[0] += time.perf_counter() - t
+        return out
+
+    env.sim.step = timed_step
+    total = 0.0
+    agent_steps = 0
+    done = 0
+    for k in range(warmup + steps):
+        if not env.agents:
+            break
+        if agent is None:
+            acts = np.stack([obs[a][ed] for a in env.agents]) * np.float32(1.3)
+        else:
+            acts = agent(env.sim)[0][[int(a[4:]) for a in env.agents]]
+        actions = dict(zip(env.agents, acts))
+        if k == warmup:
+            sim_time[0] = 0.0
+        t = time.perf_counter()
+        obs, *_ = env.step(actions)
+        dt = time.perf_counter() - t
+        if k >= warmup:
+            total += dt
+            agent_steps += len(actions)
+            done += 1
+    return {"n": n, "env_steps": done, "env_steps_per_s": done / total, "agent_steps_per_s": agent_steps / total,
+            "ms_per_step": 1e3 * total / done, "sim_ms_per_step": 1e3 * sim_time[0] / done,
+            "mean_live_agents": agent_steps / done}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--n", type=int, nargs="+", default=[10, 60, 100, 1000], help="numbers of pedestrians")
+    ap.add_argument("--steps", type=int, default=1000, help="timed environment steps per case")
+    ap.add_argument("--warmup", type=int, default=50, help="untimed steps first (JIT, caches)")
+    ap.add_argument("--n-neighbors", type=int, default=6)
+    ap.add_argument("--n-rays", type=int, default=8)
+    ap.add_argument("--policy", choices=["baseline", "walk"], default="baseline", help="how actions are chosen")
+    args = ap.parse_args(argv)
+    try:
+        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # one core
+    except (AttributeError, OSError):
+        pass
+    print(f"policy: {args.policy}; k = {args.n_neighbors} neighbours, R = {args.n_rays} rays; one core")
+    print(f"{'N':>6} {'steps':>6} {'env steps/s':>12} {'agent-steps/s':>14} {'ms/step':>8} {'sim ms':>7} "
+          f"{'other ms':>8} {'live':>6}")
+    for n in args.n:
+        r = bench(n, args.steps, args.warmup, args.n_neighbors, args.n_rays, args.policy)
+        print(f"{r['n']:>6} {r['env_steps']:>6} {r['env_steps_per_s']:>12.0f} {r['agent_steps_per_s']:>14.0f} "
+              f"{r['ms_per_step']:>8.3f} {r['sim_ms_per_step']:>7.3f} {r['ms_per_step'] - r['sim_ms_per_step']:>8.3f} "
+              f"{r['mean_live_agents']:>6.0f}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,602 @@
+"""``crowd_v0``: the PettingZoo environment of the Kabalan et al. (2016) crowd model.
+
+Use :func:`parallel_env` (a :class:`pettingzoo.ParallelEnv`) or :func:`env` (the AEC version, through
+PettingZoo's ``parallel_to_aec`` converter, which adds the order-enforcing wrapper)::
+
+    from crowd_env.envs import crowd_v0
+    env = crowd_v0.parallel_env(scenario="seyfried_bottleneck",
+                                scenario_options={"width_m": 1.0, "n_pedestrians": 20},
+                                controlled="all", frame_skip=10)
+    obs, infos = env.reset(seed=0)
+    while env.agents:
+        actions = {a: env.action_space(a).sample() for a in env.agents}
+        obs, rewards, terminations, truncations, infos = env.step(actions)
+
+Agents
+    Every pedestrian of the scenario has a stable id ``"ped_<i>"`` (``i`` = its index in the
+    scenario). The ``controlled`` option picks which of them are agents (``possible_agents``); the
+    others are driven each simulator step by the ``background_policy`` (default: the calibrated
+    eikonal + social-force agent, :class:`baselines.social_force.SocialForceAgent`).
+
+Actions
+    A velocity intent ``(2,)`` in m/s (world frame) in ``Box(-a_max, a_max)``, ``a_max =
+    action_max_m_s`` (default 2.5 m/s, a brisk run; note that the calibrated baseline's intents include
+    the social force and can exceed it in dense crowds, up to about 6.5 m/s at the Seyfried bottleneck).
+    The intent drives the pedestrian through m (u_int − u)/τ; the desired heading θ_d of the heading
+    spring-damper is the angle of the intent (the current heading for a zero intent), or the angle of
+    e_d with ``heading_target="desired_direction"`` (the baseline's choice). Actions are held for
+    ``frame_skip`` simulator steps of ``params.dt_s`` (0.01 s by default).
+    The environment never clips or repairs an action: :meth:`CrowdParallelEnv.step` raises
+    ``ValueError`` naming the agent(s) for an action outside the Box, a non-finite or wrongly shaped
+    action, an unknown or no-longer-live agent id, or a live agent without an action. Actions are read
+    as float64 without rounding.
+
+Observations
+    A float32 vector of ``7 + 5 k + R`` entries per agent (``k = n_neighbors``, ``R = n_rays``):
+    own velocity (2), heading (cos, sin) (2), e_d (2), remaining travel time T (1), the k nearest
+    neighbours' relative positions and velocities (4k, zero padded), their mask (k), wall distances
+    along R rays relative to the heading (R). Field by field: :mod:`crowd_env.envs.observations`
+    (``OBSERVATION_FIELDS``, :attr:`CrowdParallelEnv.observation_layout`).
+
+Rewards
+    Default :class:`~crowd_env.envs.rewards.DefaultReward`: progress along the travel-time field
+    (T_before − T_after, s of travel) − 0.01 × normal percussion received (kg m/s) − 0.1 per simulated
+    second + 1 on leaving. Pass ``reward_fn(env, agent_ids, info) -> rewards`` to change it
+    (:mod:`crowd_env.envs.rewards` lists the info arrays).
+
+Infos
+    Per agent: ``contact_percussion_kg_m_s`` (sum of |normal percussion| over its contacts this step),
+    ``n_contacts``, ``travel_time_s`` (T after the step), ``speed_m_s``.
+
+Episode end
+    A pedestrian whose centre enters an exit leaves: its agent gets ``terminations[a] = True`` on that
+    step (with its final observation) and is removed from ``agents``. After ``max_steps`` environment
+    steps every live agent is truncated. ``step({})`` with no live agent returns five empty dicts
+    (SuperSuit's ``black_death_v3`` relies on it). ``reset(options=...)`` ignores its options.
+
+Determinism
+    ``reset(seed=s)`` seeds everything random (the desired speeds drawn by the scenario, and the
+    start positions when ``reseed_scenario=True``); the same seed and actions give bitwise identical
+    observations, rewards and infos. Without a seed the first reset draws fresh entropy and later
+    ones continue the stream.
+"""
+from __future__ import annotations
+
+import inspect
+import math
+import warnings
+
+import numpy as np
+from gymnasium import spaces
+from pettingzoo import ParallelEnv
+from pettingzoo.utils.conversions import parallel_to_aec
+
+from ..core.params import ModelParams
+from ..core.simulator import Simulator, wrap_angle
+from ..scenarios import Scenario, make_scenario, scenario_options as _scenario_option_defaults
+from .observations import OBSERVATION_FIELDS, ObservationBuilder
+from .rewards import DefaultReward
+
+__all__ = ["CrowdParallelEnv", "parallel_env", "env", "EnvOptionError", "ENV_OPTIONS",
+           "OBSERVATION_FIELDS", "DEFAULT_ACTION_MAX_M_S", "default_background_policy", "agent_id"]
+
+DEFAULT_ACTION_MAX_M_S = 2.5
+DEFAULT_EPISODE_TIME_S = 60.0
+
+
+class EnvOptionError(ValueError, TypeError):
+    """An environment option is unknown or has an inadmissible value."""
+
+
+def agent_id(index: int) -> str:
+    """The agent id of pedestrian ``index``: ``"ped_<index>"``."""
+    return f"ped_{int(index)}"
+
+
+def default_background_policy(scenario):
+    """The calibrated eikonal + social-force agent for ``scenario``.
+
+    This is the one place where ``crowd_env`` reaches into ``baselines``, lazily, so that importing
+    ``crowd_env`` never imports ``baselines`` (the dependency stays one-way).
+    """
+    try:
+        from baselines.social_force import SocialForceAgent
+    except ImportError as exc:  # pragma: no cover - baselines ships with the package
+        raise ImportError("the default background policy is baselines.social_force.SocialForceAgent, which "
+                          "could not be imported; pass background_policy=... explicitly") from exc
+    return SocialForceAgent(scenario.navigation())
+
+
+def _positive_number(name, value, *, integer=False, allow_zero=False):
+    ok_type = (int, np.integer) if integer else (int, float, np.integer, np.floating)
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, ok_type) or not math.isfinite(value) \
+            or (value < 0 if allow_zero else value <= 0):
+        kind = "integer" if integer else "number"
+        bound = ">= 0" if allow_zero else "> 0"
+        raise EnvOptionError(f"{name} must be a finite {kind} {bound}, got {value!r}")
+    return int(value) if integer else float(value)
+
+
+def _select_controlled(controlled, n: int) -> np.ndarray:
+    """Sorted pedestrian indices selected by the ``controlled`` option."""
+    if isinstance(controlled, str):
+        if controlled == "all":
+            return np.arange(n)
+        raise EnvOptionError(f"controlled must be 'all', a count, a fraction in (0, 1] or a list of ids, got {controlled!r}")
+    if isinstance(controlled, (bool, np.bool_)):
+        raise EnvOptionError(f"controlled must be 'all', a count, a fraction or a list of ids, got {controlled!r}")
+    if isinstance(controlled, (int, np.integer)) or isinstance(controlled, (float, np.floating)):
+        if isinstance(controlled, (float, np.floating)):
+            if not (0.0 < controlled <= 1.0):
+                raise EnvOptionError(f"a fraction of controlled pedestrians must lie in (0, 1], got {controlled!r}")
+            k = max(1, int(round(controlled * n)))
+        else:
+            k = int(controlled)
+            if not (1 <= k <= n):
+                raise EnvOptionError(f"controlled = {k} pedestrians, but the scenario has {n}; give 1..{n}")
+        # Evenly spread over the pedestrian indices (deterministic; spacing >= 1 keeps them distinct).
+        return np.unique(np.round(np.linspace(0, n - 1, k)).astype(np.int64)) if k > 1 else np.zeros(1, np.int64)
+    try:
+        items = list(controlled)
+    except TypeError:
+        raise EnvOptionError(f"controlled must be 'all', a count, a fraction or a list of ids, got {controlled!r}") from None
+    if not items:
+        raise EnvOptionError("controlled selects no pedestrian: give at least one")
+    out, bad = [], []
+    for item in items:
+        if isinstance(item, (int, np.integer)) and not isinstance(item, (bool, np.bool_)):
+            i = int(item)
+        elif isinstance(item, str) and item.startswith("ped_") and item[4:].isdigit():
+            i = int(item[4:])
+        else:
+            bad.append(item)
+            continue
+        if not 0 <= i < n:
+            bad.append(item)
+            continue
+        out.append(i)
+    if bad:
+        raise EnvOptionError(f"unknown pedestrian id(s) in controlled: {bad}; ids are 'ped_0'..'ped_{n - 1}' "
+                             f"(or indices 0..{n - 1})")
+    if len(set(out)) != len(out):
+        dup = sorted({agent_id(i) for i in out if out.count(i) > 1})
+        raise EnvOptionError(f"duplicate id(s) in controlled: {dup}")
+    return np.array(sorted(out), dtype=np.int64)
+
+
+class CrowdParallelEnv(ParallelEnv):
+    """PettingZoo parallel environment of the crowd model (see the module docstring for the full spec).
+
+    Options (all keyword):
+
+    - ``scenario``: a registered scenario name (``crowd_env.scenarios.list_scenarios()``) or a
+      :class:`~crowd_env.scenarios.Scenario` (any geometry); ``scenario_options``: dict for the named
+      factory (unknown names raise listing the known ones).
+    - ``controlled``: ``"all"``, a count k (k pedestrians evenly spread over the indices), a fraction
+      in (0, 1], or a list of ids (``"ped_3"`` or ``3``).
+    - ``background_policy``: ``policy(sim) -> intents (N, 2)`` or ``(intents, desired_heading (N,))``
+      for the pedestrians not controlled; default: the calibrated social-force agent.
+    - ``params``: :class:`~crowd_env.core.params.ModelParams` (or a dict of its fields).
+    - ``max_steps``: environment steps before truncation (default: 60 s of simulated time).
+    - ``action_max_m_s``: a_max of the action Box (default 2.5 m/s).
+    - ``n_neighbors`` (k, default 6), ``neighbor_radius_m`` (4 m), ``n_rays`` (R, default 8),
+      ``ray_range_m`` (5 m): observation settings.
+    - ``reward_fn``: ``reward_fn(env, agent_ids, info) -> rewards`` (default :class:`DefaultReward`).
+    - ``render_mode``: None, ``"human"`` or ``"rgb_array"``.
+    - ``frame_skip``: simulator steps per environment step (decision interval frame_skip × dt; default 1).
+    - ``heading_target``: ``"intent"`` (θ_d = angle of the action) or ``"desired_direction"`` (angle of e_d).
+    - ``reseed_scenario``: rebuild a named scenario with a seed from the env's RNG at each reset, so
+      that start positions vary too (default False: the scenario's own positions every episode).
+    """
+
+    metadata = {"name": "crowd_v0", "render_modes": ["human", "rgb_array"], "render_fps": 10,
+                "is_parallelizable": True}
+
+    def __init__(self, *, scenario="seyfried_bottleneck", scenario_options=None, controlled="all",
+                 background_policy=None, params=None, max_steps=None, action_max_m_s=DEFAULT_ACTION_MAX_M_S,
+                 n_neighbors=6, n_rays=8, neighbor_radius_m=4.0, ray_range_m=5.0, reward_fn=None, render_mode=None,
+                 frame_skip=1, heading_target="intent", reseed_scenario=False):
+        # -- scenario
+        if isinstance(scenario, Scenario):
+            if scenario_options:
+                raise EnvOptionError("scenario_options apply to a scenario given by name, not to a Scenario object "
+                                     f"(got {sorted(scenario_options)})")
+            self._scenario_name, self._scenario_kwargs = None, {}
+        elif isinstance(scenario, str):
+            if scenario_options is not None and not isinstance(scenario_options, dict):
+                raise EnvOptionError(f"scenario_options must be a dict, got {type(scenario_options).__name__}")
+            self._scenario_name, self._scenario_kwargs = scenario, dict(scenario_options or {})
+            scenario = make_scenario(scenario, **self._scenario_kwargs)
+        else:
+            raise EnvOptionError(f"scenario must be a registered scenario name or a Scenario, got {type(scenario).__name__}")
+        self._scenario = scenario
+        self._base_positions = scenario.position_m
+        n = scenario.n_pedestrians
+        if n < 1:
+            raise EnvOptionError("the scenario has no pedestrian")
+        self.reseed_scenario = bool(reseed_scenario)
+        if self.reseed_scenario and (self._scenario_name is None
+                                     or "seed" not in _scenario_option_defaults(self._scenario_name)):
+            raise EnvOptionError("reseed_scenario=True needs a scenario given by name whose factory takes a 'seed'")
+        # -- model and options
+        if params is None:
+            params = ModelParams()
+        elif isinstance(params, dict):
+            params = ModelParams.from_dict(params)
+        elif not isinstance(params, ModelParams):
+            raise EnvOptionError(f"params must be a ModelParams or a dict, got {type(params).__name__}")
+        self.params = params
+        self.frame_skip = _positive_number("frame_skip", frame_skip, integer=True)
+        if max_steps is None:
+            max_steps = max(1, int(math.ceil(DEFAULT_EPISODE_TIME_S / (params.dt_s * self.frame_skip) - 1e-9)))
+        self.max_steps = _positive_number("max_steps", max_steps, integer=True)
+        self.action_max_m_s = _positive_number("action_max_m_s", action_max_m_s)
+        self.n_neighbors = _positive_number("n_neighbors", n_neighbors, integer=True, allow_zero=True)
+        self.n_rays = _positive_number("n_rays", n_rays, integer=True, allow_zero=True)
+        neighbor_radius_m = _positive_number("neighbor_radius_m", neighbor_radius_m)
+        ray_range_m = _positive_number("ray_range_m", ray_range_m)
+        if heading_target not in ("intent", "desired_direction"):
+            raise EnvOptionError(f"heading_target must be 'intent' or 'desired_direction', got {heading_target!r}")
+        self.heading_target = heading_target
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise EnvOptionError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
+        self.render_mode = render_mode
+        if reward_fn is None:
+            reward_fn = DefaultReward()
+        elif not callable(reward_fn):
+            raise EnvOptionError(f"reward_fn must be callable reward_fn(env, agent_ids, info), got {reward_fn!r}")
+        self.reward_fn = reward_fn
+        if background_policy is not None and not callable(background_policy):
+            raise EnvOptionError(f"background_policy must be callable policy(sim), got {background_policy!r}")
+        self._background_policy = background_policy
+        # -- agents
+        self._controlled_index = _select_controlled(controlled, n)
+        self._ids = [agent_id(i) for i in range(n)]
+        self.possible_agents = [self._ids[i] for i in self._controlled_index]
+        self._index_of = {a: int(i) for a, i in zip(self.possible_agents, self._controlled_index)}
+        self._controlled_mask = np.zeros(n, dtype=bool)
+        self._controlled_mask[self._controlled_index] = True
+        self.agents = []
+        # -- navigation, observations and spaces
+        self.navigation = scenario.navigation()
+        tgrid = self.navigation.travel_time_s_grid
+        t_bound = float(np.max(tgrid[np.isfinite(tgrid)])) + 1.0
+        self.velocity_bound_m_s = max(20.0, 2.0 * self.action_max_m_s)
+        self._observer = ObservationBuilder(self.navigation, scenario.geometry.walls, n_neighbors=self.n_neighbors,
+                                            n_rays=self.n_rays, neighbor_radius_m=neighbor_radius_m,
+                                            ray_range_m=ray_range_m, velocity_bound_m_s=self.velocity_bound_m_s,
+                                            travel_time_bound_s=t_bound)
+        self.observation_layout = dict(self._observer.layout)
+        a = np.float32(self.action_max_m_s)
+        self._observation_spaces = {ag: spaces.Box(self._observer.low, self._observer.high, dtype=np.float32)
+                                    for ag in self.possible_agents}
+        self._action_spaces = {ag: spaces.Box(-a, a, shape=(2,), dtype=np.float32) for ag in self.possible_agents}
+        self._a_max_check = float(a)
+        self.metadata = {**type(self).metadata, "render_fps": 1.0 / (params.dt_s * self.frame_skip)}
+        # -- run state
+        self._rng = None
+        self._sim = None
+        self._steps = 0
+        self._agent_index = np.zeros(0, np.int64)
+        self._travel_time = np.full(n, np.nan)
+        self._renderer = None
+        self.substep_hooks = []
+
+    # ------------------------------------------------------------------ spaces
+    def observation_space(self, agent):
+        """The (cached) observation Box of ``agent``."""
+        try:
+            return self._observation_spaces[agent]
+        except KeyError:
+            raise ValueError(f"unknown agent {agent!r}; agents are {self._ids_summary()}") from None
+
+    def action_space(self, agent):
+        """The (cached) action Box(-a_max, a_max, (2,)) of ``agent``: a velocity intent in m/s."""
+        try:
+            return self._action_spaces[agent]
+        except KeyError:
+            raise ValueError(f"unknown agent {agent!r}; agents are {self._ids_summary()}") from None
+
+    def _ids_summary(self) -> str:
+        p = self.possible_agents
+        return str(p) if len(p) <= 8 else f"[{', '.join(p[:4])}, ..., {p[-1]}] ({len(p)})"
+
+    # ------------------------------------------------------------------ read-only views
+    @property
+    def sim(self) -> Simulator:
+        """The current :class:`~crowd_env.core.simulator.Simulator` (None before the first reset)."""
+        return self._sim
+
+    @property
+    def scenario(self) -> Scenario:
+        return self._scenario
+
+    @property
+    def geometry(self):
+        return self._scenario.geometry
+
+    @property
+    def walkable_area(self):
+        """The walkable area (shapely polygon, obstacles removed)."""
+        return self._scenario.geometry.walkable_area
+
+    @property
+    def n_pedestrians(self) -> int:
+        return self._scenario.n_pedestrians
+
+    @property
+    def dt_s(self) -> float:
+        """Simulated duration of one environment step (frame_skip × params.dt_s)."""
+        return self.params.dt_s * self.frame_skip
+
+    @property
+    def time_s(self) -> float:
+        return 0.0 if self._sim is None else self._sim.time_s
+
+    @property
+    def controlled_mask(self) -> np.ndarray:
+        """(N,) bool: pedestrians controlled by agents (a copy)."""
+        return self._controlled_mask.copy()
+
+    def _per_pedestrian(self, array) -> dict:
+        if self._sim is None:
+            return {}
+        idx = np.flatnonzero(self._sim.state.active)
+        ids = self._ids
+        return {ids[i]: v for i, v in zip(idx.tolist(), np.array(array[idx], copy=True))}
+
+    @property
+    def positions_m(self) -> dict:
+        """id -> position (2,) in m of every pedestrian still on the floor (controlled or not)."""
+        return self._per_pedestrian(self._sim.state.position_m) if self._sim else {}
+
+    @property
+    def velocities_m_s(self) -> dict:
+        """id -> velocity (2,) in m/s of every pedestrian still on the floor."""
+        return self._per_pedestrian(self._sim.state.velocity_m_s) if self._sim else {}
+
+    @property
+    def headings_rad(self) -> dict:
+        """id -> heading in rad of every pedestrian still on the floor."""
+        return {k: float(v) for k, v in self._per_pedestrian(self._sim.state.heading_rad).items()} if self._sim else {}
+
+    @property
+    def radii_m(self) -> dict:
+        """id -> radius in m of every pedestrian still on the floor."""
+        return {k: float(v) for k, v in self._per_pedestrian(self._sim.state.radius_m).items()} if self._sim else {}
+
+    # ------------------------------------------------------------------ API
+    def reset(self, seed=None, options=None):
+        """Start an episode; returns ``(observations, infos)`` of all ``possible_agents``."""
+        if seed is not None:
+            self._rng = np.random.default_rng(seed)
+        elif self._rng is None:
+            self._rng = np.random.default_rng()
+        scenario = self._scenario
+        if self.reseed_scenario:
+            sub = int(self._rng.integers(0, 2**31 - 1))
+            fresh = make_scenario(self._scenario_name, **{**self._scenario_kwargs, "seed": sub})
+            if fresh.n_pedestrians != scenario.n_pedestrians:
+                raise RuntimeError("reseeded scenario changed its number of pedestrians")
+            scenario = fresh
+        state = scenario.make_state(rng=self._rng)
+        self._sim = Simulator(state, geometry=self._scenario.geometry, params=self.params)
+        if self._background_policy is None and not self._controlled_mask.all():
+            self._background_policy = default_background_policy(self._scenario)
+        self._steps = 0
+        self.agents = self.possible_agents[:]
+        self._agent_index = self._controlled_index.copy()
+        obs, travel = self._observer.build(state, self._agent_index)
+        self._travel_time[:] = np.nan
+        self._travel_time[self._agent_index] = travel
+        infos = {a: {"contact_percussion_kg_m_s": 0.0, "n_contacts": 0, "travel_time_s": float(t),
+                     "speed_m_s": float(s)}
+                 for a, t, s in zip(self.agents, travel.tolist(),
+                                    np.hypot(*state.velocity_m_s[self._agent_index].T).tolist())}
+        if self.render_mode == "human":
+            self.render()
+        return dict(zip(self.agents, obs)), infos
+
+    def _actions_array(self, actions) -> np.ndarray:
+        """Validate ``actions`` against the live agents; returns (n_live, 2) float64 in ``self.agents`` order."""
+        if not isinstance(actions, dict):
+            raise ValueError(f"actions must be a dict agent id -> (2,) velocity intent, got {type(actions).__name__}")
+        live = self.agents
+        if len(actions) != len(live) or actions.keys() != set(live):
+            known = self._index_of
+            unknown = [a for a in actions if a not in known]
+            if unknown:
+                raise ValueError(f"unknown agent id(s) {unknown[:10]}; agents are {self._ids_summary()}")
+            live_set = set(live)
+            dead = [a for a in actions if a not in live_set]
+            if dead:
+                raise ValueError(f"agent(s) {dead[:10]} are no longer live (terminated or truncated); "
+                                 "give actions only for env.agents")
+            missing = [a for a in live if a not in actions]
+            raise ValueError(f"missing action(s) for live agent(s) {missing[:10]} ({len(missing)} in all): every "
+                             "agent in env.agents needs an action each step")
+        try:
+            arr = np.array([actions[a] for a in live], dtype=np.float64)
+        except (TypeError, ValueError):
+            arr = None
+        if arr is None or arr.shape != (len(live), 2):
+            for a in live:
+                try:
+                    v = np.asarray(actions[a], dtype=np.float64)
+                except (TypeError, ValueError):
+                    raise ValueError(f"action of {a} is not numeric: {actions[a]!r}") from None
+                if v.shape != (2,):
+                    raise ValueError(f"action of {a} must have shape (2,) (a velocity intent in m/s), got shape "
+                                     f"{v.shape}: {actions[a]!r}")
+            raise ValueError("actions could not be stacked into an (n, 2) array")  # pragma: no cover
+        finite = np.isfinite(arr).all(axis=1)
+        if not finite.all():
+            bad = [live[i] for i in np.flatnonzero(~finite)[:10]]
+            raise ValueError(f"non-finite action(s) for {bad}: {arr[~finite][:3].tolist()}")
+        out = (np.abs(arr) > self._a_max_check).any(axis=1)
+        if out.any():
+            i = np.flatnonzero(out)
+            bad = [live[k] for k in i[:10]]
+            raise ValueError(f"action(s) of {bad} outside the action space Box(-{self.action_max_m_s:g}, "
+                             f"{self.action_max_m_s:g}) m/s: {arr[i[:3]].tolist()}; the environment does not clip")
+        return arr
+
+    def step(self, actions):
+        """Advance ``frame_skip`` simulator steps; returns ``(obs, rewards, terminations, truncations, infos)``."""
+        if not self.agents:
+            if actions:
+                raise ValueError(f"no live agent, but actions were given for {list(actions)[:10]}: the episode is "
+                                 "over, call reset()")
+            return {}, {}, {}, {}, {}
+        if self._sim is None:
+            raise RuntimeError("call reset() before step()")
+        intent_c = self._actions_array(actions)
+        sim = self._sim
+        st = sim.state
+        n = st.n
+        idx_c = self._agent_index
+        agents = self.agents
+        t_before = self._travel_time[idx_c]
+        percussion = np.zeros(n)
+        contacts = np.zeros(n, np.int64)
+        background = ~self._controlled_mask
+        if self.heading_target == "intent":
+            speed_c = np.hypot(intent_c[:, 0], intent_c[:, 1])
+            zero_c = speed_c <= 1e-12
+            theta_int = np.arctan2(intent_c[:, 1], intent_c[:, 0])
+        hooks = self.substep_hooks
+        for _ in range(self.frame_skip):
+            if not st.active.any():
+                break
+            if (background & st.active).any():
+                intents, heading = self._background(sim)
+            else:
+                intents = np.zeros((n, 2))
+                heading = st.heading_rad.copy()
+            intents[idx_c] = intent_c
+            if self.heading_target == "intent":
+                heading[idx_c] = np.where(zero_c, st.heading_rad[idx_c], theta_int)
+            else:
+                e_d = self.navigation.direction(st.position_m[idx_c])
+                heading[idx_c] = np.arctan2(e_d[:, 1], e_d[:, 0])
+            if hooks:
+                prev_pos, prev_t = st.position_m.copy(), sim.time_s
+            res = sim.step(intents, desired_heading_rad=heading)
+            if res.contact_i.size:
+                pn = np.abs(res.percussion_normal)
+                percussion += np.bincount(res.contact_i, weights=pn, minlength=n)
+                contacts += np.bincount(res.contact_i, minlength=n)
+                wj = res.contact_j >= 0
+                if wj.any():
+                    percussion += np.bincount(res.contact_j[wj], weights=pn[wj], minlength=n)
+                    contacts += np.bincount(res.contact_j[wj], minlength=n)
+            for hook in hooks:
+                hook(self, res, prev_pos, prev_t)
+        self._steps += 1
+        exited = ~st.active[idx_c]
+        obs, t_after = self._observer.build(st, idx_c)
+        self._travel_time[idx_c] = t_after
+        speed = np.hypot(st.velocity_m_s[idx_c, 0], st.velocity_m_s[idx_c, 1])
+        info = {"agent_index": idx_c.copy(), "progress_s": t_before - t_after, "travel_time_before_s": t_before,
+                "travel_time_s": t_after, "contact_percussion_kg_m_s": percussion[idx_c],
+                "n_contacts": contacts[idx_c], "speed_m_s": speed, "exited": exited, "dt_s": self.dt_s}
+        rewards = self._rewards(agents, info)
+        truncated = (~exited) & (self._steps >= self.max_steps)
+        obs_d = dict(zip(agents, obs))
+        rew_d = dict(zip(agents, rewards.tolist()))
+        term_d = dict(zip(agents, exited.tolist()))
+        trunc_d = dict(zip(agents, truncated.tolist()))
+        info_d = {a: {"contact_percussion_kg_m_s": p, "n_contacts": c, "travel_time_s": t, "speed_m_s": s}
+                  for a, p, c, t, s in zip(agents, percussion[idx_c].tolist(), contacts[idx_c].tolist(),
+                                           t_after.tolist(), speed.tolist())}
+        done = exited | truncated
+        if done.any():
+            keep = ~done
+            self._agent_index = idx_c[keep]
+            self.agents = [a for a, k in zip(agents, keep.tolist()) if k]
+        if self.render_mode == "human":
+            self.render()
+        return obs_d, rew_d, term_d, trunc_d, info_d
+
+    def _background(self, sim):
+        out = self._background_policy(sim)
+        n = sim.state.n
+        if isinstance(out, tuple):
+            intents, heading = out
+        else:
+            intents, heading = out, None
+        intents = np.array(intents, dtype=np.float64)
+        if intents.shape != (n, 2):
+            raise ValueError(f"background policy returned intents of shape {intents.shape}, expected ({n}, 2)")
+        if heading is None:
+            speed = np.hypot(intents[:, 0], intents[:, 1])
+            heading = np.where(speed > 1e-12, np.arctan2(intents[:, 1], intents[:, 0]), sim.state.heading_rad)
+        else:
+            heading = np.array(heading, dtype=np.float64)
+            if heading.shape != (n,):
+                raise ValueError(f"background policy returned headings of shape {heading.shape}, expected ({n},)")
+        return intents, heading
+
+    def _rewards(self, agents, info) -> np.ndarray:
+        out = self.reward_fn(self, agents, info)
+        if isinstance(out, dict):
+            missing = [a for a in agents if a not in out]
+            if missing:
+                raise ValueError(f"reward_fn returned no reward for {missing[:10]}")
+            out = [out[a] for a in agents]
+        r = np.asarray(out, dtype=np.float64)
+        if r.shape != (len(agents),):
+            raise ValueError(f"reward_fn must return {len(agents)} rewards (one per agent), got shape {r.shape}")
+        if not np.isfinite(r).all():
+            raise ValueError(f"reward_fn returned non-finite rewards for {[agents[i] for i in np.flatnonzero(~np.isfinite(r))[:10]]}")
+        return r
+
+    def render(self):
+        """``rgb_array``: an (H, W, 3) uint8 image; ``human``: draw in a window (headless: warn once) and return None."""
+        if self.render_mode is None:
+            warnings.warn("render() called with render_mode=None; create the environment with "
+                          "render_mode='rgb_array' or 'human'", UserWarning, stacklevel=2)
+            return None
+        if self._sim is None:
+            raise RuntimeError("call reset() before render()")
+        if self._renderer is None:
+            from .rendering import CrowdRenderer
+
+            self._renderer = CrowdRenderer(self._scenario.geometry, self._controlled_mask, self.render_mode,
+                                           fps=self.metadata["render_fps"])
+        return self._renderer.draw(self._sim.state, self._sim.time_s, len(self.agents))
+
+    def close(self):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["_renderer"] = None  # figures do not travel (SuperSuit pickles environments to copy them)
+        return state
+
+
+ENV_OPTIONS = tuple(p.name for p in inspect.signature(CrowdParallelEnv.__init__).parameters.values()
+                    if p.kind == p.KEYWORD_ONLY)
+
+
+def _check_options(options: dict) -> None:
+    unknown = sorted(set(options) - set(ENV_OPTIONS))
+    if unknown:
+        raise EnvOptionError(f"unknown option(s) {unknown} for crowd_v0; known: {list(ENV_OPTIONS)}")
+
+
+def parallel_env(**options) -> CrowdParallelEnv:
+    """The PettingZoo parallel environment; options as in :class:`CrowdParallelEnv` (unknown ones raise)."""
+    _check_options(options)
+    return CrowdParallelEnv(**options)
+
+
+def env(**options):
+    """The AEC version: ``parallel_to_aec(parallel_env(...))`` (PettingZoo adds its order-enforcing wrapper).
+
+    Actions are not clipped, so PettingZoo's clip/assert-out-of-bounds wrappers are not applied; the
+    parallel environment raises on invalid actions itself.
+    """
+    return parallel_to_aec(parallel_env(**options))

@@ -1,0 +1,182 @@
+"""Per-agent observation vectors of the crowd environment, built for all agents at once.
+
+One observation is a flat ``float32`` vector; with ``k`` neighbours and ``R`` rays it has
+``7 + 5 k + R`` entries, in this order (world frame: x along the scenario's x axis; see
+:data:`OBSERVATION_FIELDS` and :func:`observation_layout` for slices):
+
+==========================  =====  ====================================================================
+field                       size   meaning (units)
+==========================  =====  ====================================================================
+``velocity``                2      own velocity (u_x, u_y) in m/s
+``heading``                 2      (cos θ, sin θ) of the own heading θ
+``desired_direction``       2      e_d = −∇T/‖∇T‖ of the eikonal field at the own position (unit vector)
+``travel_time``             1      T at the own position: remaining travel time to the nearest exit in
+                                   s at the field's wavefront speed (1 m/s by default, so numerically the
+                                   geodesic distance in m); 0 inside an exit
+``neighbors``               4 k    for each of the k nearest other pedestrians within
+                                   ``neighbor_radius_m`` (nearest first): (x_j − x_i, y_j − y_i) in m and
+                                   (u_j − u_i) in m/s; zeros where there are fewer than k
+``neighbor_mask``           k      1 for a real neighbour in that slot, 0 for padding
+``wall_rays``               R      distance in m from the own centre to the first wall along R rays at
+                                   angles θ + 2π r / R (r = 0 … R−1; ray 0 points along the heading),
+                                   capped at ``ray_range_m``
+==========================  =====  ====================================================================
+
+Neighbours are every other active pedestrian, controlled or background. The builder makes one k-d
+tree query for all agents and one call of the compiled ray kernel
+(:func:`crowd_env.core.segments.ray_distances`); nothing loops over agents in Python.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..core.segments import ray_distances
+
+__all__ = ["OBSERVATION_FIELDS", "ObservationField", "observation_layout", "observation_size", "ObservationBuilder"]
+
+
+@dataclass(frozen=True)
+class ObservationField:
+    """One block of the observation vector: ``size`` is an expression in k (neighbours) and R (rays)."""
+
+    name: str
+    size: str
+    description: str
+
+
+OBSERVATION_FIELDS: tuple = (
+    ObservationField("velocity", "2", "own velocity (u_x, u_y), m/s, world frame"),
+    ObservationField("heading", "2", "(cos θ, sin θ) of the own heading"),
+    ObservationField("desired_direction", "2", "e_d of the eikonal field at the own position (unit vector)"),
+    ObservationField("travel_time", "1", "remaining travel time T to the nearest exit, s at the field's speed "
+                                         "(1 m/s: the geodesic distance in m); 0 inside an exit"),
+    ObservationField("neighbors", "4k", "k nearest others within neighbor_radius_m, nearest first: relative "
+                                        "position (m) and relative velocity (m/s) each; zero padded"),
+    ObservationField("neighbor_mask", "k", "1 for a real neighbour in the slot, 0 for padding"),
+    ObservationField("wall_rays", "R", "distance (m) from the own centre to the first wall along R rays at "
+                                       "θ + 2πr/R, capped at ray_range_m"),
+)
+
+
+def _field_sizes(n_neighbors: int, n_rays: int) -> dict:
+    k, r = int(n_neighbors), int(n_rays)
+    return {"velocity": 2, "heading": 2, "desired_direction": 2, "travel_time": 1, "neighbors": 4 * k,
+            "neighbor_mask": k, "wall_rays": r}
+
+
+def observation_layout(n_neighbors: int, n_rays: int) -> dict:
+    """Field name -> ``slice`` into the observation vector."""
+    out, start = {}, 0
+    for name, size in _field_sizes(n_neighbors, n_rays).items():
+        out[name] = slice(start, start + size)
+        start += size
+    return out
+
+
+def observation_size(n_neighbors: int, n_rays: int) -> int:
+    """Length of the observation vector: 7 + 5 k + R."""
+    return sum(_field_sizes(n_neighbors, n_rays).values())
+
+
+class ObservationBuilder:
+    """Builds the observations of a set of pedestrians from a :class:`~crowd_env.core.state.CrowdState`.
+
+    ``navigation``: a field with ``sample(points) -> (e_d, T)``; ``walls``: (S, 4) segments.
+    ``velocity_bound_m_s`` and ``travel_time_bound_s`` only set the declared bounds of the space.
+    """
+
+    def __init__(self, navigation, walls, *, n_neighbors: int, n_rays: int, neighbor_radius_m: float,
+                 ray_range_m: float, velocity_bound_m_s: float, travel_time_bound_s: float):
+        self.navigation = navigation
+        self.walls = np.ascontiguousarray(walls, dtype=np.float64).reshape(-1, 4)
+        self.n_neighbors = int(n_neighbors)
+        self.n_rays = int(n_rays)
+        self.neighbor_radius_m = float(neighbor_radius_m)
+        self.ray_range_m = float(ray_range_m)
+        self.layout = observation_layout(self.n_neighbors, self.n_rays)
+        self.size = observation_size(self.n_neighbors, self.n_rays)
+        self.ray_offsets = 2.0 * np.pi * np.arange(self.n_rays) / max(self.n_rays, 1)
+        low = np.empty(self.size, np.float32)
+        high = np.empty(self.size, np.float32)
+        L = self.layout
+        v = float(velocity_bound_m_s)
+        for name, lo, hi in (("velocity", -v, v), ("heading", -1.0, 1.0), ("desired_direction", -1.0, 1.0),
+                             ("travel_time", 0.0, float(travel_time_bound_s)), ("neighbor_mask", 0.0, 1.0),
+                             ("wall_rays", 0.0, self.ray_range_m)):
+            low[L[name]] = lo
+            high[L[name]] = hi
+        nb_low = np.tile(np.array([-self.neighbor_radius_m, -self.neighbor_radius_m, -2 * v, -2 * v]), self.n_neighbors)
+        low[L["neighbors"]] = nb_low
+        high[L["neighbors"]] = -nb_low
+        self.low, self.high = low, high
+
+    def build(self, state, index: np.ndarray):
+        """Observations ``(m, D)`` float32 of pedestrians ``index`` (global indices, exited ones allowed),
+        and their travel times ``(m,)`` float64 (for rewards)."""
+        index = np.asarray(index, dtype=np.int64)
+        m = index.shape[0]
+        obs = np.zeros((m, self.size), np.float32)
+        if m == 0:
+            return obs, np.zeros(0)
+        L = self.layout
+        pos = state.position_m[index]
+        vel = state.velocity_m_s[index]
+        theta = state.heading_rad[index]
+        obs[:, L["velocity"]] = vel
+        obs[:, L["heading"].start] = np.cos(theta)
+        obs[:, L["heading"].start + 1] = np.sin(theta)
+        e_d, travel = self.navigation.sample(pos)
+        obs[:, L["desired_direction"]] = e_d
+        obs[:, L["travel_time"].start] = travel
+        if self.n_neighbors:
+            self._neighbors(state, index, pos, vel, obs)
+        if self.n_rays:
+            if self.walls.shape[0]:
+                angles = theta[:, None] + self.ray_offsets[None, :]
+                obs[:, L["wall_rays"]] = ray_distances(np.ascontiguousarray(pos), angles, self.walls, self.ray_range_m)
+            else:
+                obs[:, L["wall_rays"]] = self.ray_range_m
+        return obs, travel
+
+    def _neighbors(self, state, index, pos, vel, out: np.ndarray) -> None:
+        """Write the k nearest other active pedestrians' relative positions/velocities and the mask into ``out``."""
+        active = np.flatnonzero(state.active)
+        if active.size == 0:
+            return
+        m = index.shape[0]
+        kq = min(self.n_neighbors + 1, active.size)
+        tree = cKDTree(state.position_m[active])
+        _, j = tree.query(pos, k=kq, distance_upper_bound=self.neighbor_radius_m)
+        j = np.ascontiguousarray(np.asarray(j, dtype=np.int64).reshape(m, kq))
+        _fill_neighbors(out, self.layout["neighbors"].start, self.layout["neighbor_mask"].start, self.n_neighbors,
+                        index, j, active, state.position_m, state.velocity_m_s)
+
+
+@nb.njit(cache=True)
+def _fill_neighbors(out, col_rel, col_mask, k, index, j, active, position, velocity):
+    """For each row a: the first k entries of j[a] (k-d tree rows into ``active``, nearest first; ==
+    active.size when missing) that are not the agent itself -> relative position/velocity and mask 1."""
+    n_act = active.shape[0]
+    for a in range(index.shape[0]):
+        i = index[a]
+        slot = 0
+        for c in range(j.shape[1]):
+            if slot == k:
+                break
+            r = j[a, c]
+            if r >= n_act:
+                break  # the rest are missing too
+            g = active[r]
+            if g == i:
+                continue
+            base = col_rel + 4 * slot
+            out[a, base] = position[g, 0] - position[i, 0]
+            out[a, base + 1] = position[g, 1] - position[i, 1]
+            out[a, base + 2] = velocity[g, 0] - velocity[i, 0]
+            out[a, base + 3] = velocity[g, 1] - velocity[i, 1]
+            out[a, col_mask + slot] = 1.0
+            slot += 1

@@ -1,0 +1,96 @@
+"""Gymnasium ids of crowd_env (single-agent views, :class:`crowd_env.envs.gym_single.CrowdSingleAgentEnv`).
+
+``import crowd_env`` makes these ids available to ``gymnasium.make``; to keep that import light,
+gymnasium itself is not imported for it: when gymnasium is already loaded the ids are registered at
+once, otherwise a one-shot import hook registers them as soon as gymnasium is imported (or call
+:func:`register_envs` yourself; it is idempotent).
+
+=================================  =============================================================
+id                                 environment
+=================================  =============================================================
+``crowd_env/Bottleneck-v0``        Seyfried bottleneck, b = 1.0 m, 60 pedestrians; learner ped_0
+``crowd_env/BottleneckSmall-v0``   the same with 20 pedestrians (quick experiments)
+``crowd_env/BottleneckWide-v0``    b = 1.6 m, 60 pedestrians
+=================================  =============================================================
+
+All use decisions every 0.1 s (``frame_skip=10``) and truncate after 60 s (``max_steps=600``);
+keyword arguments of ``gymnasium.make`` override any option.
+"""
+from __future__ import annotations
+
+import importlib.abc
+import importlib.util
+import sys
+
+__all__ = ["ENV_IDS", "register_envs"]
+
+_ENTRY = "crowd_env.envs.gym_single:CrowdSingleAgentEnv"
+_COMMON = {"frame_skip": 10, "max_steps": 600}
+ENV_IDS = {
+    "crowd_env/Bottleneck-v0": {"scenario": "seyfried_bottleneck",
+                                "scenario_options": {"width_m": 1.0, "n_pedestrians": 60}, **_COMMON},
+    "crowd_env/BottleneckSmall-v0": {"scenario": "seyfried_bottleneck",
+                                     "scenario_options": {"width_m": 1.0, "n_pedestrians": 20}, **_COMMON},
+    "crowd_env/BottleneckWide-v0": {"scenario": "seyfried_bottleneck",
+                                    "scenario_options": {"width_m": 1.6, "n_pedestrians": 60}, **_COMMON},
+}
+_done = False
+
+
+def register_envs() -> None:
+    """Register :data:`ENV_IDS` with gymnasium (idempotent)."""
+    global _done
+    if _done:
+        return
+    import gymnasium
+
+    for env_id, kwargs in ENV_IDS.items():
+        if env_id not in gymnasium.registry:
+            gymnasium.register(id=env_id, entry_point=_ENTRY, kwargs=kwargs)
+    _done = True
+
+
+class _RegisterOnImport(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """Finds ``gymnasium`` with the other finders, lets it load, then registers the ids (once)."""
+
+    _busy = False
+
+    def find_spec(self, fullname, path=None, target=None):
+        if fullname != "gymnasium" or self._busy:
+            return None
+        self._busy = True
+        try:
+            spec = importlib.util.find_spec(fullname)
+        finally:
+            self._busy = False
+        if spec is None or spec.loader is None:
+            return None
+        self._loader = spec.loader
+        spec.loader = self
+        return spec
+
+    def create_module(self, spec):
+        return self._loader.create_module(spec)
+
+    def exec_module(self, module):
+        # Hand the module back to its real loader before running it, and leave sys.meta_path.
+        module.__loader__ = self._loader
+        if module.__spec__ is not None:
+            module.__spec__.loader = self._loader
+        if self in sys.meta_path:
+            sys.meta_path.remove(self)
+        self._loader.exec_module(module)
+        try:
+            register_envs()
+        except Exception:  # pragma: no cover - never break the user's import of gymnasium
+            pass
+
+
+def _install() -> None:
+    if "gymnasium" in sys.modules:
+        register_envs()
+    elif not any(isinstance(f, _RegisterOnImport) for f in sys.meta_path):
+        sys.meta_path.insert(0, _RegisterOnImport())
+
+
+_install()
