@@ -264,11 +264,13 @@ def plot_results(results, path) -> None:
     rows = summarize(results)
     scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
     policies = list(dict.fromkeys(r["policy"] for r in rows))
-    fig = Figure(figsize=(3.2 * len(METRICS), 3.6))
+    ncols = 4
+    nrows = math.ceil(len(METRICS) / ncols)
+    fig = Figure(figsize=(3.4 * ncols, 3.0 * nrows + 0.4))
     FigureCanvasAgg(fig)
     width = 0.8 / max(len(policies), 1)
     for m, (key, label) in enumerate(METRICS):
-        ax = fig.add_subplot(1, len(METRICS), m + 1)
+        ax = fig.add_subplot(nrows, ncols, m + 1)
         for p, pol in enumerate(policies):
             xs, ys, es = [], [], []
             for s, scen in enumerate(scenarios):

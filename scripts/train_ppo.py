@@ -53,7 +53,7 @@ def make_env_config(args) -> dict:
         options["width_m"] = args.width
     return {"scenario": args.scenario, "scenario_options": options, "controlled": "all",
             "frame_skip": args.frame_skip, "max_steps": args.max_steps, "n_neighbors": args.n_neighbors,
-            "n_rays": args.n_rays, "reseed_scenario": args.reseed_scenario}
+            "n_rays": args.n_rays, "reseed_scenario": False if args.fixed_start else None}
 
 
 def make_vec_env(env_config: dict, copies: int = 1, seed: int | None = None):
@@ -192,7 +192,9 @@ def main(argv=None) -> int:
     ap.add_argument("--max-steps", type=int, default=100, help="decisions per episode")
     ap.add_argument("--n-neighbors", type=int, default=6)
     ap.add_argument("--n-rays", type=int, default=8)
-    ap.add_argument("--reseed-scenario", action="store_true", help="new start positions every episode")
+    ap.add_argument("--fixed-start", action="store_true",
+                    help="keep the scenario's start positions in every episode (default: new positions drawn "
+                         "from the episode seed, see reseed_scenario)")
     ap.add_argument("--copies", type=int, default=2, help="environment copies concatenated")
     ap.add_argument("--n-steps", type=int, default=256, help="PPO rollout length per agent slot")
     ap.add_argument("--batch-size", type=int, default=512)

@@ -55,10 +55,19 @@ Episode end
     (SuperSuit's ``black_death_v3`` relies on it). ``reset(options=...)`` ignores its options.
 
 Determinism
-    ``reset(seed=s)`` seeds everything random (the desired speeds drawn by the scenario, and the
-    start positions when ``reseed_scenario=True``); the same seed and actions give bitwise identical
-    observations, rewards and infos. Without a seed the first reset draws fresh entropy and later
-    ones continue the stream.
+    ``reset(seed=s)`` seeds everything random: the start positions (a named scenario is rebuilt with a
+    seed drawn from the env's RNG, unless its ``seed`` option is pinned; see ``reseed_scenario``) and
+    the desired speeds; the same seed and actions give bitwise identical observations, rewards and
+    infos. Without a seed the first reset draws fresh entropy and later ones continue the stream.
+
+Equivalence
+    With every pedestrian controlled and fed the calibrated agent's intents (``action_max_m_s`` large
+    enough, e.g. 50, and ``heading_target="desired_direction"``), the trajectories are bitwise those of
+    the plain simulator with everyone on the baseline (tests/test_env.py).
+
+Decision interval
+    ``frame_skip × params.dt_s``: 0.01 s by default (``frame_skip=1``); the registered Gymnasium ids and
+    ``scripts/train_ppo.py`` use ``frame_skip=10`` (0.1 s).
 """
 from __future__ import annotations
 
@@ -72,7 +81,7 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec
 
 from ..core.params import ModelParams
-from ..core.simulator import Simulator, wrap_angle
+from ..core.simulator import Simulator
 from ..scenarios import Scenario, make_scenario, scenario_options as _scenario_option_defaults
 from .observations import OBSERVATION_FIELDS, ObservationBuilder
 from .rewards import DefaultReward
@@ -185,8 +194,11 @@ class CrowdParallelEnv(ParallelEnv):
     - ``render_mode``: None, ``"human"`` or ``"rgb_array"``.
     - ``frame_skip``: simulator steps per environment step (decision interval frame_skip × dt; default 1).
     - ``heading_target``: ``"intent"`` (θ_d = angle of the action) or ``"desired_direction"`` (angle of e_d).
-    - ``reseed_scenario``: rebuild a named scenario with a seed from the env's RNG at each reset, so
-      that start positions vary too (default False: the scenario's own positions every episode).
+    - ``reseed_scenario``: rebuild a named scenario with a seed drawn from the env's RNG at each reset,
+      so that start positions vary with the seed (a few tens of ms per reset). Default None = auto: on
+      for a named scenario whose factory takes a ``seed``, unless ``scenario_options`` pins ``seed``;
+      off for a Scenario object (then the seed only draws the desired speeds, which matter to the
+      background policy only).
     """
 
     metadata = {"name": "crowd_v0", "render_modes": ["human", "rgb_array"], "render_fps": 10,
@@ -195,7 +207,7 @@ class CrowdParallelEnv(ParallelEnv):
     def __init__(self, *, scenario="seyfried_bottleneck", scenario_options=None, controlled="all",
                  background_policy=None, params=None, max_steps=None, action_max_m_s=DEFAULT_ACTION_MAX_M_S,
                  n_neighbors=6, n_rays=8, neighbor_radius_m=4.0, ray_range_m=5.0, reward_fn=None, render_mode=None,
-                 frame_skip=1, heading_target="intent", reseed_scenario=False):
+                 frame_skip=1, heading_target="intent", reseed_scenario=None):
         # -- scenario
         if isinstance(scenario, Scenario):
             if scenario_options:
@@ -214,10 +226,14 @@ class CrowdParallelEnv(ParallelEnv):
         n = scenario.n_pedestrians
         if n < 1:
             raise EnvOptionError("the scenario has no pedestrian")
-        self.reseed_scenario = bool(reseed_scenario)
-        if self.reseed_scenario and (self._scenario_name is None
-                                     or "seed" not in _scenario_option_defaults(self._scenario_name)):
+        can_reseed = self._scenario_name is not None and "seed" in _scenario_option_defaults(self._scenario_name)
+        if reseed_scenario is None:  # auto: vary start positions unless the user pinned the scenario's seed
+            reseed_scenario = can_reseed and "seed" not in self._scenario_kwargs
+        elif not isinstance(reseed_scenario, (bool, np.bool_)):
+            raise EnvOptionError(f"reseed_scenario must be None, True or False, got {reseed_scenario!r}")
+        elif reseed_scenario and not can_reseed:
             raise EnvOptionError("reseed_scenario=True needs a scenario given by name whose factory takes a 'seed'")
+        self.reseed_scenario = bool(reseed_scenario)
         # -- model and options
         if params is None:
             params = ModelParams()
@@ -271,7 +287,8 @@ class CrowdParallelEnv(ParallelEnv):
         self._observation_spaces = {ag: spaces.Box(self._observer.low, self._observer.high, dtype=np.float32)
                                     for ag in self.possible_agents}
         self._action_spaces = {ag: spaces.Box(-a, a, shape=(2,), dtype=np.float32) for ag in self.possible_agents}
-        self._a_max_check = float(a)
+        # Accept |a| <= a_max whether the action is float64 (the option's value) or float32 (the Box's bound).
+        self._a_max_check = max(float(a), self.action_max_m_s)
         self.metadata = {**type(self).metadata, "render_fps": 1.0 / (params.dt_s * self.frame_skip)}
         # -- run state
         self._rng = None
