@@ -18,6 +18,10 @@ from .analysis.flow import MeasurementLine, PassageCounter, specific_flow
 from .core.params import ModelParams
 from .core.simulator import Simulator
 
+# Stationary phase for densities: between the passages of these fractions of the pedestrians (the
+# middle 60 %), see RunResult.density_window_s.
+STATIONARY_PASSAGE_FRACTIONS = (0.2, 0.8)
+
 
 @dataclass
 class RunResult:
@@ -39,14 +43,40 @@ class RunResult:
     lateral_positions_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
     n_fallback_solves: int = 0
 
-    def mean_density_per_m2(self, name: str) -> float:
-        """Mean density in an area between the first and last passage of the line (stationary phase)."""
+    def density_window_s(self, window: str = "stationary", fractions=STATIONARY_PASSAGE_FRACTIONS) -> tuple:
+        """(t_start, t_end) of a density window, from the passage times of the measurement line.
+
+        ``"passages"``: first to last passage (the whole Δt of Eq. 22, filling and draining included).
+        ``"stationary"``: from the passage of the ``fractions[0]``-th to the ``fractions[1]``-th part of
+        the pedestrians who passed (default the middle 60 %): the jam has formed and is still fed,
+        which is the phase whose density Seyfried et al. (2009) report ("fluctuates between 4 and 6
+        /m²" in the jam). The draining tail, when the crowd in front of the entrance thins to a few
+        people, is excluded. (nan, nan) with fewer than two passages.
+        """
+        times = np.sort(self.crossing_times_s)
+        if times.size < 2:
+            return float("nan"), float("nan")
+        if window == "passages":
+            return float(times[0]), float(times[-1])
+        if window != "stationary":
+            raise ValueError(f"window must be 'stationary' or 'passages', got {window!r}")
+        lo, hi = (float(f) for f in fractions)
+        if not 0.0 <= lo < hi <= 1.0:
+            raise ValueError(f"fractions must satisfy 0 <= lo < hi <= 1, got {fractions!r}")
+        k0 = int(round(lo * (times.size - 1)))
+        k1 = max(int(round(hi * (times.size - 1))), k0 + 1)
+        return float(times[k0]), float(times[k1])
+
+    def mean_density_per_m2(self, name: str, window: str = "stationary",
+                            fractions=STATIONARY_PASSAGE_FRACTIONS) -> float:
+        """Mean density in an area over :meth:`density_window_s` (default: the stationary phase)."""
         series = self.density_per_m2[name]
-        if self.crossing_times_s.size < 2:
+        t0, t1 = self.density_window_s(window, fractions)
+        if not np.isfinite(t0):
             return float("nan")
         dt = self.simulated_time_s / max(self.n_steps, 1)
         t = (np.arange(series.shape[0]) + 1) * dt
-        sel = (t >= self.crossing_times_s.min()) & (t <= self.crossing_times_s.max())
+        sel = (t >= t0) & (t <= t1)
         return float(series[sel].mean()) if sel.any() else float("nan")
 
 

@@ -167,3 +167,80 @@ def test_cached_and_fast(rect):
     for _ in range(10):
         a.sample(p)
     assert (time.perf_counter() - t0) / 10 < 0.02
+
+
+# -- configuration space (clearance_m): disk centres keep their radius from the walls ---------------
+R = 0.23
+
+
+def test_clearance_wraps_reflex_corners_at_the_radius():
+    """With clearance r the geodesic from beside the entrance wraps the corner at distance r: e_d points
+    into the part of the opening a disk centre can use (|y| <= 0.4 - r), not at the corner vertex."""
+    g = funnel()
+    point = NavigationField(g, H)
+    disk = NavigationField(g, H, clearance_m=R)
+    assert disk.clearance_m == R and point.clearance_m == 0.0
+    # beside the entrance, in line with the corner: the point field aims straight at the wall beside
+    # the opening, the configuration-space field turns towards the axis
+    p = np.array([[-0.35, -0.35], [-0.35, 0.35], [-0.5, -0.3]])
+    dp = point.direction(p)
+    dd = disk.direction(p)
+    assert np.all(np.abs(dp[:, 1]) < 0.2)
+    assert dd[0, 1] > 0.3 and dd[1, 1] < -0.3 and dd[2, 1] > 0.2
+    # following e_d from there, a disk centre enters the channel within |y| <= 0.4 - r
+    for start in p:
+        q = start.copy()
+        for _ in range(400):
+            q = q + 0.01 * disk.direction(q[None])[0]
+            if q[0] >= 0.0:
+                break
+        assert q[0] >= 0.0 and abs(q[1]) <= 0.4 - R + 0.03
+    # inside the channel's free band and far from walls the fields agree
+    c = np.column_stack([np.linspace(0.5, 2.5, 20), np.zeros(20)])
+    assert angle_deg(point.direction(c), disk.direction(c)).max() < 1.0
+
+
+def test_clearance_travel_time_is_the_disk_geodesic(ell):
+    """T with clearance c around the L-corner: tangent to the circle of radius c around CORNER, the arc,
+    then straight to the exit, measured for a centre that keeps c from the walls."""
+    c = 0.3
+    nf = NavigationField(ell, H, clearance_m=c)
+    p = np.array([[1.0, 1.0], [2.0, 0.6], [0.5, 1.5]])
+    t = nf.travel_time(p)
+    expected = []
+    for x, y in p:
+        v = CORNER - np.array([x, y])
+        dist = np.linalg.norm(v)
+        tangent = np.sqrt(dist ** 2 - c ** 2)
+        # polar angle (about CORNER) of the tangent point below the corner, then the arc to angle 0, the
+        # point (4 + c, 2) where the path turns straight up along x = 4 + c
+        phi_p = np.arctan2(y - 2.0, x - 4.0) + np.arccos(c / dist)
+        arc = c * abs(np.angle(np.exp(-1j * phi_p)))
+        expected.append(tangent + arc + 6.0)
+    np.testing.assert_allclose(t, expected, atol=2.0 * H)
+
+
+def test_clearance_validation_and_cache(rect):
+    with pytest.raises(GeometryError, match="clearance_m"):
+        NavigationField(rect, H, clearance_m=-0.1)
+    with pytest.raises(GeometryError, match="clearance_m"):
+        NavigationField(rect, H, clearance_m=float("nan"))
+    with pytest.raises(GeometryError, match="too narrow"):
+        NavigationField(rect, H, clearance_m=2.5)  # the 4 m room has no point 2.5 m from both long walls
+    a = NavigationField.cached(rect, H)
+    b = NavigationField.cached(rect, H, clearance_m=R)
+    assert b is not a and NavigationField.cached(rect, H, clearance_m=R) is b
+    # centres touching a wall (inside the eroded band) still get finite directions along the wall
+    d, t = b.sample(np.array([[5.0, R], [5.0, R - 1e-3], [5.0, 2.0]]))
+    assert np.all(np.isfinite(d)) and np.all(np.isfinite(t))
+    assert angle_deg(d, np.array([[1.0, 0.0]])).max() < 1.0
+
+
+def test_clearance_blocks_openings_narrower_than_a_pedestrian():
+    """A 0.4 m gap lets points through but not a disk of radius 0.23 m: its far side becomes unreachable."""
+    g = Geometry(box(0, 0, 10, 4), exits=[box(10, 0, 11, 4)],
+                 obstacles=[box(4, -1, 4.5, 1.8), box(4, 2.2, 4.5, 5)])
+    assert np.isfinite(NavigationField(g, H).travel_time(np.array([[2.0, 2.0]])))[0]
+    nf = NavigationField(g, H, clearance_m=R)
+    with pytest.raises(GeometryError, match="cannot reach any exit"):
+        nf.check_reachable(np.array([[2.0, 2.0]]), what="pedestrian")

@@ -188,3 +188,22 @@ def test_registry():
 
     register_scenario("test_tiny", tiny, overwrite=True)
     assert make_scenario("test_tiny").n_pedestrians == 1
+
+
+def test_bottleneck_navigation_in_configuration_space():
+    """navigation_clearance_m = r solves the eikonal field for disk centres (walls inflated by the radius);
+    the default 0 is the paper's literal point field. Beside the entrance the former steers into the
+    usable opening, the latter straight at the wall beside it."""
+    point = seyfried_bottleneck(width_m=1.0, n_pedestrians=20, seed=0)
+    assert point.navigation_clearance_m == 0.0 and point.navigation().clearance_m == 0.0
+    sc = seyfried_bottleneck(width_m=1.0, n_pedestrians=20, seed=0, navigation_clearance_m=R)
+    assert sc.metadata["navigation_clearance_m"] == pytest.approx(R)
+    nav = sc.navigation()
+    assert nav.clearance_m == pytest.approx(R) and sc.navigation() is nav
+    beside = np.array([[-0.35, -0.4], [-0.35, 0.4]])
+    d_cs, d_pt = nav.direction(beside), point.navigation().direction(beside)
+    assert d_cs[0, 1] > 0.3 and d_cs[1, 1] < -0.3  # towards the axis: |y| <= b/2 - r in the channel
+    assert np.all(np.abs(d_pt[:, 1]) < 0.1)  # straight at the wall beside the opening
+    with pytest.raises(ScenarioError, match="navigation_clearance_m"):
+        seyfried_bottleneck(width_m=1.0, n_pedestrians=20, navigation_clearance_m=-0.1)
+    assert scenario_options("seyfried_bottleneck")["navigation_clearance_m"] == 0.0

@@ -95,4 +95,57 @@ def bottleneck_figures(records: list, rows: list, out: Path) -> list:
     paths.append(out / "fig14_lanes.png")
     fig.savefig(paths[-1], dpi=120)
     plt.close(fig)
+    # Diagnostic: discharge rate vs the number of pedestrians not yet passed (records with crossing times).
+    path = discharge_figure(records, out / "fig15_discharge.png")
+    if path is not None:
+        paths.append(path)
     return paths
+
+
+def discharge_rate(crossing_times_s, window: int = 5):
+    """Flow (1/s) over ``window`` consecutive passages and the number of pedestrians not yet passed at
+    the middle of each window (those still upstream of the line). Empty arrays for too few passages.
+
+    In the experiment the flow of a bottleneck is a capacity, independent of how many people still
+    wait (Seyfried 2009: J_s of N = 20 and 40 as high as of N = 60); a flow that grows with the
+    crowd left behind is a pressure-driven discharge.
+    """
+    t = np.sort(np.asarray(crossing_times_s, dtype=float))
+    n = t.size
+    if n <= window:
+        return np.zeros(0), np.zeros(0)
+    k = np.arange(n)
+    dt = t[window:] - t[:-window]
+    rate = np.where(dt > 0, window / np.where(dt > 0, dt, 1.0), np.inf)
+    remaining = n - 0.5 * (k[:-window] + k[window:])
+    return remaining, rate
+
+
+def discharge_figure(records: list, path: Path, window: int = 5):
+    """Specific discharge rate vs crowd left behind, pooled over runs, one colour per N; None without data."""
+    recs = [r for r in records if len(r.get("crossing_times_s") or []) > window]
+    if not recs:
+        return None
+    plt = _plt()
+    exp = seyfried_2009()
+    fig, ax = plt.subplots(figsize=(5.6, 3.8))
+    for k, n in enumerate(sorted({r["n_pedestrians"] for r in recs})):
+        first = True
+        for r in recs:
+            if r["n_pedestrians"] != n:
+                continue
+            remaining, rate = discharge_rate(r["crossing_times_s"], window)
+            ax.plot(remaining, rate / r["width_m"], ".", ms=2.5, color=f"C{k}", label=f"N = {n}" if first else None)
+            first = False
+    lo, hi = SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S
+    ax.axhspan(lo, hi, color="0.88", label="experiment, N = 20/40 range")
+    sel = exp.n_pedestrians == 60
+    ax.axhspan(exp.specific_flow_per_m_s[sel].min(), exp.specific_flow_per_m_s[sel].max(), color="0.7", alpha=0.6,
+               label="experiment, N = 60 (all b)")
+    ax.set(xlabel="pedestrians not yet passed", ylabel=f"J_s over {window} passages (1/(m s))",
+           title="discharge rate vs crowd left behind")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)

@@ -53,6 +53,10 @@ def build_parser() -> argparse.ArgumentParser:
     for flag, (_, default) in GEOMETRY_OPTIONS.items():
         g.add_argument(f"--{flag.replace('_', '-')}", type=float, default=default, dest=flag,
                        help=f"default {default}")
+    g.add_argument("--navigation-clearance", type=float, default=0.0, dest="navigation_clearance",
+                   help="erode the walkable area by this distance (m) before solving the eikonal field: the "
+                        "radius (0.23) gives the configuration space of the disk centres; default 0, the paper's "
+                        "point field (Eq. 11-13), with which its A = 790 N, B = 0.08 m were calibrated")
     m = ap.add_argument_group("model (Kabalan Table 2 and A = 790 N, B = 0.08 m by default)")
     m.add_argument("--A", type=float, default=None, dest="social_strength_n", help="social strength A (N)")
     m.add_argument("--B", type=float, default=None, dest="social_range_m", help="social range B (m)")
@@ -105,21 +109,26 @@ def run_one(task: dict) -> dict:
         "specific_flow_per_m_s": r.specific_flow_per_m_s, "flow_per_s": r.flow_per_s,
         "evacuation_time_s": r.evacuation_time_s, "n_evacuated": r.n_evacuated, "min_gap_m": r.min_gap_m,
         "density_front_per_m2": r.mean_density_per_m2("front"), "density_inside_per_m2": r.mean_density_per_m2("inside"),
+        "density_front_passages_per_m2": r.mean_density_per_m2("front", window="passages"),
+        "density_inside_passages_per_m2": r.mean_density_per_m2("inside", window="passages"),
         "first_passage_s": float(r.crossing_times_s.min()) if r.crossing_times_s.size else float("nan"),
         "last_passage_s": float(r.crossing_times_s.max()) if r.crossing_times_s.size else float("nan"),
         "n_passages": int(r.crossing_times_s.size), "wall_time_s": r.wall_time_s, "n_steps": r.n_steps,
+        "crossing_times_s": [round(float(t), 4) for t in r.crossing_times_s],
         "n_fallback_solves": r.n_fallback_solves,
         "lane_bin_edges_m": [float(edges[0]), LANE_BIN_M, int(edges.size)], "lane_counts": counts.tolist(),
     }
 
 
 RESULT_COLUMNS = ["width_m", "n_pedestrians", "seed", "specific_flow_per_m_s", "flow_per_s", "evacuation_time_s",
-                  "n_evacuated", "min_gap_m", "density_front_per_m2", "density_inside_per_m2", "first_passage_s",
+                  "n_evacuated", "min_gap_m", "density_front_per_m2", "density_inside_per_m2", "density_front_passages_per_m2",
+                  "density_inside_passages_per_m2", "first_passage_s",
                   "last_passage_s", "n_passages", "wall_time_s", "n_steps", "n_fallback_solves"]
 
 
 def config_of(args, params: ModelParams) -> dict:
     geometry = {opt: float(getattr(args, flag)) for flag, (opt, _) in GEOMETRY_OPTIONS.items()}
+    geometry["navigation_clearance_m"] = float(getattr(args, "navigation_clearance", 0.0))
     p = {f.name: getattr(params, f.name) for f in dataclasses.fields(params) if f.name != "extra"}
     return {"geometry": geometry, "params": p, "max_time_s": float(args.max_time)}
 

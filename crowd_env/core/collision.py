@@ -21,8 +21,39 @@ from .contacts import NORMAL, build_rows
 STATUS_OK = 0
 STATUS_MAX_ITER = 1
 STATUS_TOO_LARGE = 2
-MAX_DENSE_ROWS = 200  # clusters with more normal rows go to the sparse pivoting path (qp_bpp_sparse)
+# Impact clusters with more normal rows or bodies than these go to the sparse path (solve_rows_sparse):
+# the dense solve costs O(n³ + n² m) and the sparse one a few ms of Python overhead; they break even there.
+MAX_DENSE_ROWS = 600
+MAX_DENSE_BODIES = 200
+MAX_DENSE_PROJECTION_ROWS = 200  # same for components of the velocity projection (project_gaps_sparse)
+# Pivoting rarely needs more than a dozen factorisations; degenerate jams can make it cycle through
+# Murty's single pivots for hundreds: stop there and hand the cluster to the next solver in line.
+DENSE_MAX_ITER = 40
+PGS_SWEEPS = 300  # projected Gauss-Seidel sweeps that guess the first active set of a large projection
+SPARSE_MAX_ITER = 6  # factorisations allowed to sparse pivoting on a large projection before the fallback
 REG_RELATIVE = 1e-8  # Tikhonov regularisation of W relative to its mean diagonal (W is singular in dense packings)
+
+
+@nb.njit(cache=True, fastmath=True)
+def _cholesky(A):
+    """Lower Cholesky factor of the symmetric positive definite A (row-oriented, compiled).
+
+    Not LAPACK: the clusters solved densely are small, and OpenBLAS threads fighting over a loaded
+    machine made LAPACK 10-100 times slower than this loop. Raises on a non-positive pivot."""
+    n = A.shape[0]
+    L = np.zeros((n, n))
+    for i in range(n):
+        for j in range(i + 1):
+            s = A[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            if i == j:
+                if not s > 0.0:
+                    raise ValueError("matrix is not positive definite")
+                L[i, i] = np.sqrt(s)
+            else:
+                L[i, j] = s / L[j, j]
+    return L
 
 
 @nb.njit(cache=True)
@@ -46,9 +77,9 @@ def _cholesky_solve(L, B):
 
 
 @nb.njit(cache=True)
-def _solve_free(W, q, free, eps, refine):
-    """λ_F solving (W_FF + εI) λ_F = −q_F, then ``refine`` steps of iterative refinement towards
-    W_FF λ_F = −q_F (converges to a solution of the singular system when it is consistent)."""
+def _factor_free(W, q, free, eps):
+    """Indices F of the free set, the Cholesky factor of W_FF + εI and the solution of
+    (W_FF + εI) λ_F = −q_F."""
     m = q.shape[0]
     nf = 0
     for i in range(m):
@@ -60,9 +91,6 @@ def _solve_free(W, q, free, eps, refine):
         if free[i]:
             idx[c] = i
             c += 1
-    lam = np.zeros(m)
-    if nf == 0:
-        return lam
     A = np.empty((nf, nf))
     rhs = np.empty((nf, 1))
     for a in range(nf):
@@ -70,8 +98,17 @@ def _solve_free(W, q, free, eps, refine):
             A[a, b] = W[idx[a], idx[b]]
         A[a, a] += eps
         rhs[a, 0] = -q[idx[a]]
-    L = np.linalg.cholesky(A)
-    sol = _cholesky_solve(L, rhs)
+    L = _cholesky(A)
+    return idx, L, _cholesky_solve(L, rhs)
+
+
+@nb.njit(cache=True)
+def _refined(W, q, idx, L, sol, refine):
+    """λ (full length) from the free-set solution ``sol`` after ``refine`` steps of iterative
+    refinement towards W_FF λ_F = −q_F (converges to a solution of the singular system when it is
+    consistent)."""
+    nf = idx.shape[0]
+    sol = sol.copy()
     for _ in range(refine):
         res = np.empty((nf, 1))
         for a in range(nf):
@@ -80,9 +117,18 @@ def _solve_free(W, q, free, eps, refine):
                 s -= W[idx[a], idx[b]] * sol[b, 0]
             res[a, 0] = s
         sol += _cholesky_solve(L, res)
+    lam = np.zeros(q.shape[0])
     for a in range(nf):
         lam[idx[a]] = sol[a, 0]
     return lam
+
+
+@nb.njit(cache=True)
+def _solve_free(W, q, free, eps, refine):
+    """λ_F solving (W_FF + εI) λ_F = −q_F, then ``refine`` steps of iterative refinement towards
+    W_FF λ_F = −q_F."""
+    idx, L, sol = _factor_free(W, q, free, eps)
+    return _refined(W, q, idx, L, sol, refine)
 
 
 @nb.njit(cache=True)
@@ -103,12 +149,15 @@ def _residual_w(W, q, lam, free):
 
 @nb.njit(cache=True)
 def _bpp(W, q, free, eps, diag_mean, qmax, max_iter):
-    """Block principal pivoting from the free set ``free`` (modified in place); True on success."""
+    """Block principal pivoting from the free set ``free`` (modified in place).
+
+    Returns ``(λ, success)``; λ is polished by iterative refinement on the final free set."""
     m = q.shape[0]
     best = m + 1
     backup = 3
     for _ in range(max_iter):
-        lam = _solve_free(W, q, free, eps, 0)
+        idx, L, sol = _factor_free(W, q, free, eps)
+        lam = _refined(W, q, idx, L, sol, 0)
         w = _residual_w(W, q, lam, free)
         lmax = 0.0
         for i in range(m):
@@ -122,7 +171,7 @@ def _bpp(W, q, free, eps, diag_mean, qmax, max_iter):
                 n_bad += 1
                 last_bad = i
         if n_bad == 0:
-            return True
+            return _refined(W, q, idx, L, sol, 4), True  # polish with the same factor
         if n_bad < best:
             best = n_bad
             backup = 3
@@ -138,7 +187,7 @@ def _bpp(W, q, free, eps, diag_mean, qmax, max_iter):
                     free[i] = not free[i]
         else:
             free[last_bad] = not free[last_bad]
-    return False
+    return np.zeros(m), False
 
 
 @nb.njit(cache=True)
@@ -166,13 +215,142 @@ def lcp_bpp(W, q):
     for i in range(m):
         qmax = max(qmax, abs(q[i]))
     free = np.zeros(m, np.bool_)
-    if not _bpp(W, q, free, eps, diag_mean, qmax, 2 * m + 20):
+    lam, ok = _bpp(W, q, free, eps, diag_mean, qmax, min(2 * m + 20, DENSE_MAX_ITER))
+    if not ok:
         return np.zeros(m), STATUS_MAX_ITER
-    lam = _solve_free(W, q, free, eps, 4)
     for i in range(m):
         if lam[i] < 0.0:
             lam[i] = 0.0
     return lam, STATUS_OK
+
+
+@nb.njit(cache=True, fastmath=True)
+def _gram(ZT, bv):
+    """W = Z_nᵀ Z_n (symmetric by construction) and q = 2 Z_nᵀ z₀ − B_n v⁻ from ZT = [z₀ | Z_n]ᵀ.
+
+    Plain compiled loops over contiguous rows (vectorised reductions), not BLAS: OpenBLAS threads
+    spin against each other on a loaded machine and made dense solves 10-100 times slower."""
+    nn = ZT.shape[0] - 1
+    nd = ZT.shape[1]
+    W = np.empty((nn, nn))
+    q = np.empty(nn)
+    for a in range(nn):
+        s = 0.0
+        for i in range(nd):
+            s += ZT[1 + a, i] * ZT[0, i]
+        q[a] = 2.0 * s - bv[a]
+        for b in range(a, nn):
+            s = 0.0
+            for i in range(nd):
+                s += ZT[1 + a, i] * ZT[1 + b, i]
+            W[a, b] = s
+            W[b, a] = s
+    return W, q
+
+
+@nb.njit(cache=True)
+def _order_dofs(nb_, row_a, row_b, coef_a, coef_b):
+    """Bodies in reverse Cuthill-McKee order of the row graph, and their degrees of freedom that
+    some row uses (the others decouple: H is diagonal there). Returns ``(perm, pos)``: new → old
+    DOF index, and old → new (−1 for an unused DOF). A banded ordering keeps the Cholesky factor of
+    H = M + Bᵀ K B inside a narrow profile, which :func:`solve_rows` exploits."""
+    m = row_a.shape[0]
+    used = np.zeros(3 * nb_, np.bool_)
+    deg = np.zeros(nb_, np.int64)
+    for r in range(m):
+        for d in range(3):
+            if coef_a[r, d] != 0.0:
+                used[3 * row_a[r] + d] = True
+            if row_b[r] >= 0 and coef_b[r, d] != 0.0:
+                used[3 * row_b[r] + d] = True
+        if row_b[r] >= 0:
+            deg[row_a[r]] += 1
+            deg[row_b[r]] += 1
+    start = np.zeros(nb_ + 1, np.int64)
+    for i in range(nb_):
+        start[i + 1] = start[i] + deg[i]
+    fill = start[:-1].copy()
+    adj = np.empty(start[nb_], np.int64)
+    for r in range(m):
+        if row_b[r] >= 0:
+            adj[fill[row_a[r]]] = row_b[r]
+            fill[row_a[r]] += 1
+            adj[fill[row_b[r]]] = row_a[r]
+            fill[row_b[r]] += 1
+    order = np.empty(nb_, np.int64)
+    seen = np.zeros(nb_, np.bool_)
+    head = 0
+    tail = 0
+    by_degree = np.argsort(deg, kind="mergesort")
+    for s in by_degree:  # one BFS per connected component, from a body of least degree
+        if seen[s]:
+            continue
+        seen[s] = True
+        order[tail] = s
+        tail += 1
+        while head < tail:
+            u = order[head]
+            head += 1
+            nbrs = adj[start[u]:start[u + 1]]
+            nd_ = np.argsort(deg[nbrs], kind="mergesort")
+            for t in nd_:
+                w = nbrs[t]
+                if not seen[w]:
+                    seen[w] = True
+                    order[tail] = w
+                    tail += 1
+    perm = np.empty(3 * nb_, np.int64)
+    pos = np.full(3 * nb_, -1, np.int64)
+    k = 0
+    for q in range(nb_ - 1, -1, -1):
+        b = order[q]
+        for d in range(3):
+            if used[3 * b + d]:
+                perm[k] = 3 * b + d
+                pos[3 * b + d] = k
+                k += 1
+    return perm[:k], pos
+
+
+@nb.njit(cache=True, fastmath=True)
+def _profile_cholesky(A, first):
+    """Cholesky factor of the SPD matrix A whose row i has no nonzero left of column ``first[i]``
+    (the factor keeps that envelope). Raises on a non-positive pivot."""
+    n = A.shape[0]
+    L = np.zeros((n, n))
+    for i in range(n):
+        fi = first[i]
+        for j in range(fi, i + 1):
+            s = A[i, j]
+            for k in range(max(fi, first[j]), j):
+                s -= L[i, k] * L[j, k]
+            if i == j:
+                if not s > 0.0:
+                    raise ValueError("matrix is not positive definite")
+                L[i, i] = np.sqrt(s)
+            else:
+                L[i, j] = s / L[j, j]
+    return L
+
+
+@nb.njit(cache=True, fastmath=True)
+def _forward_columns(L, first, Z, col_start):
+    """Z ← L⁻¹ Z in place, row by row. Column e of Z is zero above row ``col_start[e]`` and the
+    columns are sorted by it, so row i only touches the prefix of columns already started."""
+    n = L.shape[0]
+    ncol = Z.shape[1]
+    cnt = 0
+    for i in range(n):
+        while cnt < ncol and col_start[cnt] <= i:
+            cnt += 1
+        for j in range(first[i], i):
+            lij = L[i, j]
+            if lij != 0.0:
+                for e in range(cnt):
+                    Z[i, e] -= lij * Z[j, e]
+        inv = 1.0 / L[i, i]
+        for e in range(cnt):
+            Z[i, e] *= inv
 
 
 @nb.njit(cache=True)
@@ -181,12 +359,21 @@ def solve_rows(mass_diag, row_a, row_b, coef_a, coef_b, row_k, row_kind, v_minus
 
     ``mass_diag`` (3n,) is diag(M); ``v_minus``/``p_ext`` (3n,). Returns ``(v_plus, λ, status)``
     with λ the reactive percussion of each normal row (rows of kind 0, in order).
+
+    Dense, but in an order that keeps it cheap: degrees of freedom no row touches are solved
+    directly (v⁺ = v⁻ + M⁻¹ p_ext), the others are numbered by reverse Cuthill-McKee over the
+    bodies so that H = M + Bᵀ K B and its Cholesky factor L have a narrow profile; then
+    Z = L⁻¹ [r, B_nᵀ] (columns sorted by their first nonzero row, so each row of the forward
+    substitution only touches the columns already started), W = Z_nᵀ Z_n, q = 2 Z_nᵀ z₀ − B_n v⁻,
+    the LCP by :func:`lcp_bpp`, and v⁺ = L⁻ᵀ (2 z₀ + Z_n λ) − v⁻.
     """
-    nd = mass_diag.shape[0]
+    nd_all = mass_diag.shape[0]
     m = row_a.shape[0]
+    perm, pos = _order_dofs(nd_all // 3, row_a, row_b, coef_a, coef_b)
+    nd = perm.shape[0]
     H = np.zeros((nd, nd))
     for i in range(nd):
-        H[i, i] = mass_diag[i]
+        H[i, i] = mass_diag[perm[i]]
     cols = np.empty(6, np.int64)
     vals = np.empty(6)
     nn = 0
@@ -198,63 +385,86 @@ def solve_rows(mass_diag, row_a, row_b, coef_a, coef_b, row_k, row_kind, v_minus
             continue
         cnt = 0
         for d in range(3):
-            cols[cnt] = 3 * row_a[r] + d
-            vals[cnt] = coef_a[r, d]
-            cnt += 1
+            if coef_a[r, d] != 0.0:
+                cols[cnt] = pos[3 * row_a[r] + d]
+                vals[cnt] = coef_a[r, d]
+                cnt += 1
         if row_b[r] >= 0:
             for d in range(3):
-                cols[cnt] = 3 * row_b[r] + d
-                vals[cnt] = coef_b[r, d]
-                cnt += 1
+                if coef_b[r, d] != 0.0:
+                    cols[cnt] = pos[3 * row_b[r] + d]
+                    vals[cnt] = coef_b[r, d]
+                    cnt += 1
         for p in range(cnt):
             for s in range(cnt):
                 H[cols[p], cols[s]] += k * vals[p] * vals[s]
-    L = np.linalg.cholesky(H)
-    # Right-hand sides: r = M v⁻ + ½ p_ext, and B_nᵀ.
-    R = np.zeros((nd, 1 + nn))
+    first = np.empty(nd, np.int64)
     for i in range(nd):
-        R[i, 0] = mass_diag[i] * v_minus[i] + 0.5 * p_ext[i]
+        f = i
+        for j in range(i):
+            if H[i, j] != 0.0:
+                f = j
+                break
+        first[i] = f
+    L = _profile_cholesky(H, first)
+    # Normal rows sorted by the first (new) DOF they touch: their columns of Z start there.
+    nstart = np.empty(nn, np.int64)
+    nrow = np.empty(nn, np.int64)
     c = 0
     for r in range(m):
         if row_kind[r] != NORMAL:
             continue
-        c += 1
+        s0 = nd
         for d in range(3):
-            R[3 * row_a[r] + d, c] += coef_a[r, d]
-            if row_b[r] >= 0:
-                R[3 * row_b[r] + d, c] += coef_b[r, d]
-    X = _cholesky_solve(L, R)  # X[:, 0] = Y0, X[:, 1:] = G
-    z = 2.0 * X[:, 0] - v_minus
-    W = np.zeros((nn, nn))
-    q = np.zeros(nn)
-    c = 0
-    for r in range(m):
-        if row_kind[r] != NORMAL:
-            continue
-        # W[c, :] = B_n[c] · G  ;  q[c] = B_n[c] · z
-        for d in range(3):
-            ia = 3 * row_a[r] + d
-            q[c] += coef_a[r, d] * z[ia]
-            for e in range(nn):
-                W[c, e] += coef_a[r, d] * X[ia, 1 + e]
-            if row_b[r] >= 0:
-                ib = 3 * row_b[r] + d
-                q[c] += coef_b[r, d] * z[ib]
-                for e in range(nn):
-                    W[c, e] += coef_b[r, d] * X[ib, 1 + e]
+            if coef_a[r, d] != 0.0:
+                s0 = min(s0, pos[3 * row_a[r] + d])
+            if row_b[r] >= 0 and coef_b[r, d] != 0.0:
+                s0 = min(s0, pos[3 * row_b[r] + d])
+        nstart[c] = s0
+        nrow[c] = r
         c += 1
-    # Symmetrise against round-off.
-    for a in range(nn):
-        for b in range(a + 1, nn):
-            s = 0.5 * (W[a, b] + W[b, a])
-            W[a, b] = s
-            W[b, a] = s
-    lam, status = lcp_bpp(W, q)
-    v_plus = z.copy()
+    order = np.argsort(nstart, kind="mergesort")
+    col_start = np.empty(1 + nn, np.int64)
+    col_start[0] = 0
+    Z = np.zeros((nd, 1 + nn))
+    for i in range(nd):
+        Z[i, 0] = mass_diag[perm[i]] * v_minus[perm[i]] + 0.5 * p_ext[perm[i]]
+    bv = np.zeros(nn)  # B_n v⁻, sorted order
     for e in range(nn):
-        if lam[e] != 0.0:
-            for i in range(nd):
-                v_plus[i] += X[i, 1 + e] * lam[e]
+        r = nrow[order[e]]
+        col_start[1 + e] = nstart[order[e]]
+        for d in range(3):
+            if coef_a[r, d] != 0.0:
+                Z[pos[3 * row_a[r] + d], 1 + e] += coef_a[r, d]
+            bv[e] += coef_a[r, d] * v_minus[3 * row_a[r] + d]
+            if row_b[r] >= 0:
+                if coef_b[r, d] != 0.0:
+                    Z[pos[3 * row_b[r] + d], 1 + e] += coef_b[r, d]
+                bv[e] += coef_b[r, d] * v_minus[3 * row_b[r] + d]
+    _forward_columns(L, first, Z, col_start)
+    ZT = np.ascontiguousarray(Z.T)  # row 0: z₀ = L⁻¹ r; rows 1..nn: columns of Z_n
+    W, q = _gram(ZT, bv)  # full-length dot products: the zeros cost less than unvectorised loops
+    lam_sorted, status = lcp_bpp(W, q)
+    y = 2.0 * ZT[0]
+    for e in range(nn):
+        le = lam_sorted[e]
+        if le != 0.0:
+            for i in range(col_start[1 + e], nd):
+                y[i] += ZT[1 + e, i] * le
+    for i in range(nd - 1, -1, -1):  # back substitution with Lᵀ (row access of L)
+        y[i] /= L[i, i]
+        yi = y[i]
+        if yi != 0.0:
+            for j in range(first[i], i):
+                y[j] -= L[i, j] * yi
+    v_plus = np.empty(nd_all)
+    for i in range(nd_all):
+        v_plus[i] = v_minus[i] + p_ext[i] / mass_diag[i] if pos[i] < 0 else 0.0
+    for i in range(nd):
+        v_plus[perm[i]] = y[i] - v_minus[perm[i]]
+    lam = np.empty(nn)
+    for e in range(nn):
+        lam[order[e]] = lam_sorted[e]
     return v_plus, lam, status
 
 
@@ -291,15 +501,17 @@ def _normal_velocity(vel, a, b, nx, ny):
 
 @nb.njit(cache=True)
 def resolve_impacts(vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b,
-                    l_a, l_b, dvec, gi, gj, k_n, k_tg, k_v, eps_m, vtol, rotation, max_dense_rows):
+                    l_a, l_b, dvec, gi, gj, k_n, k_tg, k_v, eps_m, vtol, rotation, max_dense_rows,
+                    max_dense_bodies=MAX_DENSE_BODIES):
     """Frémond impacts of every connected cluster, in place on ``vel`` ((n, 3): u_x, u_y, ω).
 
     The impact set holds the contacts that touch (gap ≤ ε) and approach or rest (Δ·n ≤ vtol), plus
     the hand links; clusters are connected components of that graph, solved when they contain a
     strictly approaching contact or a link. Contacts that touch but already separate are left out,
     so kinetic energy cannot increase (collision-problem.md, "Energy").
-    Clusters with more than ``max_dense_rows`` normal rows (pass −1 to route every cluster), or where pivoting fails, are left
-    untouched and their root reported in ``unsolved`` for :func:`solve_cluster_qp`.
+    Clusters with more than ``max_dense_rows`` normal rows or ``max_dense_bodies`` bodies (pass −1 to
+    route every cluster), or where pivoting fails, are left untouched and their root reported in
+    ``unsolved`` for :func:`solve_clusters` (sparse or reference solvers).
     Returns ``(p_normal, p_tangent, in_impact, root, unsolved, n_clusters, max_cluster)``: total normal and
     tangential percussion per contact (kg m/s; reactive + dissipative), the impact-set mask, counts.
     """
@@ -374,7 +586,7 @@ def resolve_impacts(vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_
             local[bodies[k]] = k
         cids = imp_sorted[con_start[rt]:con_start[rt + 1]]
         lids = link_sorted[link_start[rt]:link_start[rt + 1]]
-        if cids.shape[0] > max_dense_rows:
+        if cids.shape[0] > max_dense_rows or (max_dense_rows >= 0 and nb_ > max_dense_bodies):
             failed[rt] = True
             for k in range(nb_):
                 local[bodies[k]] = -1
@@ -423,11 +635,13 @@ def resolve_impacts(vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_
 
 
 @nb.njit(cache=True)
-def project_gaps(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, tol):
+def project_gaps(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, tol, max_rows=MAX_DENSE_PROJECTION_ROWS):
     """Velocity projection: v = argmin ‖v − v'‖_M s.t. gap_k + h (B_n v)_k ≥ 0 for every candidate.
 
     Solved as the LCP with W = B_n M⁻¹ B_nᵀ, q = B_n v' + gap/h on a growing set of violated
     constraints (exact for the full set at termination). Only translational velocities change.
+    A component with more than ``max_rows`` active constraints stops it with STATUS_TOO_LARGE
+    (velocities restored): the caller then uses :func:`project_gaps_large`.
     A projection onto a convex set containing 0 cannot add kinetic energy. Returns
     ``(λ per contact, rounds, status)``; λ is the projection percussion (kg m/s).
     """
@@ -468,7 +682,7 @@ def project_gaps(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, tol):
                 stop += 1
             cids = act_ids[order[start:stop]]
             m = cids.shape[0]
-            if m > MAX_DENSE_ROWS:
+            if m > max_rows:
                 vel[:, :2] = v0
                 return lam_out, rounds, STATUS_TOO_LARGE
             # Bodies of this cluster.
@@ -536,14 +750,17 @@ def project_gaps(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, tol):
 def qp_bpp_sparse(H, c, B, d, free0=None, max_iter=None):
     """Exact solution of  min ½ xᵀ H x − cᵀ x  s.t.  B x ≥ d  for large sparse problems.
 
-    The same block principal pivoting as :func:`lcp_bpp` (block flips, then Murty single pivots) on
-    the dual, but each trial active set F is solved through the sparse quasi-definite KKT system
-    [[H, B_Fᵀ], [B_F, −εI]] (SuperLU), never forming the dense Delassus matrix B H⁻¹ Bᵀ, followed
-    by iterative refinement on the unregularised system (ε = 1e-8 · a Jacobi estimate of its mean
-    diagonal: dependent rows make it singular in jams). ``H`` (n, n) sparse symmetric positive
-    definite, ``B`` (m, n) sparse, ``free0`` an optional initial active set (bool (m,), e.g. last
-    step's: a good guess needs one or two factorisations). Returns ``(x, ν, status, iterations)``
-    with ν ≥ 0 the multipliers (H x = c + Bᵀ ν).
+    Block principal pivoting (block flips, then Murty single pivots after three non-improving
+    ones) on the dual LCP, each trial active set F solved with a sparse factorisation (SuperLU)
+    instead of the dense Delassus matrix B H⁻¹ Bᵀ: of the quasi-definite KKT system
+    [[H, B_Fᵀ], [B_F, −εI]], or, when H is diagonal, of its Schur complement B_F H⁻¹ B_Fᵀ + εI.
+    Pivoting works on the regularised dual (W + εI, a P-matrix, ε = 1e-8 · a Jacobi estimate of the
+    mean diagonal of W; W itself is singular when contacts are linearly dependent, as in jams), so it
+    terminates; the final active set is then polished by iterative refinement towards the
+    unregularised system, kept only if it stays feasible with λ ≥ 0 (otherwise the regularised
+    solution, off by O(ε), is returned). ``H`` (n, n) sparse symmetric positive definite, ``B``
+    (m, n) sparse, ``free0`` an optional initial active set (bool (m,)). Returns
+    ``(x, ν, status, iterations)`` with ν ≥ 0 the multipliers (H x = c + Bᵀ ν).
     """
     import scipy.sparse as sp
     from scipy.sparse.linalg import splu
@@ -554,43 +771,74 @@ def qp_bpp_sparse(H, c, B, d, free0=None, max_iter=None):
     B = sp.csr_matrix(B)
     c = np.asarray(c, dtype=np.float64)
     d = np.asarray(d, dtype=np.float64)
+    hdiag = H.diagonal()
+    diagonal = H.nnz == np.count_nonzero(hdiag)
     free = np.zeros(m, np.bool_) if free0 is None else np.array(free0, dtype=np.bool_)
-    if m:
-        diag_mean = float((B.multiply(B) @ (1.0 / H.diagonal())).mean())
-    else:
-        diag_mean = 1.0
+    diag_mean = float((B.multiply(B) @ (1.0 / hdiag)).mean()) if m else 1.0
     diag_mean = diag_mean if diag_mean > 0.0 else 1.0
     eps = REG_RELATIVE * diag_mean
-    max_iter = 2 * m + 20 if max_iter is None else max_iter
-    best = m + 1
-    backup = 3
-    x = np.zeros(n)
-    nu = np.zeros(m)
-    for it in range(1, max_iter + 1):
-        F = np.flatnonzero(free)
+    x_free = c / hdiag if diagonal else None
+
+    def factor(F):
+        """Returns solve(refine_unregularised) -> (x, ν_F) for the active set F."""
         nf = F.shape[0]
+        if diagonal:
+            BF = B[F]
+            hinv = sp.diags(1.0 / hdiag)
+            HiBt = (hinv @ BF.T).tocsc()
+            S0 = (BF @ HiBt).tocsc()
+            S = (S0 + eps * sp.identity(nf)).tocsc() if nf else S0
+            lu = splu(S) if nf else None
+            rhs = d[F] - BF @ x_free
+
+            def solve(polish):
+                if nf == 0:
+                    return x_free.copy(), np.zeros(0)
+                lam = lu.solve(rhs)
+                lam += lu.solve(rhs - S @ lam)
+                for _ in range(4 if polish else 0):
+                    lam += lu.solve(rhs - S0 @ lam)
+                return x_free + HiBt @ lam, lam
+            return solve
         rhs = np.concatenate([c, d[F]])
         if nf:
             BF = B[F]
             K = sp.bmat([[H, BF.T], [BF, -eps * sp.identity(nf)]], format="csc")
-            K0 = sp.bmat([[H, BF.T], [BF, None]], format="csc")
         else:
-            K = K0 = H
+            K = H
         lu = splu(K)
-        sol = lu.solve(rhs)
-        for _ in range(4):  # refinement towards the unregularised (consistent) system
-            sol += lu.solve(rhs - K0 @ sol)
-        x = sol[:n]
+
+        def solve(polish):
+            sol = lu.solve(rhs)
+            sol += lu.solve(rhs - K @ sol)
+            if polish and nf:
+                K0 = sp.bmat([[H, BF.T], [BF, None]], format="csc")
+                for _ in range(4):
+                    sol += lu.solve(rhs - K0 @ sol)
+            return sol[:n], -sol[n:]
+        return solve
+
+    max_iter = min(2 * m + 20, DENSE_MAX_ITER) if max_iter is None else max_iter
+    best = m + 1
+    backup = 3
+    status = STATUS_MAX_ITER
+    for it in range(1, max_iter + 1):
+        F = np.flatnonzero(free)
+        solve = factor(F)
+        x, nu_f = solve(False)
         nu = np.zeros(m)
-        nu[F] = -sol[n:]
+        nu[F] = nu_f
         w = B @ x - d
+        w[F] += eps * nu_f  # residual of the regularised LCP: zero on the free set
+        nf = F.shape[0]
         scale = (float(np.abs(w[~free]).max()) if nf < m else 0.0) + diag_mean * (float(np.abs(nu).max()) if m else 0.0)
         tol_w = 1e-11 * scale + 1e-300
         tol_l = tol_w / diag_mean
         bad = (free & (nu < -tol_l)) | (~free & (w < -tol_w))
         n_bad = int(bad.sum())
         if n_bad == 0:
-            return x, np.maximum(nu, 0.0), STATUS_OK, it
+            status = STATUS_OK
+            break
         if n_bad < best:
             best = n_bad
             backup = 3
@@ -601,7 +849,16 @@ def qp_bpp_sparse(H, c, B, d, free0=None, max_iter=None):
         else:
             k = int(np.flatnonzero(bad)[-1])
             free[k] = not free[k]
-    return x, np.maximum(nu, 0.0), STATUS_MAX_ITER, max_iter
+    if status != STATUS_OK:
+        return x, np.maximum(nu, 0.0), status, max_iter
+    if F.shape[0]:  # polish: remove the O(ε) bias where the unregularised system is consistent
+        x2, nu2_f = solve(True)
+        w2 = B @ x2 - d
+        if np.all(nu2_f >= -tol_l) and np.all(w2[~free] >= -tol_w) and np.all(np.abs(w2[F]) <= 1e3 * tol_w):
+            x = x2
+            nu = np.zeros(m)
+            nu[F] = nu2_f
+    return x, np.maximum(nu, 0.0), STATUS_OK, it
 
 
 def solve_rows_sparse(mass_diag, row_a, row_b, coef_a, coef_b, row_k, row_kind, v_minus, p_ext=None, free0=None):
@@ -635,11 +892,42 @@ def _normal_rows_sparse(n, c_a, c_b, c_nx, c_ny):
                          shape=(m, 2 * n))
 
 
-def project_gaps_sparse(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, free0=None):
+@nb.njit(cache=True)
+def _pgs_projection(u, inv_mass, c_a, c_b, c_nx, c_ny, q0, sweeps):
+    """Projected Gauss-Seidel on the projection's dual (in place on ``u`` (n, 2)): an approximate
+    λ whose support is a good first active set for :func:`qp_bpp_sparse`."""
+    m = c_a.shape[0]
+    lam = np.zeros(m)
+    for _ in range(sweeps):
+        for k in range(m):
+            a = c_a[k]
+            b = c_b[k]
+            w = q0[k] + c_nx[k] * u[a, 0] + c_ny[k] * u[a, 1]
+            dk = inv_mass[a]
+            if b >= 0:
+                w -= c_nx[k] * u[b, 0] + c_ny[k] * u[b, 1]
+                dk += inv_mass[b]
+            new = lam[k] - w / dk
+            if new < 0.0:
+                new = 0.0
+            dl = new - lam[k]
+            if dl != 0.0:
+                lam[k] = new
+                u[a, 0] += dl * c_nx[k] * inv_mass[a]
+                u[a, 1] += dl * c_ny[k] * inv_mass[a]
+                if b >= 0:
+                    u[b, 0] -= dl * c_nx[k] * inv_mass[b]
+                    u[b, 1] -= dl * c_ny[k] * inv_mass[b]
+    return lam
+
+
+def project_gaps_sparse(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, free0=None, max_iter=None):
     """The projection of :func:`project_gaps` on all candidates at once, solved exactly by
     :func:`qp_bpp_sparse` (for clusters too large for the dense path). Only the pedestrians that
     appear in a candidate take part. Modifies ``vel[:, :2]`` in place when it succeeds; returns
-    ``(λ per contact, status)``. ``free0``: optional initial active set (e.g. last step's)."""
+    ``(λ per contact, status)``. The first active set comes from a few hundred projected Gauss-Seidel
+    sweeps unless ``free0`` is given; pivoting stops after ``SPARSE_MAX_ITER`` factorisations
+    (degenerate jams can cycle for long) and then reports STATUS_MAX_ITER, leaving ``vel`` alone."""
     import scipy.sparse as sp
 
     m = c_a.shape[0]
@@ -652,8 +940,13 @@ def project_gaps_sparse(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, free0=None
     lb = np.where(c_b >= 0, local[np.maximum(c_b, 0)], -1)
     B = _normal_rows_sparse(bodies.shape[0], la, lb, c_nx, c_ny)
     mdiag = np.repeat(mass[bodies], 2)
-    x, nu, status, _ = qp_bpp_sparse(sp.diags(mdiag), mdiag * vel[bodies, :2].ravel(), B, -np.asarray(c_gap) / dt_s,
-                                     free0)
+    q0 = np.asarray(c_gap) / dt_s
+    if free0 is None:
+        guess = _pgs_projection(vel[bodies, :2].copy(), 1.0 / mass[bodies], la, lb, np.ascontiguousarray(c_nx),
+                                np.ascontiguousarray(c_ny), q0, PGS_SWEEPS)
+        free0 = guess > 0.0
+    x, nu, status, _ = qp_bpp_sparse(sp.diags(mdiag), mdiag * vel[bodies, :2].ravel(), B, -q0, free0,
+                                     max_iter=SPARSE_MAX_ITER if max_iter is None else max_iter)
     if status == STATUS_OK:
         vel[bodies, :2] = x.reshape(-1, 2)
     return nu, status
@@ -686,6 +979,37 @@ def project_gaps_qp(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s):
     x, z = _clarabel_solve(P, -mdiag * v0, (-Bn).tocsc(), c_gap / dt_s, "projection")
     vel[:, :2] = x.reshape(n, 2)
     return z
+
+
+def project_gaps_large(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, pivot_first=True):
+    """The projection for clusters too large for :func:`project_gaps`, in place on ``vel[:, :2]``.
+
+    1. :func:`project_gaps_sparse` (projected Gauss-Seidel guess, then exact sparse pivoting with
+       at most ``SPARSE_MAX_ITER`` factorisations);
+    2. if pivoting cycles (degenerate jams: linearly dependent contacts make λ non-unique), Clarabel
+       on the primal, whose v is unique, then a polish: pivoting started from the constraints
+       Clarabel leaves tight, which certifies the exact solution in one or two factorisations;
+    3. if even that fails, Clarabel's solution as it is (feasible to ~1e-12, v within ~1e-6).
+    Returns ``(λ per contact, path)`` with path 0, 1 or 2 as above. ``pivot_first=False`` skips
+    step 1 (in a persistent jam, where it keeps failing).
+    """
+    v_in = vel[:, :2].copy()
+    if pivot_first:
+        lam, status = project_gaps_sparse(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s)
+        if status == STATUS_OK:
+            return lam, 0
+        vel[:, :2] = v_in
+    lam = project_gaps_qp(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s)
+    slack = c_gap / dt_s + (vel[c_a, 0] - np.where(c_b >= 0, vel[np.maximum(c_b, 0), 0], 0.0)) * c_nx \
+        + (vel[c_a, 1] - np.where(c_b >= 0, vel[np.maximum(c_b, 0), 1], 0.0)) * c_ny
+    tight = slack <= 1e-9 * (1.0 + float(np.abs(c_gap).max()) / dt_s)
+    v_qp = vel[:, :2].copy()
+    vel[:, :2] = v_in
+    lam2, status = project_gaps_sparse(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, free0=tight, max_iter=3)
+    if status == STATUS_OK:
+        return lam2, 1
+    vel[:, :2] = v_qp
+    return lam, 2
 
 
 def _clarabel_solve(P, c, A, b, what):

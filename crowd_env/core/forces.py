@@ -11,6 +11,15 @@ weight, so Newton's third law holds only for λ = 1. A wall acts the same way wi
 distance to the wall's closest point and n the wall's normal into the pedestrian; its weight uses the
 direction from i to that point. Forces act at the centre (no torque).
 
+Walls and the paper: Kabalan et al. define Eq. 16 between pedestrians only (R_ij = r_i + r_j; Section
+4.1.2 calibrates "the pedestrian-pedestrian repulsive force"; Table 2 has no wall parameters); in the
+paper walls act through the Frémond collisions alone (infinite-mass obstacles). The wall term here is
+Helbing, Farkas & Vicsek's (2000), with its own strength and range (``wall_social_strength_n``,
+``wall_social_range_m`` of :class:`~crowd_env.core.params.ModelParams`); ``wall_social_strength_n = 0``
+is the paper-literal model. With A = 790 N, B = 0.08 m it is a large force (a pedestrian 0.1 m from a
+wall feels 226 N, the driving force of an average walker m v_d / τ is 222 N); it is what slows
+pedestrians beside the bottleneck entrance.
+
 Neighbour pairs come from the simulator (``scipy.spatial.cKDTree.query_pairs``); pedestrian/wall
 pairs from :func:`crowd_env.core.segments.wall_proximity`. Pairs whose surface gap exceeds
 ``cutoff_m`` contribute nothing.

@@ -21,6 +21,18 @@ Grid conventions and how the field is completed outside the walkable area:
 - walkable nodes that no exit can reach have T = inf; points sampled there get T = inf and a NaN
   direction (:meth:`NavigationField.check_reachable` raises for them);
 - points outside the grid (the geometry's bounds plus two cells) raise :class:`GeometryError`.
+
+Configuration space (``clearance_m``): pedestrians are disks, so their centres can only reach points
+at least their radius r from every wall. Computed for points (``clearance_m = 0``, the paper's literal
+Eq. 11-13), the geodesics hug the walls and pass through reflex corners, and near the entrance of a
+bottleneck e_d points at the corner vertex, which a disk centre can never reach: a disk beside the
+entrance is steered into the corner instead of into the opening. With ``clearance_m = r`` the field is
+solved on the walkable area eroded by r (the free configuration space of a disk centre, V = 0 within r
+of a wall, the standard treatment of finite-size agents in floor-field and eikonal navigation, e.g.
+Kretz 2009, JuPedSim's "distance to wall" floor fields): geodesics then wrap the corners at distance r
+and e_d beside an opening points into the part of it a centre can use. Exits are not eroded from
+their open sides (only wall distance counts). Nodes in the eroded band are masked and completed as
+above (nearest free node's direction), so sampling a centre touching a wall stays well defined.
 """
 from __future__ import annotations
 
@@ -149,12 +161,15 @@ class NavigationField:
     ``resolution_m``: grid spacing h. ``speed_m_s``: wavefront speed V in the walkable area (1 m/s in
     the paper, making T the geodesic distance in metres). ``wall_slowdown=(distance_m, speed_factor)``:
     V is multiplied by ``speed_factor`` in (0, 1] within ``distance_m`` of a wall (the paper's optional
-    slower V near walls). Built once per geometry; see :meth:`cached`.
+    slower V near walls). ``clearance_m``: solve on the walkable area minus the band within this
+    distance of a wall (configuration space of disk centres; use the pedestrians' radius; 0 = points,
+    the paper's literal Eq. 11-13). Built once per geometry; see :meth:`cached`.
     """
 
     _cache: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
-    def __init__(self, geometry: Geometry, resolution_m: float = 0.05, wall_slowdown=None, speed_m_s: float = 1.0):
+    def __init__(self, geometry: Geometry, resolution_m: float = 0.05, wall_slowdown=None, speed_m_s: float = 1.0,
+                 clearance_m: float = 0.0):
         if not isinstance(geometry, Geometry):
             raise GeometryError(f"NavigationField needs a Geometry, got {type(geometry).__name__}")
         if not (np.isfinite(speed_m_s) and speed_m_s > 0):
@@ -162,11 +177,21 @@ class NavigationField:
         self.geometry = geometry
         self.speed_m_s = float(speed_m_s)
         self.wall_slowdown = self._check_slowdown(wall_slowdown)
+        self.clearance_m = self._check_clearance(clearance_m)
         raster = geometry.rasterize(resolution_m)
         self.raster = raster
         self.resolution_m = h = raster.resolution_m
         self.origin_m = raster.origin_m
         nav, ex = raster.walkable, raster.exit
+        if self.clearance_m > 0.0 and geometry.walls.shape[0]:
+            nodes = raster.node_points().reshape(*nav.shape, 2)
+            free = np.zeros(nav.shape, dtype=bool)
+            free[nav] = geometry.distance_to_walls(nodes[nav]) >= self.clearance_m - 1e-9
+            nav, ex = nav & free, ex & free
+            if not (nav & ~ex).any():
+                raise GeometryError(f"no grid node of the walkable area is {self.clearance_m} m (clearance_m) from "
+                                    "the walls: the area is too narrow for a pedestrian of that radius")
+        self.walkable = nav
         if not ex.any():
             raise GeometryError(f"no grid node lies inside an exit at resolution {h} m: exits must be at least "
                                 "one cell wide; use a finer resolution_m")
@@ -256,14 +281,25 @@ class NavigationField:
             raise GeometryError(f"wall_slowdown speed_factor must lie in (0, 1], got {factor!r}")
         return dist_m, factor
 
+    @staticmethod
+    def _check_clearance(clearance_m) -> float:
+        try:
+            value = float(clearance_m)
+        except (TypeError, ValueError) as exc:
+            raise GeometryError(f"clearance_m must be a number >= 0, got {clearance_m!r}") from exc
+        if not (np.isfinite(value) and value >= 0.0):
+            raise GeometryError(f"clearance_m must be a finite number >= 0, got {clearance_m!r}")
+        return value
+
     @classmethod
     def cached(cls, geometry: Geometry, resolution_m: float = 0.05, wall_slowdown=None,
-               speed_m_s: float = 1.0) -> "NavigationField":
+               speed_m_s: float = 1.0, clearance_m: float = 0.0) -> "NavigationField":
         """The field for ``geometry`` with these settings, computed on first use and then reused."""
-        key = (float(resolution_m), cls._check_slowdown(wall_slowdown), float(speed_m_s))
+        key = (float(resolution_m), cls._check_slowdown(wall_slowdown), float(speed_m_s),
+               cls._check_clearance(clearance_m))
         per_geometry = cls._cache.setdefault(geometry, {})
         if key not in per_geometry:
-            per_geometry[key] = cls(geometry, resolution_m, wall_slowdown, speed_m_s)
+            per_geometry[key] = cls(geometry, resolution_m, wall_slowdown, speed_m_s, clearance_m)
         return per_geometry[key]
 
     @property

@@ -9,6 +9,8 @@ import dataclasses
 import math
 from dataclasses import dataclass, field, fields
 
+import numpy as np
+
 SOLVERS = ("dual", "cvxpy")
 
 
@@ -51,18 +53,24 @@ class ModelParams:
         non_negative = ("tangential_dissipation_kg", "link_dissipation_kg_per_m2", "social_strength_n")
         for name in positive + non_negative:
             value = getattr(self, name)
-            if not isinstance(value, (int, float)) or not math.isfinite(value):
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                    or not math.isfinite(value):
                 raise ParameterError(f"{name} must be a finite number, got {value!r}")
             if name in positive and value <= 0:
                 raise ParameterError(f"{name} must be > 0, got {value!r}")
             if name in non_negative and value < 0:
                 raise ParameterError(f"{name} must be >= 0, got {value!r}")
-        if not 0.0 <= self.social_anisotropy <= 1.0:
+        if isinstance(self.social_anisotropy, bool) or not isinstance(self.social_anisotropy, (int, float, np.floating)) \
+                or not 0.0 <= self.social_anisotropy <= 1.0:
             raise ParameterError(f"social_anisotropy (lambda) must lie in [0, 1], got {self.social_anisotropy!r}")
         for name in ("wall_social_strength_n", "wall_social_range_m"):
             value = getattr(self, name)
-            if value is not None and (not math.isfinite(value) or value < 0 or (name.endswith("_m") and value == 0)):
+            if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating))
+                                      or not math.isfinite(value) or value < 0 or (name.endswith("_m") and value == 0)):
                 raise ParameterError(f"{name} must be a positive finite number or None, got {value!r}")
+        for name in ("social_forces", "rotation"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ParameterError(f"{name} must be True or False, got {getattr(self, name)!r}")
         if self.solver not in SOLVERS:
             raise ParameterError(f"unknown solver {self.solver!r}; choose one of {SOLVERS}")
 

@@ -2,9 +2,14 @@
 
 1. smooth update (Eq. 3, 14, 15): u* = u + h/τ (u_intent − u) + h f_ext/m,
    ω* = ω + h (−k wrap(θ − θ_d) − c ω)/I;
-2. candidate contacts with a speculative margin (k-d tree broad phase, exact narrow phase);
-3. Frémond impact (Eq. 7) on every cluster of touching, approaching contacts and hand links;
-4. velocity projection so that no candidate gap closes within the step;
+2. candidate contacts with a speculative margin ε + 2h(|u_i| + |u_j|) (k-d tree broad phase, exact
+   narrow phase);
+3. Frémond impact (Eq. 7) on every cluster of touching, approaching contacts and hand links (dense
+   compiled solver for small clusters, sparse pivoting for large ones);
+4. velocity projection so that no candidate gap closes within the step; where the impact or the
+   projection made someone faster than the margins allow (a push passed along a chain), candidates
+   are detected again around them and the projection repeated, so that no pair left out can
+   close either (overlap stays at round-off, far below the 1e-3 m contact tolerance);
 5. positions advance with the final velocities; pedestrians whose centre enters an exit leave.
 
 The velocity intent ``(N, 2)`` in m/s is the only behavioural input; external forces (for example
@@ -18,8 +23,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .collision import (MAX_DENSE_ROWS, STATUS_OK, project_gaps, project_gaps_qp, project_gaps_sparse, resolve_impacts,
-                        solve_clusters, solve_rows_qp, solve_rows_sparse)
+from .collision import (MAX_DENSE_BODIES, MAX_DENSE_PROJECTION_ROWS, MAX_DENSE_ROWS, STATUS_OK, project_gaps,
+                        project_gaps_large, resolve_impacts, solve_clusters, solve_rows_qp, solve_rows_sparse)
 from .contacts import detect_contacts, link_geometry
 from .params import ModelParams, ParameterError
 from .segments import as_segments, endpoint_owners, wall_proximity
@@ -78,19 +83,38 @@ class Simulator:
         self._wall_owner = endpoint_owners(self.walls)
         self._exit_test = geometry.in_exit if geometry is not None else exit_test
         state.validate()
+        self._check_walls(state)
         self.state = state
         self.time_s = 0.0
         self.step_count = 0
         self.n_fallback_solves = 0
         self.n_redetections = 0  # steps where faster post-impact speeds called for more candidates
         self.n_sparse_solves = 0  # impact clusters / projections too large for the dense path
-        self._proj_keys = np.zeros(0, np.int64)  # contacts active in last step's projection (warm start)
+        # Size limits of the dense (compiled) solvers; larger problems take the sparse path. Exposed so
+        # that tests can force either path; both are exact, so results agree to round-off.
+        self.max_dense_rows = MAX_DENSE_ROWS
+        self.max_dense_bodies = MAX_DENSE_BODIES
+        self.max_dense_projection_rows = MAX_DENSE_PROJECTION_ROWS
+        self._skip_pivoting = 0
         self.profile = profile
         self._tree_key = -1
         self._tree = None
         self._pairs = None
         self._pairs_radius = -1.0
         self._index = None
+
+    def _check_walls(self, state, tolerance_m: float = 1e-9) -> None:
+        """Raise :class:`StateError` naming the pedestrian and the wall when one overlaps a wall."""
+        idx = np.flatnonzero(state.active)
+        if not self.walls.shape[0] or not idx.size:
+            return
+        ped, seg, gap, *_ = wall_proximity(state.position_m, state.radius_m, idx, self.walls, self._wall_owner,
+                                           np.zeros(idx.shape[0]))
+        if gap.shape[0] and gap.min() < -tolerance_m:
+            k = int(np.argmin(gap))
+            i = int(idx[ped[k]])
+            raise StateError(f"pedestrian {i} at {state.position_m[i].tolist()} overlaps wall segment {int(seg[k])} "
+                             f"{self.walls[seg[k]].tolist()} by {-gap[k]:.4g} m at start")
 
     # ------------------------------------------------------------------ neighbours
     @property
@@ -205,7 +229,7 @@ class Simulator:
             vel, mass, inertia, con["a"], con["b"], con["gap"], con["nx"], con["ny"], con["rho_a"], con["rho_b"],
             links_a, links_b, dvec, gi, gj, p.normal_dissipation_kg, p.tangential_dissipation_kg,
             p.link_dissipation_kg_per_m2, p.contact_tolerance_m, 1e-9, p.rotation,
-            -1 if p.solver == "cvxpy" else MAX_DENSE_ROWS)
+            -1 if p.solver == "cvxpy" else self.max_dense_rows, self.max_dense_bodies)
         if unsolved.shape[0]:
             if p.solver == "cvxpy":
                 from .reference import solve_rows_cvxpy as solve
@@ -215,33 +239,33 @@ class Simulator:
         ke1 = kinetic_energy(vel, mass, inertia)
         t4 = time.perf_counter()
         timings["impacts"] = t4 - t3
-        # 4. projection
+        # 4. projection. The candidates were chosen with margins from the pre-impact speeds s_i: a pair
+        # left out has gap > ε + 2h (s_i + s_j), so it cannot close within the step while every speed
+        # satisfies |u_i| ≤ 2 s_i + ε/(2h). Impacts and the projection can speed a pedestrian up beyond
+        # that (a push passed along a jammed chain): then detect again with the larger speeds (before
+        # projecting, and after it if needed) and project from the post-impact velocities again.
         v_impact = vel[:, :2].copy()
-        lam_p = self._project(vel, mass, con, h, idx)
-        # 4b. The candidates were chosen with margins from the pre-impact speeds s_i. A pair left out has
-        # gap > ε + 2h (s_i + s_j), so it cannot close within the step while every final speed satisfies
-        # |u_i| ≤ 2 s_i + ε/(2h). Impacts and the projection can speed a pedestrian up beyond that
-        # (a push passed along a jammed chain): then detect again with the larger speeds and project
-        # again from the post-impact velocities on the enlarged candidate set.
         det_speed = speed_star
-        for _ in range(MAX_REDETECT):
-            final = np.hypot(vel[:, 0], vel[:, 1])
-            if not np.any(final > 2.0 * det_speed + 0.5 * p.contact_tolerance_m / h):
+        lam_p = None
+        for _ in range(MAX_REDETECT + 1):
+            speed = np.hypot(vel[:, 0], vel[:, 1])
+            grown = np.flatnonzero(speed > 2.0 * det_speed + 0.5 * p.contact_tolerance_m / h)
+            if grown.size:
+                det_speed = np.maximum(det_speed, speed)
+                merged = self._redetect(con, det_speed, grown, idx, n_all, r_max, h)
+                if merged is not None:
+                    extra = merged["a"].shape[0] - con["a"].shape[0]
+                    con = merged
+                    p_n = np.concatenate([p_n, np.zeros(extra)])
+                    p_t = np.concatenate([p_t, np.zeros(extra)])
+                    in_impact = np.concatenate([in_impact, np.zeros(extra, dtype=bool)])
+                    vel[:, :2] = v_impact
+                    lam_p = None
+                    self.n_redetections += 1
+            if lam_p is not None:
                 break
-            det_speed = np.maximum(det_speed, final)
-            merged = self._redetect(con, det_speed, idx, n_all, r_max, h)
-            if merged is None:
-                break
-            extra = merged["a"].shape[0] - con["a"].shape[0]
-            con = merged
-            p_n = np.concatenate([p_n, np.zeros(extra)])
-            p_t = np.concatenate([p_t, np.zeros(extra)])
-            in_impact = np.concatenate([in_impact, np.zeros(extra, dtype=bool)])
-            vel[:, :2] = v_impact
             lam_p = self._project(vel, mass, con, h, idx)
-            self.n_redetections += 1
         ke2 = kinetic_energy(vel, mass, inertia)
-        self._proj_keys = self._contact_keys(con, idx)[lam_p > 0]
         t5 = time.perf_counter()
         timings["projection"] = t5 - t4
         # 5. integrate and leave at exits
@@ -285,40 +309,44 @@ class Simulator:
             v_plus, lam = solve_rows_qp(*rows)
         return v_plus, lam
 
-    def _contact_keys(self, con, idx):
-        """Stable integer key per contact (global pedestrian indices, wall segment)."""
-        n_all = self.state.n
-        ia = idx[con["a"]]
-        ib = idx[np.maximum(con["b"], 0)]
-        return np.where(con["b"] >= 0, ia * n_all + ib, n_all * n_all + ia * max(1, self.walls.shape[0]) + con["wall"])
-
     def _project(self, vel, mass, con, h, idx):
         """Gap projection (step 4) in place on ``vel``; returns the projection percussion per contact.
 
         Components of active constraints small enough are solved densely (:func:`project_gaps`);
-        otherwise the whole projection is solved by sparse pivoting, warm-started from the contacts
-        active in the previous step's projection, and by Clarabel only if pivoting fails.
+        otherwise the whole projection goes to :func:`project_gaps_large` (sparse pivoting; Clarabel
+        and a polish where degenerate jams make pivoting cycle).
         """
         v_impact = vel[:, :2].copy()
-        lam_p, _, status = project_gaps(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h, 1e-10)
+        lam_p, _, status = project_gaps(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h, 1e-10,
+                                        self.max_dense_projection_rows)
         if status != STATUS_OK:
             vel[:, :2] = v_impact
-            keys = self._contact_keys(con, idx)
-            warm = np.isin(keys, self._proj_keys)
             self.n_sparse_solves += 1
-            lam_p, status = project_gaps_sparse(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h,
-                                                warm)
-            if status != STATUS_OK:
-                vel[:, :2] = v_impact
-                lam_p = project_gaps_qp(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h)
-                self.n_fallback_solves += 1
+            # In a persistent jam pivoting keeps cycling: after a fallback go straight to the interior
+            # point solver (and its polish) for a while, trying pivoting again every 10th time.
+            pivot_first = self._skip_pivoting <= 0
+            lam_p, path = project_gaps_large(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h,
+                                             pivot_first)
+            self._skip_pivoting = 9 if path > 0 and pivot_first else self._skip_pivoting - 1
+            self.n_fallback_solves += int(path > 0)
         return lam_p
 
-    def _redetect(self, con, speed, idx, n_all, r_max, h):
+    def _redetect(self, con, speed, grown, idx, n_all, r_max, h):
         """Candidates with margins from the speeds ``speed`` (compact, (n,)) appended to ``con``;
-        None when there is no new one."""
+        None when there is no new one. Only pairs involving a pedestrian whose margin grew
+        (compact rows ``grown``) can be new: the k-d tree of this step is queried around them only."""
         p = self.params
-        pairs = self.neighbor_pairs(2.0 * r_max + p.contact_tolerance_m + 4.0 * h * float(speed.max()))
+        self.neighbor_pairs(0.0)  # the tree of this step (positions have not moved yet)
+        reach = 2.0 * r_max + p.contact_tolerance_m + 2.0 * h * (float(speed[grown].max()) + float(speed.max()))
+        lists = self._tree.query_ball_point(self.state.position_m[idx[grown]], reach)
+        counts = np.fromiter((len(x) for x in lists), dtype=np.int64, count=len(lists))
+        if counts.sum():
+            js = np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])
+            ia = np.repeat(grown, counts)
+            other = js != ia
+            pairs = np.unique(np.stack([np.minimum(ia, js)[other], np.maximum(ia, js)[other]], axis=1), axis=0)
+        else:
+            pairs = np.zeros((0, 2), np.int64)
         as_velocity = np.zeros((n_all, 2))
         as_velocity[idx, 0] = speed  # detect_contacts only uses the norm of each velocity
         con2 = detect_contacts(self.state.position_m, self.state.radius_m, as_velocity, idx, pairs, self.walls,

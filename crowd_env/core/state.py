@@ -20,7 +20,10 @@ class StateError(ValueError):
 
 
 def _as_array(name: str, value, shape: tuple, n: int) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise StateError(f"{name} must be numeric with shape {shape}: {exc}") from None
     if arr.ndim == 0 and shape == (n,):
         arr = np.full(n, float(arr))
     if arr.shape != shape:
@@ -79,7 +82,10 @@ class CrowdState:
         Raises :class:`StateError` naming the problem (shape, non-finite or non-positive value,
         overlapping pair).
         """
-        pos = np.asarray(position_m, dtype=np.float64)
+        try:
+            pos = np.asarray(position_m, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise StateError(f"position_m must be numeric with shape (N, 2): {exc}") from None
         if pos.ndim != 2 or pos.shape[1] != 2:
             raise StateError(f"position_m must have shape (N, 2), got {pos.shape}")
         n = pos.shape[0]
@@ -92,7 +98,8 @@ class CrowdState:
         stiffness = _as_array("heading_stiffness", defaults.heading_stiffness_n_m_per_rad if heading_stiffness is None
                               else heading_stiffness, (n,), n)
         if heading_damping is None:
-            damping = 2.0 * defaults.heading_damping_ratio * np.sqrt(inertia * stiffness)
+            with np.errstate(invalid="ignore"):  # a negative stiffness is reported by validate()
+                damping = 2.0 * defaults.heading_damping_ratio * np.sqrt(inertia * stiffness)
         else:
             damping = _as_array("heading_damping", heading_damping, (n,), n)
         vel = np.zeros((n, 2)) if velocity_m_s is None else velocity_m_s
@@ -115,7 +122,7 @@ class CrowdState:
     def validate(self, overlap_tolerance_m: float = 1e-9) -> None:
         """Check shapes, positivity and the absence of overlapping pairs among active pedestrians."""
         n = self.n
-        for name in ("mass_kg", "inertia_kg_m2", "radius_m", "tau_s"):
+        for name in ("mass_kg", "radius_m", "tau_s", "inertia_kg_m2"):  # given values before derived ones
             arr = getattr(self, name)
             if arr.shape != (n,):
                 raise StateError(f"{name} must have shape ({n},), got {arr.shape}")

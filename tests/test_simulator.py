@@ -1,0 +1,328 @@
+"""The full time step (collision-problem.md, "Recommended time step"): analytic impacts through a
+Simulator step, the heading's response (Eq. 20-21) and its time discretisation, conservation,
+energy, permutation invariance, no overlap in pushing crowds, candidate re-detection, the dense and
+sparse solver paths, the cvxpy path, hand links, exits and bad input."""
+import importlib.util
+import math
+import pathlib
+
+import numpy as np
+import pytest
+
+from crowd_env.core import CrowdState, ModelParams, ParameterError, Simulator, StateError
+from crowd_env.core.segments import GeometryError
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+_spec = importlib.util.spec_from_file_location("paper_collision_figures", ROOT / "scripts" / "paper_collision_figures.py")
+pcf = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(pcf)
+
+
+def box(L):
+    return [[0, 0, L, 0], [L, 0, L, L], [L, L, 0, L], [0, L, 0, 0]]
+
+
+def lattice_crowd(n_side, spacing, origin=(0.3, 0.3), jitter=0.01, seed=0, **kw):
+    rng = np.random.default_rng(seed)
+    xs = origin[0] + spacing * np.arange(n_side)
+    ys = origin[1] + spacing * np.arange(n_side)
+    X, Y = np.meshgrid(xs, ys)
+    pos = np.c_[X.ravel(), Y.ravel()] + rng.uniform(-jitter, jitter, (n_side * n_side, 2))
+    return CrowdState.create(pos, rng=rng, **kw)
+
+
+def towards(state, target, speed):
+    d = np.asarray(target, float) - state.position_m
+    return speed * d / np.linalg.norm(d, axis=1)[:, None]
+
+
+def total_momenta(st):
+    m = st.mass_kg
+    p = (m[:, None] * st.velocity_m_s).sum(axis=0)
+    x, u = st.position_m, st.velocity_m_s
+    ang = float((m * (x[:, 0] * u[:, 1] - x[:, 1] * u[:, 0]) + st.inertia_kg_m2 * st.angular_velocity_rad_s).sum())
+    return p, ang
+
+
+# ---------------------------------------------------------------- Section 3.1 through a full step
+@pytest.mark.parametrize("case", ["a", "b"])
+@pytest.mark.parametrize("k_n", [1.0, 10.0, 30.0, 100.0, 1e3, 1e5])
+def test_head_on_through_a_simulator_step(case, k_n):
+    c = pcf.PAPER_CASES[case]
+    st = CrowdState.create([[0.0, 0.0], [0.46, 0.0]], velocity_m_s=[[c["u1"], 0.0], [c["u2"], 0.0]],
+                           mass_kg=[c["m1"], c["m2"]], radius_m=0.23, tau_s=1e12)
+    sim = Simulator(st, params=ModelParams(normal_dissipation_kg=k_n, rotation=False))
+    res = sim.step(st.velocity_m_s.copy())  # intents = velocities: no driving force
+    a1, a2 = pcf.head_on_analytic(c["m1"], c["m2"], c["u1"], c["u2"], k_n)
+    np.testing.assert_allclose(st.velocity_m_s, [[a1, 0.0], [a2, 0.0]], atol=1e-9)
+    assert res.n_impact_clusters == 1 and res.contact_i.tolist() == [0]
+    assert res.kinetic_energy_after_impact_j <= res.kinetic_energy_before_impact_j * (1 + 1e-12)
+    assert sim.min_gap_m() >= -1e-12
+
+
+def test_disk_bounces_off_a_wall_in_a_step():
+    for k_n, m in ((10.0, 83.0), (1e3, 83.0), (1e5, 83.0)):
+        st = CrowdState.create([[1.0, 0.23]], velocity_m_s=[[0.3, -1.0]], mass_kg=m, tau_s=1e12)
+        sim = Simulator(st, walls=[[-5, 0, 5, 0]], params=ModelParams(normal_dissipation_kg=k_n))
+        sim.step(st.velocity_m_s.copy())
+        expect = -1.0 * (m - k_n) / (m + k_n) if k_n > m else 0.0
+        np.testing.assert_allclose(st.velocity_m_s[0], [0.3, expect], atol=1e-12)
+        assert st.position_m[0, 1] >= 0.23 - 1e-12
+
+
+# ---------------------------------------------------------------- Section 3.2: heading after an oblique impact
+def _rotation_error(dt, k=5.0, k_tg=1e3, t_end=3.0):
+    t, theta, td0 = pcf.simulate_oblique_rotation(k_tg, k, dt_s=dt, t_end_s=t_end)
+    return float(np.abs(theta - pcf.theta_analytic(t, td0, k)).max()), theta, td0
+
+
+def test_heading_converges_to_eq20_at_first_order():
+    errs = [_rotation_error(dt)[0] for dt in (0.01, 0.005, 0.0025, 0.00125)]
+    ratios = [errs[i] / errs[i + 1] for i in range(3)]
+    assert all(1.8 < r < 2.2 for r in ratios), (errs, ratios)  # semi-implicit Euler: first order
+
+
+def test_heading_tight_at_small_step_and_theta_max_eq21():
+    for k in (0.5, 18.5):
+        err, theta, td0 = _rotation_error(5e-4, k=k, t_end=2.0 / pcf.natural_frequency(k))
+        tmax = float(pcf.theta_max(td0, k))
+        assert td0 > 0.5  # the oblique impact spun the pedestrian
+        assert err < 1e-3 * tmax
+        assert theta.max() == pytest.approx(tmax, rel=1e-3)
+
+
+def test_spin_after_impact_independent_of_kn_and_of_dt():
+    spins = [pcf.simulate_oblique_rotation(1e3, 5.0, dt_s=dt, t_end_s=0.02, k_n=k_n)[2]
+             for dt in (0.01, 0.002) for k_n in (2e3, 1e4, 1e6)]
+    np.testing.assert_allclose(spins, spins[0], rtol=1e-9)
+    assert spins[0] == pytest.approx(pcf.oblique_spin(1e3)[0], rel=1e-12)
+
+
+# ---------------------------------------------------------------- conservation and energy in full steps
+def test_free_cluster_step_conserves_momenta():
+    """No walls, no driving force, no heading spring: impacts and projection exchange momentum only."""
+    rng = np.random.default_rng(5)
+    st = lattice_crowd(5, 0.462, jitter=0.0008, seed=5, heading_stiffness=0.0, heading_damping=0.0,
+                       velocity_m_s=rng.normal(0, 1, (25, 2)), angular_velocity_rad_s=rng.normal(0, 1, 25),
+                       heading_rad=rng.uniform(-3, 3, 25), tau_s=1e12,
+                       links=[[0, 1], [7, 12]], link_offsets_m=[[0, 0.25, 0, -0.25], [0.1, 0.2, -0.1, -0.2]])
+    sim = Simulator(st, params=ModelParams(tangential_dissipation_kg=300.0, link_dissipation_kg_per_m2=1e3))
+    for _ in range(30):
+        p0, l0 = total_momenta(st)
+        res = sim.step(st.velocity_m_s.copy())
+        p1, l1 = total_momenta(st)
+        scale = float((st.mass_kg * np.hypot(*st.velocity_m_s.T)).sum())
+        assert np.abs(p1 - p0).max() <= 1e-10 * scale
+        assert abs(l1 - l0) <= 1e-10 * scale * (1 + np.abs(st.position_m).max())
+        assert res.kinetic_energy_after_impact_j <= res.kinetic_energy_before_impact_j * (1 + 1e-12) + 1e-12
+        assert res.kinetic_energy_after_projection_j <= res.kinetic_energy_after_impact_j * (1 + 1e-12) + 1e-12
+    assert res.n_impact_clusters >= 0
+
+
+def _pushing_run(steps, n_side=6, L=3.3, seed=1, check_every=1, **sim_kw):
+    st = lattice_crowd(n_side, 0.5, seed=seed)
+    sim = Simulator(st, walls=box(L), params=ModelParams())
+    for k, v in sim_kw.items():
+        setattr(sim, k, v)
+    worst = np.inf
+    for s in range(steps):
+        res = sim.step(towards(st, [L, L / 2], 1.5))
+        assert res.kinetic_energy_after_impact_j <= res.kinetic_energy_before_impact_j * (1 + 1e-9) + 1e-9
+        assert res.kinetic_energy_after_projection_j <= res.kinetic_energy_after_impact_j * (1 + 1e-9) + 1e-9
+        if s % check_every == 0:
+            worst = min(worst, sim.min_gap_m())
+    r = st.radius_m
+    inside = np.all((st.position_m >= r[:, None] - 1e-3) & (st.position_m <= L - r[:, None] + 1e-3))
+    return sim, worst, inside
+
+
+def test_pushing_crowd_never_overlaps_short():
+    sim, worst, inside = _pushing_run(1500)
+    assert worst >= -1e-3 and inside, worst
+
+
+@pytest.mark.slow
+def test_pushing_crowd_never_overlaps_10k_steps():
+    sim, worst, inside = _pushing_run(10_000, n_side=7, L=3.8)
+    assert worst >= -1e-3 and inside, worst
+
+
+def test_jam_without_overlap_through_sparse_paths():
+    """Force the sparse solvers (and their fallbacks) on a jam: still no overlap."""
+    sim, worst, inside = _pushing_run(400, max_dense_rows=8, max_dense_bodies=6, max_dense_projection_rows=10)
+    assert sim.n_sparse_solves > 50
+    assert worst >= -1e-3 and inside, worst
+
+
+def test_dense_and_sparse_paths_give_the_same_steps():
+    """Both paths are exact solvers of the same problems: identical trajectories to round-off
+    (as long as neither falls back on the interior-point solver)."""
+    runs = []
+    for limits in ((400, 150, 200), (4, 3, 4)):
+        st = lattice_crowd(5, 0.47, jitter=0.004, seed=3)
+        sim = Simulator(st, walls=box(2.7), params=ModelParams(tangential_dissipation_kg=50.0))
+        sim.max_dense_rows, sim.max_dense_bodies, sim.max_dense_projection_rows = limits
+        for _ in range(25):
+            sim.step(towards(st, [2.7, 1.35], 1.5))
+        runs.append((st.position_m.copy(), st.velocity_m_s.copy(), sim.n_sparse_solves, sim.n_fallback_solves))
+    assert runs[0][2] == 0 and runs[1][2] > 0 and runs[1][3] == 0
+    np.testing.assert_allclose(runs[1][1], runs[0][1], atol=1e-8)
+    np.testing.assert_allclose(runs[1][0], runs[0][0], atol=1e-10)
+
+
+def test_redetection_after_a_push_through_a_chain():
+    """Newton's cradle: disk 0 at 2 m/s hits a resting touching chain; the last disk leaves at
+    ~2 m/s towards a resting disk 5 mm away, which was not a candidate with the pre-impact speeds
+    (margin ε + 2h·0 = 1 mm). Without detecting again the two would overlap by ~15 mm."""
+    r = 0.23
+    xs = [0.0, 0.46, 0.92, 1.38, 1.38 + 0.46 + 0.005]
+    st = CrowdState.create([[x, 0.0] for x in xs], velocity_m_s=[[2.0, 0.0]] + [[0.0, 0.0]] * 4, radius_m=r,
+                           mass_kg=80.0, tau_s=1e12)
+    sim = Simulator(st, params=ModelParams(rotation=False))
+    sim.step(st.velocity_m_s.copy())
+    assert sim.n_redetections >= 1
+    assert sim.min_gap_m() >= -1e-12
+    assert st.velocity_m_s[3, 0] < 2.0  # the last chain disk was stopped by its neighbour
+    p = (st.mass_kg * st.velocity_m_s[:, 0]).sum()
+    assert p == pytest.approx(160.0, rel=1e-12)
+
+
+# ---------------------------------------------------------------- permutation invariance
+@pytest.mark.parametrize("seed", [0, 1])
+def test_step_is_permutation_invariant(seed):
+    rng = np.random.default_rng(seed)
+    base = lattice_crowd(6, 0.465, origin=(0.3, 0.3), jitter=0.003, seed=seed,
+                         velocity_m_s=rng.normal(0, 1, (36, 2)), heading_rad=rng.uniform(-3, 3, 36),
+                         angular_velocity_rad_s=rng.normal(0, 1, 36), mass_kg=rng.uniform(60, 90, 36),
+                         links=[[0, 1], [10, 11]], link_offsets_m=[[0, 0.25, 0, -0.25]] * 2)
+    intents = rng.normal(0, 1.3, (36, 2))
+    perm = rng.permutation(36)
+    inv = np.argsort(perm)
+    params = ModelParams(tangential_dissipation_kg=40.0, link_dissipation_kg_per_m2=2e3)
+    walls = box(3.1)
+    a = base.copy()
+    sim_a = Simulator(a, walls=walls, params=params)
+    b = base.copy()
+    for name in ("position_m", "heading_rad", "velocity_m_s", "angular_velocity_rad_s", "mass_kg", "inertia_kg_m2",
+                 "radius_m", "desired_speed_m_s", "tau_s", "heading_stiffness", "heading_damping", "active"):
+        setattr(b, name, getattr(b, name)[perm].copy())
+    b.links = inv[base.links]
+    sim_b = Simulator(b, walls=walls[::-1], params=params)  # walls reversed too
+    for _ in range(5):
+        ra = sim_a.step(intents)
+        rb = sim_b.step(intents[perm])
+        assert ra.n_impact_clusters == rb.n_impact_clusters
+    for name in ("position_m", "velocity_m_s", "heading_rad", "angular_velocity_rad_s"):
+        np.testing.assert_allclose(getattr(b, name), getattr(a, name)[perm], atol=1e-12, rtol=0, err_msg=name)
+
+
+# ---------------------------------------------------------------- hand-holding in the simulator
+def test_linked_pair_walking_apart_is_held_back():
+    def run(k_v):
+        st = CrowdState.create([[0.0, 0.0], [0.7, 0.0]], velocity_m_s=[[-1.0, 0.0], [1.0, 0.0]], tau_s=1e12,
+                               heading_rad=[np.pi / 2, np.pi / 2], links=[[0, 1]],
+                               link_offsets_m=[[0.0, -0.23, 0.0, 0.23]])  # right shoulder of 0, left of 1
+        sim = Simulator(st, params=ModelParams(link_dissipation_kg_per_m2=k_v, rotation=False))
+        sim.step(st.velocity_m_s.copy())
+        return st.velocity_m_s[1, 0] - st.velocity_m_s[0, 0]
+    free = run(0.0)
+    weak = run(5.0)
+    strong = run(1e5)
+    assert free == pytest.approx(2.0)
+    assert 0.0 < weak < free  # damped separation
+    assert strong < 0.0  # stiff link: the pair bounces back together
+
+
+# ---------------------------------------------------------------- reference solver path
+def test_cvxpy_solver_path_matches_dual():
+    def run(solver):
+        rng = np.random.default_rng(11)
+        st = lattice_crowd(3, 0.465, jitter=0.002, seed=11, velocity_m_s=rng.normal(0, 1, (9, 2)))
+        sim = Simulator(st, walls=box(1.6), params=ModelParams(solver=solver, tangential_dissipation_kg=20.0))
+        for _ in range(15):
+            sim.step(towards(st, [1.6, 0.8], 1.2))
+        return st.position_m.copy(), st.velocity_m_s.copy()
+    pa, va = run("dual")
+    pb, vb = run("cvxpy")
+    np.testing.assert_allclose(vb, va, atol=1e-5)
+    np.testing.assert_allclose(pb, pa, atol=1e-6)
+
+
+# ---------------------------------------------------------------- exits, inactive pedestrians
+def test_exit_removes_pedestrians_and_they_stop_interacting():
+    st = CrowdState.create([[0.0, 0.0], [3.0, 0.0]], velocity_m_s=[[1.0, 0.0], [0.0, 0.0]])
+    sim = Simulator(st, exit_test=lambda p: p[:, 0] > 0.005)
+    res = sim.step(np.array([[1.0, 0.0], [0.0, 0.0]]))
+    assert res.exited.tolist() == [0, 1]
+    assert not st.active.any()
+    frozen = st.position_m.copy()
+    sim.step(np.zeros((2, 2)))
+    np.testing.assert_array_equal(st.position_m, frozen)
+
+
+def test_inactive_pedestrian_may_overlap_without_effect():
+    st = CrowdState.create([[0.0, 0.0], [5.0, 0.0]])
+    st.active[1] = False
+    st.position_m[1] = [0.1, 0.0]  # on top of pedestrian 0, but gone
+    sim = Simulator(st)
+    sim.step(np.zeros((2, 2)))
+    assert sim.min_gap_m() == math.inf
+
+
+# ---------------------------------------------------------------- bad input
+def test_bad_intents_and_forces_are_named():
+    st = CrowdState.create([[0.0, 0.0], [1.0, 0.0]])
+    sim = Simulator(st)
+    with pytest.raises(ValueError, match=r"intents_m_s must have shape \(2, 2\)"):
+        sim.step(np.zeros((3, 2)))
+    with pytest.raises(ValueError, match=r"intents_m_s is not finite for pedestrian\(s\) \[1\]"):
+        sim.step(np.array([[0.0, 0.0], [np.nan, 0.0]]))
+    with pytest.raises(ValueError, match=r"intents_m_s is not finite for pedestrian\(s\) \[0\]"):
+        sim.step(np.array([[np.inf, 0.0], [0.0, 0.0]]))
+    with pytest.raises(ValueError, match="desired_heading_rad must have shape"):
+        sim.step(np.zeros((2, 2)), desired_heading_rad=np.zeros(3))
+    with pytest.raises(ValueError, match="external_force_n is not finite"):
+        sim.step(np.zeros((2, 2)), external_force_n=np.array([[0.0, np.nan], [0.0, 0.0]]))
+    assert sim.step_count == 0  # nothing advanced
+
+
+def test_bad_simulator_construction():
+    st = CrowdState.create([[1.0, 1.0]])
+    with pytest.raises(StateError, match="state must be a CrowdState"):
+        Simulator({"position_m": [[0, 0]]})
+    with pytest.raises(ParameterError, match="params must be a ModelParams"):
+        Simulator(st, params={"dt_s": 0.01})
+    with pytest.raises(GeometryError, match="zero length"):
+        Simulator(st, walls=[[0, 0, 0, 0]])
+    with pytest.raises(GeometryError, match=r"shape \(S, 4\)"):
+        Simulator(st, walls=[[0, 0, 1]])
+    with pytest.raises(StateError, match=r"pedestrian 0 .* overlaps wall segment 0"):
+        Simulator(st, walls=[[0, 1.1, 3, 1.1]])
+    st.position_m[0] = [0.0, 0.0]
+    st2 = CrowdState.create([[0.0, 0.0], [2.0, 0.0]])
+    st2.position_m[1] = [0.2, 0.0]  # moved onto pedestrian 0 after creation
+    with pytest.raises(StateError, match="pedestrians 0 and 1 overlap"):
+        Simulator(st2)
+
+
+def test_bad_model_params():
+    with pytest.raises(ParameterError, match=r"unknown model parameter\(s\): \['dt'\]"):
+        ModelParams.from_dict({"dt": 0.01})
+    with pytest.raises(ParameterError, match=r"unknown model parameter\(s\): \['kn'\]"):
+        ModelParams().replace(kn=1.0)
+    with pytest.raises(ParameterError, match="unknown solver 'clarabel'"):
+        ModelParams(solver="clarabel")
+    with pytest.raises(ParameterError, match="dt_s must be > 0"):
+        ModelParams(dt_s=0.0)
+    with pytest.raises(ParameterError, match="normal_dissipation_kg must be a finite number"):
+        ModelParams(normal_dissipation_kg=float("nan"))
+    with pytest.raises(ParameterError, match="tangential_dissipation_kg must be >= 0"):
+        ModelParams().replace(tangential_dissipation_kg=-1.0)
+    with pytest.raises(ParameterError, match=r"social_anisotropy \(lambda\) must lie in \[0, 1\]"):
+        ModelParams(social_anisotropy=1.5)
+    with pytest.raises(ParameterError, match="rotation must be True or False"):
+        ModelParams(rotation="yes")
+    with pytest.raises(ParameterError, match="unknown model parameter"):
+        ModelParams(extra={"foo": 1})
+    assert ModelParams.from_dict({"dt_s": 0.005}).dt_s == 0.005
+    assert ModelParams().replace(solver="cvxpy").solver == "cvxpy"
