@@ -40,20 +40,7 @@ def _cholesky(A):
 
     Not LAPACK: the clusters solved densely are small, and OpenBLAS threads fighting over a loaded
     machine made LAPACK 10-100 times slower than this loop. Raises on a non-positive pivot."""
-    n = A.shape[0]
-    L = np.zeros((n, n))
-    for i in range(n):
-        for j in range(i + 1):
-            s = A[i, j]
-            for k in range(j):
-                s -= L[i, k] * L[j, k]
-            if i == j:
-                if not s > 0.0:
-                    raise ValueError("matrix is not positive definite")
-                L[i, i] = np.sqrt(s)
-            else:
-                L[i, j] = s / L[j, j]
-    return L
+    return _profile_cholesky(A, np.zeros(A.shape[0], np.int64))
 
 
 @nb.njit(cache=True)
