@@ -949,16 +949,7 @@ def project_gaps_qp(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s):
     import scipy.sparse as sp
 
     n = vel.shape[0]
-    m = c_a.shape[0]
-    rows = np.repeat(np.arange(m), 2)
-    cols_a = np.stack([2 * c_a, 2 * c_a + 1], axis=1).ravel()
-    vals_a = np.stack([c_nx, c_ny], axis=1).ravel()
-    wall = c_b < 0
-    bb = np.where(wall, 0, c_b)
-    cols_b = np.stack([2 * bb, 2 * bb + 1], axis=1).ravel()
-    vals_b = -np.stack([c_nx, c_ny], axis=1).ravel() * np.repeat(~wall, 2)
-    Bn = sp.csc_matrix((np.concatenate([vals_a, vals_b]), (np.concatenate([rows, rows]), np.concatenate([cols_a, cols_b]))),
-                       shape=(m, 2 * n))
+    Bn = _normal_rows_sparse(n, c_a, c_b, c_nx, c_ny).tocsc()
     mdiag = np.repeat(mass, 2)
     P = sp.diags(mdiag).tocsc()  # the mass metric
     v0 = vel[:, :2].ravel().copy()
