@@ -102,6 +102,7 @@ class Simulator:
         self._pairs = None
         self._pairs_radius = -1.0
         self._index = None
+        self._index_key = -1
 
     def _check_walls(self, state, tolerance_m: float = 1e-9) -> None:
         """Raise :class:`StateError` naming the pedestrian and the wall when one overlaps a wall."""
@@ -120,7 +121,8 @@ class Simulator:
     @property
     def active_index(self) -> np.ndarray:
         """Indices of the pedestrians still in the simulation."""
-        if self._index is None or self._tree_key != self.step_count:
+        if self._index_key != self.step_count:  # pedestrians leave only at the end of a step
+            self._index_key = self.step_count
             self._index = np.flatnonzero(self.state.active)
         return self._index
 
@@ -132,8 +134,8 @@ class Simulator:
         """
         if self._tree_key != self.step_count:
             self._tree_key = self.step_count
-            self._index = np.flatnonzero(self.state.active)
-            self._tree = cKDTree(self.state.position_m[self._index]) if self._index.size else None
+            idx = self.active_index
+            self._tree = cKDTree(self.state.position_m[idx]) if idx.size else None
             self._pairs = None
             self._pairs_radius = -1.0
         if self._tree is None:
