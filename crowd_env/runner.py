@@ -120,14 +120,15 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
             last_exit_time = sim.time_s
         if counter is not None:
             counter.update(prev, state.position_m, t_prev, sim.time_s, ids)
-        active = state.active
-        pos = state.position_m[active]
+        pos = state.position_m[state.active]
+        masks = {}
         for name, poly in areas.items():
-            density[name].append(np.count_nonzero(shapely.contains_xy(poly, pos[:, 0], pos[:, 1])) / area_size[name])
+            masks[name] = shapely.contains_xy(poly, pos[:, 0], pos[:, 1])
+            density[name].append(np.count_nonzero(masks[name]) / area_size[name])
         if lane_poly is not None:
-            inside = shapely.contains_xy(lane_poly, pos[:, 0], pos[:, 1])
+            inside = masks[lane_area] if lane_area in masks else shapely.contains_xy(lane_poly, pos[:, 0], pos[:, 1])
             lateral.append(pos[inside, 1])
-        min_gap = min(min_gap, sim.min_gap_m())
+        min_gap = min(min_gap, result.min_gap_m)  # pairs farther apart than the candidates cannot overlap
         if progress is not None:
             progress(sim)
     times = np.sort(np.asarray(counter.times_s if counter is not None else [], dtype=float))

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 
 
@@ -66,17 +67,27 @@ class MeasurementLine:
     def crossing_fraction(self, prev_pos, new_pos) -> np.ndarray:
         """For straight moves prev -> new (K, 2): fraction α ∈ [0, 1) at which the segment is crossed
         in the positive direction, NaN where it is not (half-open: start strictly behind, end on or past)."""
-        p0 = np.asarray(prev_pos, dtype=np.float64)
-        p1 = np.asarray(new_pos, dtype=np.float64)
-        s0 = self.signed_distance_m(p0)
-        s1 = self.signed_distance_m(p1)
-        hit = (s0 < 0.0) & (s1 >= 0.0)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            alpha = np.where(hit, s0 / (s0 - s1), np.nan)
-        point = p0 + alpha[:, None] * (p1 - p0)
-        u = ((point - self._a) @ self._t) / (self._t @ self._t)
-        hit &= (u >= 0.0) & (u <= 1.0)
-        return np.where(hit, alpha, np.nan)
+        p0 = np.ascontiguousarray(prev_pos, dtype=np.float64)
+        p1 = np.ascontiguousarray(new_pos, dtype=np.float64)
+        return _crossing_fraction(p0, p1, self._a, self._t, self._normal)
+
+
+@nb.njit(cache=True)
+def _crossing_fraction(p0, p1, a, t, normal):
+    """Kernel of :meth:`MeasurementLine.crossing_fraction` (segment a → a + t, positive side ``normal``)."""
+    out = np.full(p0.shape[0], np.nan)
+    tt = t[0] * t[0] + t[1] * t[1]
+    for k in range(p0.shape[0]):
+        s0 = (p0[k, 0] - a[0]) * normal[0] + (p0[k, 1] - a[1]) * normal[1]
+        s1 = (p1[k, 0] - a[0]) * normal[0] + (p1[k, 1] - a[1]) * normal[1]
+        if s0 < 0.0 and s1 >= 0.0:
+            alpha = s0 / (s0 - s1)
+            px = p0[k, 0] + alpha * (p1[k, 0] - p0[k, 0])
+            py = p0[k, 1] + alpha * (p1[k, 1] - p0[k, 1])
+            u = ((px - a[0]) * t[0] + (py - a[1]) * t[1]) / tt
+            if 0.0 <= u <= 1.0:
+                out[k] = alpha
+    return out
 
 
 def line_crossings(prev_pos, new_pos, t_prev_s, t_new_s, line: MeasurementLine, ids=None):
@@ -92,11 +103,12 @@ def line_crossings(prev_pos, new_pos, t_prev_s, t_new_s, line: MeasurementLine, 
         raise FlowError(f"prev_pos and new_pos must both have shape (N, 2), got {p0.shape} and {p1.shape}")
     alpha = line.crossing_fraction(p0, p1)
     rows = np.flatnonzero(~np.isnan(alpha))
-    t0 = np.broadcast_to(np.asarray(t_prev_s, dtype=np.float64), alpha.shape)
-    t1 = np.broadcast_to(np.asarray(t_new_s, dtype=np.float64), alpha.shape)
-    times = t0[rows] + alpha[rows] * (t1[rows] - t0[rows])
     who = rows if ids is None else np.asarray(ids)[rows]
-    return who, times
+    if rows.size == 0:
+        return who, np.zeros(0)
+    t0 = np.broadcast_to(np.asarray(t_prev_s, dtype=np.float64), alpha.shape)[rows]
+    t1 = np.broadcast_to(np.asarray(t_new_s, dtype=np.float64), alpha.shape)[rows]
+    return who, t0 + alpha[rows] * (t1 - t0)
 
 
 class PassageCounter:

@@ -10,7 +10,6 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 from scipy.ndimage import gaussian_filter1d
-from scipy.signal import find_peaks
 
 from .density import as_polygon
 
@@ -85,6 +84,8 @@ def detect_lanes(centers_m, probability, smoothing_m: float = 0.02, min_prominen
     if top <= 0:
         raise LaneError("the lateral distribution is zero everywhere")
     padded = np.concatenate([[0.0], smooth, [0.0]])
+    from scipy.signal import find_peaks  # imported on use: scipy.signal takes ~1.7 s to import
+
     peaks, _ = find_peaks(padded, prominence=min_prominence * top)
     peaks = peaks - 1
     return LaneResult(int(peaks.size), c[peaks], smooth)

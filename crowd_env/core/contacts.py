@@ -24,16 +24,16 @@ NORMAL, TANGENT, LINK = 0, 1, 2
 
 
 @nb.njit(cache=True)
-def pair_candidates(position, radius, velocity, pairs, index, eps_m, dt_s, margin_out):
+def pair_candidates(position, radius, speed, pairs, index, eps_m, dt_s, margin_out):
     """Disk-disk candidates among ``pairs`` (rows into ``index``) with gap ≤ ε + 2h(|u_i|+|u_j|).
 
-    Returns ``(a, b, gap, nx, ny, d)`` with a, b rows into ``index``; also writes each
-    pedestrian's own margin ε + 2h|u_i| into ``margin_out`` (used for walls).
+    ``speed`` (n,): |u| of each pedestrian of ``index`` (compact rows). Returns
+    ``(a, b, gap, nx, ny, d)`` with a, b rows into ``index``; also writes each pedestrian's own
+    margin ε + 2h|u_i| into ``margin_out`` (used for walls).
     """
     n = index.shape[0]
     for k in range(n):
-        i = index[k]
-        margin_out[k] = eps_m + 2.0 * dt_s * np.sqrt(velocity[i, 0] ** 2 + velocity[i, 1] ** 2)
+        margin_out[k] = eps_m + 2.0 * dt_s * speed[k]
     p = pairs.shape[0]
     a_out = np.empty(p, np.int64)
     b_out = np.empty(p, np.int64)
@@ -64,37 +64,75 @@ def pair_candidates(position, radius, velocity, pairs, index, eps_m, dt_s, margi
     return a_out[:m], b_out[:m], geo[:m, 0].copy(), geo[:m, 1].copy(), geo[:m, 2].copy(), geo[:m, 3].copy()
 
 
-def detect_contacts(position, radius, velocity, index, pairs, walls, wall_owner, eps_m, dt_s):
-    """All candidate contacts (pedestrian pairs and walls) among the pedestrians ``index``.
+CONTACT_FIELDS = ("a", "b", "gap", "nx", "ny", "rho_a", "rho_b", "wall")
 
-    ``pairs`` are rows into ``index`` (from a k-d tree). Returns a dict of arrays, one entry per
-    contact: ``a``/``b`` rows into ``index`` (b = -1 for a wall), ``gap`` (m), ``nx``/``ny``
-    (unit normal from b to a), ``rho_a``/``rho_b`` (distances of the contact point from the centres),
-    ``wall`` (segment id or -1).
+
+@nb.njit(cache=True)
+def contact_candidates(position, radius, speed, index, pairs, walls, wall_owner, eps_m, dt_s):
+    """Candidate contacts (pedestrian pairs, then walls) among the pedestrians ``index``.
+
+    ``speed`` (n,) compact |u|; ``pairs`` rows into ``index`` (any superset of the pairs within
+    2 r_max + margins). Returns the arrays of :data:`CONTACT_FIELDS`, one entry per contact: ``a``/``b``
+    rows into ``index`` (b = -1 for a wall), ``gap`` (m), ``nx``/``ny`` (unit normal from b to a),
+    ``rho_a``/``rho_b`` (distances of the contact point from the centres, ρ_i = d r_i/(r_i + r_j),
+    ρ = r against a wall), ``wall`` (segment id or -1).
     """
     n = index.shape[0]
     margin = np.empty(n)
-    a, b, gap, nx, ny, d = pair_candidates(position, radius, velocity, pairs, index, eps_m, dt_s, margin)
-    ra = radius[index[a]]
-    rb = radius[index[b]]
-    rho_a = d * ra / (ra + rb)
-    rho_b = d - rho_a
+    a, b, gap, nx, ny, d = pair_candidates(position, radius, speed, pairs, index, eps_m, dt_s, margin)
+    npair = a.shape[0]
     if walls.shape[0]:
         wa, wseg, wgap, wnx, wny, _, _ = wall_proximity(position, radius, index, walls, wall_owner, margin)
     else:
         wa = np.zeros(0, np.int64)
         wseg = np.zeros(0, np.int64)
-        wgap = wnx = wny = np.zeros(0)
-    return {
-        "a": np.concatenate([a, wa]),
-        "b": np.concatenate([b, np.full(wa.shape[0], -1, np.int64)]),
-        "gap": np.concatenate([gap, wgap]),
-        "nx": np.concatenate([nx, wnx]),
-        "ny": np.concatenate([ny, wny]),
-        "rho_a": np.concatenate([rho_a, radius[index[wa]]]),
-        "rho_b": np.concatenate([rho_b, np.zeros(wa.shape[0])]),
-        "wall": np.concatenate([np.full(a.shape[0], -1, np.int64), wseg]),
-    }
+        wgap = np.zeros(0)
+        wnx = np.zeros(0)
+        wny = np.zeros(0)
+    m = npair + wa.shape[0]
+    c_a = np.empty(m, np.int64)
+    c_b = np.empty(m, np.int64)
+    c_gap = np.empty(m)
+    c_nx = np.empty(m)
+    c_ny = np.empty(m)
+    c_rho_a = np.empty(m)
+    c_rho_b = np.empty(m)
+    c_wall = np.empty(m, np.int64)
+    for k in range(npair):
+        ra = radius[index[a[k]]]
+        rb = radius[index[b[k]]]
+        c_a[k] = a[k]
+        c_b[k] = b[k]
+        c_gap[k] = gap[k]
+        c_nx[k] = nx[k]
+        c_ny[k] = ny[k]
+        c_rho_a[k] = d[k] * ra / (ra + rb)
+        c_rho_b[k] = d[k] - c_rho_a[k]
+        c_wall[k] = -1
+    for k in range(wa.shape[0]):
+        c = npair + k
+        c_a[c] = wa[k]
+        c_b[c] = -1
+        c_gap[c] = wgap[k]
+        c_nx[c] = wnx[k]
+        c_ny[c] = wny[k]
+        c_rho_a[c] = radius[index[wa[k]]]
+        c_rho_b[c] = 0.0
+        c_wall[c] = wseg[k]
+    return c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall
+
+
+def detect_contacts(position, radius, velocity, index, pairs, walls, wall_owner, eps_m, dt_s):
+    """:func:`contact_candidates` as a dict keyed by :data:`CONTACT_FIELDS`, from full (N, 2) velocities.
+
+    ``pairs`` are rows into ``index`` (e.g. from :func:`~crowd_env.core.neighbors.grid_pairs`).
+    """
+    index = np.ascontiguousarray(index, dtype=np.int64)
+    v = np.asarray(velocity, dtype=np.float64)[index]
+    speed = np.sqrt(v[:, 0] ** 2 + v[:, 1] ** 2)
+    pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
+    arrays = contact_candidates(position, radius, speed, index, pairs, walls, wall_owner, float(eps_m), float(dt_s))
+    return dict(zip(CONTACT_FIELDS, arrays))
 
 
 @nb.njit(cache=True)

@@ -2,7 +2,7 @@
 
 1. smooth update (Eq. 3, 14, 15): u* = u + h/τ (u_intent − u) + h f_ext/m,
    ω* = ω + h (−k wrap(θ − θ_d) − c ω)/I;
-2. candidate contacts with a speculative margin ε + 2h(|u_i| + |u_j|) (k-d tree broad phase, exact
+2. candidate contacts with a speculative margin ε + 2h(|u_i| + |u_j|) (cell-grid broad phase, exact
    narrow phase);
 3. Frémond impact (Eq. 7) on every cluster of touching, approaching contacts and hand links (dense
    compiled solver for small clusters, sparse pivoting for large ones);
@@ -14,6 +14,10 @@
 
 The velocity intent ``(N, 2)`` in m/s is the only behavioural input; external forces (for example
 Helbing's social repulsion, Eq. 16) can be added per step. The core knows nothing of RL.
+
+By default a step runs as one compiled call (:func:`crowd_env.core.stepper.fused_step`); steps that
+need a fallback solver or a re-detection, and every step of a ``Simulator(profile=True)`` (which
+times each stage into ``StepResult.timings_s``), run the same compiled stages one by one from Python.
 """
 from __future__ import annotations
 
@@ -21,14 +25,17 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import cKDTree
+import shapely
 
 from .collision import (MAX_DENSE_BODIES, MAX_DENSE_PROJECTION_ROWS, MAX_DENSE_ROWS, STATUS_OK, project_gaps,
                         project_gaps_large, resolve_impacts, solve_clusters, solve_rows_qp, solve_rows_sparse)
-from .contacts import detect_contacts, link_geometry
+from .contacts import CONTACT_FIELDS, contact_candidates, link_geometry
+from .neighbors import grid_pairs
 from .params import ModelParams, ParameterError
 from .segments import as_segments, endpoint_owners, wall_proximity
 from .state import CrowdState, StateError
+from .stepper import (FUSED_OK, VTOL_M_S, candidate_gaps_min, commit_step, compact_contacts, first_non_finite,
+                      fused_step, rows_in_boxes, grown_margins, kinetic_energy, smooth_update, speeds)
 
 
 MAX_REDETECT = 10  # re-detection rounds per step (speeds are bounded: one or two rounds suffice in practice)
@@ -55,6 +62,7 @@ class StepResult:
     kinetic_energy_after_projection_j: float
     exited: np.ndarray
     timings_s: dict = field(default_factory=dict)
+    min_gap_m: float = np.inf  # smallest gap after the step among contact candidates (inf: none within ε)
 
 
 def wrap_angle(angle):
@@ -82,6 +90,10 @@ class Simulator:
         self.walls = as_segments(geometry.walls if geometry is not None else ([] if walls is None else walls))
         self._wall_owner = endpoint_owners(self.walls)
         self._exit_test = geometry.in_exit if geometry is not None else exit_test
+        # Bounding boxes of the exits: only pedestrians inside one need the exact (shapely) test.
+        self._exit_boxes = None
+        if geometry is not None and getattr(geometry, "exits", None):
+            self._exit_boxes = np.ascontiguousarray([shapely.bounds(e) for e in geometry.exits], dtype=np.float64)
         state.validate()
         self._check_walls(state)
         self.state = state
@@ -90,6 +102,7 @@ class Simulator:
         self.n_fallback_solves = 0
         self.n_redetections = 0  # steps where faster post-impact speeds called for more candidates
         self.n_sparse_solves = 0  # impact clusters / projections too large for the dense path
+        self.n_staged_steps = 0  # steps run stage by stage (profiling, fallbacks, re-detection)
         # Size limits of the dense (compiled) solvers; larger problems take the sparse path. Exposed so
         # that tests can force either path; both are exact, so results agree to round-off.
         self.max_dense_rows = MAX_DENSE_ROWS
@@ -97,8 +110,7 @@ class Simulator:
         self.max_dense_projection_rows = MAX_DENSE_PROJECTION_ROWS
         self._skip_pivoting = 0
         self.profile = profile
-        self._tree_key = -1
-        self._tree = None
+        self._pairs_key = -1
         self._pairs = None
         self._pairs_radius = -1.0
         self._index = None
@@ -129,21 +141,24 @@ class Simulator:
     def neighbor_pairs(self, radius_m: float) -> np.ndarray:
         """Pairs (P, 2) of rows into :attr:`active_index` with centre distance ≤ ``radius_m``.
 
-        Built once per step from a k-d tree; a later call with a smaller radius reuses the list
-        (a superset: callers filter by distance).
+        Built on a cell grid (:func:`~crowd_env.core.neighbors.grid_pairs`) at most once per step and
+        radius: a later call with a smaller radius reuses the list (a superset: callers filter by
+        distance).
         """
-        if self._tree_key != self.step_count:
-            self._tree_key = self.step_count
-            idx = self.active_index
-            self._tree = cKDTree(self.state.position_m[idx]) if idx.size else None
+        if self._pairs_key != self.step_count:
+            self._pairs_key = self.step_count
             self._pairs = None
             self._pairs_radius = -1.0
-        if self._tree is None:
-            return np.zeros((0, 2), np.int64)
         if radius_m > self._pairs_radius:
-            self._pairs = self._tree.query_pairs(radius_m, output_type="ndarray").astype(np.int64, copy=False)
+            self._pairs = grid_pairs(self.state.position_m, self.active_index, float(radius_m))
             self._pairs_radius = radius_m
         return self._pairs
+
+    def _cached_pairs(self):
+        """(pairs, radius) already built this step, or an empty list with radius −1."""
+        if self._pairs_key == self.step_count and self._pairs is not None:
+            return self._pairs, float(self._pairs_radius)
+        return _NO_PAIRS, -1.0
 
     def wall_proximity(self, margin_m: float):
         """Wall neighbours of the active pedestrians within ``margin_m`` of their surface
@@ -154,12 +169,11 @@ class Simulator:
 
     # ------------------------------------------------------------------ stepping
     def _check_input(self, name, value, shape):
-        arr = np.asarray(value, dtype=np.float64)
+        arr = np.ascontiguousarray(value, dtype=np.float64)
         if arr.shape != shape:
             raise ValueError(f"{name} must have shape {shape} (one row per pedestrian), got {arr.shape}")
-        finite = np.isfinite(arr).reshape(shape[0], -1).all(axis=1)
-        if not finite.all():
-            bad = np.flatnonzero(~finite)
+        if first_non_finite(arr) >= 0:
+            bad = np.flatnonzero(~np.isfinite(arr).reshape(shape[0], -1).all(axis=1))
             raise ValueError(f"{name} is not finite for pedestrian(s) {bad[:10].tolist()}")
         return arr
 
@@ -170,59 +184,70 @@ class Simulator:
         ``desired_heading_rad`` (N,): θ_d of Eq. 15; by default the direction of the intent (the
         current heading where the intent is zero). ``external_force_n`` (N, 2): added forces.
         """
+        n_all = self.state.n
+        intents = self._check_input("intents_m_s", intents_m_s, (n_all, 2))
+        theta_d = _EMPTY_1D if desired_heading_rad is None else \
+            self._check_input("desired_heading_rad", desired_heading_rad, (n_all,))
+        force = _EMPTY_2D if external_force_n is None else \
+            self._check_input("external_force_n", external_force_n, (n_all, 2))
+        inputs = (intents, theta_d, desired_heading_rad is not None, force, external_force_n is not None)
+        if not self.profile and self.params.solver != "cvxpy" and self.active_index.shape[0]:
+            result = self._fused_step(inputs)
+            if result is not None:
+                return result
+        return self._staged_step(inputs)
+
+    def _fused_step(self, inputs):
+        """The whole step as one compiled call; None when a stage needs the general path (nothing changed)."""
         st = self.state
         p = self.params
-        n_all = st.n
+        idx = self.active_index
+        links = self._active_links(idx)
+        t0 = time.perf_counter()
+        status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap = fused_step(st.position_m, st.radius_m, st.velocity_m_s, st.angular_velocity_rad_s,
+                               st.heading_rad, st.mass_kg, st.inertia_kg_m2, st.tau_s, st.heading_stiffness,
+                               st.heading_damping, *inputs, idx, self.walls, self._wall_owner, *self._cached_pairs(),
+                               *links, p.dt_s,
+                               p.contact_tolerance_m, p.normal_dissipation_kg, p.tangential_dissipation_kg,
+                               p.link_dissipation_kg_per_m2, p.rotation, self.max_dense_rows, self.max_dense_bodies,
+                               self.max_dense_projection_rows)
+        if status != FUSED_OK:
+            return None
+        exited = self._leave_at_exits(idx)
+        return self._result(contacts, ke0, ke1, ke2, n_clusters, max_cluster, exited,
+                            {"fused": time.perf_counter() - t0}, min_gap)
+
+    def _staged_step(self, inputs) -> StepResult:
+        """Steps 1-5 stage by stage, timed, with every fallback (module docstring)."""
+        self.n_staged_steps += 1
+        st = self.state
+        p = self.params
         h = p.dt_s
-        intents = self._check_input("intents_m_s", intents_m_s, (n_all, 2))
-        if desired_heading_rad is not None:
-            desired_heading_rad = self._check_input("desired_heading_rad", desired_heading_rad, (n_all,))
-        if external_force_n is not None:
-            external_force_n = self._check_input("external_force_n", external_force_n, (n_all, 2))
         timings = {}
         t0 = time.perf_counter()
         idx = self.active_index
         n = idx.shape[0]
         # 1. smooth update (explicit Euler on the velocity, semi-implicit on positions)
-        vel = np.empty((n, 3))
-        u = st.velocity_m_s[idx]
-        tau = st.tau_s[idx]
-        acc = (intents[idx] - u) / tau[:, None]
-        if external_force_n is not None:
-            acc += external_force_n[idx] / st.mass_kg[idx, None]
-        vel[:, :2] = u + h * acc
-        if p.rotation:
-            theta = st.heading_rad[idx]
-            if desired_heading_rad is None:
-                it = intents[idx]
-                speed = np.hypot(it[:, 0], it[:, 1])
-                theta_d = np.where(speed > 1e-12, np.arctan2(it[:, 1], it[:, 0]), theta)
-            else:
-                theta_d = desired_heading_rad[idx]
-            omega = st.angular_velocity_rad_s[idx]
-            torque = -st.heading_stiffness[idx] * wrap_angle(theta - theta_d) - st.heading_damping[idx] * omega
-            vel[:, 2] = omega + h * torque / st.inertia_kg_m2[idx]
-        else:
-            vel[:, 2] = 0.0
+        vel = smooth_update(st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad, st.mass_kg,
+                            st.inertia_kg_m2, st.tau_s, st.heading_stiffness, st.heading_damping, *inputs, idx, h,
+                            p.rotation)
         t1 = time.perf_counter()
         timings["smooth"] = t1 - t0
         # 2. contact candidates
-        vmax = float(np.sqrt((vel[:, :2] ** 2).sum(axis=1).max())) if n else 0.0
+        speed_star = speeds(vel)
+        vmax = float(speed_star.max()) if n else 0.0
         r_max = float(st.radius_m[idx].max()) if n else 0.0
         pairs = self.neighbor_pairs(2.0 * r_max + p.contact_tolerance_m + 4.0 * h * vmax)
         t2 = time.perf_counter()
         timings["neighbors"] = t2 - t1
-        # Compact copies for the kernels.
-        pos = st.position_m
-        con = detect_contacts(pos, st.radius_m, vel_full_view(vel, idx, n_all), idx, pairs, self.walls,
-                              self._wall_owner, p.contact_tolerance_m, h)
+        con = dict(zip(CONTACT_FIELDS, contact_candidates(st.position_m, st.radius_m, speed_star, idx, pairs,
+                                                          self.walls, self._wall_owner, p.contact_tolerance_m, h)))
         links_a, links_b, dvec, gi, gj = self._active_links(idx)
         t3 = time.perf_counter()
         timings["contacts"] = t3 - t2
         mass = st.mass_kg[idx]
         inertia = st.inertia_kg_m2[idx]
         ke0 = kinetic_energy(vel, mass, inertia)
-        speed_star = np.hypot(vel[:, 0], vel[:, 1])
         # 3. impacts
         cluster_args = (con["a"], con["b"], con["nx"], con["ny"], con["rho_a"], con["rho_b"], links_a, links_b,
                         dvec, gi, gj, p.normal_dissipation_kg, p.tangential_dissipation_kg,
@@ -230,7 +255,7 @@ class Simulator:
         p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = resolve_impacts(
             vel, mass, inertia, con["a"], con["b"], con["gap"], con["nx"], con["ny"], con["rho_a"], con["rho_b"],
             links_a, links_b, dvec, gi, gj, p.normal_dissipation_kg, p.tangential_dissipation_kg,
-            p.link_dissipation_kg_per_m2, p.contact_tolerance_m, 1e-9, p.rotation,
+            p.link_dissipation_kg_per_m2, p.contact_tolerance_m, VTOL_M_S, p.rotation,
             -1 if p.solver == "cvxpy" else self.max_dense_rows, self.max_dense_bodies)
         if unsolved.shape[0]:
             if p.solver == "cvxpy":
@@ -250,11 +275,10 @@ class Simulator:
         det_speed = speed_star
         lam_p = None
         for _ in range(MAX_REDETECT + 1):
-            speed = np.hypot(vel[:, 0], vel[:, 1])
-            grown = np.flatnonzero(speed > 2.0 * det_speed + 0.5 * p.contact_tolerance_m / h)
+            grown = grown_margins(vel, det_speed, p.contact_tolerance_m, h)
             if grown.size:
-                det_speed = np.maximum(det_speed, speed)
-                merged = self._redetect(con, det_speed, grown, idx, n_all, r_max, h)
+                det_speed = np.maximum(det_speed, speeds(vel))
+                merged = self._redetect(con, det_speed, grown, idx, r_max, h)
                 if merged is not None:
                     extra = merged["a"].shape[0] - con["a"].shape[0]
                     con = merged
@@ -271,36 +295,37 @@ class Simulator:
         t5 = time.perf_counter()
         timings["projection"] = t5 - t4
         # 5. integrate and leave at exits
-        st.velocity_m_s[idx] = vel[:, :2]
-        st.angular_velocity_rad_s[idx] = vel[:, 2]
-        st.position_m[idx] += h * vel[:, :2]
-        if p.rotation:
-            st.heading_rad[idx] = wrap_angle(st.heading_rad[idx] + h * vel[:, 2])
-        exited = np.zeros(0, np.int64)
-        if self._exit_test is not None and n:
-            out = np.asarray(self._exit_test(st.position_m[idx]), dtype=bool)
-            if out.any():
-                exited = idx[out]
-                st.active[exited] = False
-        self.time_s += h
-        self.step_count += 1
+        commit_step(st.position_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad, idx, vel, h,
+                    p.rotation)
+        min_gap = candidate_gaps_min(st.position_m, st.radius_m, idx, self.walls, con["a"], con["b"], con["wall"])
+        exited = self._leave_at_exits(idx)
         timings["integrate"] = time.perf_counter() - t5
-        keep = in_impact | (lam_p > 0)
-        return StepResult(
-            time_s=self.time_s,
-            contact_i=idx[con["a"][keep]],
-            contact_j=np.where(con["b"][keep] >= 0, idx[np.maximum(con["b"][keep], 0)], -1),
-            contact_wall=con["wall"][keep],
-            percussion_normal=(p_n + lam_p)[keep],
-            percussion_tangent=p_t[keep],
-            n_impact_clusters=int(n_clusters),
-            max_cluster_size=int(max_cluster),
-            kinetic_energy_before_impact_j=ke0,
-            kinetic_energy_after_impact_j=ke1,
-            kinetic_energy_after_projection_j=ke2,
-            exited=exited,
-            timings_s=timings,
-        )
+        contacts = compact_contacts(idx, con["a"], con["b"], con["wall"], p_n, p_t, lam_p, in_impact)
+        return self._result(contacts, ke0, ke1, ke2, n_clusters, max_cluster, exited, timings, min_gap)
+
+    def _leave_at_exits(self, idx) -> np.ndarray:
+        """Deactivate pedestrians whose centre is in an exit; advance the clock. Returns their indices."""
+        st = self.state
+        exited = np.zeros(0, np.int64)
+        if self._exit_test is not None and idx.shape[0]:
+            near = idx if self._exit_boxes is None else idx[rows_in_boxes(st.position_m, idx, self._exit_boxes)]
+            if near.shape[0]:
+                out = np.asarray(self._exit_test(st.position_m[near]), dtype=bool)
+                if out.any():
+                    exited = near[out]
+                    st.active[exited] = False
+        self.time_s += self.params.dt_s
+        self.step_count += 1
+        return exited
+
+    def _result(self, contacts, ke0, ke1, ke2, n_clusters, max_cluster, exited, timings, min_gap) -> StepResult:
+        contact_i, contact_j, contact_wall, p_normal, p_tangent = contacts
+        return StepResult(time_s=self.time_s, contact_i=contact_i, contact_j=contact_j, contact_wall=contact_wall,
+                          percussion_normal=p_normal, percussion_tangent=p_tangent,
+                          n_impact_clusters=int(n_clusters), max_cluster_size=int(max_cluster),
+                          kinetic_energy_before_impact_j=float(ke0), kinetic_energy_after_impact_j=float(ke1),
+                          kinetic_energy_after_projection_j=float(ke2), exited=exited, timings_s=timings,
+                          min_gap_m=float(min_gap))
 
     def _solve_large_cluster(self, *rows):
         """Impact of a cluster too large for the dense path: sparse pivoting, Clarabel if that fails."""
@@ -333,26 +358,19 @@ class Simulator:
             self.n_fallback_solves += int(path > 0)
         return lam_p
 
-    def _redetect(self, con, speed, grown, idx, n_all, r_max, h):
+    def _redetect(self, con, speed, grown, idx, r_max, h):
         """Candidates with margins from the speeds ``speed`` (compact, (n,)) appended to ``con``;
         None when there is no new one. Only pairs involving a pedestrian whose margin grew
-        (compact rows ``grown``) can be new: the k-d tree of this step is queried around them only."""
+        (compact rows ``grown``) can be new (positions have not moved yet in this step)."""
         p = self.params
-        self.neighbor_pairs(0.0)  # the tree of this step (positions have not moved yet)
         reach = 2.0 * r_max + p.contact_tolerance_m + 2.0 * h * (float(speed[grown].max()) + float(speed.max()))
-        lists = self._tree.query_ball_point(self.state.position_m[idx[grown]], reach)
-        counts = np.fromiter((len(x) for x in lists), dtype=np.int64, count=len(lists))
-        if counts.sum():
-            js = np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])
-            ia = np.repeat(grown, counts)
-            other = js != ia
-            pairs = np.unique(np.stack([np.minimum(ia, js)[other], np.maximum(ia, js)[other]], axis=1), axis=0)
-        else:
-            pairs = np.zeros((0, 2), np.int64)
-        as_velocity = np.zeros((n_all, 2))
-        as_velocity[idx, 0] = speed  # detect_contacts only uses the norm of each velocity
-        con2 = detect_contacts(self.state.position_m, self.state.radius_m, as_velocity, idx, pairs, self.walls,
-                               self._wall_owner, p.contact_tolerance_m, h)
+        pairs = grid_pairs(self.state.position_m, idx, reach)
+        is_grown = np.zeros(idx.shape[0], bool)
+        is_grown[grown] = True
+        pairs = pairs[is_grown[pairs[:, 0]] | is_grown[pairs[:, 1]]]
+        con2 = dict(zip(CONTACT_FIELDS, contact_candidates(self.state.position_m, self.state.radius_m, speed, idx,
+                                                           pairs, self.walls, self._wall_owner,
+                                                           p.contact_tolerance_m, h)))
         n = idx.shape[0]
         n_seg = max(1, self.walls.shape[0])
 
@@ -395,13 +413,6 @@ class Simulator:
         return best
 
 
-def vel_full_view(vel_compact, idx, n_all):
-    """Scatter compact (n, 3) velocities into a full (N, 2) array for kernels indexed globally."""
-    full = np.zeros((n_all, 2))
-    full[idx] = vel_compact[:, :2]
-    return full
-
-
-def kinetic_energy(vel, mass, inertia) -> float:
-    """½ Σ (m |u|² + I ω²) in joules for compact (n, 3) velocities."""
-    return float(0.5 * (mass @ (vel[:, 0] ** 2 + vel[:, 1] ** 2) + inertia @ vel[:, 2] ** 2))
+_EMPTY_1D = np.zeros(0)
+_EMPTY_2D = np.zeros((0, 2))
+_NO_PAIRS = np.zeros((0, 2), np.int64)

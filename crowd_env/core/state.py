@@ -9,9 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import cKDTree
-from scipy.stats import truncnorm
 
+from .neighbors import grid_pairs
 from .params import ParameterError, PedestrianDefaults
 
 
@@ -37,6 +36,8 @@ def _as_array(name: str, value, shape: tuple, n: int) -> np.ndarray:
 def sample_desired_speeds(n: int, rng: np.random.Generator, defaults: PedestrianDefaults = PedestrianDefaults()) -> np.ndarray:
     """Desired walking speeds ~ N(1.34, 0.26) m/s (Henderson 1971), truncated at ±2σ (0.82-1.86 m/s)."""
     k = defaults.desired_speed_truncation_sigma
+    from scipy.stats import truncnorm  # imported on use: scipy.stats takes ~1.5 s to import
+
     return truncnorm.rvs(-k, k, loc=defaults.desired_speed_mean_m_s, scale=defaults.desired_speed_std_m_s,
                          size=n, random_state=rng)
 
@@ -154,11 +155,16 @@ class CrowdState:
         return CrowdState(**{k: np.array(v, copy=True) for k, v in self.__dict__.items()})
 
 
+def _all_pairs_within(position_m, radius_m):
+    position_m = np.ascontiguousarray(position_m, dtype=np.float64)
+    return grid_pairs(position_m, np.arange(position_m.shape[0], dtype=np.int64), float(radius_m))
+
+
 def first_overlap(position_m: np.ndarray, radius_m: np.ndarray, tolerance_m: float = 0.0):
     """Return ``(i, j, overlap_m)`` of the most overlapping pair, or None when no pair overlaps."""
     if position_m.shape[0] < 2:
         return None
-    pairs = cKDTree(position_m).query_pairs(2.0 * float(radius_m.max()), output_type="ndarray")
+    pairs = _all_pairs_within(position_m, 2.0 * float(radius_m.max()))
     if pairs.size == 0:
         return None
     d = np.linalg.norm(position_m[pairs[:, 0]] - position_m[pairs[:, 1]], axis=1)
@@ -173,7 +179,7 @@ def min_gap_m(position_m: np.ndarray, radius_m: np.ndarray) -> float:
     """Smallest surface gap between any two pedestrians (negative = overlap); inf for N < 2."""
     if position_m.shape[0] < 2:
         return float("inf")
-    pairs = cKDTree(position_m).query_pairs(2.0 * float(radius_m.max()) + 1.0, output_type="ndarray")
+    pairs = _all_pairs_within(position_m, 2.0 * float(radius_m.max()) + 1.0)
     if pairs.size == 0:
         return float("inf")
     d = np.linalg.norm(position_m[pairs[:, 0]] - position_m[pairs[:, 1]], axis=1)
