@@ -60,9 +60,19 @@ def grid_pairs(position, index, radius_m):
         c = cell_of[k]
         order[fill[c]] = k
         fill[c] += 1
-    r2 = radius_m * radius_m
     cap = 8 * n
-    out = np.empty((cap, 2), np.int64)
+    while True:  # a crowd denser than ~8 neighbours each within the radius needs a larger buffer
+        out = np.empty((cap, 2), np.int64)
+        m = _fill_pairs(position, index, order, start, ncx, ncy, radius_m * radius_m, out)
+        if m >= 0:
+            return out[:m].copy()
+        cap *= 4
+
+
+@nb.njit(cache=True)
+def _fill_pairs(position, index, order, start, ncx, ncy, r2, out):
+    """Write the pairs of :func:`grid_pairs` into ``out``; their number, or −1 when ``out`` is too small."""
+    cap = out.shape[0]
     m = 0
     for cy in range(ncy):
         for cx in range(ncx):
@@ -95,11 +105,8 @@ def grid_pairs(position, index, radius_m):
                         dy = position[index[b], 1] - ya
                         if dx * dx + dy * dy <= r2:
                             if m == cap:
-                                cap *= 2
-                                grown = np.empty((cap, 2), np.int64)
-                                grown[:m] = out[:m]
-                                out = grown
+                                return -1
                             out[m, 0] = min(a, b)
                             out[m, 1] = max(a, b)
                             m += 1
-    return out[:m].copy()
+    return m

@@ -97,19 +97,29 @@ def wall_proximity(position, radius, index, segments, owner, margin):
     :func:`endpoint_owners`: a shared corner vertex is reported only when it is the closest point of
     every segment meeting there, and then once, so results do not depend on segment order.
     """
-    n = index.shape[0]
-    s = segments.shape[0]
-    cap = max(16, 4 * n)
-    ped = np.empty(cap, np.int64)
-    seg = np.empty(cap, np.int64)
-    out = np.empty((cap, 5))
+    cap = max(16, 4 * index.shape[0])
+    while True:  # more than ~4 walls within the margin of each pedestrian needs a larger buffer
+        ped = np.empty(cap, np.int64)
+        seg = np.empty(cap, np.int64)
+        out = np.empty((cap, 5))
+        m = _fill_wall_proximity(position, radius, index, segments, owner, margin, ped, seg, out)
+        if m >= 0:
+            return (ped[:m], seg[:m], out[:m, 0].copy(), out[:m, 1].copy(), out[:m, 2].copy(), out[:m, 3].copy(),
+                    out[:m, 4].copy())
+        cap *= 4
+
+
+@nb.njit(cache=True)
+def _fill_wall_proximity(position, radius, index, segments, owner, margin, ped, seg, out):
+    """Write the pairs of :func:`wall_proximity` into the buffers; their number, or −1 when too small."""
+    cap = ped.shape[0]
     m = 0
-    for a in range(n):
+    for a in range(index.shape[0]):
         i = index[a]
         px = position[i, 0]
         py = position[i, 1]
         r = radius[i]
-        for k in range(s):
+        for k in range(segments.shape[0]):
             cx, cy, t = closest_point_on_segment(px, py, segments[k, 0], segments[k, 1], segments[k, 2], segments[k, 3])
             if (t == 0.0 and not _counts_vertex(px, py, k, 0, segments, owner)) or \
                     (t == 1.0 and not _counts_vertex(px, py, k, 1, segments, owner)):
@@ -130,14 +140,7 @@ def wall_proximity(position, radius, index, segments, owner, margin):
                 nx = -ly / ll
                 ny = lx / ll
             if m == cap:
-                cap *= 2
-                ped2 = np.empty(cap, np.int64)
-                seg2 = np.empty(cap, np.int64)
-                out2 = np.empty((cap, 5))
-                ped2[:m] = ped[:m]
-                seg2[:m] = seg[:m]
-                out2[:m] = out[:m]
-                ped, seg, out = ped2, seg2, out2
+                return -1
             ped[m] = a
             seg[m] = k
             out[m, 0] = gap
@@ -146,7 +149,7 @@ def wall_proximity(position, radius, index, segments, owner, margin):
             out[m, 3] = cx
             out[m, 4] = cy
             m += 1
-    return ped[:m], seg[:m], out[:m, 0].copy(), out[:m, 1].copy(), out[:m, 2].copy(), out[:m, 3].copy(), out[:m, 4].copy()
+    return m
 
 
 @nb.njit(cache=True)
