@@ -9,7 +9,9 @@ for at most ``max_time_s`` of simulated time, measuring at every simulator step 
 environment's ``substep_hooks``):
 
 - ``specific_flow_per_m_s`` J_s = N / (Δt b) at the scenario's measurement line (Kabalan Eq. 22;
-  NaN with fewer than two passages or no width in the scenario metadata);
+  NaN with fewer than two passages or no width in the scenario metadata); the line is ``line``, by
+  default "bottleneck" where the geometry has one, else its first measurement line (e.g. "door" of
+  ``room_pillar``, "middle" of ``corridor_bidirectional``), and none (NaN) without lines;
 - ``evacuation_time_s``: time of the last exit if everybody left, else NaN (``n_evacuated`` says
   how many did);
 - ``mean_speed_m_s``: mean speed over pedestrians on the floor and simulator steps;
@@ -90,12 +92,21 @@ class ScenarioSpec:
         return out
 
 
+def _line_name(geometry, line: str | None):
+    """``line``, or by default "bottleneck" if the geometry has it, else its first measurement line (or None)."""
+    if line is not None:
+        return line
+    lines = list(geometry.measurement_lines)
+    return "bottleneck" if "bottleneck" in lines else (lines[0] if lines else None)
+
+
 class _Probe:
     """Substep hook collecting the metrics."""
 
-    def __init__(self, env: CrowdParallelEnv, line_name: str):
+    def __init__(self, env: CrowdParallelEnv, line_name: str | None):
         geom = env.geometry
         self.counter = None
+        line_name = _line_name(geom, line_name)
         if line_name in geom.measurement_lines:
             ends = np.asarray(geom.measurement_lines[line_name], dtype=float)
             self.counter = PassageCounter(MeasurementLine(ends[0], ends[1]))
@@ -142,8 +153,11 @@ class _Probe:
 
 
 def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", seed: int = 0, *,
-                env_options: dict | None = None, max_time_s: float = 90.0, line: str = "bottleneck") -> EpisodeMetrics:
+                env_options: dict | None = None, max_time_s: float = 90.0, line: str | None = None) -> EpisodeMetrics:
     """Run one episode of ``policy`` on ``scenario`` with ``seed``; see the module docstring for the metrics.
+
+    ``scenario``: a :class:`ScenarioSpec`, or a registered scenario name (any of
+    ``crowd_env.scenarios.list_scenarios()``; options through ``ScenarioSpec(name, options)``).
 
     ``env_options`` go to :class:`~crowd_env.envs.crowd_v0.CrowdParallelEnv` (``controlled`` defaults to
     ``"all"``); the policy's ``env_overrides`` win over them; ``max_steps`` is set from ``max_time_s``.
@@ -190,10 +204,12 @@ def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", se
 
 
 def evaluate(policies, scenarios=("seyfried_bottleneck",), seeds=(0, 1, 2), *, env_options: dict | None = None,
-             max_time_s: float = 90.0, line: str = "bottleneck", progress=print) -> list:
-    """Every policy x scenario x seed; ``policies``: a list of policy specs or a dict label -> spec."""
+             max_time_s: float = 90.0, line: str | None = None, progress=print) -> list:
+    """Every policy x scenario x seed; ``policies``: a list of policy specs or a dict label -> spec;
+    ``scenarios``: :class:`ScenarioSpec` objects, registered names or ``(name, options)`` pairs."""
     items = list(policies.items()) if isinstance(policies, dict) else [(None, p) for p in policies]
-    specs = [s if isinstance(s, ScenarioSpec) else ScenarioSpec(s) for s in scenarios]
+    specs = [s if isinstance(s, ScenarioSpec) else ScenarioSpec(*s) if isinstance(s, tuple) else ScenarioSpec(s)
+             for s in scenarios]
     results = []
     for label, p in items:
         pol = as_policy(p, name=label)

@@ -57,8 +57,10 @@ class SocialForceAgent:
     """Policy object: ``agent(sim) -> (intents (N, 2), desired_heading (N,))`` for a :class:`Simulator`.
 
     ``navigation``: an object with ``direction(points) -> (n, 2)`` (a
-    :class:`~crowd_env.core.navigation.NavigationField`). Social parameters (A, B, λ, cut-off, on/off)
-    are read from the simulator's :class:`~crowd_env.core.params.ModelParams`.
+    :class:`~crowd_env.core.navigation.NavigationField`), or, when its ``per_pedestrian`` attribute is
+    true, ``direction(points, index)`` (a :class:`~crowd_env.core.navigation.DestinationNavigation`:
+    each pedestrian follows the field of its own destination exit). Social parameters (A, B, λ,
+    cut-off, on/off) are read from the simulator's :class:`~crowd_env.core.params.ModelParams`.
     """
 
     def __init__(self, navigation):
@@ -67,6 +69,8 @@ class SocialForceAgent:
     def desired_direction(self, sim, index=None) -> np.ndarray:
         """e_d (Eq. 13) at the positions of pedestrians ``index`` (default: the active ones)."""
         idx = sim.active_index if index is None else index
+        if getattr(self.navigation, "per_pedestrian", False):
+            return self.navigation.direction(sim.state.position_m[idx], idx)
         return self.navigation.direction(sim.state.position_m[idx])
 
     def social_force(self, sim, e_d: np.ndarray) -> np.ndarray:

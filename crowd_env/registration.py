@@ -5,16 +5,28 @@ gymnasium itself is not imported for it: when gymnasium is already loaded the id
 once, otherwise a one-shot import hook registers them as soon as gymnasium is imported (or call
 :func:`register_envs` yourself; it is idempotent).
 
-=================================  =============================================================
-id                                 environment
-=================================  =============================================================
-``crowd_env/Bottleneck-v0``        Seyfried bottleneck, b = 1.0 m, 60 pedestrians; learner ped_0
-``crowd_env/BottleneckSmall-v0``   the same with 20 pedestrians (quick experiments)
-``crowd_env/BottleneckWide-v0``    b = 1.6 m, 60 pedestrians
-=================================  =============================================================
+======================================  ========================================================
+id                                      environment
+======================================  ========================================================
+``crowd_env/Bottleneck-v0``             Seyfried bottleneck, b = 1.0 m, 60 pedestrians; learner ped_0
+``crowd_env/BottleneckSmall-v0``        the same with 20 pedestrians (quick experiments)
+``crowd_env/BottleneckWide-v0``         b = 1.6 m, 60 pedestrians
+``crowd_env/BottleneckGroups-v0``       b = 1.2 m, 40 pedestrians with 4 hand-holding pairs and
+                                        2 triples (scenario ``bottleneck_groups``)
+``crowd_env/CorridorBidirectional-v0``  10 m x 3 m corridor, 10 pedestrians walking each way, each
+                                        to its own exit (ped_0 walks east)
+``crowd_env/RoomPillar-v0``             8 m x 6 m room, 30 pedestrians, 1 m door, a pillar in
+                                        front of it
+``crowd_env/Corner90-v0``               2 m wide L-shaped corridor (legs 8 m and 6 m), 20
+                                        pedestrians
+``crowd_env/Custom-v0``                 a user geometry (scenario ``"polygon"``); by default an
+                                        example 8 m x 6 m room with a square hole and a door, 20
+                                        pedestrians: pass your own ``scenario_options`` (see
+                                        :func:`crowd_env.scenarios.polygon.scenario_from_polygon`)
+======================================  ========================================================
 
 All use decisions every 0.1 s (``frame_skip=10``) and truncate after 60 s (``max_steps=600``);
-keyword arguments of ``gymnasium.make`` override any option.
+keyword arguments of ``gymnasium.make`` override any option (``scenario_options`` as a whole).
 """
 from __future__ import annotations
 
@@ -33,6 +45,14 @@ ENV_IDS = {
                                      "scenario_options": {"width_m": 1.0, "n_pedestrians": 20}, **_COMMON},
     "crowd_env/BottleneckWide-v0": {"scenario": "seyfried_bottleneck",
                                     "scenario_options": {"width_m": 1.6, "n_pedestrians": 60}, **_COMMON},
+    "crowd_env/BottleneckGroups-v0": {"scenario": "bottleneck_groups", "scenario_options": {}, **_COMMON},
+    "crowd_env/CorridorBidirectional-v0": {"scenario": "corridor_bidirectional", "scenario_options": {}, **_COMMON},
+    "crowd_env/RoomPillar-v0": {"scenario": "room_pillar", "scenario_options": {}, **_COMMON},
+    "crowd_env/Corner90-v0": {"scenario": "corner_90", "scenario_options": {}, **_COMMON},
+    "crowd_env/Custom-v0": {"scenario": "polygon", "scenario_options": {
+        "walkable_area": "POLYGON ((0 0, 8 0, 8 6, 0 6, 0 0), (4 2.5, 5 2.5, 5 3.5, 4 3.5, 4 2.5))",
+        "exits": ["LINESTRING (8 2.5, 8 3.5)"], "spawn_area": "POLYGON ((0 0, 3 0, 3 6, 0 6, 0 0))",
+        "n_pedestrians": 20}, **_COMMON},
 }
 _done = False
 

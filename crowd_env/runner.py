@@ -16,7 +16,6 @@ import shapely
 
 from .analysis.flow import MeasurementLine, PassageCounter, specific_flow
 from .core.params import ModelParams
-from .core.simulator import Simulator
 
 # Stationary phase for densities: between the passages of these fractions of the pedestrians (the
 # middle 60 %), see RunResult.density_window_s.
@@ -90,7 +89,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     """
     params = ModelParams() if params is None else params
     state = scenario.make_state(rng=rng) if state is None else state
-    sim = Simulator(state, geometry=scenario.geometry, params=params)
+    sim = scenario.make_simulator(state, params)  # with the scenario's destinations, if any
     geometry = scenario.geometry
     width_m = scenario.metadata.get("width_m") if width_m is None else width_m
     counter = None

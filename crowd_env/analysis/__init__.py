@@ -1,5 +1,6 @@
 """Measurements on simulated (or experimental) trajectories: passages and specific flow (Eq. 22),
-density, lanes, calibration errors (Eq. 23-24) and the Seyfried et al. (2009) reference. Knows nothing of RL."""
+density, lanes, calibration errors (Eq. 23-24), the Seyfried et al. (2009) reference, and trajectories in PedPy's
+formats. Knows nothing of RL."""
 from .calibration import CalibrationError, RangeCheck, epsilon_j, epsilon_total, in_range_check, relative_squared_errors
 from .density import DensityError, as_polygon, density_in_area, density_time_series, stationary_mean
 from .experiment import (DIP_N20_WIDTH_M, GROUP_SIZES, PUBLISHED_SPECIFIC_FLOW_N60_PER_M_S, RESIDUAL_NORM_BY_GROUP,
@@ -8,6 +9,8 @@ from .flow import (FlowError, FlowResult, LinearFit, MeasurementLine, PassageCou
                    linear_fit_residual_norm, specific_flow, trajectory_crossings)
 from .lanes import LaneError, LaneResult, LateralHistogram, detect_lanes, lateral_histogram
 from .recorder import RecorderError, TrajectoryRecorder
+from .trajectories import (Trajectories, TrajectoryFormatError, export_run, read_geometry, record_run,
+                           write_geometry)
 
 __all__ = [
     "CalibrationError", "RangeCheck", "epsilon_j", "epsilon_total", "in_range_check", "relative_squared_errors",
@@ -18,4 +21,5 @@ __all__ = [
     "linear_fit_residual_norm", "specific_flow", "trajectory_crossings",
     "LaneError", "LaneResult", "LateralHistogram", "detect_lanes", "lateral_histogram",
     "RecorderError", "TrajectoryRecorder",
+    "Trajectories", "TrajectoryFormatError", "export_run", "read_geometry", "record_run", "write_geometry",
 ]

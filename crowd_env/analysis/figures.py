@@ -149,3 +149,41 @@ def discharge_figure(records: list, path: Path, window: int = 5):
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return Path(path)
+
+
+def fundamental_diagram_figure(data_by_area: dict, path: Path, title: str | None = None, bin_width_per_m2: float = 0.25):
+    """Speed and specific flow ρ·v vs classic density, one colour per measurement area, with binned means.
+
+    ``data_by_area``: area name -> arrays of :func:`crowd_env.analysis.trajectories.fundamental_diagram_data`
+    (``density_per_m2``, ``speed_m_s``, ``specific_flow_per_m_s``). Returns the path written.
+    """
+    if not data_by_area:
+        raise ValueError("fundamental_diagram_figure needs at least one measurement area's data")
+    if not (np.isfinite(bin_width_per_m2) and bin_width_per_m2 > 0):
+        raise ValueError(f"bin_width_per_m2 must be > 0, got {bin_width_per_m2!r}")
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(9.0, 3.8))
+    for k, (name, d) in enumerate(data_by_area.items()):
+        rho = np.asarray(d["density_per_m2"], dtype=float)
+        for ax, key in zip(axes, ("speed_m_s", "specific_flow_per_m_s")):
+            val = np.asarray(d[key], dtype=float)
+            ax.plot(rho, val, ".", ms=2, alpha=0.35, color=f"C{k}")
+            if rho.size:
+                bins = np.floor(rho / bin_width_per_m2).astype(int)
+                idx, inv = np.unique(bins, return_inverse=True)
+                counts = np.bincount(inv)
+                centre = np.bincount(inv, weights=rho) / counts
+                mean = np.bincount(inv, weights=val) / counts
+                ax.plot(centre, mean, "o-", color=f"C{k}", ms=4, label=f"{name} (binned mean)")
+    axes[0].set(xlabel="ρ (1/m²)", ylabel="v (m/s)", title="speed vs density")
+    axes[1].set(xlabel="ρ (1/m²)", ylabel="J_s = ρ v (1/(m s))", title="specific flow vs density")
+    for ax in axes:
+        ax.set_xlim(left=0)
+        ax.set_ylim(bottom=0)
+        ax.legend(fontsize=8)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)

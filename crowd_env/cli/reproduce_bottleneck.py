@@ -4,7 +4,9 @@ Runs widths × group sizes × seeds in parallel (all cores by default) with a pr
 finished run at once under ``OUT/runs/`` (a rerun skips finished runs: resumable), then writes
 ``OUT/results.csv`` (one row per run), ``OUT/summary.csv`` and the figures of Figs. 11-14
 (specific flow vs width against the experiment, densities, flow vs width with linear fits and
-residual norms, lateral-position histograms), and prints the J_s table beside the experiment.
+residual norms, lateral-position histograms), and prints the J_s table beside the experiment. With
+``--trajectories`` every run's trajectories also go to ``OUT/trajectories/`` in PedPy's text format
+(see :mod:`crowd_env.analysis.trajectories`).
 
 Example::
 
@@ -24,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from crowd_env.analysis.trajectories import DEFAULT_FRAME_RATE_PER_S
 from crowd_env.core.params import ModelParams, ParameterError
 
 GEOMETRY_OPTIONS = {  # CLI flag -> seyfried_bottleneck option, with the Seyfried defaults
@@ -67,6 +70,15 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="any other ModelParams field, e.g. --param tangential_dissipation_kg=100")
     ap.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    t = ap.add_argument_group("trajectories (PedPy text format; an output option, not part of the configuration)")
+    t.add_argument("--trajectories", action="store_true",
+                   help="also write each run's trajectories to OUT/trajectories/<run>.txt (pedpy.load_trajectory_from_txt "
+                        "reads it: id frame x y z in m, heading) with <run>.geometry.json (walkable area and measurement "
+                        "areas as WKT, measurement line end points) and <run>.geometry.wkt; finished runs without "
+                        "trajectory files (or at another frame rate) are recomputed once")
+    t.add_argument("--trajectory-fps", type=float, default=DEFAULT_FRAME_RATE_PER_S, dest="trajectory_fps",
+                   help="frame rate of the trajectory files, 1/(k h) for an integer k (default 25: every 4th step "
+                        "of h = 0.01 s)")
     return ap
 
 
@@ -100,7 +112,20 @@ def run_one(task: dict) -> dict:
     scenario = make_scenario("seyfried_bottleneck", width_m=task["width_m"], n_pedestrians=task["n_pedestrians"],
                              seed=task["seed"], **task["geometry"])
     agent = SocialForceAgent(scenario.navigation())
-    r = run_scenario(scenario, agent, params, max_time_s=task["max_time_s"])
+    fps = task.get("trajectory_fps")
+    if fps:  # same run, also recording every k-th step
+        from crowd_env.analysis.trajectories import export_run, record_run
+
+        r, traj = record_run(scenario, agent, params, frame_rate_per_s=fps, max_time_s=task["max_time_s"])
+        config = {k: task[k] for k in ("geometry", "params", "max_time_s")}
+        comments = [f"crowd_env seyfried_bottleneck run: b = {task['width_m']:g} m, N = {task['n_pedestrians']}, "
+                    f"seed {task['seed']}, step h = {params.dt_s:g} s, config {config_hash(config)}"]
+        export_run(task["trajectory_stem"], traj, scenario.geometry, comments=comments,
+                   metadata={"width_m": task["width_m"], "n_pedestrians": task["n_pedestrians"], "seed": task["seed"],
+                             "frame_rate_per_s": traj.frame_rate_per_s, "dt_s": params.dt_s,
+                             "config_hash": config_hash(config), "measurement_line": "bottleneck"})
+    else:
+        r = run_scenario(scenario, agent, params, max_time_s=task["max_time_s"])
     half = task["geometry"]["corridor_width_m"] / 2.0
     edges = np.arange(-half, half + LANE_BIN_M / 2, LANE_BIN_M)
     counts, _ = np.histogram(r.lateral_positions_m, bins=edges)
@@ -138,16 +163,35 @@ def config_hash(config: dict) -> str:
 
 
 def run_sweep(tasks: list, out: Path, jobs: int, desc: str = "bottleneck runs") -> list:
-    """Run the tasks not yet saved under ``out/runs`` in parallel; returns all records."""
+    """Run the tasks not yet saved under ``out/runs`` in parallel; returns all records.
+
+    A task with ``trajectory_fps`` also needs ``out/trajectories/<run>.txt`` at that frame rate (written
+    before its record, so a record implies complete files); without it the run is recomputed.
+    """
     from tqdm import tqdm
+
+    from crowd_env.analysis.trajectories import trajectory_frame_rate
 
     runs_dir = out / "runs"
     runs_dir.mkdir(parents=True, exist_ok=True)
+    traj_dir = out / "trajectories"
+    if any(t.get("trajectory_fps") for t in tasks):
+        traj_dir.mkdir(parents=True, exist_ok=True)
 
     def path_of(t):
         return runs_dir / f"b{t['width_m']:.3f}_n{t['n_pedestrians']}_s{t['seed']}.json"
 
-    todo = [t for t in tasks if not path_of(t).exists()]
+    def done(t):
+        if not path_of(t).exists():
+            return False
+        fps = t.get("trajectory_fps")
+        if not fps:
+            return True
+        found = trajectory_frame_rate(traj_dir / (path_of(t).stem + ".txt"))
+        return found is not None and abs(found - fps) <= 1e-9 * fps
+
+    todo = [dict(t, trajectory_stem=str(traj_dir / path_of(t).stem)) if t.get("trajectory_fps") else t
+            for t in tasks if not done(t)]
     with tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc=desc, unit="run", file=sys.stderr) as bar:
         if jobs <= 1:
             for t in todo:
@@ -261,9 +305,17 @@ def main(argv=None) -> int:
             raise SystemExit(f"error: group size {n} must be at least 2 (J = N/Δt needs two passages)")
     if args.seeds < 1 or args.jobs < 1:
         raise SystemExit("error: --seeds and --jobs must be >= 1")
+    fps = None
+    if args.trajectories:
+        from crowd_env.analysis.trajectories import TrajectoryFormatError, steps_per_frame
+
+        try:
+            fps = 1.0 / (steps_per_frame(args.trajectory_fps, params.dt_s) * params.dt_s)
+        except TrajectoryFormatError as exc:
+            raise SystemExit(f"error: --trajectory-fps: {exc}")
     config = config_of(args, params)
     check_config(args.out, config)
-    tasks = [dict(width_m=b, n_pedestrians=n, seed=s, **config)
+    tasks = [dict(width_m=b, n_pedestrians=n, seed=s, trajectory_fps=fps, **config)
              for n in args.sizes for b in args.widths for s in range(args.first_seed, args.first_seed + args.seeds)]
     # Fail fast on impossible geometry before spawning workers.
     from crowd_env.scenarios import make_scenario
@@ -282,6 +334,8 @@ def main(argv=None) -> int:
         from crowd_env.analysis.figures import bottleneck_figures
         for path in bottleneck_figures(records, rows, args.out):
             print(f"figure: {path}")
+    if fps:
+        print(f"trajectories ({fps:g} frames/s, PedPy text format): {args.out / 'trajectories'}")
     print(f"results: {args.out / 'results.csv'}")
     return 0
 

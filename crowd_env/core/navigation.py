@@ -22,6 +22,11 @@ Grid conventions and how the field is completed outside the walkable area:
   direction (:meth:`NavigationField.check_reachable` raises for them);
 - points outside the grid (the geometry's bounds plus two cells) raise :class:`GeometryError`.
 
+Destinations (``exits``): by default T is the travel time to the nearest of all exits (Eq. 12 with the
+union of the exits). ``exits=(k, ...)`` solves Eq. 11-13 with T = 0 on those exits only; the other
+exits are then ordinary floor. :class:`DestinationNavigation` combines such fields, one per
+destination, and answers for each pedestrian with the field of its own destination.
+
 Configuration space (``clearance_m``): pedestrians are disks, so their centres can only reach points
 at least their radius r from every wall. Computed for points (``clearance_m = 0``, the paper's literal
 Eq. 11-13), the geodesics hug the walls and pass through reflex corners, and near the entrance of a
@@ -46,7 +51,7 @@ from scipy import ndimage
 from .geometry import Geometry
 from .segments import GeometryError
 
-__all__ = ["NavigationField", "GeometryError"]
+__all__ = ["NavigationField", "DestinationNavigation", "GeometryError"]
 
 
 @nb.njit(cache=True)
@@ -163,13 +168,16 @@ class NavigationField:
     V is multiplied by ``speed_factor`` in (0, 1] within ``distance_m`` of a wall (the paper's optional
     slower V near walls). ``clearance_m``: solve on the walkable area minus the band within this
     distance of a wall (configuration space of disk centres; use the pedestrians' radius; 0 = points,
-    the paper's literal Eq. 11-13). Built once per geometry; see :meth:`cached`.
+    the paper's literal Eq. 11-13). ``exits``: indices into ``geometry.exits`` of the exits where T = 0
+    (default None: all of them, i.e. T to the nearest exit). Built once per geometry; see :meth:`cached`.
     """
+
+    per_pedestrian = False  # one field serves every pedestrian (see DestinationNavigation)
 
     _cache: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
     def __init__(self, geometry: Geometry, resolution_m: float = 0.05, wall_slowdown=None, speed_m_s: float = 1.0,
-                 clearance_m: float = 0.0):
+                 clearance_m: float = 0.0, exits=None):
         if not isinstance(geometry, Geometry):
             raise GeometryError(f"NavigationField needs a Geometry, got {type(geometry).__name__}")
         if not (np.isfinite(speed_m_s) and speed_m_s > 0):
@@ -178,11 +186,17 @@ class NavigationField:
         self.speed_m_s = float(speed_m_s)
         self.wall_slowdown = self._check_slowdown(wall_slowdown)
         self.clearance_m = self._check_clearance(clearance_m)
+        self.exits = self._check_exits(exits, geometry)
         raster = geometry.rasterize(resolution_m)
         self.raster = raster
         self.resolution_m = h = raster.resolution_m
         self.origin_m = raster.origin_m
         nav, ex = raster.walkable, raster.exit
+        target = geometry.exit_area
+        if self.exits is not None:  # T = 0 on these exits only; the others are floor
+            target = shapely.union_all([geometry.exits[k] for k in self.exits])
+            nodes = raster.node_points()
+            ex = shapely.intersects_xy(target, nodes[:, 0], nodes[:, 1]).reshape(nav.shape) & nav
         if self.clearance_m > 0.0 and geometry.walls.shape[0]:
             nodes = raster.node_points().reshape(*nav.shape, 2)
             free = np.zeros(nav.shape, dtype=bool)
@@ -203,7 +217,7 @@ class NavigationField:
         band |= ex & ~ndimage.binary_erosion(ex, border_value=1)
         pts = raster.node_points().reshape(*nav.shape, 2)
         d = np.full(nav.shape, 10.0 * h)
-        d[band] = shapely.distance(self._exit_interface(geometry), shapely.points(pts[band]))
+        d[band] = shapely.distance(self._exit_interface(target, geometry.navigable_area), shapely.points(pts[band]))
         phi = np.where(ex, -d, d)
 
         speed = np.full(nav.shape, self.speed_m_s)
@@ -250,15 +264,15 @@ class NavigationField:
         self.reachable.setflags(write=False)
 
     @staticmethod
-    def _exit_interface(geometry: Geometry):
-        """The exit boundary stretches inside the navigable area (where pedestrians cross into exits).
+    def _exit_interface(exit_area, navigable_area):
+        """The boundary stretches of ``exit_area`` inside the navigable area (where pedestrians cross into exits).
 
         Exit edges lying on the outer boundary (along walls) are left out: measuring φ from them would
         put T = 0 on nodes along the wall deep inside the exit and spoil the second-order stencil.
         """
-        interface = geometry.exit_area.boundary.difference(geometry.navigable_area.boundary)
+        interface = exit_area.boundary.difference(navigable_area.boundary)
         if interface.is_empty or interface.length <= 1e-12:
-            return geometry.exit_area.boundary
+            return exit_area.boundary
         return interface
 
     @staticmethod
@@ -291,16 +305,41 @@ class NavigationField:
             raise GeometryError(f"clearance_m must be a finite number >= 0, got {clearance_m!r}")
         return value
 
+    @staticmethod
+    def _check_exits(exits, geometry: Geometry):
+        """None (all exits) or a sorted tuple of distinct valid exit indices."""
+        if exits is None:
+            return None
+        try:
+            items = [exits] if isinstance(exits, (int, np.integer)) else list(exits)
+        except TypeError:
+            raise GeometryError(f"exits must be None or exit indices, got {exits!r}") from None
+        n = len(geometry.exits)
+        bad = [k for k in items if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer))
+               or not 0 <= k < n]
+        if bad or not items:
+            raise GeometryError(f"exits must be indices in [0, {n}) of the geometry's exits, got {exits!r}")
+        return tuple(sorted({int(k) for k in items}))
+
     @classmethod
     def cached(cls, geometry: Geometry, resolution_m: float = 0.05, wall_slowdown=None,
-               speed_m_s: float = 1.0, clearance_m: float = 0.0) -> "NavigationField":
+               speed_m_s: float = 1.0, clearance_m: float = 0.0, exits=None) -> "NavigationField":
         """The field for ``geometry`` with these settings, computed on first use and then reused."""
         key = (float(resolution_m), cls._check_slowdown(wall_slowdown), float(speed_m_s),
                cls._check_clearance(clearance_m))
+        exits = cls._check_exits(exits, geometry)
+        if exits is not None:
+            key += (exits,)
         per_geometry = cls._cache.setdefault(geometry, {})
         if key not in per_geometry:
-            per_geometry[key] = cls(geometry, resolution_m, wall_slowdown, speed_m_s, clearance_m)
+            per_geometry[key] = cls(geometry, resolution_m, wall_slowdown, speed_m_s, clearance_m, exits)
         return per_geometry[key]
+
+    @property
+    def max_travel_time_s(self) -> float:
+        """Largest finite travel time on the grid (s)."""
+        t = self.travel_time_s_grid
+        return float(np.max(t[np.isfinite(t)]))
 
     @property
     def shape(self) -> tuple:
@@ -341,5 +380,73 @@ class NavigationField:
         bad = np.flatnonzero(~np.isfinite(t))
         if bad.size:
             p = np.asarray(points, dtype=np.float64)[bad[0]]
-            raise GeometryError(f"{what} {int(bad[0])} at {p.tolist()} cannot reach any exit "
+            target = "any exit" if self.exits is None else f"exit(s) {list(self.exits)}"
+            raise GeometryError(f"{what} {int(bad[0])} at {p.tolist()} cannot reach {target} "
+                                f"({bad.size} such point(s); the travel time is infinite there)")
+
+
+class DestinationNavigation:
+    """Per-pedestrian destinations: pedestrian i follows the field of exit ``destination[i]`` (Eq. 11-13
+    with T = 0 on that exit only), or of all exits where ``destination[i] = -1``.
+
+    ``fields``: destination -> :class:`NavigationField` (key -1: the nearest-exit field).
+    ``destination``: (N,) int. Queries take the pedestrians' indices ``index`` (N-indexing) besides
+    their ``points``; each destination's field is sampled once for its pedestrians (vectorised).
+    """
+
+    per_pedestrian = True
+
+    def __init__(self, fields: dict, destination):
+        dest = np.array(destination, dtype=np.int64)
+        if dest.ndim != 1:
+            raise GeometryError(f"destination must be a 1-D array of exit indices, got shape {dest.shape}")
+        missing = sorted(set(np.unique(dest).tolist()) - set(fields))
+        if missing:
+            raise GeometryError(f"no navigation field for destination(s) {missing}")
+        dest.setflags(write=False)
+        self.fields = dict(fields)
+        self.destination = dest
+
+    def _index(self, points, index):
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        if index is None:
+            raise GeometryError("per-pedestrian navigation needs the pedestrians' indices (index=...)")
+        idx = np.asarray(index, dtype=np.int64).reshape(-1)
+        if pts.ndim != 2 or pts.shape[1] != 2 or pts.shape[0] != idx.shape[0]:
+            raise GeometryError(f"points must have shape ({idx.shape[0]}, 2) (one per index), got {pts.shape}")
+        if idx.size and (idx.min() < 0 or idx.max() >= self.destination.shape[0]):
+            raise GeometryError(f"pedestrian indices outside [0, {self.destination.shape[0]})")
+        return pts, idx
+
+    def sample(self, points, index=None):
+        """e_d (n, 2) and T (n,) of pedestrians ``index`` at ``points``, each from its own destination's field."""
+        pts, idx = self._index(points, index)
+        out_dir = np.empty((pts.shape[0], 2))
+        out_time = np.empty(pts.shape[0])
+        dest = self.destination[idx]
+        for d in np.unique(dest):
+            sel = dest == d
+            out_dir[sel], out_time[sel] = self.fields[int(d)].sample(pts[sel])
+        return out_dir, out_time
+
+    def direction(self, points, index=None) -> np.ndarray:
+        return self.sample(points, index)[0]
+
+    def travel_time(self, points, index=None) -> np.ndarray:
+        return self.sample(points, index)[1]
+
+    @property
+    def max_travel_time_s(self) -> float:
+        return max(f.max_travel_time_s for f in self.fields.values())
+
+    def check_reachable(self, points, index=None, what: str = "point") -> None:
+        """Raise :class:`GeometryError` naming the first pedestrian that cannot reach its destination."""
+        pts, idx = self._index(points, index)
+        _, t = self.sample(pts, idx)
+        bad = np.flatnonzero(~np.isfinite(t))
+        if bad.size:
+            i = int(idx[bad[0]])
+            d = int(self.destination[i])
+            target = "any exit" if d < 0 else f"its destination exit {d}"
+            raise GeometryError(f"{what} {i} at {pts[bad[0]].tolist()} cannot reach {target} "
                                 f"({bad.size} such point(s); the travel time is infinite there)")

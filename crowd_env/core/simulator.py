@@ -10,7 +10,8 @@
    projection made someone faster than the margins allow (a push passed along a chain), candidates
    are detected again around them and the projection repeated, so that no pair left out can
    close either (overlap stays at round-off, far below the 1e-3 m contact tolerance);
-5. positions advance with the final velocities; pedestrians whose centre enters an exit leave.
+5. positions advance with the final velocities; pedestrians whose centre enters an exit leave (with
+   per-pedestrian ``destination``: only through their own destination exit).
 
 The velocity intent ``(N, 2)`` in m/s is the only behavioural input; external forces (for example
 Helbing's social repulsion, Eq. 16) can be added per step. The core knows nothing of RL.
@@ -65,20 +66,18 @@ class StepResult:
     min_gap_m: float = np.inf  # smallest gap after the step among contact candidates (inf: none within ε)
 
 
-def wrap_angle(angle):
-    """Wrap to (−π, π]."""
-    return np.pi - np.mod(np.pi - angle, 2.0 * np.pi)
-
-
 class Simulator:
     """Owns a :class:`CrowdState`, the walls and the :class:`ModelParams`; advances with :meth:`step`.
 
     ``geometry`` may be any object with ``walls`` ((S, 4) segments) and ``in_exit(points)``
-    (bool mask); or pass ``walls`` directly and optionally ``exit_test``.
+    (bool mask); or pass ``walls`` directly and optionally ``exit_test``. ``destination``: None (a
+    pedestrian leaves through any exit) or (N,) int indices into ``geometry.exits``, -1 for any exit:
+    pedestrian i then leaves only when its centre enters exit ``destination[i]`` (another exit is floor
+    for it; see :class:`~crowd_env.scenarios.Scenario`).
     """
 
     def __init__(self, state: CrowdState, *, geometry=None, walls=None, exit_test=None,
-                 params: ModelParams | None = None, profile: bool = False):
+                 params: ModelParams | None = None, profile: bool = False, destination=None):
         if not isinstance(state, CrowdState):
             raise StateError(f"state must be a CrowdState, got {type(state).__name__}")
         self.params = ModelParams() if params is None else params
@@ -94,6 +93,7 @@ class Simulator:
         self._exit_boxes = None
         if geometry is not None and getattr(geometry, "exits", None):
             self._exit_boxes = np.ascontiguousarray([shapely.bounds(e) for e in geometry.exits], dtype=np.float64)
+        self.destination = self._check_destination(destination, state.n)
         state.validate()
         self._check_walls(state)
         self.state = state
@@ -128,6 +128,33 @@ class Simulator:
             i = int(idx[ped[k]])
             raise StateError(f"pedestrian {i} at {state.position_m[i].tolist()} overlaps wall segment {int(seg[k])} "
                              f"{self.walls[seg[k]].tolist()} by {-gap[k]:.4g} m at start")
+
+    def _check_destination(self, destination, n: int):
+        """None or a read-only (N,) int64 copy of ``destination`` (exit indices of the geometry, -1 = any)."""
+        if destination is None:
+            return None
+        if self.geometry is None or not hasattr(self.geometry, "exits"):
+            raise ParameterError("per-pedestrian destinations need a geometry with exits")
+        dest = np.asarray(destination)
+        n_exits = len(self.geometry.exits)
+        if dest.shape != (n,) or not np.issubdtype(dest.dtype, np.integer):
+            raise ParameterError(f"destination must be an ({n},) integer array of exit indices, got shape "
+                                 f"{dest.shape}, dtype {dest.dtype}")
+        bad = np.flatnonzero((dest < -1) | (dest >= n_exits))
+        if bad.size:
+            raise ParameterError(f"pedestrian {int(bad[0])} has destination {int(dest[bad[0]])}; the geometry has "
+                                 f"exits 0..{n_exits - 1} (-1: any exit)")
+        dest = dest.astype(np.int64, copy=True)
+        dest.setflags(write=False)
+        return dest
+
+    def _at_destination(self, points, destination) -> np.ndarray:
+        """(n,) bool: each point lies in exit ``destination`` (any exit for -1; the caller checked that)."""
+        ok = destination < 0
+        for d in np.unique(destination[~ok]):
+            sel = destination == d
+            ok[sel] = shapely.contains_xy(self.geometry.exits[int(d)], points[sel, 0], points[sel, 1])
+        return ok
 
     # ------------------------------------------------------------------ neighbours
     @property
@@ -311,6 +338,9 @@ class Simulator:
             near = idx if self._exit_boxes is None else idx[rows_in_boxes(st.position_m, idx, self._exit_boxes)]
             if near.shape[0]:
                 out = np.asarray(self._exit_test(st.position_m[near]), dtype=bool)
+                if self.destination is not None and out.any():  # in an exit: is it the pedestrian's own?
+                    hit = near[out]
+                    out[out] = self._at_destination(st.position_m[hit], self.destination[hit])
                 if out.any():
                     exited = near[out]
                     st.active[exited] = False

@@ -28,7 +28,7 @@ PROJECTION_TOL_M_S = 1e-10
 
 @nb.njit(cache=True)
 def wrap_angle_scalar(angle):
-    """Wrap to (−π, π] (scalar twin of :func:`crowd_env.core.simulator.wrap_angle`)."""
+    """Wrap an angle (rad) to (−π, π]."""
     return np.pi - np.mod(np.pi - angle, 2.0 * np.pi)
 
 

@@ -49,8 +49,10 @@ Infos
     ``n_contacts``, ``travel_time_s`` (T after the step), ``speed_m_s``.
 
 Episode end
-    A pedestrian whose centre enters an exit leaves: its agent gets ``terminations[a] = True`` on that
-    step (with its final observation) and is removed from ``agents``. After ``max_steps`` environment
+    A pedestrian whose centre enters an exit (its own destination exit in scenarios with per-pedestrian
+    destinations, e.g. ``corridor_bidirectional``; another exit is floor for it) leaves: its agent
+    gets ``terminations[a] = True`` on that step (with its final observation) and is removed from
+    ``agents``. Observations and rewards use each agent's own destination field. After ``max_steps`` environment
     steps every live agent is truncated. ``step({})`` with no live agent returns five empty dicts
     (SuperSuit's ``black_death_v3`` relies on it). ``reset(options=...)`` ignores its options.
 
@@ -275,8 +277,8 @@ class CrowdParallelEnv(ParallelEnv):
         self.agents = []
         # -- navigation, observations and spaces
         self.navigation = scenario.navigation()
-        tgrid = self.navigation.travel_time_s_grid
-        t_bound = float(np.max(tgrid[np.isfinite(tgrid)])) + 1.0
+        self._per_pedestrian_navigation = bool(getattr(self.navigation, "per_pedestrian", False))
+        t_bound = self.navigation.max_travel_time_s + 1.0
         self.velocity_bound_m_s = max(20.0, 2.0 * self.action_max_m_s)
         self._observer = ObservationBuilder(self.navigation, scenario.geometry.walls, n_neighbors=self.n_neighbors,
                                             n_rays=self.n_rays, neighbor_radius_m=neighbor_radius_m,
@@ -326,10 +328,12 @@ class CrowdParallelEnv(ParallelEnv):
 
     @property
     def scenario(self) -> Scenario:
+        """The :class:`~crowd_env.scenarios.Scenario` the environment was built from."""
         return self._scenario
 
     @property
     def geometry(self):
+        """The scenario's :class:`~crowd_env.core.geometry.Geometry` (walls, exits, measurement lines)."""
         return self._scenario.geometry
 
     @property
@@ -339,6 +343,7 @@ class CrowdParallelEnv(ParallelEnv):
 
     @property
     def n_pedestrians(self) -> int:
+        """Number of pedestrians N of the scenario (controlled or not, on the floor or gone)."""
         return self._scenario.n_pedestrians
 
     @property
@@ -348,6 +353,7 @@ class CrowdParallelEnv(ParallelEnv):
 
     @property
     def time_s(self) -> float:
+        """Simulated time of the episode in s (0 before the first reset)."""
         return 0.0 if self._sim is None else self._sim.time_s
 
     @property
@@ -382,6 +388,17 @@ class CrowdParallelEnv(ParallelEnv):
         """id -> radius in m of every pedestrian still on the floor."""
         return {k: float(v) for k, v in self._per_pedestrian(self._sim.state.radius_m).items()} if self._sim else {}
 
+    @property
+    def destinations(self) -> dict:
+        """id -> name of the destination exit of every pedestrian still on the floor (``"any"``: the nearest
+        exit; every pedestrian's in a scenario without destinations)."""
+        if self._sim is None:
+            return {}
+        dest = self._scenario.destination
+        names = self._scenario.exit_names
+        idx = np.flatnonzero(self._sim.state.active)
+        return {self._ids[i]: "any" if dest is None or dest[i] < 0 else names[dest[i]] for i in idx.tolist()}
+
     # ------------------------------------------------------------------ API
     def reset(self, seed=None, options=None):
         """Start an episode; returns ``(observations, infos)`` of all ``possible_agents``."""
@@ -395,9 +412,13 @@ class CrowdParallelEnv(ParallelEnv):
             fresh = make_scenario(self._scenario_name, **{**self._scenario_kwargs, "seed": sub})
             if fresh.n_pedestrians != scenario.n_pedestrians:
                 raise RuntimeError("reseeded scenario changed its number of pedestrians")
+            new, old = fresh.destination, scenario.destination
+            if (new is None) != (old is None) or (new is not None and not np.array_equal(new, old)):
+                raise RuntimeError("reseeded scenario changed its pedestrians' destinations")
             scenario = fresh
         state = scenario.make_state(rng=self._rng)
-        self._sim = Simulator(state, geometry=self._scenario.geometry, params=self.params)
+        self._sim = Simulator(state, geometry=self._scenario.geometry, params=self.params,
+                              destination=self._scenario.destination)
         if self._background_policy is None and not self._controlled_mask.all():
             self._background_policy = default_background_policy(self._scenario)
         self._steps = 0
@@ -494,7 +515,8 @@ class CrowdParallelEnv(ParallelEnv):
             if self.heading_target == "intent":
                 heading[idx_c] = np.where(zero_c, st.heading_rad[idx_c], theta_int)
             else:
-                e_d = self.navigation.direction(st.position_m[idx_c])
+                e_d = (self.navigation.direction(st.position_m[idx_c], idx_c) if self._per_pedestrian_navigation
+                       else self.navigation.direction(st.position_m[idx_c]))
                 heading[idx_c] = np.arctan2(e_d[:, 1], e_d[:, 0])
             if hooks:
                 prev_pos, prev_t = st.position_m.copy(), sim.time_s

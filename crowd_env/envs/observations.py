@@ -9,9 +9,11 @@ field                       size   meaning (units)
 ==========================  =====  ====================================================================
 ``velocity``                2      own velocity (u_x, u_y) in m/s
 ``heading``                 2      (cos θ, sin θ) of the own heading θ
-``desired_direction``       2      e_d = −∇T/‖∇T‖ of the eikonal field at the own position (unit vector)
-``travel_time``             1      T at the own position: remaining travel time to the nearest exit in
-                                   s at the field's wavefront speed (1 m/s by default, so numerically the
+``desired_direction``       2      e_d = −∇T/‖∇T‖ of the (own destination's) eikonal field at the own
+                                   position (unit vector)
+``travel_time``             1      T at the own position: remaining travel time to the nearest exit (to
+                                   the own destination exit in scenarios with destinations) in s at the
+                                   field's wavefront speed (1 m/s by default, so numerically the
                                    geodesic distance in m); 0 inside an exit
 ``neighbors``               4 k    for each of the k nearest other pedestrians within
                                    ``neighbor_radius_m`` (nearest first): (x_j − x_i, y_j − y_i) in m and
@@ -52,8 +54,9 @@ OBSERVATION_FIELDS: tuple = (
     ObservationField("velocity", "2", "own velocity (u_x, u_y), m/s, world frame"),
     ObservationField("heading", "2", "(cos θ, sin θ) of the own heading"),
     ObservationField("desired_direction", "2", "e_d of the eikonal field at the own position (unit vector)"),
-    ObservationField("travel_time", "1", "remaining travel time T to the nearest exit, s at the field's speed "
-                                         "(1 m/s: the geodesic distance in m); 0 inside an exit"),
+    ObservationField("travel_time", "1", "remaining travel time T to the nearest exit (the own destination exit "
+                                         "with destinations), s at the field's speed (1 m/s: the geodesic "
+                                         "distance in m); 0 inside an exit"),
     ObservationField("neighbors", "4k", "k nearest others within neighbor_radius_m, nearest first: relative "
                                         "position (m) and relative velocity (m/s) each; zero padded"),
     ObservationField("neighbor_mask", "k", "1 for a real neighbour in the slot, 0 for padding"),
@@ -85,7 +88,8 @@ def observation_size(n_neighbors: int, n_rays: int) -> int:
 class ObservationBuilder:
     """Builds the observations of a set of pedestrians from a :class:`~crowd_env.core.state.CrowdState`.
 
-    ``navigation``: a field with ``sample(points) -> (e_d, T)``; ``walls``: (S, 4) segments.
+    ``navigation``: a field with ``sample(points) -> (e_d, T)``, or ``sample(points, index)`` when its
+    ``per_pedestrian`` attribute is true (per-pedestrian destinations); ``walls``: (S, 4) segments.
     ``velocity_bound_m_s`` and ``travel_time_bound_s`` only set the declared bounds of the space.
     """
 
@@ -129,7 +133,10 @@ class ObservationBuilder:
         obs[:, L["velocity"]] = vel
         obs[:, L["heading"].start] = np.cos(theta)
         obs[:, L["heading"].start + 1] = np.sin(theta)
-        e_d, travel = self.navigation.sample(pos)
+        if getattr(self.navigation, "per_pedestrian", False):
+            e_d, travel = self.navigation.sample(pos, index)
+        else:
+            e_d, travel = self.navigation.sample(pos)
         obs[:, L["desired_direction"]] = e_d
         obs[:, L["travel_time"].start] = travel
         if self.n_neighbors:

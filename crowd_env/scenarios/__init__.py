@@ -1,10 +1,21 @@
 """Scenarios: geometry + initial pedestrians + exits + measurement lines, as data (see :class:`Scenario`).
 
-Importing this package registers the built-in scenarios ("seyfried_bottleneck", alias "bottleneck").
+Importing this package registers the built-in scenarios: "seyfried_bottleneck" (alias "bottleneck"),
+"bottleneck_groups" (hand-holding pairs and triples in the bottleneck crowd), "corridor_bidirectional"
+(alias "corridor"; two groups with opposite destinations), "room_pillar" (room evacuation with a
+pillar before the door), "corner_90" (alias "corner"; L-shaped corridor) and "polygon" (alias
+"custom"; any user geometry from coordinates or WKT).
 """
-from .base import (Scenario, ScenarioError, list_scenarios, make_scenario, place_pedestrians, register_scenario,
-                   scenario_options)
+from .base import (Scenario, ScenarioError, check_clearance, door_exit, form_groups, list_scenarios, make_scenario,
+                   place_pedestrians, register_scenario, scenario_options)
 from .bottleneck import bottleneck_geometry, seyfried_bottleneck
+from .corner import corner_90
+from .corridor import corridor_bidirectional
+from .groups import bottleneck_groups
+from .polygon import scenario_from_polygon
+from .room import room_pillar
 
 __all__ = ["Scenario", "ScenarioError", "list_scenarios", "make_scenario", "place_pedestrians", "register_scenario",
-           "scenario_options", "bottleneck_geometry", "seyfried_bottleneck"]
+           "scenario_options", "form_groups", "door_exit", "check_clearance", "bottleneck_geometry",
+           "seyfried_bottleneck", "bottleneck_groups", "corridor_bidirectional", "room_pillar", "corner_90",
+           "scenario_from_polygon"]

@@ -2,7 +2,8 @@
 
 A :class:`Scenario` is what a user writes to define an experiment: it validates itself (positions
 inside the walkable area and clear of walls and exits, no overlaps, every pedestrian able to reach an
-exit) and builds the :class:`~crowd_env.core.state.CrowdState` the simulator starts from.
+exit, its own one with per-pedestrian destinations) and builds the
+:class:`~crowd_env.core.state.CrowdState` and :class:`~crowd_env.core.simulator.Simulator` it starts from.
 """
 from __future__ import annotations
 
@@ -16,12 +17,13 @@ import shapely
 from scipy.spatial import cKDTree
 
 from ..core.geometry import Geometry, as_polygon
-from ..core.navigation import NavigationField
-from ..core.params import PedestrianDefaults
+from ..core.navigation import DestinationNavigation, NavigationField
+from ..core.params import ModelParams, PedestrianDefaults
+from ..core.simulator import Simulator
 from ..core.state import CrowdState, first_overlap
 
-__all__ = ["Scenario", "ScenarioError", "place_pedestrians", "register_scenario", "make_scenario",
-           "list_scenarios", "scenario_options"]
+__all__ = ["Scenario", "ScenarioError", "place_pedestrians", "form_groups", "register_scenario", "make_scenario",
+           "list_scenarios", "scenario_options", "check_positive", "check_count", "check_clearance", "door_exit"]
 
 # Per-pedestrian quantities a scenario may set; anything else is passed as a CrowdState default.
 PEDESTRIAN_PARAMS = ("radius_m", "mass_kg", "inertia_kg_m2", "desired_speed_m_s", "tau_s", "heading_stiffness",
@@ -30,6 +32,61 @@ PEDESTRIAN_PARAMS = ("radius_m", "mass_kg", "inertia_kg_m2", "desired_speed_m_s"
 
 class ScenarioError(ValueError):
     """A scenario's data are inconsistent, or a scenario name/option is unknown."""
+
+
+def check_positive(**values) -> None:
+    """Raise :class:`ScenarioError` naming the first value that is not a positive finite number."""
+    for name, value in values.items():
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                or not math.isfinite(value) or value <= 0:
+            raise ScenarioError(f"{name} must be a positive finite number, got {value!r}")
+
+
+def check_clearance(value, radius_m: float) -> float:
+    """The navigation clearance in m: ``radius_m`` for None (the disk centres' configuration space), else
+    ``value`` checked to be finite and >= 0."""
+    if value is None:
+        return float(radius_m)
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(value) or value < 0:
+        raise ScenarioError(f"navigation_clearance_m must be None or a finite number >= 0, got {value!r}")
+    return float(value)
+
+
+def door_exit(segment, walkable_area, depth_m: float = 0.5, what: str = "exit"):
+    """An exit polygon behind a door: the rectangle of depth ``depth_m`` on the outer side of ``segment``
+    ((2, 2) end points or a shapely LineString), which must lie on the boundary of ``walkable_area``.
+    Pedestrians leave when their centre crosses the door line."""
+    line = segment if isinstance(segment, shapely.LineString) else None
+    pts = np.asarray(line.coords if line is not None else segment, dtype=np.float64)
+    if pts.shape != (2, 2) or not np.all(np.isfinite(pts)):
+        raise ScenarioError(f"{what}: a door segment must be two finite end points of shape (2, 2), got {pts.shape}")
+    d = pts[1] - pts[0]
+    length = math.hypot(*d)
+    if length <= 1e-9:
+        raise ScenarioError(f"{what}: the door segment has zero length")
+    check_positive(exit_depth_m=depth_m)
+    line = shapely.LineString(pts)
+    on_boundary = line.difference(walkable_area.boundary.buffer(1e-9)).length
+    if on_boundary > 1e-6:
+        raise ScenarioError(f"{what}: the door segment {pts.tolist()} does not lie on the boundary of the walkable "
+                            f"area ({on_boundary:.4g} m of it lie off the boundary)")
+    normal = np.array([-d[1], d[0]]) / length
+    mid = 0.5 * (pts[0] + pts[1])
+    probe = 1e-4 * max(1.0, length)
+    if walkable_area.contains(shapely.Point(*(mid + probe * normal))):
+        normal = -normal
+    if walkable_area.contains(shapely.Point(*(mid + probe * normal))):
+        raise ScenarioError(f"{what}: the door segment {pts.tolist()} has walkable area on both sides")
+    return shapely.Polygon([pts[0], pts[1], pts[1] + depth_m * normal, pts[0] + depth_m * normal])
+
+
+def check_count(name: str, value, minimum: int = 1) -> int:
+    """``value`` as an int >= ``minimum``, or :class:`ScenarioError` naming ``name``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(value) or int(value) != value or value < minimum:
+        raise ScenarioError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
 
 
 @dataclass(eq=False)
@@ -42,7 +99,18 @@ class Scenario:
     (N,) arrays; desired speeds not given are drawn in :meth:`make_state`); ``links`` (L, 2)
     hand-holding pairs with ``link_offsets_m`` (L, 4) shoulder points (x_i, y_i, x_j, y_j) in body
     frames (default: the shoulder of each facing the other, Eq. 2); ``spawn_area``: where pedestrians
-    start/appear (informative); ``metadata``: free-form provenance. Validated on construction.
+    start/appear (informative); ``metadata``: free-form provenance.
+
+    Destinations: ``exit_names`` names the geometry's exits in order (default ``exit_0``, ``exit_1``,
+    ...). ``destination`` None: everybody walks to the nearest exit and leaves through any (the
+    paper's setting). Otherwise (N,) exit indices or names (-1 = nearest/any exit): pedestrian i
+    follows the eikonal field of its own exit (Eq. 11-13 with T = 0 on that exit only, see
+    :class:`~crowd_env.core.navigation.DestinationNavigation`) and leaves only through it; other exits
+    are floor for it, so every exit that is somebody's "other" exit must be closed by walls (lie
+    inside the walkable area without removing any wall), or pedestrians could walk out through it.
+    ``navigation_clearance_m``: the eikonal field is solved on the walkable area minus this band
+    along the walls (0: the paper's point field; the radius: the disk centres' configuration space;
+    see :class:`~crowd_env.core.navigation.NavigationField`). Validated on construction.
     """
 
     geometry: Geometry
@@ -57,6 +125,9 @@ class Scenario:
     seed: int | None = None
     navigation_resolution_m: float = 0.05
     wall_slowdown: tuple | None = None
+    navigation_clearance_m: float = 0.0
+    destination: object = None
+    exit_names: tuple | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.geometry, Geometry):
@@ -91,7 +162,68 @@ class Scenario:
                 k = int(np.flatnonzero(links[:, 0] == links[:, 1])[0])
                 raise ScenarioError(f"link {k} joins pedestrian {int(links[k, 0])} to itself")
             self.links = links.astype(np.int64)
+        clearance = self.navigation_clearance_m
+        if isinstance(clearance, (bool, np.bool_)) or not isinstance(clearance, (int, float, np.integer, np.floating)) \
+                or not math.isfinite(clearance) or clearance < 0:
+            raise ScenarioError(f"navigation_clearance_m must be a finite number >= 0, got {clearance!r}")
+        self.navigation_clearance_m = float(clearance)
+        self.exit_names = self._check_exit_names(self.exit_names)
+        self.destination = self._check_destination(self.destination, n)
+        self._navigation = None
         self.validate()
+
+    def _check_exit_names(self, names) -> tuple:
+        n_exits = len(self.geometry.exits)
+        if names is None:
+            return tuple(f"exit_{k}" for k in range(n_exits))
+        names = tuple(names) if not isinstance(names, str) else (names,)
+        if len(names) != n_exits or not all(isinstance(x, str) and x for x in names):
+            raise ScenarioError(f"exit_names must be {n_exits} non-empty strings (one per exit of geometry "
+                                f"{self.geometry.name!r}), got {names!r}")
+        if len(set(names)) != n_exits:
+            raise ScenarioError(f"exit_names must be distinct, got {names!r}")
+        return names
+
+    def exit_number(self, exit) -> int:
+        """Index into ``geometry.exits`` of an exit given by name or index (-1 stays -1: any exit)."""
+        n_exits = len(self.geometry.exits)
+        if isinstance(exit, str):
+            if exit not in self.exit_names:
+                raise ScenarioError(f"unknown exit {exit!r}; exits are {list(self.exit_names)}")
+            return self.exit_names.index(exit)
+        if isinstance(exit, (int, np.integer)) and not isinstance(exit, (bool, np.bool_)) and -1 <= exit < n_exits:
+            return int(exit)
+        raise ScenarioError(f"an exit is a name in {list(self.exit_names)} or an index in [-1, {n_exits}) "
+                            f"(-1: any exit), got {exit!r}")
+
+    def _check_destination(self, destination, n: int):
+        """None or a read-only (N,) int64 array of exit indices (names translated); exits that are somebody's
+        "other" exit must be closed (see the class docstring)."""
+        if destination is None:
+            return None
+        items = np.asarray(destination, dtype=object)
+        if items.ndim == 0:
+            items = np.full(n, items.item(), dtype=object)
+        if items.shape != (n,):
+            raise ScenarioError(f"destination must have one entry per pedestrian ({n},), got shape {items.shape}")
+        dest = np.array([self.exit_number(x) for x in items.tolist()], dtype=np.int64).reshape(n)
+        chosen = np.unique(dest[dest >= 0])
+        area = self.geometry.walkable_area
+        for k, poly in enumerate(self.geometry.exits):
+            others_bound = chosen[chosen != k]
+            if not others_bound.size:
+                continue
+            opening = poly.intersection(area.boundary).length
+            outside = poly.difference(area).area
+            if opening > 1e-9 or outside > 1e-9:
+                raise ScenarioError(
+                    f"exit {k} ({self.exit_names[k]!r}) is open to the outside ({opening:.3g} m of wall removed, "
+                    f"{outside:.3g} m² outside the walkable area), but pedestrians bound for exit(s) "
+                    f"{[self.exit_names[d] for d in others_bound]} may walk into it: with per-pedestrian "
+                    "destinations every exit that is not everybody's destination must lie inside the walkable "
+                    "area, closed by walls")
+        dest.setflags(write=False)
+        return dest
 
     # -- derived quantities -------------------------------------------------------------------------
     @property
@@ -109,9 +241,26 @@ class Scenario:
             raise ScenarioError(f"pedestrian {int(bad[0])} has radius_m {r[bad[0]]!r}; it must be > 0")
         return np.array(r)
 
-    def navigation(self) -> NavigationField:
-        """The eikonal field of this geometry (Eq. 11-13), computed once and cached per geometry."""
-        return NavigationField.cached(self.geometry, self.navigation_resolution_m, self.wall_slowdown)
+    def navigation(self):
+        """The eikonal field (Eq. 11-13): a :class:`NavigationField` to the nearest exit without destinations,
+        else a :class:`DestinationNavigation` (one field per destination). Fields are cached per geometry."""
+        if self.destination is None:
+            return self._field(None)
+        if self._navigation is None:
+            fields = {int(d): self._field(None if d < 0 else (int(d),)) for d in np.unique(self.destination)}
+            self._navigation = DestinationNavigation(fields, self.destination)
+        return self._navigation
+
+    def _field(self, exits) -> NavigationField:
+        return NavigationField.cached(self.geometry, self.navigation_resolution_m, self.wall_slowdown,
+                                      clearance_m=self.navigation_clearance_m, exits=exits)
+
+    def make_simulator(self, state: CrowdState | None = None, params: ModelParams | None = None,
+                       rng: np.random.Generator | None = None) -> Simulator:
+        """A :class:`Simulator` on this geometry starting from ``state`` (default: :meth:`make_state` with
+        ``rng``), with this scenario's destinations."""
+        state = self.make_state(rng=rng) if state is None else state
+        return Simulator(state, geometry=self.geometry, params=params, destination=self.destination)
 
     # -- validation ---------------------------------------------------------------------------------
     def validate(self) -> None:
@@ -141,7 +290,11 @@ class Scenario:
                 i, j, overlap = pair
                 raise ScenarioError(f"pedestrians {i} and {j} overlap by {overlap:.4g} m at start "
                                     f"(positions {pos[i].tolist()} and {pos[j].tolist()})")
-            self.navigation().check_reachable(pos, what="pedestrian")
+            nav = self.navigation()
+            if nav.per_pedestrian:
+                nav.check_reachable(pos, np.arange(n), what="pedestrian")
+            else:
+                nav.check_reachable(pos, what="pedestrian")
         if self.heading_rad is None:
             self.heading_rad = self._initial_headings()
         heading = np.array(self.heading_rad, dtype=np.float64)
@@ -160,7 +313,11 @@ class Scenario:
     def _initial_headings(self) -> np.ndarray:
         if self.n_pedestrians == 0:
             return np.zeros(0)
-        direction, _ = self.navigation().sample(self.position_m)
+        nav = self.navigation()
+        if nav.per_pedestrian:
+            direction, _ = nav.sample(self.position_m, np.arange(self.n_pedestrians))
+        else:
+            direction, _ = nav.sample(self.position_m)
         return np.arctan2(direction[:, 1], direction[:, 0])
 
     def _facing_shoulders(self, r: np.ndarray) -> np.ndarray:
@@ -215,7 +372,7 @@ def _best_lattice(inner, n: int, spacing_min: float):
     best, best_spacing, capacity = None, -1.0, 0
     for ny in range(1, max_rows + 1):
         for hexagonal in (False, True):
-            nx = max(1, math.ceil(n / ny))
+            nx = max(1, min(math.ceil(n / ny), max_cols))  # from the widest admissible row when n is too many
             while nx <= max_cols + 1:
                 pts, spacing = _lattice(inner, nx, ny, hexagonal)
                 if spacing < spacing_min - 1e-12:
@@ -287,9 +444,92 @@ def place_pedestrians(region, n: int | None = None, radius_m: float = 0.23, rng:
         d = np.linalg.norm(sites - target, axis=1)
         chosen = np.lexsort((rng.random(sites.shape[0]), np.round(d, 9)))[:n]
     pos = np.array(sites[chosen], dtype=np.float64)
-    pos = _relax_hard_disks(pos, inner, spacing_min, max(spacing - spacing_min, 0.05 * spacing_min), rng,
-                            int(relax_sweeps))
+    step = max(spacing - spacing_min, 0.05 * spacing_min)
+    if not math.isfinite(step):  # a single site (spacing inf): moves up to the size of the region
+        x0, y0, x1, y1 = inner.bounds
+        step = max(x1 - x0, y1 - y0, 0.05 * spacing_min)
+    pos = _relax_hard_disks(pos, inner, spacing_min, step, rng, int(relax_sweeps))
     return pos
+
+
+def form_groups(position_m, sizes, radius_m: float, region, rng: np.random.Generator, *, walking_direction=(1.0, 0.0),
+                gap_m: float = 0.05, min_gap_m: float = 0.0, max_turn_deg: float = 20.0):
+    """Turn some of the placed pedestrians ``position_m`` (N, 2) into hand-holding groups standing side by side.
+
+    ``sizes``: one entry per group (2 = pair, 3 = triple, ...), formed largest first. A group is a row
+    of disks with centres ``2 radius_m + gap_m`` apart across the walking direction
+    (``walking_direction``: a (2,) vector, or ``f(points (n, 2)) -> (n, 2)`` unit vectors such as an
+    eikonal field's e_d), turned by at most ``max_turn_deg``. For each group a random unassigned
+    pedestrian keeps its place as one member of the row and the unassigned pedestrians nearest to the
+    other places of the row move there; the row is accepted only if every disk lies inside ``region``
+    and at least ``min_gap_m`` from every other pedestrian, else other rows and pedestrians are tried.
+    Returns the new positions (a copy), the groups (index arrays, in row order) and the hand links
+    (L, 2): neighbours in each row (a triple's middle member holds both others, Eq. 2). Raises
+    :class:`ScenarioError` when a group finds no room.
+    """
+    pos = np.array(position_m, dtype=np.float64)
+    n = pos.shape[0]
+    check_positive(radius_m=radius_m)
+    if not (np.isfinite(gap_m) and gap_m >= 0) or not (np.isfinite(min_gap_m) and min_gap_m >= 0):
+        raise ScenarioError(f"gap_m and min_gap_m must be finite and >= 0, got {gap_m!r}, {min_gap_m!r}")
+    sizes = [check_count("group size", s, 2) for s in sizes]
+    if sum(sizes) > n:
+        raise ScenarioError(f"groups of sizes {sizes} need {sum(sizes)} pedestrians, but only {n} are placed")
+    inner = as_polygon(region, "group region").buffer(-radius_m, join_style="mitre")
+    shapely.prepare(inner)
+    if callable(walking_direction):
+        forward = np.asarray(walking_direction(pos), dtype=np.float64).reshape(n, 2)
+    else:
+        fixed = np.asarray(walking_direction, dtype=np.float64).reshape(2)
+        if not np.all(np.isfinite(fixed)) or np.hypot(*fixed) <= 0:
+            raise ScenarioError(f"walking_direction must be a non-zero (2,) vector or a callable, got {walking_direction!r}")
+        forward = np.broadcast_to(fixed / np.hypot(*fixed), (n, 2))
+    turns = np.deg2rad(float(max_turn_deg)) * np.array([0.0, 0.5, -0.5, 1.0, -1.0])
+    spacing = 2.0 * radius_m + gap_m
+    clearance = 2.0 * radius_m + min_gap_m - 1e-12
+    free = np.ones(n, dtype=bool)
+    groups, links = [], []
+    for k, size in sorted(enumerate(sizes), key=lambda t: -t[1]):
+        members = _fit_row(pos, free, size, spacing, clearance, inner, forward, turns, rng)
+        if members is None:
+            raise ScenarioError(f"no room to form group {k} of {size} side by side (gap {gap_m} m) among the "
+                                f"{int(free.sum())} pedestrians not yet grouped; lower the density or the number "
+                                "of groups")
+        members, slots = members
+        pos[members] = slots
+        free[members] = False
+        groups.append(members)
+        links.extend(zip(members[:-1].tolist(), members[1:].tolist()))
+    return pos, groups, np.array(links, dtype=np.int64).reshape(-1, 2)
+
+
+def _fit_row(pos, free, size, spacing, clearance, inner, forward, turns, rng):
+    """(members in row order, their new positions) of the first row that fits, or None (see form_groups)."""
+    offsets = np.arange(size) * spacing
+    for anchor in rng.permutation(np.flatnonzero(free)):
+        cand = np.flatnonzero(free)
+        cand = cand[cand != anchor]
+        f = forward[anchor]
+        for turn in turns:
+            c, s_ = np.cos(turn), np.sin(turn)
+            lateral = np.array([-(s_ * f[0] + c * f[1]), c * f[0] - s_ * f[1]])  # f turned by 90° + turn
+            for j in range(size):  # the anchor's place in the row
+                slots = pos[anchor] + np.outer(offsets - offsets[j], lateral)
+                if not shapely.contains_xy(inner, slots[:, 0], slots[:, 1]).all():
+                    continue
+                members = np.empty(size, np.int64)
+                members[j] = anchor
+                left = cand
+                for q in (q for q in range(size) if q != j):
+                    nearest = int(np.argmin(np.linalg.norm(pos[left] - slots[q], axis=1)))
+                    members[q] = left[nearest]
+                    left = np.delete(left, nearest)
+                others = np.ones(pos.shape[0], dtype=bool)
+                others[members] = False
+                d = np.linalg.norm(pos[others][:, None, :] - slots[None, :, :], axis=2)
+                if d.size == 0 or d.min() >= clearance:
+                    return members, slots
+    return None
 
 
 def _relax_hard_disks(pos, inner, spacing_min, step, rng, sweeps):

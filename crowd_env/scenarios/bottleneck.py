@@ -41,33 +41,19 @@ from shapely.geometry import Polygon, box
 from shapely.ops import unary_union
 
 from ..core.geometry import Geometry
-from ..core.navigation import NavigationField
 from ..core.segments import GeometryError
-from .base import Scenario, ScenarioError, place_pedestrians, register_scenario
+from .base import Scenario, ScenarioError, check_positive as _positive, place_pedestrians, register_scenario
 
 __all__ = ["seyfried_bottleneck", "bottleneck_geometry", "BottleneckScenario"]
 
 
 @dataclass(eq=False)
 class BottleneckScenario(Scenario):
-    """A :class:`Scenario` whose eikonal field is solved in the configuration space of the disk centres.
-
-    ``navigation_clearance_m``: the walkable area is eroded by this distance from the walls before
-    solving Eq. 11 (see :class:`~crowd_env.core.navigation.NavigationField`, ``clearance_m``); 0 gives
-    the paper's literal point field.
+    """The Seyfried bottleneck :class:`Scenario` (kept as a type for existing code): its
+    ``navigation_clearance_m`` (a field of every Scenario) erodes the walkable area by this distance from
+    the walls before solving Eq. 11 (see :class:`~crowd_env.core.navigation.NavigationField`,
+    ``clearance_m``); 0 gives the paper's literal point field.
     """
-
-    navigation_clearance_m: float = 0.0
-
-    def navigation(self) -> NavigationField:
-        return NavigationField.cached(self.geometry, self.navigation_resolution_m, self.wall_slowdown,
-                                      clearance_m=self.navigation_clearance_m)
-
-
-def _positive(**values) -> None:
-    for name, value in values.items():
-        if not isinstance(value, (int, float, np.integer, np.floating)) or not math.isfinite(value) or value <= 0:
-            raise ScenarioError(f"{name} must be a positive finite number, got {value!r}")
 
 
 def bottleneck_geometry(width_m: float = 1.0, *, corridor_width_m: float = 4.0, corridor_length_m: float = 6.785,

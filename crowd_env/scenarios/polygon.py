@@ -1,0 +1,175 @@
+"""User-defined geometry: a scenario from walkable-area coordinates or WKT, exits, a spawn area and N.
+
+::
+
+    from crowd_env.scenarios import make_scenario
+    sc = make_scenario("polygon",
+                       walkable_area=[(0, 0), (8, 0), (8, 6), (0, 6)], holes=[[(4, 2.5), (5, 2.5), (5, 3.5), (4, 3.5)]],
+                       exits=[[(8, 2.5), (8, 3.5)]],                   # a door segment in the wall x = 8
+                       spawn_area=[(0, 0), (3, 0), (3, 6), (0, 6)], n_pedestrians=20, seed=0)
+    # the same from WKT:
+    sc = make_scenario("polygon", walkable_area="POLYGON ((0 0, 8 0, 8 6, 0 6, 0 0), (4 2.5, 5 2.5, 5 3.5, 4 3.5, 4 2.5))",
+                       exits=["LINESTRING (8 2.5, 8 3.5)"], spawn_area="POLYGON ((0 0, 3 0, 3 6, 0 6, 0 0))",
+                       n_pedestrians=20, seed=0)
+
+Exits are polygons (where a pedestrian whose centre enters leaves; they must overlap the walkable
+area or share a boundary stretch with it) or door segments on the boundary (the exit is then the
+strip of ``exit_depth_m`` behind the door, :func:`~crowd_env.scenarios.base.door_exit`). The
+polygons are normalised (shapely.normalize), so the same shape given as coordinates or WKT, in either
+orientation, gives the identical geometry. The eikonal field is solved for the disk centres
+(``navigation_clearance_m`` = radius by default), so a passage narrower than a pedestrian blocks it.
+"""
+from __future__ import annotations
+
+import numpy as np
+import shapely
+from scipy import ndimage
+from shapely.geometry import LineString, Polygon
+from shapely.geometry.base import BaseGeometry
+
+from ..core.geometry import Geometry, GeometryError, as_polygon
+from ..core.navigation import NavigationField
+from .base import (Scenario, ScenarioError, check_clearance, check_count, check_positive, door_exit,
+                   place_pedestrians, register_scenario)
+
+__all__ = ["scenario_from_polygon", "walkable_polygon", "exit_polygons"]
+
+
+def walkable_polygon(walkable_area, holes=()):
+    """A normalised valid shapely (Multi)Polygon from WKT, a shapely geometry or (K, 2) outer-ring
+    coordinates, minus ``holes`` ((K, 2) rings, WKT or shapely polygons). Raises :class:`GeometryError`
+    naming the problem (self-intersection, fewer than 3 vertices, non-finite values, hole outside)."""
+    holes = list(holes or ())
+    if isinstance(walkable_area, (str, BaseGeometry)):
+        area = as_polygon(walkable_area, "walkable area")
+    else:
+        outer = _ring(walkable_area, "walkable area")
+        rings = [_ring(h, f"hole {k}") for k, h in enumerate(holes) if not isinstance(h, (str, BaseGeometry))]
+        area = as_polygon(Polygon(outer, rings), "walkable area (with its holes)")
+        holes = [h for h in holes if isinstance(h, (str, BaseGeometry))]
+    for k, h in enumerate(holes):
+        hole = as_polygon(h, f"hole {k}")
+        if not area.contains(hole):
+            raise GeometryError(f"hole {k} does not lie inside the walkable area")
+        area = area.difference(hole)
+    return shapely.normalize(area)
+
+
+def _ring(coords, what: str) -> np.ndarray:
+    ring = np.asarray(coords, dtype=np.float64)
+    if ring.ndim != 2 or ring.shape[1] != 2:
+        raise GeometryError(f"{what}: coordinates must have shape (K, 2), got {ring.shape}")
+    if ring.shape[0] < 3:
+        raise GeometryError(f"{what}: a polygon needs at least 3 vertices, got {ring.shape[0]}")
+    if not np.all(np.isfinite(ring)):
+        raise GeometryError(f"{what}: coordinates contain non-finite values")
+    return ring
+
+
+def _is_coordinates(obj) -> bool:
+    """True for a (K, 2) array of numbers (one ring or segment), False for a list of exits."""
+    try:
+        arr = np.asarray(obj, dtype=np.float64)
+    except (TypeError, ValueError):
+        return False
+    return arr.ndim == 2 and arr.shape[1] == 2
+
+
+def exit_polygons(exits, walkable_area, depth_m: float = 0.5) -> list:
+    """Exit polygons from a list of polygons ((K >= 3, 2) coordinates, WKT POLYGON, shapely) and door
+    segments ((2, 2) end points, WKT LINESTRING, shapely LineString) on the boundary of ``walkable_area``."""
+    if exits is None:
+        raise GeometryError("the geometry has no exit: give at least one exit polygon or door segment")
+    if isinstance(exits, (str, BaseGeometry)):
+        exits = [exits]
+    elif not isinstance(exits, dict) and _is_coordinates(exits):
+        exits = [exits]  # one exit given as coordinates
+    items = list(exits.values()) if isinstance(exits, dict) else list(exits)
+    if not items:
+        raise GeometryError("the geometry has no exit: give at least one exit polygon or door segment")
+    out = []
+    for k, e in enumerate(items):
+        what = f"exit {k}"
+        if isinstance(e, str):
+            try:
+                e = shapely.from_wkt(e)
+            except Exception as exc:  # shapely raises its own error types
+                raise GeometryError(f"{what}: cannot parse WKT ({exc})") from exc
+        if isinstance(e, LineString):
+            out.append(shapely.normalize(door_exit(e, walkable_area, depth_m, what)))
+            continue
+        if not isinstance(e, BaseGeometry):
+            pts = np.asarray(e, dtype=np.float64)
+            if pts.shape == (2, 2):
+                out.append(shapely.normalize(door_exit(pts, walkable_area, depth_m, what)))
+                continue
+            e = Polygon(_ring(pts, what))
+        out.append(shapely.normalize(as_polygon(e, what)))
+    return out
+
+
+def scenario_from_polygon(walkable_area, exits, spawn_area, n_pedestrians: int, holes=(), seed: int | None = 0,
+                          radius_m: float = 0.23, density_per_m2: float | None = None, exit_depth_m: float = 0.5,
+                          exit_names=None, destination=None, measurement_lines=None,
+                          navigation_clearance_m: float | None = None, navigation_resolution_m: float = 0.05,
+                          name: str = "polygon") -> Scenario:
+    """A validated :class:`Scenario` on a user geometry with ``n_pedestrians`` placed in ``spawn_area``.
+
+    ``walkable_area``: (K, 2) outer-ring coordinates (with ``holes``: a list of (K, 2) rings) or a WKT
+    string / shapely polygon (holes inside it; extra ``holes`` are subtracted too). ``exits``: list
+    of exit polygons and/or door segments (or a dict name -> exit, which also names them).
+    ``spawn_area``: polygon (coordinates, WKT or shapely) inside the walkable area. ``destination``:
+    optional per-pedestrian exit names/indices (see :class:`Scenario`). Raises
+    :class:`~crowd_env.core.segments.GeometryError` / :class:`ScenarioError` naming the problem: an
+    invalid (e.g. self-intersecting) polygon, no exit, an exit not touching the walkable area or
+    unreachable from the spawn area, a spawn area outside the walkable area, N too large for it.
+    """
+    check_positive(radius_m=radius_m, exit_depth_m=exit_depth_m, navigation_resolution_m=navigation_resolution_m)
+    n = check_count("n_pedestrians", n_pedestrians)
+    if density_per_m2 is not None:
+        check_positive(density_per_m2=density_per_m2)
+    area = walkable_polygon(walkable_area, holes)
+    if isinstance(exits, dict) and exit_names is None:
+        exit_names = tuple(str(k) for k in exits)
+    geometry = Geometry(area, exits=exit_polygons(exits, area, exit_depth_m), measurement_lines=measurement_lines,
+                        name=name)
+    spawn = as_polygon(_ring(spawn_area, "spawn area") if not isinstance(spawn_area, (str, BaseGeometry))
+                       else spawn_area, "spawn area")
+    outside = spawn.difference(area).area
+    if outside > 1e-9:
+        raise ScenarioError(f"the spawn area must lie inside the walkable area: {outside:.4g} m² of its "
+                            f"{spawn.area:.4g} m² lie outside (beyond the boundary, in a hole or a wall)")
+    clearance = check_clearance(navigation_clearance_m, radius_m)
+    _check_exits_reachable(geometry, spawn, navigation_resolution_m, clearance)
+    try:
+        position = place_pedestrians(spawn, n, radius_m, np.random.default_rng(seed), density_per_m2=density_per_m2)
+    except ScenarioError as exc:
+        raise ScenarioError(f"spawn area ({spawn.area:.4g} m²): {exc}") from exc
+    metadata = {"walkable_area": area.wkt, "exits": [e.wkt for e in geometry.exits], "spawn_area": spawn.wkt,
+                "n_pedestrians": n, "seed": seed}
+    return Scenario(geometry=geometry, position_m=position, pedestrian_params={"radius_m": float(radius_m)},
+                    spawn_area=spawn, name=name, metadata=metadata, seed=seed,
+                    navigation_resolution_m=navigation_resolution_m, navigation_clearance_m=clearance,
+                    destination=destination, exit_names=exit_names)
+
+
+def _check_exits_reachable(geometry: Geometry, spawn, resolution_m: float, clearance_m: float) -> None:
+    """Raise :class:`ScenarioError` naming the first exit that no path of a disk centre (the eikonal grid,
+    4-connected as fast marching) joins to the spawn area."""
+    field = NavigationField.cached(geometry, resolution_m, clearance_m=clearance_m)
+    nodes = field.raster.node_points()
+    walkable = field.walkable
+    labels, _ = ndimage.label(walkable)
+    in_spawn = shapely.intersects_xy(spawn, nodes[:, 0], nodes[:, 1]).reshape(walkable.shape) & walkable
+    reached = set(np.unique(labels[in_spawn]).tolist()) - {0}
+    if not reached:
+        raise ScenarioError(f"the spawn area has no grid node where a pedestrian fits ({clearance_m} m from the "
+                            "walls); make it larger")
+    for k, poly in enumerate(geometry.exits):
+        at_exit = shapely.intersects_xy(poly, nodes[:, 0], nodes[:, 1]).reshape(walkable.shape) & walkable
+        if not reached & set(np.unique(labels[at_exit]).tolist()):
+            raise ScenarioError(f"exit {k} is unreachable from the spawn area: no path for a pedestrian of radius "
+                                f"{clearance_m} m (navigation_clearance_m) joins them")
+
+
+register_scenario("polygon", scenario_from_polygon, aliases=("custom",))
