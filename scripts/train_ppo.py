@@ -13,6 +13,14 @@ the same observation layout and decision interval), ``learning_curve.csv`` / ``.
 episode returns against timesteps) and ``summary.json`` with the mean per-agent episode return of a
 uniform random policy and of the trained policy (deterministic) on the same evaluation seeds.
 
+Checkpoints (``--checkpoint-every`` timesteps, at the start of a rollout, i.e. after the previous
+update, and at the end): ``checkpoints/ppo_<t>_steps.zip`` (model, optimiser and step count),
+``vecnormalize_<t>_steps.pkl`` when the environment is normalised, ``curve.json`` (the learning curve
+so far) and ``index.json`` (the checkpoints in order, written last and atomically, so it only names
+complete files). A run killed midway continues with ``--resume`` from the latest checkpoint up to
+``--timesteps`` in all (the rollout in progress at the kill is collected again; the environment
+streams restart from ``seed + t``). Without ``--resume`` a folder holding checkpoints is refused.
+
 The default problem is small enough to show learning on 2 cores in a couple of minutes: 10 pedestrians
 at the 1 m Seyfried bottleneck, decisions every 0.1 s, 10 s episodes::
 
@@ -91,29 +99,101 @@ def mean_return(policy, env_config: dict, seeds) -> dict:
             "n_percussions": float(np.mean([r.n_percussions for r in runs]))}
 
 
+def _write_json_atomic(path: str, value) -> None:
+    tmp = path + ".tmp"
+    with open(tmp, "w") as fh:
+        json.dump(value, fh, indent=1)
+    os.replace(tmp, path)  # a kill leaves either the old file or the new one, never half of one
+
+
+def read_checkpoints(out: str) -> list:
+    """Checkpoint entries of ``out`` in order (``{"timesteps", "model", "vecnormalize"}``), [] if none."""
+    path = os.path.join(out, "checkpoints", "index.json")
+    if not os.path.exists(path):
+        return []
+    with open(path) as fh:
+        return json.load(fh)["checkpoints"]
+
+
+def save_checkpoint(model, out: str, curve: list) -> dict | None:
+    """Save ``model`` (and VecNormalize statistics if any) and the curve; append to the index last.
+
+    Returns the new entry, or None when the latest checkpoint already has this step count."""
+    entries = read_checkpoints(out)
+    t = int(model.num_timesteps)
+    if entries and entries[-1]["timesteps"] >= t:
+        return None
+    folder = os.path.join(out, "checkpoints")
+    os.makedirs(folder, exist_ok=True)
+    entry = {"timesteps": t, "model": f"ppo_{t}_steps.zip", "vecnormalize": None}
+    model.save(os.path.join(folder, f"ppo_{t}_steps.tmp.zip"))
+    os.replace(os.path.join(folder, f"ppo_{t}_steps.tmp.zip"), os.path.join(folder, entry["model"]))
+    norm = model.get_vec_normalize_env()
+    if norm is not None:
+        entry["vecnormalize"] = f"vecnormalize_{t}_steps.pkl"
+        norm.save(os.path.join(folder, entry["vecnormalize"] + ".tmp"))
+        os.replace(os.path.join(folder, entry["vecnormalize"] + ".tmp"), os.path.join(folder, entry["vecnormalize"]))
+    _write_json_atomic(os.path.join(folder, "curve.json"), curve)
+    _write_json_atomic(os.path.join(folder, "index.json"), {"checkpoints": entries + [entry]})
+    return entry
+
+
+def _check_resume(out: str, env_config: dict, resume: bool) -> list:
+    """The checkpoints to resume from; refuses a folder with checkpoints without ``resume`` or of another config."""
+    entries = read_checkpoints(out)
+    if entries and not resume:
+        raise SystemExit(f"error: {out} holds checkpoints (latest at {entries[-1]['timesteps']} timesteps): pass "
+                         "--resume to continue that run, or choose another --out")
+    path = os.path.join(out, "env_config.json")
+    if resume and entries and os.path.exists(path):
+        with open(path) as fh:
+            old = json.load(fh)
+        if old != json.loads(json.dumps(env_config)):
+            diff = sorted(k for k in set(old) | set(env_config) if old.get(k) != env_config.get(k))
+            raise SystemExit(f"error: cannot resume: {out} was trained with other environment options "
+                             f"(differs in {diff})")
+    return entries
+
+
 def train(env_config: dict, timesteps: int, out: str, *, seed: int = 0, copies: int = 2, n_steps: int = 256,
           batch_size: int = 512, n_epochs: int = 10, learning_rate: float = 3e-4, gamma: float = 0.99,
-          eval_seeds=(1000, 1001, 1002), threads: int = 1, verbose: int = 0, progress=print) -> dict:
-    """Train, save and evaluate; returns the summary dict (also written to ``out/summary.json``)."""
+          eval_seeds=(1000, 1001, 1002), threads: int = 1, verbose: int = 0, checkpoint_every: int = 10_000,
+          resume: bool = False, progress=print) -> dict:
+    """Train, save and evaluate; returns the summary dict (also written to ``out/summary.json``).
+
+    ``checkpoint_every`` timesteps (0: only at the end) a checkpoint is saved under ``out/checkpoints``;
+    ``resume`` continues from the latest one up to ``timesteps`` in all (see the module docstring).
+    """
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.utils import set_random_seed
+    from stable_baselines3.common.vec_env import VecNormalize
 
     from baselines.reference_policies import RandomPolicy, SB3Policy
 
     torch.set_num_threads(max(1, int(threads)))
     os.makedirs(out, exist_ok=True)
+    entries = _check_resume(out, env_config, resume)
     with open(os.path.join(out, "env_config.json"), "w") as fh:
         json.dump(env_config, fh, indent=2)
 
     t0 = time.perf_counter()
-    before = mean_return(RandomPolicy(seed), env_config, eval_seeds)
+    random_path = os.path.join(out, "random_eval.json")
+    before = None
+    if entries and os.path.exists(random_path):
+        with open(random_path) as fh:
+            saved = json.load(fh)
+        before = saved["result"] if saved["eval_seeds"] == list(eval_seeds) and saved["seed"] == seed else None
+    if before is None:
+        before = mean_return(RandomPolicy(seed), env_config, eval_seeds)
+        _write_json_atomic(random_path, {"eval_seeds": list(eval_seeds), "seed": seed, "result": before})
     progress(f"random policy: mean per-agent episode return {before['mean_return']:.3f} "
              f"(evacuated {100 * before['evacuated_fraction']:.0f}%)")
 
-    set_random_seed(seed)  # python, numpy, torch
-    vec = make_vec_env(env_config, copies, seed)
+    start = entries[-1]["timesteps"] if entries else 0
+    set_random_seed(seed + start)  # python, numpy, torch
+    vec = make_vec_env(env_config, copies, seed + start)
     curve = []
 
     class Curve(BaseCallback):
@@ -124,13 +204,41 @@ def train(env_config: dict, timesteps: int, out: str, *, seed: int = 0, copies: 
                     curve.append((self.num_timesteps, float(ep["r"]), int(ep["l"])))
             return True
 
-    # Not PPO(seed=...): SB3 would call vec.seed(), which SuperSuit's concatenated env lacks.
-    model = PPO("MlpPolicy", vec, n_steps=n_steps, batch_size=batch_size, n_epochs=n_epochs,
-                learning_rate=learning_rate, gamma=gamma, device="cpu", verbose=verbose,
-                policy_kwargs={"net_arch": [64, 64]})
-    model.action_space.seed(seed)
+    class Checkpoint(BaseCallback):
+        """Saves when ``checkpoint_every`` timesteps have passed, at a rollout start (after the update)."""
+
+        last_t = start
+
+        def _on_rollout_start(self) -> None:
+            if checkpoint_every > 0 and self.model.num_timesteps - self.last_t >= checkpoint_every:
+                save_checkpoint(self.model, out, curve)
+                self.last_t = self.model.num_timesteps
+
+        def _on_step(self) -> bool:
+            return True
+
+        def _on_training_end(self) -> None:
+            save_checkpoint(self.model, out, curve)
+
+    if entries:
+        latest = entries[-1]
+        folder = os.path.join(out, "checkpoints")
+        if latest["vecnormalize"]:
+            vec = VecNormalize.load(os.path.join(folder, latest["vecnormalize"]), vec)
+        model = PPO.load(os.path.join(folder, latest["model"]), env=vec, device="cpu")
+        with open(os.path.join(folder, "curve.json")) as fh:
+            curve.extend(tuple(c) for c in json.load(fh) if c[0] <= latest["timesteps"])
+        progress(f"resuming from the checkpoint at {model.num_timesteps} timesteps")
+    else:
+        # Not PPO(seed=...): SB3 would call vec.seed(), which SuperSuit's concatenated env lacks.
+        model = PPO("MlpPolicy", vec, n_steps=n_steps, batch_size=batch_size, n_epochs=n_epochs,
+                    learning_rate=learning_rate, gamma=gamma, device="cpu", verbose=verbose,
+                    policy_kwargs={"net_arch": [64, 64]})
+    model.action_space.seed(seed + start)
     t1 = time.perf_counter()
-    model.learn(total_timesteps=int(timesteps), callback=Curve())
+    remaining = int(timesteps) - int(model.num_timesteps)
+    if remaining > 0:  # with reset_num_timesteps=False SB3 counts total_timesteps on top of num_timesteps
+        model.learn(total_timesteps=remaining, callback=[Curve(), Checkpoint()], reset_num_timesteps=not entries)
     train_s = time.perf_counter() - t1
     model.save(os.path.join(out, "model.zip"))
     vec.close()
@@ -139,7 +247,7 @@ def train(env_config: dict, timesteps: int, out: str, *, seed: int = 0, copies: 
     progress(f"trained policy: mean per-agent episode return {after['mean_return']:.3f} "
              f"(evacuated {100 * after['evacuated_fraction']:.0f}%)")
     write_curve(curve, out, before["mean_return"], after["mean_return"])
-    summary = {"timesteps": int(model.num_timesteps), "train_wall_s": train_s,
+    summary = {"timesteps": int(model.num_timesteps), "resumed_from_timesteps": start, "train_wall_s": train_s,
                "total_wall_s": time.perf_counter() - t0, "random": before, "trained": after,
                "improvement": after["mean_return"] - before["mean_return"], "env_config": env_config,
                "eval_seeds": list(eval_seeds), "seed": seed, "copies": copies,
@@ -205,11 +313,18 @@ def main(argv=None) -> int:
     ap.add_argument("--eval-seeds", type=int, nargs="+", default=[1000, 1001, 1002])
     ap.add_argument("--threads", type=int, default=1, help="torch threads")
     ap.add_argument("--verbose", type=int, default=0)
+    ap.add_argument("--checkpoint-every", type=int, default=10_000,
+                    help="save a checkpoint every this many timesteps (0: only at the end)")
+    ap.add_argument("--resume", action="store_true",
+                    help="continue from the latest checkpoint in --out up to --timesteps in all")
     args = ap.parse_args(argv)
+    if args.checkpoint_every < 0:
+        raise SystemExit("error: --checkpoint-every must be >= 0")
     env_config = make_env_config(args)
     summary = train(env_config, args.timesteps, args.out, seed=args.seed, copies=args.copies, n_steps=args.n_steps,
                     batch_size=args.batch_size, n_epochs=args.n_epochs, learning_rate=args.learning_rate,
-                    gamma=args.gamma, eval_seeds=args.eval_seeds, threads=args.threads, verbose=args.verbose)
+                    gamma=args.gamma, eval_seeds=args.eval_seeds, threads=args.threads, verbose=args.verbose,
+                    checkpoint_every=args.checkpoint_every, resume=args.resume)
     print(f"mean per-agent episode return: random {summary['random']['mean_return']:.3f} -> trained "
           f"{summary['trained']['mean_return']:.3f} ({summary['timesteps']} timesteps, "
           f"{summary['train_wall_s']:.0f} s training); outputs in {args.out}")

@@ -1,0 +1,208 @@
+#!/usr/bin/env python
+"""Soak test: many agent-steps over every registered scenario with random and adversarial actions.
+
+Every registered scenario (aliases once; :func:`crowd_env.reliability.distinct_scenarios`) runs through
+the PettingZoo parallel environment with every pedestrian controlled (even episodes) or half of them
+(odd episodes; the others follow the calibrated baseline), under each action mode:
+
+- ``random``: uniform intents in the action Box;
+- ``toward_neighbour``: every learner pushes at maximum intent toward its nearest neighbour;
+- ``toward_wall``: every learner pushes at maximum intent toward the nearest wall.
+
+Scenarios whose factory requires options (the user polygon) get them from ``--scenario-options`` or
+``crowd_env.reliability.EXAMPLE_OPTIONS``; any still missing is skipped and listed.
+
+After every simulator step :class:`crowd_env.reliability.InvariantChecker` checks overlaps (pairs and
+walls, tolerance 1e-3 m), centres inside the walkable area, kinetic energy across the impact and the
+projection stages, and finite state. Memory (RSS, and tracemalloc with ``--tracemalloc``) is sampled
+at every episode end; the growth after the first quarter of the run, fitted by least squares, must stay
+below ``--memory-tolerance-mib`` over the fitted window. The budget of agent-steps (live agents summed
+over environment steps) is split evenly over (scenario, mode) pairs.
+
+Exit status: 0 when nothing was violated, 1 otherwise. Example (about 10⁶ agent-steps)::
+
+    nice -n 5 python scripts/soak.py --agent-steps 1000000
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import numpy as np
+
+DEFAULT_AGENT_STEPS = 1_000_000
+
+
+def soak(agent_steps: int = DEFAULT_AGENT_STEPS, *, scenarios=None, modes=None, seed: int = 0, max_steps: int = 200,
+         frame_skip: int = 1, fixed_start: bool = False, trace_memory: bool = False,
+         memory_tolerance_mib: float = 16.0, overlap_tolerance_m: float = 1e-3, scenario_options: dict | None = None,
+         progress=print) -> dict:
+    """Run the soak; returns a JSON-able summary (see :func:`format_summary`)."""
+    from crowd_env.envs import crowd_v0
+    from crowd_env.reliability import (ACTION_MODES, InvariantChecker, MemoryProbe, distinct_scenarios,
+                                       required_options, soak_options)
+
+    names = list(scenarios) if scenarios else distinct_scenarios()
+    modes = list(modes) if modes else list(ACTION_MODES)
+    unknown = sorted(set(modes) - set(ACTION_MODES))
+    if unknown:
+        raise SystemExit(f"error: unknown mode(s) {unknown}; known: {list(ACTION_MODES)}")
+    given = scenario_options or {}
+    scenario_options, skipped = {}, {}
+    for n in names:  # required options: given ones, else the examples of crowd_env.reliability.EXAMPLE_OPTIONS
+        missing = [k for k in required_options(n) if k not in given.get(n, {})]
+        example = soak_options(n)
+        if missing and example is None:
+            skipped[n] = f"needs options {missing}"
+        else:
+            scenario_options[n] = {**(example or {}), **given.get(n, {})}
+    names = [n for n in names if n not in skipped]
+    if not names:
+        raise SystemExit("error: no scenario to soak")
+    pairs = [(n, m) for n in names for m in modes]
+    share = int(np.ceil(agent_steps / len(pairs)))
+    total = InvariantChecker()
+    memory = MemoryProbe(trace=trace_memory)
+    memory.start()
+    memory.sample(0)
+    done_agent_steps = env_steps = episodes = 0
+    per_pair = {}
+    rng = np.random.default_rng(seed)
+    t0 = time.perf_counter()
+    for name, mode in pairs:
+        act = ACTION_MODES[mode]
+        options = dict(scenario_options.get(name, {}))
+        if fixed_start:
+            options.setdefault("seed", seed)
+        checker = InvariantChecker(overlap_tolerance_m=overlap_tolerance_m, label=f"{name}/{mode}")
+        envs = {}
+        pair_steps, pair_t0, k, first_sample = 0, time.perf_counter(), 0, len(memory.samples)
+        while pair_steps < share:
+            controlled = "all" if k % 2 == 0 else 0.5
+            if controlled not in envs:  # built when first needed (a short soak may never need the second)
+                envs[controlled] = crowd_v0.parallel_env(scenario=name, scenario_options=options, controlled=controlled,
+                                                         max_steps=max_steps, frame_skip=frame_skip)
+                envs[controlled].substep_hooks.append(checker)
+            env = envs[controlled]
+            env.reset(seed=int(rng.integers(2**31 - 1)))
+            while env.agents and pair_steps < share:
+                n_live = len(env.agents)
+                env.step(act(env, rng))
+                pair_steps += n_live
+                env_steps += 1
+            episodes += 1
+            k += 1
+            memory.sample(done_agent_steps + pair_steps)
+        done_agent_steps += pair_steps
+        per_pair[f"{name}/{mode}"] = {"agent_steps": pair_steps, "sim_steps": checker.n_checked_steps,
+                                      "impact_steps": checker.n_impact_steps, "episodes": k,
+                                      "violations": dict(checker.counts),
+                                      "max_overlap_m": checker.max_overlap_m,
+                                      "rss_first_episode_end_mib": memory.samples[first_sample][1] / 2**20,
+                                      "rss_end_mib": memory.samples[-1][1] / 2**20,
+                                      "wall_s": time.perf_counter() - pair_t0}
+        total.merge(checker)
+        progress(f"{name}/{mode}: {pair_steps} agent-steps, {checker.n_checked_steps} simulator steps "
+                 f"({checker.n_impact_steps} with impacts), {k} episodes, "
+                 f"violations {dict(checker.counts) or 0}, max overlap {checker.max_overlap_m:.3g} m "
+                 f"({time.perf_counter() - pair_t0:.0f} s)")
+    memory.stop()
+    mib = 2.0**20
+    window = memory.window()
+    growth = {c: memory.slope_bytes_per(c) * window / mib for c in ("rss", "traced")}
+    judged = "traced" if trace_memory else "rss"
+    memory_ok = not (growth[judged] > memory_tolerance_mib)
+    violations = dict(total.counts)
+    if not memory_ok:
+        violations["memory_growth"] = 1
+    s = memory.samples
+    return {
+        "agent_steps": done_agent_steps, "env_steps": env_steps, "sim_steps": total.n_checked_steps,
+        "impact_steps": total.n_impact_steps, "max_cluster_size": total.max_cluster_size, "episodes": episodes,
+        "scenarios": names, "skipped_scenarios": skipped, "modes": modes,
+        "violations": violations, "n_violations": int(sum(violations.values())),
+        "overlap_tolerance_m": overlap_tolerance_m, "max_overlap_m": total.max_overlap_m,
+        "max_wall_overlap_m": total.max_wall_overlap_m,
+        "max_impact_energy_increase_j": total.max_impact_energy_increase_j,
+        "max_impact_energy_increase_rel": total.max_impact_energy_increase_rel,
+        "max_projection_energy_increase_j": total.max_projection_energy_increase_j,
+        "examples": total.examples,
+        "memory": {"rss_start_mib": s[0][1] / mib, "rss_end_mib": s[-1][1] / mib,
+                   "traced_start_mib": s[0][2] / mib if trace_memory else None,
+                   "traced_end_mib": s[-1][2] / mib if trace_memory else None,
+                   "rss_slope_kib_per_1000_agent_steps": memory.slope_bytes_per("rss") * 1000 / 1024,
+                   "traced_slope_kib_per_1000_agent_steps": memory.slope_bytes_per("traced") * 1000 / 1024
+                   if trace_memory else None,
+                   "fit_window_agent_steps": window, "growth_over_window_mib": growth, "judged_on": judged,
+                   "tolerance_mib": memory_tolerance_mib, "ok": memory_ok, "n_samples": len(s),
+                   "samples": [(x, rss / mib, traced / mib if trace_memory else None) for x, rss, traced in s]},
+        "per_pair": per_pair, "wall_s": time.perf_counter() - t0,
+    }
+
+
+def format_summary(r: dict) -> str:
+    m = r["memory"]
+    lines = [
+        f"agent-steps {r['agent_steps']}, environment steps {r['env_steps']}, "
+        f"simulator steps checked {r['sim_steps']}, "
+        f"episodes {r['episodes']}, wall time {r['wall_s']:.0f} s",
+        f"scenarios {r['scenarios']}" + (f", skipped {r['skipped_scenarios']}" if r["skipped_scenarios"] else "")
+        + f"; modes {r['modes']}",
+        f"violations: {r['violations'] or 'none'}",
+        f"max overlap {r['max_overlap_m']:.3g} m (walls {r['max_wall_overlap_m']:.3g} m; tolerance "
+        f"{r['overlap_tolerance_m']:g} m)",
+        f"simulator steps with impacts {r['impact_steps']} (largest cluster {r['max_cluster_size']} pedestrians)",
+        f"max KE change across impacts {r['max_impact_energy_increase_j']:+.3g} J "
+        f"(relative {r['max_impact_energy_increase_rel']:+.3g}); across the projection "
+        f"{r['max_projection_energy_increase_j']:+.3g} J",
+        f"memory: RSS {m['rss_start_mib']:.1f} -> {m['rss_end_mib']:.1f} MiB, slope "
+        f"{m['rss_slope_kib_per_1000_agent_steps']:.3g} KiB / 1000 agent-steps"
+        + (f"; traced {m['traced_start_mib']:.1f} -> {m['traced_end_mib']:.1f} MiB, slope "
+           f"{m['traced_slope_kib_per_1000_agent_steps']:.3g} KiB / 1000 agent-steps" if m["traced_end_mib"] is not None
+           else "")
+        + f"; growth over the last {m['fit_window_agent_steps']:.0f} agent-steps "
+        f"{m['growth_over_window_mib'][m['judged_on']]:.3g} MiB ({m['judged_on']}, tolerance {m['tolerance_mib']} MiB)",
+    ]
+    lines += [f"  {e}" for e in r["examples"]]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--agent-steps", type=int, default=DEFAULT_AGENT_STEPS, help="total agent-steps (all scenarios)")
+    ap.add_argument("--scenarios", nargs="+", default=None, help="default: every registered scenario")
+    ap.add_argument("--modes", nargs="+", default=None, help="random, toward_neighbour, toward_wall (default: all)")
+    ap.add_argument("--scenario-options", type=json.loads, default=None, metavar="JSON",
+                    help='per-scenario options, e.g. \'{"seyfried_bottleneck": {"n_pedestrians": 40}}\'')
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--max-steps", type=int, default=200, help="environment steps per episode")
+    ap.add_argument("--frame-skip", type=int, default=1, help="simulator steps per environment step")
+    ap.add_argument("--fixed-start", action="store_true",
+                    help="pin the scenarios' seed option (same start positions, no scenario rebuilt per reset)")
+    ap.add_argument("--tracemalloc", action="store_true", help="also trace Python/numpy allocations (slower)")
+    ap.add_argument("--memory-tolerance-mib", type=float, default=16.0,
+                    help="largest memory growth accepted over the fitted window (after the first quarter)")
+    ap.add_argument("--overlap-tolerance-m", type=float, default=1e-3,
+                    help="largest overlap accepted (a negative value flags every step: checks the checker)")
+    ap.add_argument("--json", default=None, help="write the summary here as JSON")
+    args = ap.parse_args(argv)
+    if args.agent_steps < 1:
+        raise SystemExit("error: --agent-steps must be >= 1")
+    r = soak(args.agent_steps, scenarios=args.scenarios, modes=args.modes, seed=args.seed, max_steps=args.max_steps,
+             frame_skip=args.frame_skip, fixed_start=args.fixed_start, trace_memory=args.tracemalloc,
+             memory_tolerance_mib=args.memory_tolerance_mib, overlap_tolerance_m=args.overlap_tolerance_m,
+             scenario_options=args.scenario_options,
+             progress=lambda s: print(s, flush=True))
+    print(format_summary(r))
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(r, fh, indent=2, default=float)
+    return 0 if r["n_violations"] == 0 else 1
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    raise SystemExit(main())
