@@ -137,9 +137,11 @@ def main(argv=None) -> int:
     except ImportError:
         print("JuPedSim is not installed: pip install -e '.[bench]'")
         return 2
-    # Warm-up (compiles crowd_env's kernels; loads JuPedSim) on a small case, not reported.
-    warm = make_scenario("seyfried_bottleneck", width_m=args.width, n_pedestrians=10, seed=999)
+    # Warm-up (compiles or loads crowd_env's kernels, fills caches; loads JuPedSim) on the same case
+    # with another seed, not reported.
+    warm = make_scenario("seyfried_bottleneck", width_m=args.width, n_pedestrians=args.n, seed=10_000)
     run_crowd_env(warm, warm.make_state())
+    run_jupedsim(warm, warm.make_state(), "sfm")
     rows = []
     for seed in range(args.seeds):
         sc = make_scenario("seyfried_bottleneck", width_m=args.width, n_pedestrians=args.n, seed=seed)
