@@ -155,18 +155,19 @@ def test_exit_thinner_than_a_cell_raises():
         NavigationField(g, 0.1)
 
 
-def test_cached_and_fast(rect):
+def test_cache_by_content_and_bounded(rect):
+    """Equal geometries (e.g. a scenario rebuilt per reset) share one field; other settings or another
+    geometry get their own; the cache never holds more than ``cache_size`` fields."""
     a = NavigationField.cached(rect, H)
     assert NavigationField.cached(rect, H) is a
+    assert NavigationField.cached(Geometry(box(0, 0, 10, 4), exits=[box(10, 0, 11, 4)]), H) is a
     assert NavigationField.cached(rect, 0.1) is not a
-    rng = np.random.default_rng(4)
-    p = np.column_stack([rng.uniform(0, 10, 10_000), rng.uniform(0, 4, 10_000)])
-    a.sample(p)
-    import time
-    t0 = time.perf_counter()
-    for _ in range(10):
-        a.sample(p)
-    assert (time.perf_counter() - t0) / 10 < 0.02
+    assert NavigationField.cached(Geometry(box(0, 0, 10, 4.5), exits=[box(10, 0, 11, 4.5)]), H) is not a
+    for k in range(NavigationField.cache_size + 3):
+        NavigationField.cached(Geometry(box(0, 0, 5 + k, 4), exits=[box(5 + k, 0, 6 + k, 4)]), 0.2)
+    assert len(NavigationField._cache) == NavigationField.cache_size
+    p = np.random.default_rng(4).uniform([0, 0], [10, 4], (1000, 2))
+    np.testing.assert_array_equal(NavigationField.cached(rect, H).sample(p)[0], a.sample(p)[0])
 
 
 # -- configuration space (clearance_m): disk centres keep their radius from the walls ---------------

@@ -164,11 +164,9 @@ def test_memory_flat_across_resets_with_pinned_scenario_seed():
     assert _traced_growth_mib(lambda: env.reset(seed=next(seeds)), warmup=3, repeats=15) < 1.0  # measured: ~0.01
 
 
-@pytest.mark.xfail(strict=True, reason="known leak: NavigationField._cache (core/navigation.py:169) is a "
-                   "WeakKeyDictionary whose values hold the key (self.geometry, navigation.py:177), so the field of "
-                   "every reseeded scenario (one per env.reset) is kept forever (~0.5 MiB per reset)")
 def test_memory_flat_across_resets():
-    """Resetting an environment whose scenario is rebuilt per seed (the default) must not grow memory."""
+    """Resetting an environment whose scenario is rebuilt per seed (the default) must not grow memory
+    (regression: the navigation cache once kept the field of every rebuilt scenario)."""
     env = crowd_v0.parallel_env(scenario_options={"n_pedestrians": 10}, max_steps=5)
     seeds = iter(range(10_000))
     assert _traced_growth_mib(lambda: env.reset(seed=next(seeds)), warmup=3, repeats=15) < 1.0  # measured: 7.8
@@ -501,15 +499,7 @@ def _cli_main(argv):
     return cli.main(argv)
 
 
-# Cases that do not raise (or not with a message naming the problem) today; reported, each one an xfail.
-KNOWN_GAPS = {
-    "unknown reset option": "CrowdParallelEnv.reset ignores its options (crowd_env/envs/crowd_v0.py, reset), so a "
-                            "misspelt or unsupported reset option passes silently",
-    "step before reset": "CrowdParallelEnv.step checks 'if not self.agents' before 'if self._sim is None' "
-                         "(crowd_env/envs/crowd_v0.py, step), so before the first reset it raises ValueError "
-                         "'... the episode is over, call reset()' and the RuntimeError 'call reset() before step()' "
-                         "is unreachable",
-}
+KNOWN_GAPS: dict = {}  # name -> reason, for cases that do not raise (yet); each becomes a strict xfail
 BAD_CASES = _bad_cases()
 
 
@@ -529,10 +519,6 @@ def test_bad_input_catalogue_size(capsys):
         print(f"\nbad-input catalogue: {len(BAD_CASES)} cases, {len(KNOWN_GAPS)} known gap(s): {sorted(KNOWN_GAPS)}")
 
 
-@pytest.mark.xfail(strict=True, reason="known gap: an exit thinner than h |u| is accepted (core/geometry.py, "
-                   "Geometry.__init__) and a fast pedestrian's centre can step over it without ever being inside "
-                   "(exit test at the end of the step only, core/simulator.py step 5): it leaves the walkable area "
-                   "through the wall-less opening and the next observation raises 'outside the navigation grid'")
 def test_thin_exit_is_rejected_or_cannot_be_stepped_over():
     try:
         geom = Geometry(box(0, 0, 6, 4), exits=[box(5.99, 0, 6, 4)], name="thin exit")

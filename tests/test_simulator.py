@@ -408,3 +408,22 @@ def test_step_min_gap_matches_the_independent_check():
         else:
             assert ra.min_gap_m >= min(independent, 0.05) - 1e-12  # a subset of the pairs, or beyond 5 cm
     assert checked > 100
+
+
+def test_fast_pedestrian_cannot_step_over_a_thin_exit():
+    """The exit test follows each centre's path within the step: a 1 cm deep exit crossed at 10 m/s
+    (10 cm per step) still removes the pedestrian, and one passing beside the exit does not leave."""
+    from shapely.geometry import box as sbox
+
+    from crowd_env.core.geometry import Geometry
+
+    geom = Geometry(sbox(0, 0, 6, 4), exits=[sbox(5.99, 1, 6.0, 3)])
+    st = CrowdState.create([[5.5, 2.0], [3.0, 0.5]], radius_m=0.23, tau_s=1e-9)
+    sim = Simulator(st, geometry=geom, params=ModelParams(rotation=False))
+    left_at = None
+    for k in range(20):
+        res = sim.step([[10.0, 0.0], [1.0, 0.0]])
+        if res.exited.size:
+            assert res.exited.tolist() == [0] and left_at is None
+            left_at = k
+    assert left_at is not None and not st.active[0] and st.active[1]

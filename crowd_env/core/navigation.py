@@ -41,7 +41,7 @@ above (nearest free node's direction), so sampling a centre touching a wall stay
 """
 from __future__ import annotations
 
-import weakref
+from collections import OrderedDict
 
 import numba as nb
 import numpy as np
@@ -174,7 +174,11 @@ class NavigationField:
 
     per_pedestrian = False  # one field serves every pedestrian (see DestinationNavigation)
 
-    _cache: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+    # Fields by geometry *content* (walkable area and exits as WKB) and settings, least recently used
+    # first out: a scenario rebuilt per reset on the same geometry reuses its field, and memory stays
+    # bounded however many geometries a program creates.
+    _cache: "OrderedDict" = OrderedDict()
+    cache_size = 8
 
     def __init__(self, geometry: Geometry, resolution_m: float = 0.05, wall_slowdown=None, speed_m_s: float = 1.0,
                  clearance_m: float = 0.0, exits=None):
@@ -330,10 +334,16 @@ class NavigationField:
         exits = cls._check_exits(exits, geometry)
         if exits is not None:
             key += (exits,)
-        per_geometry = cls._cache.setdefault(geometry, {})
-        if key not in per_geometry:
-            per_geometry[key] = cls(geometry, resolution_m, wall_slowdown, speed_m_s, clearance_m, exits)
-        return per_geometry[key]
+        if not isinstance(geometry, Geometry):
+            raise GeometryError(f"NavigationField needs a Geometry, got {type(geometry).__name__}")
+        key += (shapely.to_wkb(geometry.walkable_area), tuple(shapely.to_wkb(e) for e in geometry.exits))
+        field = cls._cache.pop(key, None)
+        if field is None:
+            field = cls(geometry, resolution_m, wall_slowdown, speed_m_s, clearance_m, exits)
+        cls._cache[key] = field  # most recently used last
+        while len(cls._cache) > cls.cache_size:
+            cls._cache.popitem(last=False)
+        return field
 
     @property
     def max_travel_time_s(self) -> float:

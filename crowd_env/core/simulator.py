@@ -36,7 +36,7 @@ from .params import ModelParams, ParameterError
 from .segments import as_segments, endpoint_owners, wall_proximity
 from .state import CrowdState, StateError
 from .stepper import (FUSED_OK, VTOL_M_S, candidate_gaps_min, commit_step, compact_contacts, first_non_finite,
-                      fused_step, rows_in_boxes, grown_margins, kinetic_energy, smooth_update, speeds)
+                      fused_step, rows_sweeping_boxes, grown_margins, kinetic_energy, smooth_update, speeds)
 
 
 MAX_REDETECT = 10  # re-detection rounds per step (speeds are bounded: one or two rounds suffice in practice)
@@ -148,12 +148,13 @@ class Simulator:
         dest.setflags(write=False)
         return dest
 
-    def _at_destination(self, points, destination) -> np.ndarray:
-        """(n,) bool: each point lies in exit ``destination`` (any exit for -1; the caller checked that)."""
+    def _at_destination(self, paths, destination) -> np.ndarray:
+        """(n,) bool: each step's path (shapely linestrings) touches exit ``destination`` (any exit for -1;
+        the caller checked that)."""
         ok = destination < 0
         for d in np.unique(destination[~ok]):
             sel = destination == d
-            ok[sel] = shapely.contains_xy(self.geometry.exits[int(d)], points[sel, 0], points[sel, 1])
+            ok[sel] = shapely.intersects(self.geometry.exits[int(d)], paths[sel])
         return ok
 
     # ------------------------------------------------------------------ neighbours
@@ -231,6 +232,7 @@ class Simulator:
         idx = self.active_index
         links = self._active_links(idx)
         t0 = time.perf_counter()
+        previous = st.position_m[idx]
         status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap = fused_step(st.position_m, st.radius_m, st.velocity_m_s, st.angular_velocity_rad_s,
                                st.heading_rad, st.mass_kg, st.inertia_kg_m2, st.tau_s, st.heading_stiffness,
                                st.heading_damping, *inputs, idx, self.walls, self._wall_owner, *self._cached_pairs(),
@@ -240,7 +242,7 @@ class Simulator:
                                self.max_dense_projection_rows)
         if status != FUSED_OK:
             return None
-        exited = self._leave_at_exits(idx)
+        exited = self._leave_at_exits(idx, previous)
         return self._result(contacts, ke0, ke1, ke2, n_clusters, max_cluster, exited,
                             {"fused": time.perf_counter() - t0}, min_gap)
 
@@ -322,28 +324,38 @@ class Simulator:
         t5 = time.perf_counter()
         timings["projection"] = t5 - t4
         # 5. integrate and leave at exits
+        previous = st.position_m[idx]
         commit_step(st.position_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad, idx, vel, h,
                     p.rotation)
         min_gap = candidate_gaps_min(st.position_m, st.radius_m, idx, self.walls, con["a"], con["b"], con["wall"])
-        exited = self._leave_at_exits(idx)
+        exited = self._leave_at_exits(idx, previous)
         timings["integrate"] = time.perf_counter() - t5
         contacts = compact_contacts(idx, con["a"], con["b"], con["wall"], p_n, p_t, lam_p, in_impact)
         return self._result(contacts, ke0, ke1, ke2, n_clusters, max_cluster, exited, timings, min_gap)
 
-    def _leave_at_exits(self, idx) -> np.ndarray:
-        """Deactivate pedestrians whose centre is in an exit; advance the clock. Returns their indices."""
+    def _leave_at_exits(self, idx, previous_m) -> np.ndarray:
+        """Deactivate pedestrians whose centre entered an exit during the step (their straight path from
+        ``previous_m``, (n, 2) compact, touches one: an exit thinner than a step cannot be stepped over);
+        advance the clock. Returns their indices. With a bare ``exit_test`` callable (no geometry) only
+        the end points are tested."""
         st = self.state
         exited = np.zeros(0, np.int64)
         if self._exit_test is not None and idx.shape[0]:
-            near = idx if self._exit_boxes is None else idx[rows_in_boxes(st.position_m, idx, self._exit_boxes)]
-            if near.shape[0]:
+            if self._exit_boxes is None:
+                near = idx
                 out = np.asarray(self._exit_test(st.position_m[near]), dtype=bool)
-                if self.destination is not None and out.any():  # in an exit: is it the pedestrian's own?
-                    hit = near[out]
-                    out[out] = self._at_destination(st.position_m[hit], self.destination[hit])
-                if out.any():
-                    exited = near[out]
-                    st.active[exited] = False
+            else:
+                rows = rows_sweeping_boxes(previous_m, st.position_m, idx, self._exit_boxes)
+                near = idx[rows]
+                out = np.zeros(0, bool)
+                if near.shape[0]:
+                    paths = shapely.linestrings(np.stack([previous_m[rows], st.position_m[near]], axis=1))
+                    out = shapely.intersects(self.geometry.exit_area, paths)
+                    if self.destination is not None and out.any():  # in an exit: is it the pedestrian's own?
+                        out[out] = self._at_destination(paths[out], self.destination[near[out]])
+            if out.any():
+                exited = near[out]
+                st.active[exited] = False
         self.time_s += self.params.dt_s
         self.step_count += 1
         return exited

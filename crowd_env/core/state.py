@@ -129,12 +129,12 @@ class CrowdState:
                 raise StateError(f"{name} must have shape ({n},), got {arr.shape}")
             bad = np.flatnonzero(~(arr > 0))
             if bad.size:
-                raise StateError(f"{name} must be > 0; pedestrian {int(bad[0])} has {arr[bad[0]]!r}")
+                raise StateError(f"{name} must be > 0; pedestrian {int(bad[0])} has {float(arr[bad[0]])!r}")
         for name in ("heading_stiffness", "heading_damping", "desired_speed_m_s"):
             arr = getattr(self, name)
             bad = np.flatnonzero(~(arr >= 0))
             if bad.size:
-                raise StateError(f"{name} must be >= 0; pedestrian {int(bad[0])} has {arr[bad[0]]!r}")
+                raise StateError(f"{name} must be >= 0; pedestrian {int(bad[0])} has {float(arr[bad[0]])!r}")
         if self.links.ndim != 2 or self.links.shape[1] != 2:
             raise StateError(f"links must have shape (L, 2), got {self.links.shape}")
         if self.link_offsets_m.shape != (self.links.shape[0], 4):

@@ -134,16 +134,20 @@ def candidate_gaps_min(position, radius, index, walls, c_a, c_b, c_wall):
 
 
 @nb.njit(cache=True)
-def rows_in_boxes(position, index, boxes):
-    """Rows k of ``index`` whose position lies in one of the closed boxes (K, 4) (xmin, ymin, xmax, ymax):
-    the cheap prefilter of the exit test."""
+def rows_sweeping_boxes(previous, position, index, boxes):
+    """Rows k of ``index`` whose straight move from ``previous[k]`` to ``position[index[k]]`` has a
+    bounding box meeting one of the closed boxes (K, 4) (xmin, ymin, xmax, ymax): the cheap prefilter
+    of the exit test."""
     out = np.empty(index.shape[0], np.int64)
     m = 0
     for k in range(index.shape[0]):
-        x = position[index[k], 0]
-        y = position[index[k], 1]
+        x0 = previous[k, 0]
+        y0 = previous[k, 1]
+        x1 = position[index[k], 0]
+        y1 = position[index[k], 1]
         for b in range(boxes.shape[0]):
-            if boxes[b, 0] <= x <= boxes[b, 2] and boxes[b, 1] <= y <= boxes[b, 3]:
+            if min(x0, x1) <= boxes[b, 2] and max(x0, x1) >= boxes[b, 0] and \
+                    min(y0, y1) <= boxes[b, 3] and max(y0, y1) >= boxes[b, 1]:
                 out[m] = k
                 m += 1
                 break

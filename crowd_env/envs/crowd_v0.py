@@ -401,7 +401,15 @@ class CrowdParallelEnv(ParallelEnv):
 
     # ------------------------------------------------------------------ API
     def reset(self, seed=None, options=None):
-        """Start an episode; returns ``(observations, infos)`` of all ``possible_agents``."""
+        """Start an episode; returns ``(observations, infos)`` of all ``possible_agents``.
+
+        ``options`` must be None or empty: the episode is configured when the environment is made
+        (:data:`ENV_OPTIONS`), so an option here would otherwise pass silently.
+        """
+        if options:
+            keys = sorted(options) if isinstance(options, dict) else options
+            raise EnvOptionError(f"reset() takes no options (got {keys!r}); pass environment options to "
+                                 "parallel_env(...) / env(...) or gymnasium.make(...)")
         if seed is not None:
             self._rng = np.random.default_rng(seed)
         elif self._rng is None:
@@ -481,13 +489,13 @@ class CrowdParallelEnv(ParallelEnv):
 
     def step(self, actions):
         """Advance ``frame_skip`` simulator steps; returns ``(obs, rewards, terminations, truncations, infos)``."""
+        if self._sim is None:
+            raise RuntimeError("call reset() before step()")
         if not self.agents:
             if actions:
                 raise ValueError(f"no live agent, but actions were given for {list(actions)[:10]}: the episode is "
                                  "over, call reset()")
             return {}, {}, {}, {}, {}
-        if self._sim is None:
-            raise RuntimeError("call reset() before step()")
         intent_c = self._actions_array(actions)
         sim = self._sim
         st = sim.state
