@@ -1,0 +1,230 @@
+"""Minimise ε_T (Eq. 25) over (A, B) and optionally λ, τ and the desired-speed mean/std.
+
+Method: scipy's derivative-free Nelder–Mead (default) or Powell, on log-parameters (A, B, τ, speeds;
+λ ∈ [0, 1] stays linear) with bounds. Why not Bayesian optimisation: with common random numbers (the
+same seeds, hence the same initial positions and standard-normal speed draws, for every candidate)
+the objective is a deterministic function of the parameters, a few parameters only, and each
+evaluation is itself 15 × seeds parallel runs, so a sequential simplex keeps the cluster busy; scipy
+is already a dependency, and a deterministic optimiser on a deterministic objective replays its
+path exactly from the cache after a crash. The objective stays rough at the scale of single
+pedestrians' decisions, so use ``xatol`` of a few percent and start from the grid's best point.
+
+Resumable at two levels: every run is stored (:class:`~crowd_env.calibrate.runs.RunStore`) and every
+evaluated point is appended (fsync) to ``OUT/optimise/evaluations.jsonl``, keyed by its parameter
+values and the evaluation set-up (widths, sizes, seeds, reference, range weight).
+"""
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import math
+import os
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..analysis.calibration import CalibrationError
+from ..analysis.experiment import ExperimentTable, seyfried_2009
+from .backends import execute
+from .grid import INCOMPLETE_RULES, check_run_plan, point_error_of, point_tasks
+from .runs import RunStore, canonical, run_task
+
+FAILED_OBJECTIVE = 1.0e6  # objective of a point whose runs failed (not cached: retried next time)
+
+
+@dataclass(frozen=True)
+class FreeParameter:
+    """A calibratable parameter: its field in ModelParams (``model``) or PedestrianDefaults (``pedestrian``)."""
+
+    field: str
+    target: str
+    log: bool
+    bounds: tuple
+    default: float
+    step: float  # initial simplex step in the optimiser's coordinate (ln x or x)
+
+
+FREE_PARAMETERS = {
+    "A": FreeParameter("social_strength_n", "model", True, (1.0, 5000.0), 790.0, 0.4),
+    "B": FreeParameter("social_range_m", "model", True, (0.005, 0.5), 0.08, 0.3),
+    "lambda": FreeParameter("social_anisotropy", "model", False, (0.0, 1.0), 1.0, 0.2),
+    "tau": FreeParameter("tau_s", "pedestrian", True, (0.05, 3.0), 0.5, 0.2),
+    "speed_mean": FreeParameter("desired_speed_mean_m_s", "pedestrian", True, (0.3, 3.0), 1.34, 0.1),
+    "speed_std": FreeParameter("desired_speed_std_m_s", "pedestrian", True, (0.01, 1.0), 0.26, 0.3),
+}
+METHODS = ("Nelder-Mead", "Powell")
+
+
+@dataclass
+class OptimResult:
+    best: dict  # name -> value
+    objective: float
+    epsilon_total: float
+    n_evaluations: int  # evaluations requested by the optimiser (cached ones included)
+    n_computed: int  # evaluations that needed runs in this call
+    history: list
+    message: str
+
+
+def _setup_hash(widths, sizes, seeds, reference: ExperimentTable | None, range_weight: float, incomplete: str) -> str:
+    ref = seyfried_2009() if reference is None else reference
+    blob = json.dumps({"widths": widths, "sizes": sizes, "seeds": seeds, "range_weight": float(range_weight),
+                       "incomplete": incomplete,
+                       "ref": [ref.width_m.tolist(), ref.n_pedestrians.tolist(), ref.specific_flow_per_m_s.tolist()]},
+                      sort_keys=True)
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def _check_free(free, x0: dict | None, bounds: dict | None) -> tuple:
+    names = list(dict.fromkeys(free))
+    if not names:
+        raise CalibrationError(f"no free parameter given; choose from {list(FREE_PARAMETERS)}")
+    for group, label in ((names, "free"), (x0 or {}, "x0"), (bounds or {}, "bounds")):
+        unknown = sorted(set(group) - set(FREE_PARAMETERS))
+        if unknown:
+            raise CalibrationError(f"unknown {label} parameter(s) {unknown}; choose from {list(FREE_PARAMETERS)}")
+    extra = sorted(set(x0 or {}) - set(names))
+    if extra:
+        raise CalibrationError(f"x0 given for parameter(s) {extra} that are not free {names}")
+    lo, hi, start = [], [], []
+    for name in names:
+        p = FREE_PARAMETERS[name]
+        b = tuple(float(v) for v in (bounds or {}).get(name, p.bounds))
+        v = float((x0 or {}).get(name, p.default))
+        if len(b) != 2 or not all(math.isfinite(t) for t in b) or not b[0] < b[1] or (p.log and b[0] <= 0):
+            raise CalibrationError(f"bounds of {name} must be finite with low < high{' and low > 0' if p.log else ''}, "
+                                   f"got {b}")
+        if not math.isfinite(v) or (p.log and v <= 0):
+            raise CalibrationError(f"start value of {name} must be finite{' and > 0' if p.log else ''}, got {v!r}")
+        if not b[0] <= v <= b[1]:
+            raise CalibrationError(f"start value {name} = {v} lies outside its bounds {b}")
+        f = math.log if p.log else float
+        lo.append(f(b[0]))
+        hi.append(f(b[1]))
+        start.append(f(v))
+    return names, np.array(lo), np.array(hi), np.array(start)
+
+
+class EvaluationCache:
+    """Append-only, fsync'ed JSON lines of evaluated points, keyed by set-up hash and parameter values."""
+
+    def __init__(self, path: Path, setup: str):
+        self.path, self.setup = Path(path), setup
+        self.entries = {}
+        if self.path.exists():
+            for line in self.path.read_text().splitlines():
+                try:
+                    e = json.loads(line)
+                except json.JSONDecodeError:
+                    continue  # a line cut by a kill: that point is simply evaluated again (its runs are stored)
+                if e.get("setup") == setup:
+                    self.entries[self.key(e["values"])] = e
+
+    @staticmethod
+    def key(values: dict) -> str:
+        return json.dumps({k: canonical(v) for k, v in sorted(values.items())})
+
+    def get(self, values: dict):
+        return self.entries.get(self.key(values))
+
+    def add(self, entry: dict) -> None:
+        entry = {"setup": self.setup, **entry}
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        with open(self.path, "a") as fh:
+            fh.write(json.dumps(entry) + "\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        self.entries[self.key(entry["values"])] = entry
+
+
+def optimise(out, config: dict, free, widths_m, sizes, seeds, backend, *, x0: dict | None = None,
+             bounds: dict | None = None, method: str = "Nelder-Mead", max_evaluations: int = 60,
+             xatol: float = 0.02, fatol: float = 1e-4, reference: ExperimentTable | None = None,
+             range_weight: float = 0.0, run_fn=run_task, verbose: bool = True, incomplete: str = "bound") -> OptimResult:
+    """argmin ε_T (+ range_weight × N = 20/40 range penalty) over the ``free`` parameters (Eq. 25).
+
+    ``free``: names in :data:`FREE_PARAMETERS`; ``x0``/``bounds``: per-name start values and bounds in
+    natural units. All candidates use the same ``seeds`` (common random numbers).
+    """
+    from scipy.optimize import minimize
+
+    if method not in METHODS:
+        raise CalibrationError(f"unknown method {method!r}; choose one of {METHODS}")
+    if isinstance(max_evaluations, bool) or int(max_evaluations) != max_evaluations or max_evaluations < 1:
+        raise CalibrationError(f"max_evaluations must be a positive integer, got {max_evaluations!r}")
+    names, lo, hi, z0 = _check_free(free, x0, bounds)
+    if incomplete not in INCOMPLETE_RULES:
+        raise CalibrationError(f"incomplete must be one of {INCOMPLETE_RULES}, got {incomplete!r}")
+    widths_m, sizes, seeds = check_run_plan(widths_m, sizes, seeds)
+    store = RunStore(out, config)
+    cache = EvaluationCache(Path(out) / "optimise" / "evaluations.jsonl",
+                            _setup_hash(widths_m, sizes, seeds, reference, range_weight, incomplete))
+    history = []
+    n_computed = 0
+
+    def values_of(z) -> dict:
+        z = np.clip(z, lo, hi)
+        return {n: canonical(math.exp(v) if FREE_PARAMETERS[n].log else v) for n, v in zip(names, z)}
+
+    def objective(z) -> float:
+        nonlocal n_computed
+        values = values_of(z)
+        entry = cache.get(values)
+        if entry is None:
+            model = {FREE_PARAMETERS[n].field: v for n, v in values.items() if FREE_PARAMETERS[n].target == "model"}
+            ped = {FREE_PARAMETERS[n].field: v for n, v in values.items() if FREE_PARAMETERS[n].target == "pedestrian"}
+            tasks = point_tasks(config, model, ped, widths_m, sizes, seeds)
+            failed = execute(tasks, store, backend, run_fn, desc=f"evaluation {len(history) + 1}", leave=False)
+            n_computed += 1
+            if failed:
+                entry = {"values": values, "objective": FAILED_OBJECTIVE, "epsilon_total": float("nan"),
+                         "failed_runs": failed}
+            else:
+                e = point_error_of(tasks, [store.load(t) for t in tasks], reference, range_weight, incomplete)
+                entry = {"values": values, "objective": e.objective, "epsilon_total": e.epsilon_total,
+                         "epsilon_by_group": {str(k): v for k, v in e.epsilon_by_group.items()},
+                         "range_penalty": e.range_penalty, "n_undefined": e.n_undefined}
+                cache.add(entry)
+        history.append(entry)
+        if verbose:
+            best = min(h["objective"] for h in history)
+            shown = ", ".join(f"{n}={v:.4g}" for n, v in values.items())
+            print(f"[{len(history)}] {shown}: objective {entry['objective']:.5g} (best {best:.5g})", file=sys.stderr)
+        return float(entry["objective"])
+
+    # Keep the start point inside the bounds for the simplex: step away from the nearer bound.
+    options = {"maxfev": int(max_evaluations)}
+    if method == "Nelder-Mead":
+        steps = np.array([FREE_PARAMETERS[n].step for n in names])
+        simplex = np.repeat(z0[None, :], len(names) + 1, axis=0)
+        for k in range(len(names)):
+            up = z0[k] + steps[k] <= hi[k]
+            simplex[k + 1, k] = z0[k] + steps[k] if up else z0[k] - steps[k]
+        options.update(initial_simplex=np.clip(simplex, lo, hi), xatol=xatol, fatol=fatol)
+    else:
+        options.update(xtol=xatol, ftol=fatol)
+    res = minimize(objective, z0, method=method, bounds=list(zip(lo, hi)), options=options)
+    k = int(np.argmin([h["objective"] for h in history]))
+    result = OptimResult(history[k]["values"], float(history[k]["objective"]), float(history[k]["epsilon_total"]),
+                         len(history), n_computed, history, str(res.message))
+    write_optimum(result, Path(out) / "optimise", names, method)
+    return result
+
+
+def write_optimum(result: OptimResult, folder: Path, names: list, method: str) -> list:
+    """``optimum.json`` (best point) and ``history.csv`` (every evaluation in order)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    fields = {n: FREE_PARAMETERS[n].field for n in names}
+    (folder / "optimum.json").write_text(json.dumps({
+        "best": {fields[n]: v for n, v in result.best.items()}, "objective": result.objective,
+        "epsilon_total": result.epsilon_total, "n_evaluations": result.n_evaluations,
+        "n_computed": result.n_computed, "method": method, "message": result.message}, indent=2))
+    with open(folder / "history.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["evaluation"] + [fields[n] for n in names] + ["objective", "epsilon_total"])
+        for i, h in enumerate(result.history, 1):
+            w.writerow([i] + [h["values"][n] for n in names] + [h["objective"], h["epsilon_total"]])
+    return [folder / "optimum.json", folder / "history.csv"]

@@ -1,0 +1,213 @@
+"""Calibrate the social force of Kabalan et al. (2016) against Seyfried et al. (2009) (Section 4.1.2).
+
+``grid``: ε_T (Eq. 24; Eq. 23 per group size) on an (A, B) grid like the paper's Fig. 10 (20 × 20
+linearly spaced values in A ∈ [10, 1000] N, B ∈ [0.01, 0.2] m by default), each point = the
+reproduction's (b, N) runs × seeds; writes ``surface.csv``, ``valley.csv`` (for each B the A minimising
+ε_T), ``calibration.json`` (best point, fit A = a exp(c B) of the valley beside the paper's
+A = 1501 exp(-7.98 B)) and ``fig10_epsilon_surface.png``.
+``optimize``: Nelder–Mead (or Powell) on log-parameters over A, B and optionally lambda, tau,
+speed_mean, speed_std, with the same seeds for every candidate; writes ``optimise/optimum.json``.
+
+Runs execute as single Ray tasks (A, B, b, N, seed): locally on all cores by default, on a running
+cluster with ``--address HOST:PORT``; ``--backend process|serial`` without Ray. Every finished run is
+saved at once under ``OUT/runs/``; rerunning the same command skips finished runs. A folder holding
+another configuration (geometry, model parameters, time limit) is refused.
+
+Examples::
+
+    crowd-calibrate grid --grid-size 4 4 --seeds 1 --out out/calibration
+    crowd-calibrate grid --address 10.0.0.1:6379 --seeds 5 --out out/calibration_fine
+    crowd-calibrate optimize --free A B --x0 A=790 B=0.08 --seeds 3 --out out/calibration
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from pathlib import Path
+
+from crowd_env.analysis.calibration import PAPER_VALLEY_FIT, CalibrationError, check_grid_values, grid_axis
+from crowd_env.analysis.experiment import ExperimentError, ExperimentTable
+from crowd_env.cli.reproduce_bottleneck import GEOMETRY_OPTIONS, config_of, model_params_from_args
+from crowd_env.core.params import ParameterError
+
+
+def _name_value(text: str, what: str):
+    if "=" not in text:
+        raise CalibrationError(f"{what} expects NAME=VALUE, got {text!r}")
+    name, value = text.split("=", 1)
+    return name.strip(), value.strip()
+
+
+def build_parser() -> argparse.ArgumentParser:
+    common = argparse.ArgumentParser(add_help=False)
+    run = common.add_argument_group("runs (each point = widths × sizes × seeds)")
+    run.add_argument("--out", type=Path, default=Path("out/calibration"), help="output folder (resumable)")
+    run.add_argument("--widths", type=float, nargs="+", default=[0.8, 0.9, 1.0, 1.1, 1.2], help="widths b (m)")
+    run.add_argument("--sizes", type=int, nargs="+", default=[20, 40, 60],
+                     help="group sizes N; ε_T uses those with experimental values (N = 60 shipped), N = 20/40 "
+                          "are checked against the range [1.77, 2.31] 1/(m s)")
+    run.add_argument("--seeds", type=int, default=1, help="seeds per (b, N): first..first+S-1 (same at every point)")
+    run.add_argument("--first-seed", type=int, default=0)
+    run.add_argument("--max-time", type=float, default=300.0, help="simulated time limit per run (s)")
+    run.add_argument("--reference", type=Path, default=None,
+                     help="CSV with columns b_m,n_pedestrians,specific_flow_per_m_s (default: shipped Seyfried N = 60)")
+    run.add_argument("--range-weight", type=float, default=0.0,
+                     help="add this × mean (J_s/bound - 1)² of the N without reference outside [1.77, 2.31] (default 0)")
+    run.add_argument("--incomplete", choices=["bound", "partial"], default="bound",
+                     help="runs where not all N passed within --max-time: 'bound' counts J_s = N/((T - t_first) b) "
+                          "(default), 'partial' the reproduction's J_s of the passages so far")
+    dist = common.add_argument_group("distribution")
+    dist.add_argument("--backend", choices=["ray", "process", "serial"], default="ray")
+    dist.add_argument("--address", default=None,
+                      help="Ray cluster to join (HOST:PORT, ray://HOST:PORT or auto); default: local Ray on all cores")
+    dist.add_argument("--jobs", type=int, default=None, help="CPUs of the local Ray instance / process pool")
+    dist.add_argument("--connect-timeout", type=float, default=5.0, help="seconds to reach --address before giving up")
+    g = common.add_argument_group("geometry (Seyfried 2009 defaults, as crowd-bottleneck)")
+    for flag, (_, default) in GEOMETRY_OPTIONS.items():
+        g.add_argument(f"--{flag.replace('_', '-')}", type=float, default=default, dest=flag, help=f"default {default}")
+    g.add_argument("--navigation-clearance", type=float, default=0.0, dest="navigation_clearance")
+    m = common.add_argument_group("fixed model parameters")
+    m.add_argument("--anisotropy", type=float, default=None, dest="social_anisotropy", help="λ in [0, 1]")
+    m.add_argument("--kn", type=float, default=None, dest="normal_dissipation_kg", help="K_n (kg)")
+    m.add_argument("--no-rotation", action="store_true", help="freeze headings (Section 4.1.1)")
+    m.add_argument("--param", action="append", default=[], metavar="NAME=VALUE", help="any other ModelParams field")
+    common.set_defaults(social_strength_n=None, social_range_m=None, no_social=False)
+
+    ap = argparse.ArgumentParser(prog="crowd-calibrate", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="mode", required=True)
+    gp = sub.add_parser("grid", parents=[common], help="ε_T on an (A, B) grid (Fig. 10)")
+    gp.add_argument("--A-range", type=float, nargs=2, default=None, metavar=("LOW", "HIGH"), dest="a_range",
+                    help="default 10 1000 (N)")
+    gp.add_argument("--B-range", type=float, nargs=2, default=None, metavar=("LOW", "HIGH"), dest="b_range",
+                    help="default 0.01 0.2 (m)")
+    gp.add_argument("--grid-size", type=int, nargs=2, default=None, metavar=("N_A", "N_B"),
+                    help="values of A and B (default, as the paper: 20 20)")
+    gp.add_argument("--spacing", choices=["linear", "log"], default="linear", help="grid spacing (paper: linear)")
+    gp.add_argument("--A-values", type=float, nargs="+", default=None, dest="a_values", help="explicit A values (N)")
+    gp.add_argument("--B-values", type=float, nargs="+", default=None, dest="b_values", help="explicit B values (m)")
+    gp.add_argument("--keep-edge-minima", action="store_true",
+                    help="fit A(B) also through minima at the A grid ends (default: interior ones when >= 2)")
+    gp.add_argument("--no-figures", action="store_true")
+    op = sub.add_parser("optimize", aliases=["optimise"], parents=[common], help="minimise ε_T (Eq. 25)")
+    op.add_argument("--free", nargs="+", default=["A", "B"], help="free parameters: A B lambda tau speed_mean speed_std")
+    op.add_argument("--x0", nargs="+", default=[], metavar="NAME=VALUE", help="start values, e.g. A=790 B=0.08")
+    op.add_argument("--bounds", nargs="+", default=[], metavar="NAME=LOW:HIGH", help="bounds, e.g. A=10:3000")
+    op.add_argument("--method", choices=["Nelder-Mead", "Powell"], default="Nelder-Mead")
+    op.add_argument("--max-evaluations", type=int, default=60, help="parameter points evaluated at most")
+    op.add_argument("--xatol", type=float, default=0.02, help="tolerance on ln A, ln B, ... (0.02 = 2 %%)")
+    op.add_argument("--fatol", type=float, default=1e-4, help="tolerance on ε_T")
+    return ap
+
+
+def _reference(path: Path | None):
+    """A reference table from CSV (``#`` comment lines allowed), e.g. with N = 20 / 40 values."""
+    if path is None:
+        return None
+    try:
+        lines = [ln for ln in Path(path).read_text().splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+        rows = list(csv.DictReader(lines))
+        if not rows:
+            raise ValueError("no data rows")
+        return ExperimentTable.from_arrays([float(r["b_m"]) for r in rows], [int(r["n_pedestrians"]) for r in rows],
+                                           [float(r["specific_flow_per_m_s"]) for r in rows], source=str(path))
+    except (OSError, ValueError, KeyError, TypeError, ExperimentError) as exc:
+        raise CalibrationError(f"--reference {path}: {exc!r} (expected columns b_m,n_pedestrians,specific_flow_per_m_s)")
+
+
+def _grid_axes(args):
+    """(A values, B values) from explicit values or range × size; both for one axis is an error."""
+    size = args.grid_size or [20, 20]
+    axes = []
+    for k, (name, values, rng, default) in enumerate((("A", args.a_values, args.a_range, (10.0, 1000.0)),
+                                                      ("B", args.b_values, args.b_range, (0.01, 0.2)))):
+        if values is not None:
+            if rng is not None or args.grid_size is not None:
+                raise CalibrationError(f"--{name}-values sets the {name} grid; do not combine it with --{name}-range "
+                                       f"or --grid-size")
+            axes.append(check_grid_values(values, name))
+        else:
+            lo, hi = rng or default
+            axes.append(grid_axis(lo, hi, size[k], name, args.spacing))
+    return tuple(axes)
+
+
+def run(args) -> int:
+    from crowd_env.calibrate import (RunStore, analyse_surface, base_config, evaluate_grid, make_backend, optimise,
+                                     write_grid_outputs)
+    from crowd_env.calibrate.grid import check_run_plan
+    from crowd_env.scenarios import make_scenario
+
+    params = model_params_from_args(args)
+    cfg = config_of(args, params)
+    config = base_config(cfg["geometry"], params, cfg["max_time_s"])
+    seeds = list(range(args.first_seed, args.first_seed + args.seeds)) if args.seeds >= 1 else []
+    widths, sizes, seeds = check_run_plan(args.widths, args.sizes, seeds)
+    reference = _reference(args.reference)
+    if args.mode == "grid":
+        a, b = _grid_axes(args)
+    else:
+        x0 = {k: float(v) for k, v in (_name_value(t, "--x0") for t in args.x0)}
+        bounds = {}
+        for text in args.bounds:
+            k, v = _name_value(text, "--bounds")
+            lo, sep, hi = v.partition(":")
+            if not sep:
+                raise CalibrationError(f"--bounds expects NAME=LOW:HIGH, got {text!r}")
+            bounds[k] = (float(lo), float(hi))
+    for bw in widths:  # impossible geometry fails here, before any worker starts
+        for n in sizes:
+            make_scenario("seyfried_bottleneck", width_m=bw, n_pedestrians=n, seed=seeds[0], **config["geometry"])
+    RunStore(args.out, config)  # a folder of another configuration is refused before anything runs
+    meta = {"widths_m": widths, "sizes": sizes, "seeds": seeds, "range_weight": args.range_weight,
+            "reference": "shipped Seyfried 2009 N = 60" if reference is None else str(args.reference),
+            "backend": args.backend, "address": args.address, "incomplete": args.incomplete}
+    with make_backend(args.backend, address=args.address, jobs=args.jobs, connect_timeout_s=args.connect_timeout) as be:
+        if args.mode == "grid":
+            result = evaluate_grid(args.out, config, a, b, widths, sizes, seeds, be, reference=reference,
+                                   range_weight=args.range_weight, incomplete=args.incomplete)
+        else:
+            res = optimise(args.out, config, args.free, widths, sizes, seeds, be, x0=x0, bounds=bounds,
+                           method=args.method, max_evaluations=args.max_evaluations, xatol=args.xatol,
+                           fatol=args.fatol, reference=reference, range_weight=args.range_weight,
+                           incomplete=args.incomplete)
+    if args.mode != "grid":
+        shown = ", ".join(f"{k} = {v:.5g}" for k, v in res.best.items())
+        print(f"best after {res.n_evaluations} evaluations ({res.n_computed} computed now): {shown}; "
+              f"objective {res.objective:.5g}, ε_T {res.epsilon_total:.5g} ({res.message})")
+        print(f"results: {args.out / 'optimise' / 'optimum.json'}")
+        return 0
+    if result.n_failed_runs:
+        print(f"warning: {result.n_failed_runs} run(s) failed (see {args.out / 'errors.jsonl'}); rerun to retry them",
+              file=sys.stderr)
+    analysis = analyse_surface(result, use_objective=args.range_weight > 0, exclude_edges=not args.keep_edge_minima)
+    paths = write_grid_outputs(result, args.out, analysis, meta, figure=not args.no_figures)
+    best, fit = analysis["best"], analysis["fit"]
+    print(f"best grid point: A = {best['social_strength_n']:.4g} N, B = {best['social_range_m']:.4g} m, "
+          f"ε_T = {best['epsilon']:.4g}")
+    print("valley of minima (B m: A* N, ε_T):",
+          "; ".join(f"{bb:.3g}: {aa:.4g}, {ee:.3g}" for bb, aa, ee in
+                    zip(analysis["valley"].social_range_m, analysis["valley"].social_strength_n, analysis["valley"].epsilon)))
+    if fit is not None:
+        print(f"fit A = {fit.coefficient_n:.4g} exp({fit.rate_per_m:.4g} B) through {fit.n_points} minima; "
+              f"paper: A = {PAPER_VALLEY_FIT.coefficient_n:g} exp({PAPER_VALLEY_FIT.rate_per_m:g} B)")
+    else:
+        print("fit A(B): needs minima at >= 2 values of B")
+    for p in paths:
+        print(f"wrote {p}")
+    return 0
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return run(args)
+    except (CalibrationError, ParameterError, ValueError) as exc:
+        raise SystemExit(f"error: {exc}") from None
+    except KeyboardInterrupt:
+        raise SystemExit("interrupted: finished runs are saved; rerun the same command to continue") from None
+
+
+if __name__ == "__main__":
+    sys.exit(main())
