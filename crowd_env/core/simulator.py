@@ -28,8 +28,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
-from .collision import (MAX_DENSE_BODIES, MAX_DENSE_PROJECTION_ROWS, MAX_DENSE_ROWS, STATUS_OK, project_gaps,
-                        project_gaps_large, resolve_impacts, solve_clusters, solve_rows_qp, solve_rows_sparse)
+from .projection import project_gaps_alm
+from .collision import (MAX_DENSE_BODIES, MAX_DENSE_PROJECTION_ROWS, MAX_DENSE_ROWS, STATUS_OK, STATUS_TOO_LARGE,
+                        project_gaps, project_gaps_large, resolve_impacts, solve_clusters, solve_rows_qp, solve_rows_sparse)
 from .contacts import CONTACT_FIELDS, contact_candidates, link_geometry
 from .neighbors import grid_pairs
 from .params import ModelParams, ParameterError
@@ -108,7 +109,7 @@ class Simulator:
         self.max_dense_rows = MAX_DENSE_ROWS
         self.max_dense_bodies = MAX_DENSE_BODIES
         self.max_dense_projection_rows = MAX_DENSE_PROJECTION_ROWS
-        self._skip_pivoting = 0
+        self._large_step = -2  # step of the last large projection (project_gaps_alm)
         self.profile = profile
         self._pairs_key = -1
         self._pairs = None
@@ -382,22 +383,27 @@ class Simulator:
         """Gap projection (step 4) in place on ``vel``; returns the projection percussion per contact.
 
         Components of active constraints small enough are solved densely (:func:`project_gaps`);
-        otherwise the whole projection goes to :func:`project_gaps_large` (sparse pivoting; Clarabel
-        and a polish where degenerate jams make pivoting cycle).
+        otherwise the whole projection goes to :func:`project_gaps_alm` (augmented Lagrangian, exact
+        in degenerate jams; tried first right after a large projection), and to
+        :func:`project_gaps_large` should that not converge.
         """
-        v_impact = vel[:, :2].copy()
-        lam_p, _, status = project_gaps(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h, 1e-10,
-                                        self.max_dense_projection_rows)
+        # In a persistent jam the dense path fails every step: skip it right after a large projection
+        # (never after a fused step, so fused and staged runs stay bitwise equal).
+        status = STATUS_TOO_LARGE if self._large_step >= self.step_count - 1 else STATUS_OK
+        if status == STATUS_OK:
+            v_impact = vel[:, :2].copy()
+            lam_p, _, status = project_gaps(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h,
+                                            1e-10, self.max_dense_projection_rows)
+            if status != STATUS_OK:
+                vel[:, :2] = v_impact
         if status != STATUS_OK:
-            vel[:, :2] = v_impact
             self.n_sparse_solves += 1
-            # In a persistent jam pivoting keeps cycling: after a fallback go straight to the interior
-            # point solver (and its polish) for a while, trying pivoting again every 10th time.
-            pivot_first = self._skip_pivoting <= 0
-            lam_p, path = project_gaps_large(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h,
-                                             pivot_first)
-            self._skip_pivoting = 9 if path > 0 and pivot_first else self._skip_pivoting - 1
-            self.n_fallback_solves += int(path > 0)
+            lam_p, _, status = project_gaps_alm(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h,
+                                                np.zeros(con["a"].shape[0]))
+            if status != STATUS_OK:  # not converged (not seen in jams): sparse pivoting, then Clarabel
+                self.n_fallback_solves += 1
+                lam_p, _ = project_gaps_large(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h)
+            self._large_step = self.step_count
         return lam_p
 
     def _redetect(self, con, speed, grown, idx, r_max, h):
