@@ -28,7 +28,7 @@ from pathlib import Path
 
 from crowd_env.analysis.calibration import PAPER_VALLEY_FIT, CalibrationError, check_grid_values, grid_axis
 from crowd_env.analysis.experiment import ExperimentError, ExperimentTable
-from crowd_env.cli.reproduce_bottleneck import GEOMETRY_OPTIONS, config_of, model_params_from_args
+from crowd_env.cli.reproduce_bottleneck import PRESETS, GEOMETRY_OPTIONS, config_of, model_params_from_args
 from crowd_env.core.params import ParameterError
 
 
@@ -66,8 +66,11 @@ def build_parser() -> argparse.ArgumentParser:
     g = common.add_argument_group("geometry (Seyfried 2009 defaults, as crowd-bottleneck)")
     for flag, (_, default) in GEOMETRY_OPTIONS.items():
         g.add_argument(f"--{flag.replace('_', '-')}", type=float, default=default, dest=flag, help=f"default {default}")
-    g.add_argument("--navigation-clearance", type=float, default=0.0, dest="navigation_clearance")
+    g.add_argument("--navigation-clearance", type=float, default=None, dest="navigation_clearance",
+                   help="default: the preset's (0 for 'paper', 0.23 for 'recalibrated')")
     m = common.add_argument_group("fixed model parameters")
+    m.add_argument("--preset", choices=sorted(PRESETS), default="paper",
+                   help="base configuration as in crowd-bottleneck (A and B are then set by the grid/optimiser)")
     m.add_argument("--anisotropy", type=float, default=None, dest="social_anisotropy", help="λ in [0, 1]")
     m.add_argument("--kn", type=float, default=None, dest="normal_dissipation_kg", help="K_n (kg)")
     m.add_argument("--no-rotation", action="store_true", help="freeze headings (Section 4.1.1)")

@@ -40,6 +40,22 @@ GEOMETRY_OPTIONS = {  # CLI flag -> seyfried_bottleneck option, with the Seyfrie
 LANE_BIN_M = 0.01  # Kabalan Section 4.2
 
 
+# Configurations of the model and the navigation, the base that explicit flags override.
+# ``paper``: the published validation point A = 790 N, B = 0.08 m (Section 4.1.3) with the literal point
+# eikonal field (Eq. 11-13) and walls repelling like pedestrians. ``recalibrated``: the paper's own
+# calibration procedure (ε_T, Eq. 23-24, scripts/calibrate.py) redone for the configuration-space field
+# (walls eroded by the radius: e_d never points into a wall) and no social force from walls (Eq. 16 is
+# written between pedestrians; walls act through contacts only): A = 1150 N, B = 0.2 m. With the point
+# field, pairs of pedestrians stall for good beside the entrance when A·B is large (each aims at its
+# corner of the opening and repels the other); only the two changes together cure it
+# (tests/test_bottleneck.py).
+PRESETS = {
+    "paper": {"params": {}, "navigation_clearance_m": 0.0},
+    "recalibrated": {"params": {"social_strength_n": 1150.0, "social_range_m": 0.2, "wall_social_strength_n": 0.0},
+                     "navigation_clearance_m": 0.23},
+}
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="crowd-bottleneck", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -56,11 +72,16 @@ def build_parser() -> argparse.ArgumentParser:
     for flag, (_, default) in GEOMETRY_OPTIONS.items():
         g.add_argument(f"--{flag.replace('_', '-')}", type=float, default=default, dest=flag,
                        help=f"default {default}")
-    g.add_argument("--navigation-clearance", type=float, default=0.0, dest="navigation_clearance",
+    g.add_argument("--navigation-clearance", type=float, default=None, dest="navigation_clearance",
                    help="erode the walkable area by this distance (m) before solving the eikonal field: the "
                         "radius (0.23) gives the configuration space of the disk centres; default 0, the paper's "
-                        "point field (Eq. 11-13), with which its A = 790 N, B = 0.08 m were calibrated")
+                        "point field (Eq. 11-13), with which its A = 790 N, B = 0.08 m were calibrated; "
+                        "0.23 with --preset recalibrated")
     m = ap.add_argument_group("model (Kabalan Table 2 and A = 790 N, B = 0.08 m by default)")
+    m.add_argument("--preset", choices=sorted(PRESETS), default="paper",
+                   help="base configuration of model and navigation (see PRESETS): 'paper' (default) or "
+                        "'recalibrated' (A = 1150 N, B = 0.2 m, configuration-space field, no wall social force); "
+                        "the flags below override it")
     m.add_argument("--A", type=float, default=None, dest="social_strength_n", help="social strength A (N)")
     m.add_argument("--B", type=float, default=None, dest="social_range_m", help="social range B (m)")
     m.add_argument("--anisotropy", type=float, default=None, dest="social_anisotropy", help="λ in [0, 1]")
@@ -83,7 +104,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def model_params_from_args(args) -> ModelParams:
-    changes = {}
+    changes = dict(PRESETS[getattr(args, "preset", "paper")]["params"])
     for name in ("social_strength_n", "social_range_m", "social_anisotropy", "normal_dissipation_kg"):
         if getattr(args, name) is not None:
             changes[name] = getattr(args, name)
@@ -151,9 +172,15 @@ RESULT_COLUMNS = ["width_m", "n_pedestrians", "seed", "specific_flow_per_m_s", "
                   "last_passage_s", "n_passages", "wall_time_s", "n_steps", "n_fallback_solves"]
 
 
+def navigation_clearance_from_args(args) -> float:
+    """--navigation-clearance if given, else the preset's."""
+    value = getattr(args, "navigation_clearance", None)
+    return float(PRESETS[getattr(args, "preset", "paper")]["navigation_clearance_m"] if value is None else value)
+
+
 def config_of(args, params: ModelParams) -> dict:
     geometry = {opt: float(getattr(args, flag)) for flag, (opt, _) in GEOMETRY_OPTIONS.items()}
-    geometry["navigation_clearance_m"] = float(getattr(args, "navigation_clearance", 0.0))
+    geometry["navigation_clearance_m"] = navigation_clearance_from_args(args)
     p = {f.name: getattr(params, f.name) for f in dataclasses.fields(params) if f.name != "extra"}
     return {"geometry": geometry, "params": p, "max_time_s": float(args.max_time)}
 
