@@ -334,6 +334,14 @@ POLY = {"walkable_area": [(0, 0), (8, 0), (8, 6), (0, 6)], "exits": [[(8, 2.5), 
 CATALOGUE_SCENARIO_OPTION = "no_such_option_m"
 
 
+def _warnings_as_errors(call):
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        return call()
+
+
 def _bad_cases():
     """(id, callable, exception type, regex on the message): every one must raise that error naming the problem."""
     cases = [
@@ -480,8 +488,9 @@ def _bad_cases():
             scenario=room_scenario(), scenario_options={"n_pedestrians": 3}), ValueError, r"scenario_options"),
         ("unknown controlled id", lambda: crowd_v0.parallel_env(scenario=room_scenario(), controlled=["ped_7"]),
          ValueError, r"unknown pedestrian id.*ped_7"),
-        ("unknown reset option", lambda: _live_env().reset(seed=0, options={"n_pedestrians": 3}), ValueError,
-         r"option.*n_pedestrians"),
+        ("unknown reset option (ignored, as PettingZoo requires, with a warning)",
+         lambda: _warnings_as_errors(lambda: _live_env().reset(seed=0, options={"n_pedestrians": 3})),
+         crowd_v0.ResetOptionsWarning, r"ignores its options.*n_pedestrians"),
         ("unknown --param in the sweep CLI", lambda: _cli_main(["--param", "kn=1", "--out", "/nonexistent/x"]),
          SystemExit, r"unknown model parameter\(s\): \['kn'\]"),
     ]

@@ -88,11 +88,15 @@ from ..scenarios import Scenario, make_scenario, scenario_options as _scenario_o
 from .observations import OBSERVATION_FIELDS, ObservationBuilder
 from .rewards import DefaultReward
 
-__all__ = ["CrowdParallelEnv", "parallel_env", "env", "EnvOptionError", "ENV_OPTIONS",
+__all__ = ["CrowdParallelEnv", "parallel_env", "env", "EnvOptionError", "ResetOptionsWarning", "ENV_OPTIONS",
            "OBSERVATION_FIELDS", "DEFAULT_ACTION_MAX_M_S", "default_background_policy", "agent_id"]
 
 DEFAULT_ACTION_MAX_M_S = 2.5
 DEFAULT_EPISODE_TIME_S = 60.0
+
+
+class ResetOptionsWarning(UserWarning):
+    """reset() was given options, which it ignores (the environment is configured when made)."""
 
 
 class EnvOptionError(ValueError, TypeError):
@@ -403,13 +407,13 @@ class CrowdParallelEnv(ParallelEnv):
     def reset(self, seed=None, options=None):
         """Start an episode; returns ``(observations, infos)`` of all ``possible_agents``.
 
-        ``options`` must be None or empty: the episode is configured when the environment is made
-        (:data:`ENV_OPTIONS`), so an option here would otherwise pass silently.
+        The episode is configured when the environment is made (:data:`ENV_OPTIONS`): ``options`` are
+        accepted as the PettingZoo API requires, ignored, and named in a :class:`ResetOptionsWarning`.
         """
         if options:
             keys = sorted(options) if isinstance(options, dict) else options
-            raise EnvOptionError(f"reset() takes no options (got {keys!r}); pass environment options to "
-                                 "parallel_env(...) / env(...) or gymnasium.make(...)")
+            warnings.warn(f"reset() ignores its options {keys!r}; pass environment options to parallel_env(...) / "
+                          "env(...) or gymnasium.make(...)", ResetOptionsWarning, stacklevel=2)
         if seed is not None:
             self._rng = np.random.default_rng(seed)
         elif self._rng is None:
