@@ -18,7 +18,8 @@ class CalibrationError(ValueError):
     """Model runs and reference table do not match."""
 
 
-def _runs(width_m, n_pedestrians, specific_flow_per_m_s):
+def _runs(width_m, n_pedestrians, specific_flow_per_m_s, allow_undefined: bool = False):
+    """(b, N, J_s) as flat arrays of equal length; NaN flows are an error unless ``allow_undefined``."""
     b = np.atleast_1d(np.asarray(width_m, dtype=np.float64)).ravel()
     js = np.atleast_1d(np.asarray(specific_flow_per_m_s, dtype=np.float64)).ravel()
     n = np.broadcast_to(np.atleast_1d(np.asarray(n_pedestrians, dtype=np.int64)).ravel(), b.shape)
@@ -26,7 +27,7 @@ def _runs(width_m, n_pedestrians, specific_flow_per_m_s):
         raise CalibrationError(f"width_m and specific_flow_per_m_s must have equal lengths, got {b.size}, {js.size}")
     if b.size == 0:
         raise CalibrationError("no model runs given")
-    if not np.all(np.isfinite(js)):
+    if not allow_undefined and not np.all(np.isfinite(js)):
         raise CalibrationError("model specific flows contain non-finite values")
     return b, n, js
 
@@ -151,13 +152,7 @@ def point_error(width_m, n_pedestrians, specific_flow_per_m_s, reference: Experi
     ``bounds`` is known for); any other is an error naming it.
     """
     ref = seyfried_2009() if reference is None else reference
-    b = np.atleast_1d(np.asarray(width_m, dtype=np.float64)).ravel()
-    js = np.atleast_1d(np.asarray(specific_flow_per_m_s, dtype=np.float64)).ravel()
-    n = np.broadcast_to(np.atleast_1d(np.asarray(n_pedestrians, dtype=np.int64)).ravel(), b.shape)
-    if b.shape != js.shape:
-        raise CalibrationError(f"width_m and specific_flow_per_m_s must have equal lengths, got {b.size}, {js.size}")
-    if b.size == 0:
-        raise CalibrationError("no model runs given")
+    b, n, js = _runs(width_m, n_pedestrians, specific_flow_per_m_s, allow_undefined=True)
     if not (np.isfinite(range_weight) and range_weight >= 0):
         raise CalibrationError(f"range_weight must be a finite number >= 0, got {range_weight!r}")
     undefined = ~np.isfinite(js)

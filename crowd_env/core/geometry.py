@@ -23,6 +23,18 @@ from .segments import GeometryError, as_segments, closest_point_on_segment
 __all__ = ["Geometry", "Raster", "GeometryError", "as_polygon"]
 
 
+def ring_coordinates(coords, what: str) -> np.ndarray:
+    """(K, 2) finite float coordinates of a polygon ring, K ≥ 3; errors name ``what``."""
+    ring = np.asarray(coords, dtype=np.float64)
+    if ring.ndim != 2 or ring.shape[1] != 2:
+        raise GeometryError(f"{what}: coordinates must have shape (K, 2), got {ring.shape}")
+    if ring.shape[0] < 3:
+        raise GeometryError(f"{what}: a polygon needs at least 3 vertices, got {ring.shape[0]}")
+    if not np.all(np.isfinite(ring)):
+        raise GeometryError(f"{what}: coordinates contain non-finite values")
+    return ring
+
+
 def as_polygon(obj, what: str):
     """A valid, non-empty shapely (Multi)Polygon from a shapely geometry, WKT string or (K, 2) coordinates."""
     if isinstance(obj, BaseGeometry):
@@ -33,14 +45,7 @@ def as_polygon(obj, what: str):
         except Exception as exc:  # shapely raises its own error types
             raise GeometryError(f"{what}: cannot parse WKT ({exc})") from exc
     else:
-        coords = np.asarray(obj, dtype=np.float64)
-        if coords.ndim != 2 or coords.shape[1] != 2:
-            raise GeometryError(f"{what}: coordinates must have shape (K, 2), got {coords.shape}")
-        if coords.shape[0] < 3:
-            raise GeometryError(f"{what}: a polygon needs at least 3 vertices, got {coords.shape[0]}")
-        if not np.all(np.isfinite(coords)):
-            raise GeometryError(f"{what}: coordinates contain non-finite values")
-        geom = Polygon(coords)
+        geom = Polygon(ring_coordinates(obj, what))
     if not isinstance(geom, (Polygon, MultiPolygon)):
         raise GeometryError(f"{what}: expected a Polygon or MultiPolygon, got {geom.geom_type}")
     if geom.is_empty:

@@ -27,7 +27,7 @@ from scipy import ndimage
 from shapely.geometry import LineString, Polygon
 from shapely.geometry.base import BaseGeometry
 
-from ..core.geometry import Geometry, GeometryError, as_polygon
+from ..core.geometry import Geometry, GeometryError, as_polygon, ring_coordinates
 from ..core.navigation import NavigationField
 from .base import (Scenario, ScenarioError, check_clearance, check_count, check_positive, door_exit,
                    place_pedestrians, register_scenario)
@@ -43,8 +43,8 @@ def walkable_polygon(walkable_area, holes=()):
     if isinstance(walkable_area, (str, BaseGeometry)):
         area = as_polygon(walkable_area, "walkable area")
     else:
-        outer = _ring(walkable_area, "walkable area")
-        rings = [_ring(h, f"hole {k}") for k, h in enumerate(holes) if not isinstance(h, (str, BaseGeometry))]
+        outer = ring_coordinates(walkable_area, "walkable area")
+        rings = [ring_coordinates(h, f"hole {k}") for k, h in enumerate(holes) if not isinstance(h, (str, BaseGeometry))]
         area = as_polygon(Polygon(outer, rings), "walkable area (with its holes)")
         holes = [h for h in holes if isinstance(h, (str, BaseGeometry))]
     for k, h in enumerate(holes):
@@ -53,17 +53,6 @@ def walkable_polygon(walkable_area, holes=()):
             raise GeometryError(f"hole {k} does not lie inside the walkable area")
         area = area.difference(hole)
     return shapely.normalize(area)
-
-
-def _ring(coords, what: str) -> np.ndarray:
-    ring = np.asarray(coords, dtype=np.float64)
-    if ring.ndim != 2 or ring.shape[1] != 2:
-        raise GeometryError(f"{what}: coordinates must have shape (K, 2), got {ring.shape}")
-    if ring.shape[0] < 3:
-        raise GeometryError(f"{what}: a polygon needs at least 3 vertices, got {ring.shape[0]}")
-    if not np.all(np.isfinite(ring)):
-        raise GeometryError(f"{what}: coordinates contain non-finite values")
-    return ring
 
 
 def _is_coordinates(obj) -> bool:
@@ -103,7 +92,7 @@ def exit_polygons(exits, walkable_area, depth_m: float = 0.5) -> list:
             if pts.shape == (2, 2):
                 out.append(shapely.normalize(door_exit(pts, walkable_area, depth_m, what)))
                 continue
-            e = Polygon(_ring(pts, what))
+            e = Polygon(ring_coordinates(pts, what))
         out.append(shapely.normalize(as_polygon(e, what)))
     return out
 
@@ -133,7 +122,7 @@ def scenario_from_polygon(walkable_area, exits, spawn_area, n_pedestrians: int, 
         exit_names = tuple(str(k) for k in exits)
     geometry = Geometry(area, exits=exit_polygons(exits, area, exit_depth_m), measurement_lines=measurement_lines,
                         name=name)
-    spawn = as_polygon(_ring(spawn_area, "spawn area") if not isinstance(spawn_area, (str, BaseGeometry))
+    spawn = as_polygon(ring_coordinates(spawn_area, "spawn area") if not isinstance(spawn_area, (str, BaseGeometry))
                        else spawn_area, "spawn area")
     outside = spawn.difference(area).area
     if outside > 1e-9:
