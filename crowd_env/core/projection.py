@@ -228,12 +228,12 @@ def _newton_solve(grad, mass, pos, dof, first, off, env):
 
 
 @nb.njit(cache=True)
-def project_gaps_alm(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, lam0):
+def project_gaps_alm(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, lam0, max_newton=ALM_MAX_NEWTON):
     """The projection of :func:`~crowd_env.core.collision.project_gaps` on all candidates at once by
     the augmented Lagrangian method (module docstring), from the multipliers ``lam0`` (≥ 0, e.g. the
     previous step's; zeros without a guess). Exact for degenerate jams. Modifies ``vel[:, :2]`` in
     place on success; returns ``(λ per contact, Newton steps, status)`` (STATUS_MAX_ITER: not
-    converged, ``vel`` left alone)."""
+    converged within ``max_newton`` Newton steps, ``vel`` left alone)."""
     n = vel.shape[0]
     m = c_a.shape[0]
     if m == 0:
@@ -282,7 +282,7 @@ def project_gaps_alm(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, lam0):
                 gmax = max(gmax, abs(grad[i, 0]) / mass[i], abs(grad[i, 1]) / mass[i])
             if gmax <= tol:
                 break
-            if steps >= ALM_MAX_NEWTON:
+            if steps >= max_newton:
                 return lam, steps, STATUS_MAX_ITER
             steps += 1
             same = factor is not None
