@@ -427,3 +427,20 @@ def test_fast_pedestrian_cannot_step_over_a_thin_exit():
             assert res.exited.tolist() == [0] and left_at is None
             left_at = k
     assert left_at is not None and not st.active[0] and st.active[1]
+
+
+def test_grid_pairs_around_match_the_full_list():
+    """The neighbours of a few pedestrians equal the pairs of the full list that involve them."""
+    from crowd_env.core.neighbors import grid_pairs, grid_pairs_around
+
+    rng = np.random.default_rng(11)
+    pos = rng.uniform(0, 12, (600, 2))
+    index = np.sort(rng.choice(600, 500, replace=False)).astype(np.int64)
+    full = grid_pairs(pos, index, 0.7)
+    for rows in (np.array([3], np.int64), np.sort(rng.choice(500, 40, replace=False)).astype(np.int64),
+                 np.arange(500, dtype=np.int64)):
+        marked = np.zeros(500, bool)
+        marked[rows] = True
+        want = sorted(map(tuple, full[marked[full[:, 0]] | marked[full[:, 1]]].tolist()))
+        assert sorted(map(tuple, grid_pairs_around(pos, index, rows, 0.7).tolist())) == want
+    assert grid_pairs_around(pos, index, np.zeros(0, np.int64), 0.7).shape == (0, 2)

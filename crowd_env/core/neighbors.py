@@ -16,15 +16,10 @@ MAX_CELLS_PER_PEDESTRIAN = 4
 
 
 @nb.njit(cache=True)
-def grid_pairs(position, index, radius_m):
-    """Pairs (P, 2) of rows into ``index`` whose centres are at most ``radius_m`` apart.
-
-    ``position`` (N, 2) in metres, ``index`` (n,) int64 rows of ``position`` to consider. Each pair
-    appears once with its smaller row first; the order is deterministic (by cell, then by row).
-    """
+def _cell_grid(position, index, radius_m):
+    """Counting sort of the rows of ``index`` into square cells of side ≥ ``radius_m``: ``(order,
+    start, ncx, ncy, xmin, ymin, cell)``; cell c = cx + ncx·cy holds rows order[start[c]:start[c+1]]."""
     n = index.shape[0]
-    if n < 2 or not radius_m > 0.0:
-        return np.zeros((0, 2), np.int64)
     xmin = np.inf
     ymin = np.inf
     xmax = -np.inf
@@ -47,11 +42,8 @@ def grid_pairs(position, index, radius_m):
     cell_of = np.empty(n, np.int64)
     start = np.zeros(n_cells + 1, np.int64)
     for k in range(n):
-        cx = min(int((position[index[k], 0] - xmin) / cell), ncx - 1)
-        cy = min(int((position[index[k], 1] - ymin) / cell), ncy - 1)
-        c = cx + ncx * cy
-        cell_of[k] = c
-        start[c + 1] += 1
+        cell_of[k] = _cell_index(position[index[k], 0], position[index[k], 1], xmin, ymin, cell, ncx, ncy)
+        start[cell_of[k] + 1] += 1
     for c in range(n_cells):
         start[c + 1] += start[c]
     fill = start[:-1].copy()
@@ -60,6 +52,79 @@ def grid_pairs(position, index, radius_m):
         c = cell_of[k]
         order[fill[c]] = k
         fill[c] += 1
+    return order, start, ncx, ncy, xmin, ymin, cell
+
+
+@nb.njit(cache=True, inline="always")
+def _cell_index(x, y, xmin, ymin, cell, ncx, ncy):
+    cx = min(int((x - xmin) / cell), ncx - 1)
+    cy = min(int((y - ymin) / cell), ncy - 1)
+    return cx + ncx * cy
+
+
+@nb.njit(cache=True)
+def grid_pairs_around(position, index, rows, radius_m):
+    """Pairs (P, 2) of rows into ``index``, within ``radius_m``, that involve at least one of the
+    distinct ``rows`` (each pair once, smaller row first): the neighbours of a few pedestrians without enumerating
+    every pair of the crowd (O(n) for the grid plus the few neighbourhoods)."""
+    n = index.shape[0]
+    if n < 2 or rows.shape[0] == 0 or not radius_m > 0.0:
+        return np.zeros((0, 2), np.int64)
+    order, start, ncx, ncy, xmin, ymin, cell = _cell_grid(position, index, radius_m)
+    marked = np.zeros(n, np.bool_)
+    for k in range(rows.shape[0]):
+        marked[rows[k]] = True
+    r2 = radius_m * radius_m
+    cap = 16 * rows.shape[0] + 16
+    while True:
+        out = np.empty((cap, 2), np.int64)
+        m = 0
+        full = False
+        for k in range(rows.shape[0]):
+            a = rows[k]
+            xa = position[index[a], 0]
+            ya = position[index[a], 1]
+            c = _cell_index(xa, ya, xmin, ymin, cell, ncx, ncy)
+            cx = c % ncx
+            cy = c // ncx
+            for qy in range(max(cy - 1, 0), min(cy + 2, ncy)):
+                for qx in range(max(cx - 1, 0), min(cx + 2, ncx)):
+                    q = qx + ncx * qy
+                    for t in range(start[q], start[q + 1]):
+                        b = order[t]
+                        if b == a or (marked[b] and b < a):
+                            continue  # itself, or a pair of two marked rows found from the smaller one
+                        dx = position[index[b], 0] - xa
+                        dy = position[index[b], 1] - ya
+                        if dx * dx + dy * dy <= r2:
+                            if m == cap:
+                                full = True
+                                break
+                            out[m, 0] = min(a, b)
+                            out[m, 1] = max(a, b)
+                            m += 1
+                    if full:
+                        break
+                if full:
+                    break
+            if full:
+                break
+        if not full:
+            return out[:m].copy()
+        cap *= 4
+
+
+@nb.njit(cache=True)
+def grid_pairs(position, index, radius_m):
+    """Pairs (P, 2) of rows into ``index`` whose centres are at most ``radius_m`` apart.
+
+    ``position`` (N, 2) in metres, ``index`` (n,) int64 rows of ``position`` to consider. Each pair
+    appears once with its smaller row first; the order is deterministic (by cell, then by row).
+    """
+    n = index.shape[0]
+    if n < 2 or not radius_m > 0.0:
+        return np.zeros((0, 2), np.int64)
+    order, start, ncx, ncy, xmin, ymin, cell = _cell_grid(position, index, radius_m)
     cap = 8 * n
     while True:  # a crowd denser than ~8 neighbours each within the radius needs a larger buffer
         out = np.empty((cap, 2), np.int64)

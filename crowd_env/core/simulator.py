@@ -32,7 +32,7 @@ from .projection import project_gaps_alm
 from .collision import (MAX_DENSE_BODIES, MAX_DENSE_PROJECTION_ROWS, MAX_DENSE_ROWS, STATUS_OK, STATUS_TOO_LARGE,
                         project_gaps, project_gaps_large, resolve_impacts, solve_clusters, solve_rows_qp, solve_rows_sparse)
 from .contacts import CONTACT_FIELDS, contact_candidates, link_geometry
-from .neighbors import grid_pairs
+from .neighbors import grid_pairs, grid_pairs_around
 from .params import ModelParams, ParameterError
 from .segments import as_segments, endpoint_owners, wall_proximity
 from .state import CrowdState, StateError
@@ -428,13 +428,16 @@ class Simulator:
         (compact rows ``grown``) can be new (positions have not moved yet in this step)."""
         p = self.params
         reach = 2.0 * r_max + p.contact_tolerance_m + 2.0 * h * (float(speed[grown].max()) + float(speed.max()))
-        pairs = grid_pairs(self.state.position_m, idx, reach)
-        is_grown = np.zeros(idx.shape[0], bool)
-        is_grown[grown] = True
-        pairs = pairs[is_grown[pairs[:, 0]] | is_grown[pairs[:, 1]]]
-        con2 = dict(zip(CONTACT_FIELDS, contact_candidates(self.state.position_m, self.state.radius_m, speed, idx,
-                                                           pairs, self.walls, self._wall_owner,
+        pairs = grid_pairs_around(self.state.position_m, idx, grown, reach)
+        # Candidates among the grown pedestrians and their neighbours only (rows ``sub`` of idx).
+        sub = np.unique(np.concatenate([grown, pairs.ravel()]))
+        row_in_sub = np.full(idx.shape[0], -1, np.int64)
+        row_in_sub[sub] = np.arange(sub.shape[0])
+        con2 = dict(zip(CONTACT_FIELDS, contact_candidates(self.state.position_m, self.state.radius_m, speed[sub],
+                                                           idx[sub], row_in_sub[pairs], self.walls, self._wall_owner,
                                                            p.contact_tolerance_m, h)))
+        con2["a"] = sub[con2["a"]]
+        con2["b"] = np.where(con2["b"] >= 0, sub[np.maximum(con2["b"], 0)], -1)
         n = idx.shape[0]
         n_seg = max(1, self.walls.shape[0])
 
