@@ -255,22 +255,19 @@ def test_bad_input_gives_clear_errors(tmp_path, run):
     with pytest.raises(TrajectoryFormatError, match="no frame rate"):
         Trajectories.read_txt(_write(tmp_path / "a.txt", "# id frame x/m y/m z/m\n0 0 1.0 2.0 0.0\n"))
     assert len(Trajectories.read_txt(tmp_path / "a.txt", default_frame_rate_per_s=10.0)) == 1
-    with pytest.raises(TrajectoryFormatError, match="positive"):
-        Trajectories.read_txt(_write(tmp_path / "b.txt", "#framerate: 0\n0 0 1.0 2.0 0.0\n"))
-    with pytest.raises(TrajectoryFormatError, match="holds no number"):
-        Trajectories.read_txt(_write(tmp_path / "c.txt", "#framerate: fast\n0 0 1.0 2.0 0.0\n"))
-    with pytest.raises(TrajectoryFormatError, match="no trajectory rows"):
-        Trajectories.read_txt(_write(tmp_path / "d.txt", "#framerate: 25\n"))
-    with pytest.raises(TrajectoryFormatError, match="not a trajectory file: data row 1 has 1 whitespace"):
-        Trajectories.read_txt(_write(tmp_path / "e.txt", "#framerate: 25\nwidth_m,n,seed,flow\n1.0,20,0,1.1\n"))
-    with pytest.raises(TrajectoryFormatError, match="not a trajectory file: non-numeric"):
-        Trajectories.read_txt(_write(tmp_path / "e2.txt", "#framerate: 25\nid frame x y z\n0 0 1 2 0\n"))
-    with pytest.raises(TrajectoryFormatError, match="row 2 has 3 whitespace"):
-        Trajectories.read_txt(_write(tmp_path / "f.txt", "#framerate: 25\n0 0 1 2 0\n0 1 1\n"))
-    with pytest.raises(TrajectoryFormatError, match="twice in frame 3"):
-        Trajectories.read_txt(_write(tmp_path / "g.txt", "#framerate: 25\n7 3 1 2 0\n7 3 1.1 2 0\n"))
-    with pytest.raises(TrajectoryFormatError, match="integers"):
-        Trajectories.read_txt(_write(tmp_path / "h.txt", "#framerate: 25\n0.5 3 1 2 0\n"))
+    bad_files = [  # (file text, the error names the problem)
+        ("#framerate: 0\n0 0 1.0 2.0 0.0\n", "positive"),
+        ("#framerate: fast\n0 0 1.0 2.0 0.0\n", "holds no number"),
+        ("#framerate: 25\n", "no trajectory rows"),
+        ("#framerate: 25\nwidth_m,n,seed,flow\n1.0,20,0,1.1\n", "not a trajectory file: data row 1 has 1 whitespace"),
+        ("#framerate: 25\nid frame x y z\n0 0 1 2 0\n", "not a trajectory file: non-numeric"),
+        ("#framerate: 25\n0 0 1 2 0\n0 1 1\n", "row 2 has 3 whitespace"),
+        ("#framerate: 25\n7 3 1 2 0\n7 3 1.1 2 0\n", "twice in frame 3"),
+        ("#framerate: 25\n0.5 3 1 2 0\n", "integers"),
+    ]
+    for k, (text, match) in enumerate(bad_files):
+        with pytest.raises(TrajectoryFormatError, match=match):
+            Trajectories.read_txt(_write(tmp_path / f"bad{k}.txt", text))
     with pytest.raises(TrajectoryFormatError, match="non-finite position"):
         Trajectories([0], [0], [np.nan], [0.0], None, 25.0)
     with pytest.raises(TrajectoryFormatError, match="frame_rate_per_s must be a positive"):
