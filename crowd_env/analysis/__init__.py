@@ -1,7 +1,9 @@
 """Measurements on simulated (or experimental) trajectories: passages and specific flow (Eq. 22),
 density, lanes, calibration errors (Eq. 23-24), the Seyfried et al. (2009) reference, and trajectories in PedPy's
 formats. Knows nothing of RL."""
-from .calibration import CalibrationError, RangeCheck, epsilon_j, epsilon_total, in_range_check, relative_squared_errors
+from .calibration import (CalibrationError, ExponentialFit, PointError, RangeCheck, Valley, best_grid_point, epsilon_j,
+                          epsilon_total, fit_exponential_valley, in_range_check, point_error, relative_squared_errors,
+                          valley_of_minima)
 from .density import DensityError, as_polygon, density_in_area, density_time_series, stationary_mean
 from .experiment import (DIP_N20_WIDTH_M, GROUP_SIZES, PUBLISHED_SPECIFIC_FLOW_N60_PER_M_S, RESIDUAL_NORM_BY_GROUP,
                          SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, WIDTHS_M, ExperimentError, ExperimentTable, seyfried_2009)
@@ -14,6 +16,8 @@ from .trajectories import (Trajectories, TrajectoryFormatError, export_run, read
 
 __all__ = [
     "CalibrationError", "RangeCheck", "epsilon_j", "epsilon_total", "in_range_check", "relative_squared_errors",
+    "ExponentialFit", "PointError", "Valley", "best_grid_point", "fit_exponential_valley", "point_error",
+    "valley_of_minima",
     "DensityError", "as_polygon", "density_in_area", "density_time_series", "stationary_mean",
     "DIP_N20_WIDTH_M", "GROUP_SIZES", "PUBLISHED_SPECIFIC_FLOW_N60_PER_M_S", "RESIDUAL_NORM_BY_GROUP",
     "SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S", "WIDTHS_M", "ExperimentError", "ExperimentTable", "seyfried_2009",
