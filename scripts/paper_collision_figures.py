@@ -162,10 +162,9 @@ def fig7_data(theta_dot0_values, k_values=np.linspace(0.5, 18.5, 37)):
 
 # ---------------------------------------------------------------- figures
 def make_figures(out_dir):
-    import matplotlib
+    from crowd_env.analysis.figures import pyplot, save_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     os.makedirs(out_dir, exist_ok=True)
     paths = []
@@ -191,10 +190,7 @@ def make_figures(out_dir):
               f"K_n=1e6: ({n1[-1]:+.4f}, {n2[-1]:+.4f}); elastic limit Eq. 18: "
               f"({head_on_elastic(c['m1'], c['m2'], c['u1'], c['u2'])[0]:+.4f}, "
               f"{head_on_elastic(c['m1'], c['m2'], c['u1'], c['u2'])[1]:+.4f})")
-    fig.tight_layout()
-    paths.append(os.path.join(out_dir, "fig5_head_on.png"))
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths.append(save_figure(fig, os.path.join(out_dir, "fig5_head_on.png")))
     # Fig. 6
     k_tg, td = fig6_data()
     fig, ax = plt.subplots(figsize=(5.5, 4))
@@ -205,10 +201,7 @@ def make_figures(out_dir):
     ax.set_ylabel("θ̇₀ [rad/s]")
     ax.set_title("Spin after an oblique impact (45°, 1 m/s, 83 kg)")
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    paths.append(os.path.join(out_dir, "fig6_spin_vs_ktg.png"))
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths.append(save_figure(fig, os.path.join(out_dir, "fig6_spin_vs_ktg.png")))
     print("Fig. 6: θ̇₀ [rad/s] after a 45° impact at 1 m/s (83 kg, r 0.23 m), K_n = 1e5 kg:")
     for k in (1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6):
         print(f"  K_tg = {k:8.0e} kg: θ̇₀ = {oblique_spin(k)[0]:+.5f}  (K_n = 2e3: {oblique_spin(k, k_n=2e3)[0]:+.5f})")
@@ -225,10 +218,7 @@ def make_figures(out_dir):
     ax.set_ylabel("θ [deg]")
     ax.set_title("Heading after the impact (dashed: Eq. 20)")
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    paths.append(os.path.join(out_dir, "fig6_theta_of_t.png"))
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths.append(save_figure(fig, os.path.join(out_dir, "fig6_theta_of_t.png")))
     # Fig. 7
     td_grid = np.linspace(0.0, max(abs(td.min()), abs(td.max())), 41)
     tdv, kk, surf = fig7_data(td_grid)
@@ -239,10 +229,7 @@ def make_figures(out_dir):
     ax.set_xlabel("θ̇₀ [rad/s]")
     ax.set_ylabel("k [N m / rad]")
     ax.set_title("θ_max (Eq. 21)")
-    fig.tight_layout()
-    paths.append(os.path.join(out_dir, "fig7_theta_max.png"))
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths.append(save_figure(fig, os.path.join(out_dir, "fig7_theta_max.png")))
     print(f"Fig. 7: θ_max over θ̇₀ in [0, {td_grid[-1]:.3f}] rad/s and k in [0.5, 18.5]: "
           f"max {np.degrees(surf.max()):.2f}° (k = 0.5), at k = 18.5: {np.degrees(surf[-1].max()):.2f}°")
     return paths

@@ -10,7 +10,8 @@ from .flow import linear_fit
 from .lanes import detect_lanes
 
 
-def _plt():
+def pyplot():
+    """matplotlib.pyplot on the non-interactive Agg backend (imported on first use)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -19,9 +20,18 @@ def _plt():
     return plt
 
 
+def save_figure(fig, path):
+    """Lay out, write (120 dpi) and close ``fig``; returns ``path``. Every figure of the project goes
+    through here."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    pyplot().close(fig)
+    return path
+
+
 def bottleneck_figures(records: list, rows: list, out: Path) -> list:
     """Write Figs. 11-14 analogues into ``out``; returns the paths written."""
-    plt = _plt()
+    plt = pyplot()
     out = Path(out)
     exp = seyfried_2009()
     sizes = sorted({r["n_pedestrians"] for r in rows})
@@ -41,10 +51,7 @@ def bottleneck_figures(records: list, rows: list, out: Path) -> list:
             ax.axhspan(lo, hi, color="0.85", label="experimental range")
         ax.set(title=f"N = {n}", xlabel="b (m)", ylabel="J_s (1/(m s))", ylim=(1.0, 3.0))
         ax.legend(fontsize=8)
-    fig.tight_layout()
-    paths.append(out / "fig11_specific_flow.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths.append(save_figure(fig, out / "fig11_specific_flow.png"))
     # Fig. 12: densities in front of and inside the bottleneck (N = 60 where present).
     n_d = 60 if 60 in sizes else sizes[-1]
     sub = [r for r in rows if r["n_pedestrians"] == n_d]
@@ -55,10 +62,7 @@ def bottleneck_figures(records: list, rows: list, out: Path) -> list:
         ax.axhspan(*band, color="0.85", label="experiment")
         ax.set(title=f"density {title}, N = {n_d}", xlabel="b (m)", ylabel="ρ (1/m²)", ylim=(0, 7))
         ax.legend(fontsize=8)
-    fig.tight_layout()
-    paths.append(out / "fig12_density.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths.append(save_figure(fig, out / "fig12_density.png"))
     # Fig. 13: J vs b with linear fits and residual norms.
     fig, axes = plt.subplots(1, len(sizes), figsize=(4.2 * len(sizes), 3.6), squeeze=False)
     for ax, n in zip(axes[0], sizes):
@@ -74,10 +78,7 @@ def bottleneck_figures(records: list, rows: list, out: Path) -> list:
             ax.plot(exp.width_m[sel], exp.flow_per_s[sel], "ks", label="Seyfried 2009")
         ax.set(title=f"N = {n}", xlabel="b (m)", ylabel="J (1/s)")
         ax.legend(fontsize=8)
-    fig.tight_layout()
-    paths.append(out / "fig13_flow_linear.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths.append(save_figure(fig, out / "fig13_flow_linear.png"))
     # Fig. 14: lateral-position histograms (N = 60) at each simulated width.
     widths = sorted({r["width_m"] for r in records if r["n_pedestrians"] == n_d})
     fig, axes = plt.subplots(1, len(widths), figsize=(3.2 * len(widths), 3.2), squeeze=False, sharey=True)
@@ -91,10 +92,7 @@ def bottleneck_figures(records: list, rows: list, out: Path) -> list:
         ax.bar(centers, prob, width=step)
         ax.set(title=f"b = {b:.1f} m: {lanes.n_lanes} lane(s)", xlabel="y (m)", xlim=(-b / 2 - 0.05, b / 2 + 0.05))
     axes[0][0].set_ylabel("probability")
-    fig.tight_layout()
-    paths.append(out / "fig14_lanes.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths.append(save_figure(fig, out / "fig14_lanes.png"))
     # Diagnostic: discharge rate vs the number of pedestrians not yet passed (records with crossing times).
     path = discharge_figure(records, out / "fig15_discharge.png")
     if path is not None:
@@ -126,7 +124,7 @@ def discharge_figure(records: list, path: Path, window: int = 5):
     recs = [r for r in records if len(r.get("crossing_times_s") or []) > window]
     if not recs:
         return None
-    plt = _plt()
+    plt = pyplot()
     exp = seyfried_2009()
     fig, ax = plt.subplots(figsize=(5.6, 3.8))
     for k, n in enumerate(sorted({r["n_pedestrians"] for r in recs})):
@@ -145,9 +143,7 @@ def discharge_figure(records: list, path: Path, window: int = 5):
     ax.set(xlabel="pedestrians not yet passed", ylabel=f"J_s over {window} passages (1/(m s))",
            title="discharge rate vs crowd left behind")
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path)
     return Path(path)
 
 
@@ -161,7 +157,7 @@ def fundamental_diagram_figure(data_by_area: dict, path: Path, title: str | None
         raise ValueError("fundamental_diagram_figure needs at least one measurement area's data")
     if not (np.isfinite(bin_width_per_m2) and bin_width_per_m2 > 0):
         raise ValueError(f"bin_width_per_m2 must be > 0, got {bin_width_per_m2!r}")
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(9.0, 3.8))
     for k, (name, d) in enumerate(data_by_area.items()):
         rho = np.asarray(d["density_per_m2"], dtype=float)
@@ -183,7 +179,5 @@ def fundamental_diagram_figure(data_by_area: dict, path: Path, title: str | None
         ax.legend(fontsize=8)
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path)
     return Path(path)

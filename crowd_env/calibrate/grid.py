@@ -196,11 +196,11 @@ def write_grid_outputs(result: GridResult, out, analysis: dict, meta: dict | Non
 
 def surface_figure(result: GridResult, analysis: dict, path) -> Path:
     """Fig. 10 analogue: ε_T over (B, A) (log colour scale), valley minima, fitted and paper curves."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.colors import LogNorm
+
+    from ..analysis.figures import pyplot, save_figure
+
+    plt = pyplot()
 
     a, b, eps = result.social_strength_n, result.social_range_m, result.epsilon_total
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
@@ -228,7 +228,5 @@ def surface_figure(result: GridResult, analysis: dict, path) -> Path:
     ax.set_ylabel("A (N)")
     ax.set_title("ε_T(A, B), Kabalan et al. (2016) Fig. 10")
     ax.legend(fontsize=7, loc="upper right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path)
     return Path(path)
