@@ -487,6 +487,19 @@ def _normal_velocity(vel, a, b, nx, ny):
 
 
 @nb.njit(cache=True)
+def _group_by(keys, n_keys):
+    """Stable order of ``keys`` (ints in [0, n_keys)) and the start of each key's run in it:
+    the items with key k are ``order[start[k]:start[k + 1]]``."""
+    order = np.argsort(keys, kind="mergesort")
+    start = np.zeros(n_keys + 1, np.int64)
+    for i in range(keys.shape[0]):
+        start[keys[i] + 1] += 1
+    for k in range(n_keys):
+        start[k + 1] += start[k]
+    return order, start
+
+
+@nb.njit(cache=True)
 def resolve_impacts(vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b,
                     l_a, l_b, dvec, gi, gj, k_n, k_tg, k_v, eps_m, vtol, rotation, max_dense_rows,
                     max_dense_bodies=MAX_DENSE_BODIES):
@@ -532,32 +545,18 @@ def resolve_impacts(vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_
             need[root[c_a[c]]] = True
     for l in range(nl):
         need[root[l_a[l]]] = True
-    # Group bodies, impact contacts and links by root (counting sort).
-    body_order = np.argsort(root, kind="mergesort")
-    body_start = np.zeros(n + 1, np.int64)
-    for i in range(n):
-        body_start[root[i] + 1] += 1
-    for i in range(n):
-        body_start[i + 1] += body_start[i]
+    # Group bodies, impact contacts and links by root.
+    body_order, body_start = _group_by(root, n)
     imp_ids = np.flatnonzero(in_impact)
     imp_root = np.empty(imp_ids.shape[0], np.int64)
     for k in range(imp_ids.shape[0]):
         imp_root[k] = root[c_a[imp_ids[k]]]
-    imp_sorted = imp_ids[np.argsort(imp_root, kind="mergesort")]
-    con_start = np.zeros(n + 1, np.int64)
-    for k in range(imp_ids.shape[0]):
-        con_start[imp_root[k] + 1] += 1
-    for i in range(n):
-        con_start[i + 1] += con_start[i]
+    imp_order, con_start = _group_by(imp_root, n)
+    imp_sorted = imp_ids[imp_order]
     link_root = np.empty(nl, np.int64)
     for l in range(nl):
         link_root[l] = root[l_a[l]]
-    link_sorted = np.argsort(link_root, kind="mergesort")
-    link_start = np.zeros(n + 1, np.int64)
-    for l in range(nl):
-        link_start[link_root[l] + 1] += 1
-    for i in range(n):
-        link_start[i + 1] += link_start[i]
+    link_sorted, link_start = _group_by(link_root, n)
     local = np.full(n, -1, np.int64)
     n_clusters = 0
     max_cluster = 0
