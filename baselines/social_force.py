@@ -14,8 +14,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from crowd_env.core.forces import social_forces, social_repulsion, wall_social_forces
-from crowd_env.core.segments import wall_proximity
+from crowd_env.core.forces import social_repulsion, total_social_forces
 
 
 @nb.njit(cache=True)
@@ -25,7 +24,8 @@ def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, hea
 
     ``index`` (n,) active pedestrians, ``e_d`` (n, 2) their desired directions (Eq. 13), ``pairs``
     rows into ``index``. Returns full (N, 2) intents (zero for inactive rows) and (N,) desired
-    headings (the current heading for inactive rows). Same arithmetic as :func:`social_repulsion`.
+    headings (the current heading for inactive rows). The forces are :func:`social_repulsion`'s
+    compiled core, :func:`~crowd_env.core.forces.total_social_forces`.
     """
     n = index.shape[0]
     intents = np.zeros((position.shape[0], 2))
@@ -38,12 +38,8 @@ def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, hea
             pos[k, 0] = position[index[k], 0]
             pos[k, 1] = position[index[k], 1]
             rad[k] = radius[index[k]]
-        social_forces(pos, rad, e_d, pairs, strength_n, range_m, anisotropy, cutoff_m, force)
-        if walls.shape[0]:
-            rows = np.arange(n)
-            ped, _seg, gap, nx, ny, _cx, _cy = wall_proximity(pos, rad, rows, walls, wall_owner, np.full(n, cutoff_m))
-            wall_social_forces(e_d, rows, ped, gap, nx, ny, wall_strength_n, wall_range_m, anisotropy, cutoff_m,
-                               force)
+        total_social_forces(pos, rad, e_d, pairs, np.arange(n), walls, wall_owner, strength_n, range_m, anisotropy,
+                            cutoff_m, wall_strength_n, wall_range_m, force)
     for k in range(n):
         i = index[k]
         scale = tau[i] / mass[i]

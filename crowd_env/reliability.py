@@ -15,7 +15,7 @@ pedestrians still on the floor,
 - ``energy_report_mismatch``: the reported post-projection energy equals the energy of the final
   velocities recomputed here from the state (so the reported energies are the simulated ones).
 
-The checks read the state only; they never call the simulator (whose per-step k-d tree caches they
+The checks read the state only; they never call the simulator (whose per-step neighbour caches they
 would otherwise touch), so a checked run is bitwise the same as an unchecked one.
 """
 from __future__ import annotations

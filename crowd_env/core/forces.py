@@ -20,7 +20,7 @@ is the paper-literal model. With A = 790 N, B = 0.08 m it is a large force (a pe
 wall feels 226 N, the driving force of an average walker m v_d / τ is 222 N); it is what slows
 pedestrians beside the bottleneck entrance.
 
-Neighbour pairs come from the simulator (``scipy.spatial.cKDTree.query_pairs``); pedestrian/wall
+Neighbour pairs come from the simulator (the cell grid of :mod:`crowd_env.core.neighbors`); pedestrian/wall
 pairs from :func:`crowd_env.core.segments.wall_proximity`. Pairs whose surface gap exceeds
 ``cutoff_m`` contribute nothing.
 """
@@ -103,6 +103,29 @@ def wall_social_forces(desired_direction, index, ped, gap, normal_x, normal_y, s
     return out
 
 
+@nb.njit(cache=True)
+def wall_forces_within(position, radius, desired_direction, index, segments, owner, strength_n, range_m, anisotropy,
+                       cutoff_m, out):
+    """Compiled core of :func:`wall_repulsion`: wall neighbours of pedestrians ``index`` within
+    ``cutoff_m`` (:func:`wall_proximity`) and their repulsion (:func:`wall_social_forces`) into ``out``."""
+    if segments.shape[0] == 0:
+        return out
+    ped, _seg, gap, nx, ny, _cx, _cy = wall_proximity(position, radius, index, segments, owner,
+                                                      np.full(index.shape[0], cutoff_m))
+    return wall_social_forces(desired_direction, index, ped, gap, nx, ny, strength_n, range_m, anisotropy, cutoff_m,
+                              out)
+
+
+@nb.njit(cache=True)
+def total_social_forces(position, radius, desired_direction, pairs, index, segments, owner, strength_n, range_m,
+                        anisotropy, cutoff_m, wall_strength_n, wall_range_m, out):
+    """Compiled core of :func:`social_repulsion` (Eq. 16 between the ``pairs`` and from the walls near
+    pedestrians ``index``), accumulated into ``out``; also called from other compiled code."""
+    social_forces(position, radius, desired_direction, pairs, strength_n, range_m, anisotropy, cutoff_m, out)
+    return wall_forces_within(position, radius, desired_direction, index, segments, owner, wall_strength_n,
+                              wall_range_m, anisotropy, cutoff_m, out)
+
+
 def wall_repulsion(position, radius, desired_direction, segments, owner, strength_n, range_m, anisotropy,
                    cutoff_m, out, index=None):
     """Query :func:`wall_proximity` within ``cutoff_m`` and accumulate wall repulsion into ``out``.
@@ -110,15 +133,10 @@ def wall_repulsion(position, radius, desired_direction, segments, owner, strengt
     ``index`` (int array) restricts to those pedestrians (e.g. the active ones); default all.
     ``owner`` comes from :func:`~crowd_env.core.segments.endpoint_owners` (shared corners once).
     """
-    if segments.shape[0] == 0:
-        return out
-    if index is None:
-        index = np.arange(position.shape[0], dtype=np.int64)
-    index = np.ascontiguousarray(index, dtype=np.int64)
-    margin = np.full(index.shape[0], float(cutoff_m))
-    ped, _seg, gap, nx, ny, _cx, _cy = wall_proximity(position, radius, index, segments, owner, margin)
-    return wall_social_forces(desired_direction, index, ped, gap, nx, ny, float(strength_n), float(range_m),
-                              float(anisotropy), float(cutoff_m), out)
+    index = np.arange(position.shape[0], dtype=np.int64) if index is None else \
+        np.ascontiguousarray(index, dtype=np.int64)
+    return wall_forces_within(position, radius, desired_direction, index, segments, owner, float(strength_n),
+                              float(range_m), float(anisotropy), float(cutoff_m), out)
 
 
 def social_repulsion(position, radius, desired_direction, pairs, segments, owner, params, index=None, out=None):
@@ -138,11 +156,11 @@ def social_repulsion(position, radius, desired_direction, pairs, segments, owner
     pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
     if pairs.size and (pairs.min() < 0 or pairs.max() >= n):
         raise ValueError(f"neighbour pairs index pedestrians outside 0..{n - 1}")
-    social_forces(position, radius, desired_direction, pairs, float(params.social_strength_n),
-                  float(params.social_range_m), float(params.social_anisotropy), float(params.social_cutoff_m), out)
-    wall_repulsion(position, radius, desired_direction, segments, owner, params.wall_strength_n,
-                   params.wall_range_m, params.social_anisotropy, params.social_cutoff_m, out, index=index)
-    return out
+    index = np.arange(n, dtype=np.int64) if index is None else np.ascontiguousarray(index, dtype=np.int64)
+    return total_social_forces(position, radius, desired_direction, pairs, index, segments, owner,
+                               float(params.social_strength_n), float(params.social_range_m),
+                               float(params.social_anisotropy), float(params.social_cutoff_m),
+                               float(params.wall_strength_n), float(params.wall_range_m), out)
 
 
 def social_forces_dense_reference(position, radius, desired_direction, segments, strength_n, range_m, anisotropy,
@@ -207,6 +225,8 @@ __all__ = [
     "social_forces",
     "wall_social_forces",
     "wall_repulsion",
+    "wall_forces_within",
     "social_repulsion",
+    "total_social_forces",
     "social_forces_dense_reference",
 ]
