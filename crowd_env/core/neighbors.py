@@ -74,44 +74,44 @@ def grid_pairs_around(position, index, rows, radius_m):
     marked = np.zeros(n, np.bool_)
     for k in range(rows.shape[0]):
         marked[rows[k]] = True
-    r2 = radius_m * radius_m
     cap = 16 * rows.shape[0] + 16
-    while True:
+    while True:  # as grid_pairs: retry with a larger buffer when full
         out = np.empty((cap, 2), np.int64)
-        m = 0
-        full = False
-        for k in range(rows.shape[0]):
-            a = rows[k]
-            xa = position[index[a], 0]
-            ya = position[index[a], 1]
-            c = _cell_index(xa, ya, xmin, ymin, cell, ncx, ncy)
-            cx = c % ncx
-            cy = c // ncx
-            for qy in range(max(cy - 1, 0), min(cy + 2, ncy)):
-                for qx in range(max(cx - 1, 0), min(cx + 2, ncx)):
-                    q = qx + ncx * qy
-                    for t in range(start[q], start[q + 1]):
-                        b = order[t]
-                        if b == a or (marked[b] and b < a):
-                            continue  # itself, or a pair of two marked rows found from the smaller one
-                        dx = position[index[b], 0] - xa
-                        dy = position[index[b], 1] - ya
-                        if dx * dx + dy * dy <= r2:
-                            if m == cap:
-                                full = True
-                                break
-                            out[m, 0] = min(a, b)
-                            out[m, 1] = max(a, b)
-                            m += 1
-                    if full:
-                        break
-                if full:
-                    break
-            if full:
-                break
-        if not full:
+        m = _fill_pairs_around(position, index, rows, marked, order, start, ncx, ncy, xmin, ymin, cell,
+                               radius_m * radius_m, out)
+        if m >= 0:
             return out[:m].copy()
         cap *= 4
+
+
+@nb.njit(cache=True)
+def _fill_pairs_around(position, index, rows, marked, order, start, ncx, ncy, xmin, ymin, cell, r2, out):
+    """Write the pairs of :func:`grid_pairs_around` into ``out``; their number, or −1 when too small."""
+    cap = out.shape[0]
+    m = 0
+    for k in range(rows.shape[0]):
+        a = rows[k]
+        xa = position[index[a], 0]
+        ya = position[index[a], 1]
+        c = _cell_index(xa, ya, xmin, ymin, cell, ncx, ncy)
+        cx = c % ncx
+        cy = c // ncx
+        for qy in range(max(cy - 1, 0), min(cy + 2, ncy)):
+            for qx in range(max(cx - 1, 0), min(cx + 2, ncx)):
+                q = qx + ncx * qy
+                for t in range(start[q], start[q + 1]):
+                    b = order[t]
+                    if b == a or (marked[b] and b < a):
+                        continue  # itself, or a pair of two marked rows found from the smaller one
+                    dx = position[index[b], 0] - xa
+                    dy = position[index[b], 1] - ya
+                    if dx * dx + dy * dy <= r2:
+                        if m == cap:
+                            return -1
+                        out[m, 0] = min(a, b)
+                        out[m, 1] = max(a, b)
+                        m += 1
+    return m
 
 
 @nb.njit(cache=True)

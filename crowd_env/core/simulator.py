@@ -36,8 +36,9 @@ from .neighbors import grid_pairs, grid_pairs_around
 from .params import ModelParams, ParameterError
 from .segments import as_segments, endpoint_owners, wall_proximity
 from .state import CrowdState, StateError
-from .stepper import (FUSED_OK, VTOL_M_S, candidate_gaps_min, commit_step, compact_contacts, first_non_finite,
-                      fused_step, rows_sweeping_boxes, grown_margins, kinetic_energy, smooth_update, speeds)
+from .stepper import (FUSED_OK, PROJECTION_TOL_M_S, VTOL_M_S, candidate_gaps_min, commit_step, compact_contacts,
+                      first_non_finite, fused_step, grown_margins, kinetic_energy, rows_sweeping_boxes, smooth_update,
+                      speeds)
 
 
 ALM_NEWTON_BUDGET = 40  # Newton steps given to project_gaps_alm in a step before the interior-point chain
@@ -237,13 +238,12 @@ class Simulator:
         links = self._active_links(idx)
         t0 = time.perf_counter()
         previous = st.position_m[idx]
-        status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap = fused_step(st.position_m, st.radius_m, st.velocity_m_s, st.angular_velocity_rad_s,
-                               st.heading_rad, st.mass_kg, st.inertia_kg_m2, st.tau_s, st.heading_stiffness,
-                               st.heading_damping, *inputs, idx, self.walls, self._wall_owner, *self._cached_pairs(),
-                               *links, p.dt_s,
-                               p.contact_tolerance_m, p.normal_dissipation_kg, p.tangential_dissipation_kg,
-                               p.link_dissipation_kg_per_m2, p.rotation, self.max_dense_rows, self.max_dense_bodies,
-                               self.max_dense_projection_rows)
+        status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap = fused_step(
+            st.position_m, st.radius_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad, st.mass_kg,
+            st.inertia_kg_m2, st.tau_s, st.heading_stiffness, st.heading_damping, *inputs, idx, self.walls,
+            self._wall_owner, *self._cached_pairs(), *links, p.dt_s, p.contact_tolerance_m, p.normal_dissipation_kg,
+            p.tangential_dissipation_kg, p.link_dissipation_kg_per_m2, p.rotation, self.max_dense_rows,
+            self.max_dense_bodies, self.max_dense_projection_rows)
         if status != FUSED_OK:
             return None
         exited = self._leave_at_exits(idx, previous)
@@ -400,7 +400,7 @@ class Simulator:
         if status == STATUS_OK:
             v_impact = vel[:, :2].copy()
             lam_p, _, status = project_gaps(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h,
-                                            1e-10, self.max_dense_projection_rows)
+                                            PROJECTION_TOL_M_S, self.max_dense_projection_rows)
             if status != STATUS_OK:
                 vel[:, :2] = v_impact
         if status != STATUS_OK:

@@ -23,7 +23,7 @@ FUSED_LARGE_CLUSTER = 1  # an impact cluster needs the sparse solver
 FUSED_REDETECT = 2  # impacts or the projection made someone faster than the detection margins
 FUSED_PROJECTION = 3  # the projection needs the sparse / interior-point path
 VTOL_M_S = 1e-9  # normal speed below which a touching contact counts as approaching or resting
-PROJECTION_TOL_M_S = 1e-10
+PROJECTION_TOL_M_S = 1e-10  # violation (gap/h + normal speed, m/s) the projection tolerates before acting
 
 
 @nb.njit(cache=True)
