@@ -62,6 +62,21 @@ def _cell_index(x, y, xmin, ymin, cell, ncx, ncy):
     return cx + ncx * cy
 
 
+@nb.njit(cache=True, inline="always")
+def _append_if_within(position, index, a, b, xa, ya, r2, out, m):
+    """Append the pair (a, b), smaller row first, at ``out[m]`` when b lies within √r2 of (xa, ya);
+    returns the new count, or −1 when the pair is within but ``out`` is full."""
+    dx = position[index[b], 0] - xa
+    dy = position[index[b], 1] - ya
+    if dx * dx + dy * dy > r2:
+        return m
+    if m == out.shape[0]:
+        return -1
+    out[m, 0] = min(a, b)
+    out[m, 1] = max(a, b)
+    return m + 1
+
+
 @nb.njit(cache=True)
 def grid_pairs_around(position, index, rows, radius_m):
     """Pairs (P, 2) of rows into ``index``, within ``radius_m``, that involve at least one of the
@@ -87,7 +102,6 @@ def grid_pairs_around(position, index, rows, radius_m):
 @nb.njit(cache=True)
 def _fill_pairs_around(position, index, rows, marked, order, start, ncx, ncy, xmin, ymin, cell, r2, out):
     """Write the pairs of :func:`grid_pairs_around` into ``out``; their number, or −1 when too small."""
-    cap = out.shape[0]
     m = 0
     for k in range(rows.shape[0]):
         a = rows[k]
@@ -103,14 +117,9 @@ def _fill_pairs_around(position, index, rows, marked, order, start, ncx, ncy, xm
                     b = order[t]
                     if b == a or (marked[b] and b < a):
                         continue  # itself, or a pair of two marked rows found from the smaller one
-                    dx = position[index[b], 0] - xa
-                    dy = position[index[b], 1] - ya
-                    if dx * dx + dy * dy <= r2:
-                        if m == cap:
-                            return -1
-                        out[m, 0] = min(a, b)
-                        out[m, 1] = max(a, b)
-                        m += 1
+                    m = _append_if_within(position, index, a, b, xa, ya, r2, out, m)
+                    if m < 0:
+                        return -1
     return m
 
 
@@ -137,7 +146,6 @@ def grid_pairs(position, index, radius_m):
 @nb.njit(cache=True)
 def _fill_pairs(position, index, order, start, ncx, ncy, r2, out):
     """Write the pairs of :func:`grid_pairs` into ``out``; their number, or −1 when ``out`` is too small."""
-    cap = out.shape[0]
     m = 0
     for cy in range(ncy):
         for cx in range(ncx):
@@ -166,12 +174,7 @@ def _fill_pairs(position, index, order, start, ncx, ncy, r2, out):
                     t0 = s + 1 if nbr == 0 else start[q]
                     for t in range(t0, start[q + 1]):
                         b = order[t]
-                        dx = position[index[b], 0] - xa
-                        dy = position[index[b], 1] - ya
-                        if dx * dx + dy * dy <= r2:
-                            if m == cap:
-                                return -1
-                            out[m, 0] = min(a, b)
-                            out[m, 1] = max(a, b)
-                            m += 1
+                        m = _append_if_within(position, index, a, b, xa, ya, r2, out, m)
+                        if m < 0:
+                            return -1
     return m
