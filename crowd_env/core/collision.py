@@ -17,6 +17,7 @@ import numba as nb
 import numpy as np
 
 from .contacts import NORMAL, build_rows
+from .linalg import cholesky, cholesky_solve, dot_range, profile_cholesky, sub_scaled
 
 STATUS_OK = 0
 STATUS_MAX_ITER = 1
@@ -29,44 +30,16 @@ MAX_DENSE_PROJECTION_ROWS = 200  # same for components of the velocity projectio
 # Pivoting rarely needs more than a dozen factorisations; degenerate jams can make it cycle through
 # Murty's single pivots for hundreds: stop there and hand the cluster to the next solver in line.
 DENSE_MAX_ITER = 40
+LCP_PGS_SWEEPS = 8  # projected Gauss-Seidel sweeps (at most) that guess the starting free set of pivoting
 PGS_SWEEPS = 300  # projected Gauss-Seidel sweeps that guess the first active set of a large projection
 SPARSE_MAX_ITER = 6  # factorisations allowed to sparse pivoting on a large projection before the fallback
 REG_RELATIVE = 1e-8  # Tikhonov regularisation of W relative to its mean diagonal (W is singular in dense packings)
 
 
-@nb.njit(cache=True, fastmath=True)
-def _cholesky(A):
-    """Lower Cholesky factor of the symmetric positive definite A (row-oriented, compiled).
-
-    Not LAPACK: the clusters solved densely are small, and OpenBLAS threads fighting over a loaded
-    machine made LAPACK 10-100 times slower than this loop. Raises on a non-positive pivot."""
-    return _profile_cholesky(A, np.zeros(A.shape[0], np.int64))
-
-
-@nb.njit(cache=True)
-def _cholesky_solve(L, B):
-    """Solve (L Lᵀ) X = B for X (B is (n, k)), L lower triangular."""
-    n = L.shape[0]
-    k = B.shape[1]
-    X = B.copy()
-    for c in range(k):
-        for i in range(n):
-            s = X[i, c]
-            for j in range(i):
-                s -= L[i, j] * X[j, c]
-            X[i, c] = s / L[i, i]
-        for i in range(n - 1, -1, -1):
-            s = X[i, c]
-            for j in range(i + 1, n):
-                s -= L[j, i] * X[j, c]
-            X[i, c] = s / L[i, i]
-    return X
-
-
 @nb.njit(cache=True)
 def _factor_free(W, q, free, eps):
-    """Indices F of the free set, the Cholesky factor of W_FF + εI and the solution of
-    (W_FF + εI) λ_F = −q_F."""
+    """Indices F of the free set, A = W_FF + εI, its Cholesky factor and the solution of
+    A λ_F = −q_F."""
     m = q.shape[0]
     nf = 0
     for i in range(m):
@@ -79,58 +52,41 @@ def _factor_free(W, q, free, eps):
             idx[c] = i
             c += 1
     A = np.empty((nf, nf))
-    rhs = np.empty((nf, 1))
+    rhs = np.empty(nf)
     for a in range(nf):
+        Wa = W[idx[a]]
         for b in range(nf):
-            A[a, b] = W[idx[a], idx[b]]
+            A[a, b] = Wa[idx[b]]
         A[a, a] += eps
-        rhs[a, 0] = -q[idx[a]]
-    L = _cholesky(A)
-    return idx, L, _cholesky_solve(L, rhs)
+        rhs[a] = -q[idx[a]]
+    L = cholesky(A)
+    return idx, A, L, cholesky_solve(L, rhs)
 
 
 @nb.njit(cache=True)
-def _refined(W, q, idx, L, sol, refine):
+def _refined(A, eps, q, idx, L, sol, refine):
     """λ (full length) from the free-set solution ``sol`` after ``refine`` steps of iterative
-    refinement towards W_FF λ_F = −q_F (converges to a solution of the singular system when it is
-    consistent)."""
+    refinement towards W_FF λ_F = −q_F with W_FF = A − εI (converges to a solution of the singular
+    system when it is consistent)."""
     nf = idx.shape[0]
     sol = sol.copy()
     for _ in range(refine):
-        res = np.empty((nf, 1))
+        res = np.empty(nf)
         for a in range(nf):
-            s = -q[idx[a]]
-            for b in range(nf):
-                s -= W[idx[a], idx[b]] * sol[b, 0]
-            res[a, 0] = s
-        sol += _cholesky_solve(L, res)
+            res[a] = -q[idx[a]] - dot_range(A[a], 0, sol, 0, nf) + eps * sol[a]
+        sol += cholesky_solve(L, res)
     lam = np.zeros(q.shape[0])
     for a in range(nf):
-        lam[idx[a]] = sol[a, 0]
+        lam[idx[a]] = sol[a]
     return lam
-
-
-@nb.njit(cache=True)
-def _solve_free(W, q, free, eps, refine):
-    """λ_F solving (W_FF + εI) λ_F = −q_F, then ``refine`` steps of iterative refinement towards
-    W_FF λ_F = −q_F."""
-    idx, L, sol = _factor_free(W, q, free, eps)
-    return _refined(W, q, idx, L, sol, refine)
 
 
 @nb.njit(cache=True)
 def _residual_w(W, q, lam, free):
     m = q.shape[0]
     w = np.empty(m)
-    for i in range(m):
-        if free[i]:
-            w[i] = 0.0
-        else:
-            s = q[i]
-            for j in range(m):
-                if free[j]:
-                    s += W[i, j] * lam[j]
-            w[i] = s
+    for i in range(m):  # λ is zero off the free set, so full rows of the symmetric W serve
+        w[i] = 0.0 if free[i] else q[i] + dot_range(W[i], 0, lam, 0, m)
     return w
 
 
@@ -143,8 +99,8 @@ def _bpp(W, q, free, eps, diag_mean, qmax, max_iter):
     best = m + 1
     backup = 3
     for _ in range(max_iter):
-        idx, L, sol = _factor_free(W, q, free, eps)
-        lam = _refined(W, q, idx, L, sol, 0)
+        idx, A, L, sol = _factor_free(W, q, free, eps)
+        lam = _refined(A, eps, q, idx, L, sol, 0)
         w = _residual_w(W, q, lam, free)
         lmax = 0.0
         for i in range(m):
@@ -158,7 +114,7 @@ def _bpp(W, q, free, eps, diag_mean, qmax, max_iter):
                 n_bad += 1
                 last_bad = i
         if n_bad == 0:
-            return _refined(W, q, idx, L, sol, 4), True  # polish with the same factor
+            return _refined(A, eps, q, idx, L, sol, 4), True  # polish with the same factor
         if n_bad < best:
             best = n_bad
             backup = 3
@@ -178,15 +134,36 @@ def _bpp(W, q, free, eps, diag_mean, qmax, max_iter):
 
 
 @nb.njit(cache=True)
+def _pgs_free_guess(W, q, max_sweeps):
+    """Projected Gauss-Seidel on the LCP from λ = 0 until a sweep leaves the sign pattern of λ
+    unchanged (at most ``max_sweeps``); returns the guessed free set {λ > 0}."""
+    m = q.shape[0]
+    lam = np.zeros(m)
+    free = np.zeros(m, np.bool_)
+    for _ in range(max_sweeps):
+        changed = False
+        for i in range(m):
+            v = lam[i] - (q[i] + dot_range(W[i], 0, lam, 0, m)) / W[i, i]
+            lam[i] = v if v > 0.0 else 0.0
+            if (v > 0.0) != free[i]:
+                free[i] = v > 0.0
+                changed = True
+        if not changed:
+            break
+    return free
+
+
+@nb.njit(cache=True)
 def lcp_bpp(W, q):
     """Solve the LCP w = Wλ + q ≥ 0, λ ≥ 0, λᵀw = 0 for symmetric positive semi-definite W.
 
     Block principal pivoting (Júdice & Pires 1994) with Murty's single-pivot fallback on
     W + εI (ε = 1e-8 · mean diag W; W is singular when contacts outnumber degrees of freedom),
-    with tolerances scaled by the size of the terms. Degenerate packings can make pivoting cycle:
-    then projected Gauss-Seidel finds the active set and pivoting restarts from it. The final λ is
-    polished by iterative refinement on the free set so the regularisation leaves no bias.
-    Returns ``(λ, status)``.
+    with tolerances scaled by the size of the terms. It starts from the free set that a few sweeps
+    of projected Gauss-Seidel guess (``LCP_PGS_SWEEPS``; usually right, which leaves one
+    factorisation instead of four or five); should pivoting from that guess fail, it restarts from
+    the empty set. The final λ is polished by iterative refinement on the free set so the
+    regularisation leaves no bias. Returns ``(λ, status)``.
     """
     m = q.shape[0]
     if m == 0:
@@ -201,38 +178,18 @@ def lcp_bpp(W, q):
     qmax = 0.0
     for i in range(m):
         qmax = max(qmax, abs(q[i]))
-    free = np.zeros(m, np.bool_)
-    lam, ok = _bpp(W, q, free, eps, diag_mean, qmax, min(2 * m + 20, DENSE_MAX_ITER))
+    max_iter = min(2 * m + 20, DENSE_MAX_ITER)
+    free = _pgs_free_guess(W, q, LCP_PGS_SWEEPS)
+    lam, ok = _bpp(W, q, free, eps, diag_mean, qmax, max_iter)
+    if not ok:
+        free[:] = False
+        lam, ok = _bpp(W, q, free, eps, diag_mean, qmax, max_iter)
     if not ok:
         return np.zeros(m), STATUS_MAX_ITER
     for i in range(m):
         if lam[i] < 0.0:
             lam[i] = 0.0
     return lam, STATUS_OK
-
-
-@nb.njit(cache=True, fastmath=True)
-def _gram(ZT, bv):
-    """W = Z_nᵀ Z_n (symmetric by construction) and q = 2 Z_nᵀ z₀ − B_n v⁻ from ZT = [z₀ | Z_n]ᵀ.
-
-    Plain compiled loops over contiguous rows (vectorised reductions), not BLAS: OpenBLAS threads
-    spin against each other on a loaded machine and made dense solves 10-100 times slower."""
-    nn = ZT.shape[0] - 1
-    nd = ZT.shape[1]
-    W = np.empty((nn, nn))
-    q = np.empty(nn)
-    for a in range(nn):
-        s = 0.0
-        for i in range(nd):
-            s += ZT[1 + a, i] * ZT[0, i]
-        q[a] = 2.0 * s - bv[a]
-        for b in range(a, nn):
-            s = 0.0
-            for i in range(nd):
-                s += ZT[1 + a, i] * ZT[1 + b, i]
-            W[a, b] = s
-            W[b, a] = s
-    return W, q
 
 
 @nb.njit(cache=True)
@@ -300,27 +257,6 @@ def _order_dofs(nb_, row_a, row_b, coef_a, coef_b):
 
 
 @nb.njit(cache=True, fastmath=True)
-def _profile_cholesky(A, first):
-    """Cholesky factor of the SPD matrix A whose row i has no nonzero left of column ``first[i]``
-    (the factor keeps that envelope). Raises on a non-positive pivot."""
-    n = A.shape[0]
-    L = np.zeros((n, n))
-    for i in range(n):
-        fi = first[i]
-        for j in range(fi, i + 1):
-            s = A[i, j]
-            for k in range(max(fi, first[j]), j):
-                s -= L[i, k] * L[j, k]
-            if i == j:
-                if not s > 0.0:
-                    raise ValueError("matrix is not positive definite")
-                L[i, i] = np.sqrt(s)
-            else:
-                L[i, j] = s / L[j, j]
-    return L
-
-
-@nb.njit(cache=True, fastmath=True)
 def _forward_columns(L, first, Z, col_start):
     """Z ← L⁻¹ Z in place, row by row. Column e of Z is zero above row ``col_start[e]`` and the
     columns are sorted by it, so row i only touches the prefix of columns already started."""
@@ -330,14 +266,14 @@ def _forward_columns(L, first, Z, col_start):
     for i in range(n):
         while cnt < ncol and col_start[cnt] <= i:
             cnt += 1
+        Zi = Z[i]
         for j in range(first[i], i):
             lij = L[i, j]
             if lij != 0.0:
-                for e in range(cnt):
-                    Z[i, e] -= lij * Z[j, e]
+                sub_scaled(Zi, 0, Z[j], 0, lij, cnt)
         inv = 1.0 / L[i, i]
         for e in range(cnt):
-            Z[i, e] *= inv
+            Zi[e] *= inv
 
 
 @nb.njit(cache=True)
@@ -350,9 +286,10 @@ def solve_rows(mass_diag, row_a, row_b, coef_a, coef_b, row_k, row_kind, v_minus
     Dense, but in an order that keeps it cheap: degrees of freedom no row touches are solved
     directly (v⁺ = v⁻ + M⁻¹ p_ext), the others are numbered by reverse Cuthill-McKee over the
     bodies so that H = M + Bᵀ K B and its Cholesky factor L have a narrow profile; then
-    Z = L⁻¹ [r, B_nᵀ] (columns sorted by their first nonzero row, so each row of the forward
-    substitution only touches the columns already started), W = Z_nᵀ Z_n, q = 2 Z_nᵀ z₀ − B_n v⁻,
-    the LCP by :func:`lcp_bpp`, and v⁺ = L⁻ᵀ (2 z₀ + Z_n λ) − v⁻.
+    X = L⁻ᵀ L⁻¹ [r, B_nᵀ] = H⁻¹ [r, B_nᵀ] (columns sorted by their first nonzero row, so each row
+    of the forward substitution only touches the columns already started), W = B_n X_n and
+    q = 2 B_n x₀ − B_n v⁻ from the at most 6 entries of each row of B_n (about 7× fewer operations
+    than the Gram matrix Z_nᵀ Z_n), the LCP by :func:`lcp_bpp`, and v⁺ = 2 x₀ + X_n λ − v⁻.
     """
     nd_all = mass_diag.shape[0]
     m = row_a.shape[0]
@@ -393,7 +330,7 @@ def solve_rows(mass_diag, row_a, row_b, coef_a, coef_b, row_k, row_kind, v_minus
                 f = j
                 break
         first[i] = f
-    L = _profile_cholesky(H, first)
+    L = profile_cholesky(H, first)
     # Normal rows sorted by the first (new) DOF they touch: their columns of Z start there.
     nstart = np.empty(nn, np.int64)
     nrow = np.empty(nn, np.int64)
@@ -429,21 +366,41 @@ def solve_rows(mass_diag, row_a, row_b, coef_a, coef_b, row_k, row_kind, v_minus
                     Z[pos[3 * row_b[r] + d], 1 + e] += coef_b[r, d]
                 bv[e] += coef_b[r, d] * v_minus[3 * row_b[r] + d]
     _forward_columns(L, first, Z, col_start)
-    ZT = np.ascontiguousarray(Z.T)  # row 0: z₀ = L⁻¹ r; rows 1..nn: columns of Z_n
-    W, q = _gram(ZT, bv)  # full-length dot products: the zeros cost less than unvectorised loops
-    lam_sorted, status = lcp_bpp(W, q)
-    y = 2.0 * ZT[0]
+    for i in range(nd - 1, -1, -1):  # back substitution with Lᵀ (row access of L): Z ← H⁻¹ [r, B_nᵀ]
+        Zi = Z[i]
+        inv = 1.0 / L[i, i]
+        for e in range(1 + nn):
+            Zi[e] *= inv
+        for j in range(first[i], i):
+            sub_scaled(Z[j], 0, Zi, 0, L[i, j], 1 + nn)
+    # W = B_n (H⁻¹ B_nᵀ) and q = 2 B_n H⁻¹ r − B_n v⁻: each row of B_n has at most 6 entries
+    W = np.zeros((nn, nn))
+    q = np.empty(nn)
     for e in range(nn):
-        le = lam_sorted[e]
-        if le != 0.0:
-            for i in range(col_start[1 + e], nd):
-                y[i] += ZT[1 + e, i] * le
-    for i in range(nd - 1, -1, -1):  # back substitution with Lᵀ (row access of L)
-        y[i] /= L[i, i]
-        yi = y[i]
-        if yi != 0.0:
-            for j in range(first[i], i):
-                y[j] -= L[i, j] * yi
+        r = nrow[order[e]]
+        We = W[e]
+        s = -bv[e]
+        for side in range(2):
+            body = row_a[r] if side == 0 else row_b[r]
+            if body < 0:
+                continue
+            for d in range(3):
+                cf = coef_a[r, d] if side == 0 else coef_b[r, d]
+                if cf != 0.0:
+                    Zp = Z[pos[3 * body + d]]
+                    s += 2.0 * cf * Zp[0]
+                    sub_scaled(We, 0, Zp, 1, -cf, nn)
+        q[e] = s
+    for a in range(nn):  # symmetric up to rounding; make it exact
+        for b in range(a):
+            w = 0.5 * (W[a, b] + W[b, a])
+            W[a, b] = w
+            W[b, a] = w
+    lam_sorted, status = lcp_bpp(W, q)
+    y = np.empty(nd)  # v⁺ + v⁻ = H⁻¹ (2 r + B_nᵀ λ)
+    for i in range(nd):
+        Zi = Z[i]
+        y[i] = 2.0 * Zi[0] + dot_range(Zi, 1, lam_sorted, 0, nn)
     v_plus = np.empty(nd_all)
     for i in range(nd_all):
         v_plus[i] = v_minus[i] + p_ext[i] / mass_diag[i] if pos[i] < 0 else 0.0

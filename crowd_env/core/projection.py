@@ -19,6 +19,7 @@ import numba as nb
 import numpy as np
 
 from .collision import STATUS_MAX_ITER, STATUS_OK, _order_dofs
+from .linalg import envelope_cholesky, envelope_solve
 
 ALM_RHO_RELATIVE = 1e4  # penalty ρ relative to 1 / mean diag(W): large, so the multipliers converge in a few rounds
 ALM_RHO_GROWTH_MAX = 1e3  # ρ grows tenfold, up to this factor, when the violation stalls
@@ -179,21 +180,7 @@ def _newton_factor(n, mass, rho, pushing, c_a, c_b, c_nx, c_ny, pos):
                 if idx[y] <= idx[x]:
                     i = idx[x]
                     env[off[i] + idx[y] - first[i]] += rho * coef[x] * coef[y]
-    # envelope Cholesky in place: L[i, j] at env[off[i] + j - first[i]]
-    for i in range(nd):
-        fi = first[i]
-        oi = off[i] - fi
-        for j in range(fi, i + 1):
-            oj = off[j] - first[j]
-            s = env[oi + j]
-            for t in range(max(fi, first[j]), j):
-                s -= env[oi + t] * env[oj + t]
-            if i == j:
-                if not s > 0.0:
-                    raise ValueError("projection Newton matrix is not positive definite")
-                env[oi + i] = np.sqrt(s)
-            else:
-                env[oi + j] = s / env[oj + j]
+    envelope_cholesky(env, off, first)
     return dof, first, off, env
 
 
@@ -210,18 +197,7 @@ def _newton_solve(grad, mass, pos, dof, first, off, env):
     x = np.empty(nd)
     for i in range(nd):
         x[i] = -grad[dof[i] // 2, dof[i] % 2]
-    for i in range(nd):
-        oi = off[i] - first[i]
-        s = x[i]
-        for t in range(first[i], i):
-            s -= env[oi + t] * x[t]
-        x[i] = s / env[oi + i]
-    for i in range(nd - 1, -1, -1):
-        oi = off[i] - first[i]
-        x[i] /= env[oi + i]
-        xi = x[i]
-        for t in range(first[i], i):
-            x[t] -= env[oi + t] * xi
+    envelope_solve(env, off, first, x)
     for i in range(nd):
         out[dof[i] // 2, dof[i] % 2] = x[i]
     return out

@@ -69,6 +69,18 @@ class StepResult:
     min_gap_m: float = np.inf  # smallest gap after the step among contact candidates (inf: none within ε)
 
 
+
+def _touched_bodies(n, c_a, c_b):
+    """Bodies that candidate rows (a, b; b < 0 for a wall) touch, sorted, and the rows renumbered
+    into them: ``(bodies, a_local, b_local)``."""
+    used = np.zeros(n, np.bool_)
+    used[c_a] = True
+    used[c_b[c_b >= 0]] = True
+    bodies = np.flatnonzero(used)
+    local = np.full(n, -1, np.int64)
+    local[bodies] = np.arange(bodies.shape[0])
+    return bodies, local[c_a], np.where(c_b >= 0, local[np.maximum(c_b, 0)], -1)
+
 class Simulator:
     """Owns a :class:`CrowdState`, the walls and the :class:`ModelParams`; advances with :meth:`step`.
 
@@ -406,20 +418,30 @@ class Simulator:
         if status != STATUS_OK:
             self.n_sparse_solves += 1
             self._large_step = self.step_count
-            if self._skip_alm <= 0:
-                lam_p, _, status = project_gaps_alm(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"],
-                                                    h, np.zeros(con["a"].shape[0]), ALM_NEWTON_BUDGET)
-                if status == STATUS_OK:
-                    return lam_p
-                self._skip_alm = 10
-            self._skip_alm -= 1
-            # In a persistent jam pivoting keeps cycling: after a fallback go straight to the interior
-            # point solver (and its polish) for a while, trying pivoting again every 10th time.
-            pivot_first = self._skip_pivoting <= 0
-            lam_p, path = project_gaps_large(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h,
-                                             pivot_first)
-            self._skip_pivoting = 9 if path > 0 and pivot_first else self._skip_pivoting - 1
-            self.n_fallback_solves += int(path > 0)
+            # The large solvers see only the pedestrians some candidate touches (the others keep their
+            # velocity): their cost then follows the jam, not the size of the crowd.
+            bodies, c_a, c_b = _touched_bodies(vel.shape[0], con["a"], con["b"])
+            v_sub = vel[bodies]
+            m_sub = mass[bodies]
+            lam_p = self._project_large(v_sub, m_sub, c_a, c_b, con, h)
+            vel[bodies, :2] = v_sub[:, :2]
+        return lam_p
+
+    def _project_large(self, vel, mass, c_a, c_b, con, h):
+        """:meth:`_project` for a projection too large for the dense path, in place on ``vel``."""
+        if self._skip_alm <= 0:
+            lam_p, _, status = project_gaps_alm(vel, mass, c_a, c_b, con["gap"], con["nx"], con["ny"],
+                                                h, np.zeros(c_a.shape[0]), ALM_NEWTON_BUDGET)
+            if status == STATUS_OK:
+                return lam_p
+            self._skip_alm = 10
+        self._skip_alm -= 1
+        # In a persistent jam pivoting keeps cycling: after a fallback go straight to the interior
+        # point solver (and its polish) for a while, trying pivoting again every 10th time.
+        pivot_first = self._skip_pivoting <= 0
+        lam_p, path = project_gaps_large(vel, mass, c_a, c_b, con["gap"], con["nx"], con["ny"], h, pivot_first)
+        self._skip_pivoting = 9 if path > 0 and pivot_first else self._skip_pivoting - 1
+        self.n_fallback_solves += int(path > 0)
         return lam_p
 
     def _redetect(self, con, speed, grown, idx, r_max, h):
