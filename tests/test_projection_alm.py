@@ -124,3 +124,36 @@ def test_alm_without_candidates_and_when_already_feasible():
     lam, steps, status = project_gaps_alm(v, np.ones(2), a, b, np.array([0.1]), np.array([1.0]), np.array([0.0]), H,
                                           np.zeros(1))
     assert status == STATUS_OK and steps == 0 and lam[0] == 0.0 and v[0, 0] == -1.0
+
+
+def test_simulator_large_projection_sees_only_the_touched_pedestrians():
+    """Simulator._project hands a too-large projection to the large solvers restricted to the
+    pedestrians some candidate touches: the jam's velocities equal the solver's on the jam alone, and
+    the 40 pedestrians no candidate touches (numbered before, between and after the jam's) keep
+    their velocities exactly."""
+    from crowd_env.core import ModelParams, Simulator
+    from crowd_env.core.state import CrowdState
+
+    rng = np.random.default_rng(7)
+    vel, mass, a, b, gap, nx, ny = _hex_jam(9, 10, rng)
+    n_jam, n_far = vel.shape[0], 40
+    order = rng.permutation(n_jam + n_far)  # order[k]: global index of local body k
+    jam_ids, far_ids = order[:n_jam], order[n_jam:]
+    vel_all = np.zeros((n_jam + n_far, 3))
+    vel_all[jam_ids] = vel
+    vel_all[far_ids] = rng.normal(0.0, 1.0, (n_far, 3))
+    mass_all = np.empty(n_jam + n_far)
+    mass_all[jam_ids] = mass
+    mass_all[far_ids] = rng.uniform(50.0, 100.0, n_far)
+    con = {"a": jam_ids[a], "b": np.where(b >= 0, jam_ids[np.maximum(b, 0)], -1), "gap": gap, "nx": nx, "ny": ny}
+    xy = np.stack(np.meshgrid(np.arange(13.0), np.arange(13.0)), -1).reshape(-1, 2)[: n_jam + n_far]
+    sim = Simulator(CrowdState.create(xy), params=ModelParams())  # only its large-projection solvers serve
+    sim.max_dense_projection_rows = 8  # the jam is too large for the dense path
+    v_sim = vel_all.copy()
+    lam_sim = sim._project(v_sim, mass_all, con, H, np.arange(n_jam + n_far))
+    v_ref = vel.copy()
+    lam_ref, _, status = project_gaps_alm(v_ref, mass, a, b, gap, nx, ny, H, np.zeros(a.shape[0]), 40)
+    assert status == STATUS_OK and sim.n_sparse_solves == 1
+    np.testing.assert_array_equal(v_sim[far_ids], vel_all[far_ids])
+    np.testing.assert_allclose(v_sim[jam_ids, :2], v_ref[:, :2], atol=1e-12)
+    np.testing.assert_allclose(lam_sim, lam_ref, atol=1e-9)
