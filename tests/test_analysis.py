@@ -167,3 +167,25 @@ def test_in_range_check():
     assert res.inside.tolist() == [True, True, True, False, False] and not res.all_inside
     assert res.max_excess_per_m_s == pytest.approx(0.19)
     assert in_range_check([1.77, 2.0]).all_inside
+
+
+def test_force_balance_jam_density():
+    """Eq. 14 at rest = Eq. 16 head on: d = 2r + B ln(Aτ/(m‖u_d‖)); hexagonal packing 2/(√3 d²)."""
+    from crowd_env.analysis import DensityError, force_balance_jam_density_per_m2, hexagonal_density_per_m2
+
+    assert hexagonal_density_per_m2(0.46) == pytest.approx(5.4570, abs=1e-4)  # densest packing, r = 0.23 m
+    assert hexagonal_density_per_m2(1.0) == pytest.approx(2.0 / np.sqrt(3.0))
+    d = 0.46 + 0.08 * np.log(790.0 * 0.5 / (83.0 * 1.34))
+    assert force_balance_jam_density_per_m2(790.0, 0.08) == pytest.approx(2.0 / (np.sqrt(3.0) * d * d), rel=1e-12)
+    assert force_balance_jam_density_per_m2(790.0, 0.08) == pytest.approx(3.66, abs=0.01)
+    assert force_balance_jam_density_per_m2(1150.0, 0.2) == pytest.approx(1.86, abs=0.01)
+    # repulsion at contact weaker than the drive (A < m‖u_d‖/τ = 222 N): the jam packs the disks
+    assert force_balance_jam_density_per_m2(100.0, 0.08) == pytest.approx(hexagonal_density_per_m2(0.46))
+    # broadcasting over A and B; density falls as A or B grows
+    rho = force_balance_jam_density_per_m2(np.array([400.0, 790.0, 1500.0]), 0.08)
+    assert rho.shape == (3,) and np.all(np.diff(rho) < 0)
+    for bad in ((0.0, 0.08), (790.0, np.nan), (790.0, -0.1)):
+        with pytest.raises(DensityError, match="must be finite and > 0"):
+            force_balance_jam_density_per_m2(*bad)
+    with pytest.raises(DensityError, match="spacing_m"):
+        hexagonal_density_per_m2(0.0)

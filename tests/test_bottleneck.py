@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from baselines import SocialForceAgent
+from crowd_env.analysis.density import force_balance_jam_density_per_m2
 from crowd_env.analysis.experiment import seyfried_2009
 from crowd_env.cli.reproduce_bottleneck import main as reproduce
 from crowd_env.core import ModelParams, Simulator
@@ -72,6 +73,11 @@ def test_reduced_seyfried_n60_b1(seed):
     assert r.crossing_times_s.size == 60
     assert abs(r.specific_flow_per_m_s / js_exp - 1.0) < 0.10
     assert r.min_gap_m > -1e-3
+    # the jam in front is held apart by the social force: within 15 % of the force-balance density
+    # (3.66 /m²), below the experiment's 4-6 /m²
+    rho_front = r.mean_density_per_m2("front")
+    assert abs(rho_front / force_balance_jam_density_per_m2(790.0, 0.08) - 1.0) < 0.15
+    assert rho_front < 4.0
 
 
 def test_reproduction_cli_resumes_and_guards_config(tmp_path):
@@ -191,3 +197,25 @@ def test_recalibrated_preset_n60_b1():
     js_exp = float(exp.specific_flow_per_m_s[exp.lookup(1.0, 60)[0]])
     assert all(r.n_evacuated == 60 and r.min_gap_m > -1e-3 for r in runs)
     assert abs(np.mean([r.specific_flow_per_m_s for r in runs]) / js_exp - 1.0) < 0.05
+    # B = 0.2 m keeps the jam looser: the front density follows the force balance (1.86 /m²) within 15 %
+    rho_front = np.mean([r.mean_density_per_m2("front") for r in runs])
+    assert abs(rho_front / force_balance_jam_density_per_m2(1150.0, 0.2) - 1.0) < 0.15
+
+
+def test_discharge_is_pressure_driven(tmp_path):
+    """README: the model's discharge rate falls as the crowd behind thins (N = 40, b = 1.0 m), unlike the
+    experiment's capacity flow; fig15_discharge.png shows it. discharge_rate is exact on even passages."""
+    from crowd_env.analysis.figures import discharge_figure, discharge_rate
+
+    remaining, rate = discharge_rate(0.5 * np.arange(12), window=5)
+    np.testing.assert_allclose(rate, 2.0)
+    np.testing.assert_allclose(remaining, 12 - (np.arange(7) + 2.5))
+    assert discharge_rate([1.0, 2.0], window=5)[0].size == 0
+    sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=40, seed=0)
+    r = run_scenario(sc, SocialForceAgent(sc.navigation()), ModelParams(), max_time_s=120)
+    remaining, rate = discharge_rate(r.crossing_times_s, window=5)
+    third = rate.size // 3
+    assert rate[:third].mean() > 1.5 * rate[-third:].mean()
+    record = {"n_pedestrians": 40, "width_m": 1.0, "crossing_times_s": r.crossing_times_s.tolist()}
+    path = discharge_figure([record], tmp_path / "fig15_discharge.png")
+    assert path.exists() and path.stat().st_size > 1000

@@ -4,7 +4,8 @@ formats. Knows nothing of RL."""
 from .calibration import (CalibrationError, ExponentialFit, PointError, RangeCheck, Valley, best_grid_point, epsilon_j,
                           epsilon_total, fit_exponential_valley, in_range_check, point_error, relative_squared_errors,
                           valley_of_minima)
-from .density import DensityError, as_polygon, density_in_area, density_time_series, stationary_mean
+from .density import (DensityError, as_polygon, density_in_area, density_time_series, force_balance_jam_density_per_m2,
+                      hexagonal_density_per_m2, stationary_mean)
 from .experiment import (DIP_N20_WIDTH_M, GROUP_SIZES, PUBLISHED_SPECIFIC_FLOW_N60_PER_M_S, RESIDUAL_NORM_BY_GROUP,
                          SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, WIDTHS_M, ExperimentError, ExperimentTable, seyfried_2009)
 from .flow import (FlowError, FlowResult, LinearFit, MeasurementLine, PassageCounter, line_crossings, linear_fit,
@@ -18,7 +19,8 @@ __all__ = [
     "CalibrationError", "RangeCheck", "epsilon_j", "epsilon_total", "in_range_check", "relative_squared_errors",
     "ExponentialFit", "PointError", "Valley", "best_grid_point", "fit_exponential_valley", "point_error",
     "valley_of_minima",
-    "DensityError", "as_polygon", "density_in_area", "density_time_series", "stationary_mean",
+    "DensityError", "as_polygon", "density_in_area", "density_time_series", "force_balance_jam_density_per_m2",
+    "hexagonal_density_per_m2", "stationary_mean",
     "DIP_N20_WIDTH_M", "GROUP_SIZES", "PUBLISHED_SPECIFIC_FLOW_N60_PER_M_S", "RESIDUAL_NORM_BY_GROUP",
     "SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S", "WIDTHS_M", "ExperimentError", "ExperimentTable", "seyfried_2009",
     "FlowError", "FlowResult", "LinearFit", "MeasurementLine", "PassageCounter", "line_crossings", "linear_fit",

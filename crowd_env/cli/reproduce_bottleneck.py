@@ -291,8 +291,11 @@ def summarise(records: list) -> list:
     return rows
 
 
-def print_summary(rows: list, records: list) -> None:
+def print_summary(rows: list, records: list, params=None, radius_m: float | None = None) -> None:
+    """The J_s table beside the experiment, the linear fits of J(b) and, given the model ``params``
+    and the radius, the force-balance estimate of the density in front of the entrance."""
     from crowd_env.analysis.calibration import in_range_check
+    from crowd_env.analysis.density import force_balance_jam_density_per_m2, hexagonal_density_per_m2
     from crowd_env.analysis.experiment import SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, RESIDUAL_NORM_BY_GROUP
     from crowd_env.analysis.flow import linear_fit
 
@@ -314,6 +317,16 @@ def print_summary(rows: list, records: list) -> None:
             ref = RESIDUAL_NORM_BY_GROUP.get(n)
             print(f"N = {n}: flow J(b) = {fit.slope:.3f} b + {fit.intercept:+.3f}, residual norm {fit.residual_norm:.3f}"
                   + (f" (experiment {ref})" if ref is not None else ""))
+    if params is not None and radius_m is not None and params.social_forces and params.social_strength_n > 0:
+        from crowd_env.core.params import PedestrianDefaults
+
+        ped = PedestrianDefaults()
+        rho = float(force_balance_jam_density_per_m2(params.social_strength_n, params.social_range_m, radius_m,
+                                                     ped.mass_kg, ped.desired_speed_mean_m_s, ped.tau_s))
+        print(f"density in front: force balance m‖u_d‖/τ = A exp((2r − d)/B) in a hexagonal packing gives "
+              f"{rho:.2f} /m² for A = {params.social_strength_n:g} N, B = {params.social_range_m:g} m "
+              f"(experiment 4-6 /m²; densest packing of r = {radius_m:g} m disks "
+              f"{float(hexagonal_density_per_m2(2.0 * radius_m)):.2f} /m²)")
 
 
 def main(argv=None) -> int:
@@ -356,7 +369,7 @@ def main(argv=None) -> int:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    print_summary(rows, records)
+    print_summary(rows, records, params, args.radius)
     if not args.no_figures:
         from crowd_env.analysis.figures import bottleneck_figures
         for path in bottleneck_figures(records, rows, args.out):
