@@ -17,7 +17,7 @@ import numba as nb
 import numpy as np
 
 from .contacts import NORMAL, build_rows
-from .linalg import cholesky, cholesky_solve, dot_range, profile_cholesky, sub_scaled
+from .linalg import SAME_ROUNDING_FASTMATH, cholesky, cholesky_solve, dot_range, profile_cholesky, sub_scaled
 
 STATUS_OK = 0
 STATUS_MAX_ITER = 1
@@ -63,7 +63,7 @@ def _factor_free(W, q, free, eps):
     return idx, A, L, cholesky_solve(L, rhs)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, fastmath=SAME_ROUNDING_FASTMATH)
 def _refined(A, eps, q, idx, L, sol, refine):
     """λ (full length) from the free-set solution ``sol`` after ``refine`` steps of iterative
     refinement towards W_FF λ_F = −q_F with W_FF = A − εI (converges to a solution of the singular
@@ -81,7 +81,7 @@ def _refined(A, eps, q, idx, L, sol, refine):
     return lam
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, fastmath=SAME_ROUNDING_FASTMATH)
 def _residual_w(W, q, lam, free):
     m = q.shape[0]
     w = np.empty(m)
@@ -133,7 +133,7 @@ def _bpp(W, q, free, eps, diag_mean, qmax, max_iter):
     return np.zeros(m), False
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, fastmath=SAME_ROUNDING_FASTMATH)
 def _pgs_free_guess(W, q, max_sweeps):
     """Projected Gauss-Seidel on the LCP from λ = 0 until a sweep leaves the sign pattern of λ
     unchanged (at most ``max_sweeps``); returns the guessed free set {λ > 0}."""
@@ -256,7 +256,7 @@ def _order_dofs(nb_, row_a, row_b, coef_a, coef_b):
     return perm[:k], pos
 
 
-@nb.njit(cache=True, fastmath=True)
+@nb.njit(cache=True, fastmath=SAME_ROUNDING_FASTMATH)
 def _forward_columns(L, first, Z, col_start):
     """Z ← L⁻¹ Z in place, row by row. Column e of Z is zero above row ``col_start[e]`` and the
     columns are sorted by it, so row i only touches the prefix of columns already started."""

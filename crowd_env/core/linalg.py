@@ -4,8 +4,10 @@ Not LAPACK: the systems are small or banded, and OpenBLAS threads fighting over 
 LAPACK calls 10-100 times slower than these loops. Inner products run over *unsigned* offsets
 (:func:`dot_range`): with signed indices numba keeps its negative-index wraparound test inside the loop
 and LLVM does not vectorise it, which made the factorisations about three times slower.
-``test_fused_and_staged_steps_agree_bitwise`` checks that the kernels round the same wherever they are
-compiled (the fused step inlines them into one function, the staged step calls them one by one).
+No kernel here changes rounding for speed (``SAME_ROUNDING_FASTMATH``); four interleaved partial sums
+vectorise without reassociation. ``test_fused_and_staged_steps_agree_bitwise`` checks that the kernels
+round the same wherever they are compiled (the fused step inlines them into one function, the staged
+step calls them one by one).
 """
 from __future__ import annotations
 
@@ -13,12 +15,19 @@ import numba as nb
 import numpy as np
 
 
-@nb.njit(cache=True, fastmath=True, inline="always")
+# Fast-math flags that change no rounding of finite arithmetic (no reassociation, reciprocal or FMA
+# contraction): LLVM may re-optimise a kernel once inlined into the fused step, and with rounding-changing
+# flags it may vectorise it differently there than in the staged step (the two must stay bitwise equal).
+SAME_ROUNDING_FASTMATH = {"nnan", "ninf", "nsz"}
+
+
+@nb.njit(cache=True, fastmath=SAME_ROUNDING_FASTMATH, inline="always")
 def dot_range(a, ia, b, ib, n):
     """Σ_{t < n} a[ia + t] · b[ib + t] for 1-D arrays (offsets ≥ 0; n ≤ 0 gives 0).
 
-    Four interleaved partial sums combined in a fixed order (vectorises well, even without
-    reassociation)."""
+    Four interleaved partial sums combined in a fixed order; inlined, and callers must be compiled
+    with ``SAME_ROUNDING_FASTMATH`` or no fast-math (reassociation would let LLVM round differently
+    in different callers)."""
     if n <= 0:
         return 0.0
     ua = nb.uint64(ia)
@@ -42,7 +51,7 @@ def dot_range(a, ia, b, ib, n):
     return (s0 + s1) + (s2 + s3)
 
 
-@nb.njit(cache=True, fastmath=True, inline="always")
+@nb.njit(cache=True, fastmath=SAME_ROUNDING_FASTMATH, inline="always")
 def sub_scaled(y, iy, a, ia, alpha, n):
     """y[iy + t] −= alpha · a[ia + t] for t < n (offsets ≥ 0; n ≤ 0 does nothing)."""
     if n <= 0:
@@ -53,7 +62,7 @@ def sub_scaled(y, iy, a, ia, alpha, n):
         y[uy + t] -= alpha * a[ua + t]
 
 
-@nb.njit(cache=True, fastmath=True)
+@nb.njit(cache=True, fastmath=SAME_ROUNDING_FASTMATH)
 def profile_cholesky(A, first):
     """Lower Cholesky factor of the SPD matrix A whose row i has no nonzero left of column
     ``first[i]`` (the factor keeps that envelope). Raises on a non-positive pivot."""
@@ -79,7 +88,7 @@ def cholesky(A):
     return profile_cholesky(A, np.zeros(A.shape[0], np.int64))
 
 
-@nb.njit(cache=True, fastmath=True)
+@nb.njit(cache=True, fastmath=SAME_ROUNDING_FASTMATH)
 def envelope_cholesky(env, off, first):
     """In-place Cholesky of an SPD matrix in envelope storage: row i holds columns first[i] … i at
     env[off[i] : off[i + 1]] (A[i, j] = env[off[i] + j − first[i]]). Raises on a non-positive pivot."""
@@ -97,7 +106,7 @@ def envelope_cholesky(env, off, first):
         env[oi + i] = np.sqrt(s)
 
 
-@nb.njit(cache=True, fastmath=True)
+@nb.njit(cache=True, fastmath=SAME_ROUNDING_FASTMATH)
 def envelope_solve(env, off, first, x):
     """x ← (L Lᵀ)⁻¹ x in place with the factor of :func:`envelope_cholesky`."""
     nd = first.shape[0]
@@ -110,7 +119,7 @@ def envelope_solve(env, off, first, x):
         sub_scaled(x, first[i], env, oi + first[i], x[i], i - first[i])
 
 
-@nb.njit(cache=True, fastmath=True)
+@nb.njit(cache=True, fastmath=SAME_ROUNDING_FASTMATH)
 def cholesky_solve(L, b):
     """x solving (L Lᵀ) x = b (1-D) with the dense lower factor L."""
     n = L.shape[0]
