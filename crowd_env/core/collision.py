@@ -163,11 +163,16 @@ def lcp_bpp(W, q):
     of projected Gauss-Seidel guess (``LCP_PGS_SWEEPS``; usually right, which leaves one
     factorisation instead of four or five); should pivoting from that guess fail, it restarts from
     the empty set. The final λ is polished by iterative refinement on the free set so the
-    regularisation leaves no bias. Returns ``(λ, status)``.
+    regularisation leaves no bias. A single contact is solved in closed form. Returns ``(λ, status)``.
     """
     m = q.shape[0]
     if m == 0:
         return np.zeros(0), STATUS_OK
+    if m == 1 and W[0, 0] > 0.0:  # one contact: λ = max(0, −q/W) in closed form
+        lam = np.zeros(1)
+        if q[0] < 0.0:
+            lam[0] = -q[0] / W[0, 0]
+        return lam, STATUS_OK
     diag_mean = 0.0
     for i in range(m):
         diag_mean += W[i, i]
