@@ -136,15 +136,22 @@ def _bpp(W, q, free, eps, diag_mean, qmax, max_iter):
 @nb.njit(cache=True, fastmath=SAME_ROUNDING_FASTMATH)
 def _pgs_free_guess(W, q, max_sweeps):
     """Projected Gauss-Seidel on the LCP from λ = 0 until a sweep leaves the sign pattern of λ
-    unchanged (at most ``max_sweeps``); returns the guessed free set {λ > 0}."""
+    unchanged (at most ``max_sweeps``); returns the guessed free set {λ > 0}. Keeps w = Wλ + q up to
+    date by a row update (W is symmetric) whenever some λ_i moves, so rows that stay at zero cost
+    nothing."""
     m = q.shape[0]
     lam = np.zeros(m)
+    w = q.copy()
     free = np.zeros(m, np.bool_)
     for _ in range(max_sweeps):
         changed = False
         for i in range(m):
-            v = lam[i] - (q[i] + dot_range(W[i], 0, lam, 0, m)) / W[i, i]
-            lam[i] = v if v > 0.0 else 0.0
+            v = lam[i] - w[i] / W[i, i]
+            v = v if v > 0.0 else 0.0
+            d = v - lam[i]
+            if d != 0.0:
+                lam[i] = v
+                sub_scaled(w, 0, W[i], 0, -d, m)
             if (v > 0.0) != free[i]:
                 free[i] = v > 0.0
                 changed = True
@@ -394,13 +401,11 @@ def solve_rows(mass_diag, row_a, row_b, coef_a, coef_b, row_k, row_kind, v_minus
                 if cf != 0.0:
                     Zp = Z[pos[3 * body + d]]
                     s += 2.0 * cf * Zp[0]
-                    sub_scaled(We, 0, Zp, 1, -cf, nn)
+                    sub_scaled(We, e, Zp, 1 + e, -cf, nn - e)  # upper triangle only
         q[e] = s
-    for a in range(nn):  # symmetric up to rounding; make it exact
+    for a in range(nn):  # mirror: W exactly symmetric
         for b in range(a):
-            w = 0.5 * (W[a, b] + W[b, a])
-            W[a, b] = w
-            W[b, a] = w
+            W[a, b] = W[b, a]
     lam_sorted, status = lcp_bpp(W, q)
     y = np.empty(nd)  # v⁺ + v⁻ = H⁻¹ (2 r + B_nᵀ λ)
     for i in range(nd):
