@@ -874,6 +874,40 @@ def _pgs_projection(u, inv_mass, c_a, c_b, c_nx, c_ny, q0, sweeps):
     return lam
 
 
+def renumber_rows(table, c_a, c_b):
+    """Contact rows (a, b; b < 0 for a wall) renumbered through ``table``: ``(table[a], table[b] or −1)``."""
+    return table[c_a], np.where(c_b >= 0, table[np.maximum(c_b, 0)], -1)
+
+
+def touched_bodies(n, c_a, c_b):
+    """The bodies (of ``n``) that contact rows (a, b; b < 0 for a wall) touch, sorted, and the rows
+    renumbered into them: ``(bodies, a_local, b_local)``. The large projection solvers work on these
+    only; the others keep their velocities."""
+    used = np.zeros(n, np.bool_)
+    used[c_a] = True
+    used[c_b[c_b >= 0]] = True
+    bodies = np.flatnonzero(used)
+    local = np.full(n, -1, np.int64)
+    local[bodies] = np.arange(bodies.shape[0])
+    return (bodies, *renumber_rows(local, c_a, c_b))
+
+
+@nb.njit(cache=True)
+def gap_residuals(u, g, c_a, c_b, c_nx, c_ny):
+    """r_k = g_k + (B_n u)_k for velocities ``u`` ((n, ≥2)) and g = gap/h: the slack of each
+    projection constraint (negative: the gap closes within the step)."""
+    m = c_a.shape[0]
+    r = np.empty(m)
+    for k in range(m):
+        a = c_a[k]
+        b = c_b[k]
+        s = g[k] + c_nx[k] * u[a, 0] + c_ny[k] * u[a, 1]
+        if b >= 0:
+            s -= c_nx[k] * u[b, 0] + c_ny[k] * u[b, 1]
+        r[k] = s
+    return r
+
+
 def project_gaps_sparse(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, free0=None, max_iter=None):
     """The projection of :func:`project_gaps` on all candidates at once, solved exactly by
     :func:`qp_bpp_sparse` (for clusters too large for the dense path). Only the pedestrians that
@@ -886,11 +920,7 @@ def project_gaps_sparse(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, free0=None
     m = c_a.shape[0]
     if m == 0:
         return np.zeros(0), STATUS_OK
-    bodies = np.unique(np.concatenate([c_a, c_b[c_b >= 0]]))
-    local = np.full(vel.shape[0], -1, np.int64)
-    local[bodies] = np.arange(bodies.shape[0])
-    la = local[c_a]
-    lb = np.where(c_b >= 0, local[np.maximum(c_b, 0)], -1)
+    bodies, la, lb = touched_bodies(vel.shape[0], c_a, c_b)
     B = _normal_rows_sparse(bodies.shape[0], la, lb, c_nx, c_ny)
     mdiag = np.repeat(mass[bodies], 2)
     q0 = np.asarray(c_gap) / dt_s
@@ -944,8 +974,7 @@ def project_gaps_large(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, pivot_first
             return lam, 0
         vel[:, :2] = v_in
     lam = project_gaps_qp(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s)
-    slack = c_gap / dt_s + (vel[c_a, 0] - np.where(c_b >= 0, vel[np.maximum(c_b, 0), 0], 0.0)) * c_nx \
-        + (vel[c_a, 1] - np.where(c_b >= 0, vel[np.maximum(c_b, 0), 1], 0.0)) * c_ny
+    slack = gap_residuals(vel, c_gap / dt_s, c_a, c_b, c_nx, c_ny)
     tight = slack <= 1e-9 * (1.0 + float(np.abs(c_gap).max()) / dt_s)
     v_qp = vel[:, :2].copy()
     vel[:, :2] = v_in

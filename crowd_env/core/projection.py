@@ -18,7 +18,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from .collision import STATUS_MAX_ITER, STATUS_OK, _order_dofs
+from .collision import STATUS_MAX_ITER, STATUS_OK, _order_dofs, gap_residuals
 from .linalg import envelope_cholesky, envelope_solve
 
 ALM_RHO_RELATIVE = 1e4  # penalty ρ relative to 1 / mean diag(W): large, so the multipliers converge in a few rounds
@@ -27,21 +27,6 @@ ALM_MAX_OUTER = 60
 ALM_MAX_NEWTON = 200  # Newton steps over all rounds
 ALM_TOL_M_S = 1e-10  # stationarity residual tolerated at termination (m/s)
 ALM_TOL_KKT_M_S = 1e-10  # constraint violation and multiplier change (÷ρ) tolerated at termination
-
-
-@nb.njit(cache=True)
-def _residuals(u, g, c_a, c_b, c_nx, c_ny):
-    """r_k = g_k + (B_n u)_k."""
-    m = c_a.shape[0]
-    r = np.empty(m)
-    for k in range(m):
-        a = c_a[k]
-        b = c_b[k]
-        s = g[k] + c_nx[k] * u[a, 0] + c_ny[k] * u[a, 1]
-        if b >= 0:
-            s -= c_nx[k] * u[b, 0] + c_ny[k] * u[b, 1]
-        r[k] = s
-    return r
 
 
 @nb.njit(cache=True)
@@ -250,7 +235,7 @@ def project_gaps_alm(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, lam0, max_new
     last_viol = np.inf
     steps = 0
     for _ in range(ALM_MAX_OUTER):
-        r = _residuals(u, g, c_a, c_b, c_nx, c_ny)
+        r = gap_residuals(u, g, c_a, c_b, c_nx, c_ny)
         grad = _gradient(u, v0, mass, mu, rho, r, c_a, c_b, c_nx, c_ny, lam)
         while True:  # semismooth Newton on φ
             gmax = 0.0
@@ -272,7 +257,7 @@ def project_gaps_alm(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, lam0, max_new
             d = _newton_solve(grad, mass, pos, *factor)
             t = _line_search(u, d, v0, mass, mu, rho, g, c_a, c_b, c_nx, c_ny)
             u = u + t * d
-            r = _residuals(u, g, c_a, c_b, c_nx, c_ny)
+            r = gap_residuals(u, g, c_a, c_b, c_nx, c_ny)
             grad = _gradient(u, v0, mass, mu, rho, r, c_a, c_b, c_nx, c_ny, lam)
         change = 0.0
         for k in range(m):

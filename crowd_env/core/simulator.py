@@ -30,7 +30,8 @@ import shapely
 
 from .projection import project_gaps_alm
 from .collision import (MAX_DENSE_BODIES, MAX_DENSE_PROJECTION_ROWS, MAX_DENSE_ROWS, STATUS_OK, STATUS_TOO_LARGE,
-                        project_gaps, project_gaps_large, resolve_impacts, solve_clusters, solve_rows_qp, solve_rows_sparse)
+                        project_gaps, project_gaps_large, renumber_rows, resolve_impacts, solve_clusters, solve_rows_qp,
+                        solve_rows_sparse, touched_bodies)
 from .contacts import CONTACT_FIELDS, contact_candidates, link_geometry
 from .neighbors import grid_pairs, grid_pairs_around
 from .params import ModelParams, ParameterError
@@ -68,18 +69,6 @@ class StepResult:
     timings_s: dict = field(default_factory=dict)
     min_gap_m: float = np.inf  # smallest gap after the step among contact candidates (inf: none within ε)
 
-
-
-def _touched_bodies(n, c_a, c_b):
-    """Bodies that candidate rows (a, b; b < 0 for a wall) touch, sorted, and the rows renumbered
-    into them: ``(bodies, a_local, b_local)``."""
-    used = np.zeros(n, np.bool_)
-    used[c_a] = True
-    used[c_b[c_b >= 0]] = True
-    bodies = np.flatnonzero(used)
-    local = np.full(n, -1, np.int64)
-    local[bodies] = np.arange(bodies.shape[0])
-    return bodies, local[c_a], np.where(c_b >= 0, local[np.maximum(c_b, 0)], -1)
 
 class Simulator:
     """Owns a :class:`CrowdState`, the walls and the :class:`ModelParams`; advances with :meth:`step`.
@@ -174,6 +163,11 @@ class Simulator:
             ok[sel] = shapely.intersects(self.geometry.exits[int(d)], paths[sel])
         return ok
 
+    @property
+    def _large_projection_last_step(self) -> bool:
+        """The previous step (or this one) needed a projection too large for the dense path."""
+        return self._large_step >= self.step_count - 1
+
     # ------------------------------------------------------------------ neighbours
     @property
     def active_index(self) -> np.ndarray:
@@ -238,8 +232,8 @@ class Simulator:
         inputs = (intents, theta_d, desired_heading_rad is not None, force, external_force_n is not None)
         # Right after a large projection the staged step skips the dense projection (see _project); the
         # fused step would try it, so it waits a step too: fused and staged runs stay bitwise equal.
-        large_before = self._large_step >= self.step_count - 1
-        if not self.profile and self.params.solver != "cvxpy" and self.active_index.shape[0] and not large_before:
+        if not self.profile and self.params.solver != "cvxpy" and self.active_index.shape[0] \
+                and not self._large_projection_last_step:
             result = self._fused_step(inputs)
             if result is not None:
                 return result
@@ -411,7 +405,7 @@ class Simulator:
         """
         # In a persistent jam the dense path fails every step: skip it right after a large projection
         # (step() then skips the fused step too, so fused and staged runs stay bitwise equal).
-        status = STATUS_TOO_LARGE if self._large_step >= self.step_count - 1 else STATUS_OK
+        status = STATUS_TOO_LARGE if self._large_projection_last_step else STATUS_OK
         if status == STATUS_OK:
             v_impact = vel[:, :2].copy()
             lam_p, _, status = project_gaps(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h,
@@ -423,7 +417,7 @@ class Simulator:
             self._large_step = self.step_count
             # The large solvers see only the pedestrians some candidate touches (the others keep their
             # velocity): their cost then follows the jam, not the size of the crowd.
-            bodies, c_a, c_b = _touched_bodies(vel.shape[0], con["a"], con["b"])
+            bodies, c_a, c_b = touched_bodies(vel.shape[0], con["a"], con["b"])
             v_sub = vel[bodies]
             m_sub = mass[bodies]
             lam_p = self._project_large(v_sub, m_sub, c_a, c_b, con, h)
@@ -461,8 +455,7 @@ class Simulator:
         con2 = dict(zip(CONTACT_FIELDS, contact_candidates(self.state.position_m, self.state.radius_m, speed[sub],
                                                            idx[sub], row_in_sub[pairs], self.walls, self._wall_owner,
                                                            p.contact_tolerance_m, h)))
-        con2["a"] = sub[con2["a"]]
-        con2["b"] = np.where(con2["b"] >= 0, sub[np.maximum(con2["b"], 0)], -1)
+        con2["a"], con2["b"] = renumber_rows(sub, con2["a"], con2["b"])
         n = idx.shape[0]
         n_seg = max(1, self.walls.shape[0])
 
