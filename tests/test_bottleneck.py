@@ -224,3 +224,22 @@ def test_discharge_is_pressure_driven(tmp_path):
     record = {"n_pedestrians": 40, "width_m": 1.0, "crossing_times_s": r.crossing_times_s.tolist()}
     path = discharge_figure([record], tmp_path / "fig15_discharge.png")
     assert path.exists() and path.stat().st_size > 1000
+
+
+def test_wall_repulsion_sets_the_lanes_at_the_paper_point():
+    """README: at the paper's point (A = 790 N, B = 0.08 m) the lane pattern in the channel follows the
+    social force of the walls, which the paper leaves open. At b = 1.2 m (3 seeds): walls repelling like
+    pedestrians (the `paper` preset) squeeze a central file between the two side lanes; without wall
+    repulsion the traffic runs along both walls, two lanes and nothing in the middle."""
+    from crowd_env.analysis.lanes import detect_lanes
+
+    def lanes(wall_strength_n):
+        y = np.concatenate([_run_with(790.0, 0.08, 0.0, wall_strength_n, seed=s, width_m=1.2).lateral_positions_m
+                            for s in range(3)])
+        edges = np.arange(-0.6, 0.6 + 1e-9, 0.01)
+        counts, _ = np.histogram(y, bins=edges)
+        return detect_lanes(0.5 * (edges[:-1] + edges[1:]), counts / counts.sum()).peak_positions_m
+
+    with_walls, without = lanes(None), lanes(0.0)
+    assert np.abs(with_walls).min() < 0.05 and with_walls.size == 3, with_walls
+    assert without.size == 2 and np.all(np.abs(without) > 0.6 - 0.23 - 0.04), without
