@@ -3,7 +3,7 @@ feasible, a KKT point, no kinetic energy added, and the same v as the exact solv
 import numpy as np
 import pytest
 
-from crowd_env.core.collision import STATUS_OK, project_gaps, project_gaps_large, project_gaps_qp
+from crowd_env.core.collision import IPM_TOL_M_S, STATUS_OK, project_gaps, project_gaps_ipm, project_gaps_large, project_gaps_qp
 from crowd_env.core.projection import project_gaps_alm
 
 H = 0.01
@@ -217,3 +217,58 @@ def test_reprojection_whose_new_candidates_bind_stays_exact():
     np.testing.assert_allclose(v_warm, v_cold, atol=1e-9)
     assert steps_cold < ALM_NEWTON_BUDGET and fallbacks == 0
     assert steps_warm == ALM_WARM_NEWTON_BUDGET + steps_cold  # here the warm start missed, then from zero
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_interior_point_projection_agrees_with_the_exact_one(seed):
+    """project_gaps_ipm (PIQP) on degenerate jams: feasible to its tolerance, multipliers ≥ 0 that satisfy
+    stationarity M (v − v') = B_nᵀ λ, and v within 1e-6 m/s of the augmented Lagrangian's exact v."""
+    rng = np.random.default_rng(seed)
+    vel, mass, a, b, gap, nx, ny = _hex_jam(8 + seed, 10, rng, squeeze=float(seed % 2))
+    v_exact = vel.copy()
+    _, _, status = project_gaps_alm(v_exact, mass, a, b, gap, nx, ny, H, np.zeros(a.shape[0]), 400)
+    assert status == STATUS_OK
+    v = vel.copy()
+    lam, ok = project_gaps_ipm(v, mass, a, b, gap, nx, ny, H)
+    assert ok
+    assert _residual(v, a, b, gap, nx, ny).min() >= -IPM_TOL_M_S
+    np.testing.assert_allclose(v, v_exact, atol=1e-6)
+    assert lam.min() >= 0.0
+    push = np.zeros((vel.shape[0], 2))
+    np.add.at(push, a, lam[:, None] * np.stack([nx, ny], axis=1))
+    wall = b < 0
+    np.add.at(push, b[~wall], -lam[~wall, None] * np.stack([nx[~wall], ny[~wall]], axis=1))
+    np.testing.assert_allclose(mass[:, None] * (v[:, :2] - vel[:, :2]), push, atol=1e-6 * mass.max())
+    np.testing.assert_array_equal(v[:, 2], vel[:, 2])  # rotation untouched
+
+
+def test_interior_point_projection_without_candidates():
+    v = np.ones((3, 3))
+    lam, ok = project_gaps_ipm(v, np.ones(3), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0),
+                               np.zeros(0), H)
+    assert ok and lam.shape == (0,) and np.all(v == 1.0)
+
+
+def test_simulator_hands_a_slow_augmented_lagrangian_to_the_interior_point_method(monkeypatch):
+    """A large projection whose augmented Lagrangian misses its Newton budget goes to the interior point
+    method (same v to 1e-6 m/s); the next nine large projections skip the augmented Lagrangian."""
+    import crowd_env.core.simulator as simulator_module
+    from crowd_env.core import ModelParams, Simulator
+    from crowd_env.core.state import CrowdState
+
+    rng = np.random.default_rng(5)
+    vel, mass, a, b, gap, nx, ny = _hex_jam(9, 10, rng)
+    n = vel.shape[0]
+    v_exact = vel.copy()
+    _, steps_exact, status = project_gaps_alm(v_exact, mass, a, b, gap, nx, ny, H, np.zeros(a.shape[0]), 400)
+    assert status == STATUS_OK and steps_exact > 3
+    monkeypatch.setattr(simulator_module, "ALM_NEWTON_BUDGET", 3)
+    xy = np.stack(np.meshgrid(np.arange(13.0), np.arange(13.0)), -1).reshape(-1, 2)[:n]
+    sim = Simulator(CrowdState.create(xy), params=ModelParams())
+    sim.max_dense_projection_rows = 8  # the jam is too large for the dense path
+    con = {"a": a, "b": b, "gap": gap, "nx": nx, "ny": ny}
+    for k in range(3):
+        v = vel.copy()
+        sim._project(v, mass, con, H, np.arange(n))
+        np.testing.assert_allclose(v, v_exact, atol=1e-6)
+        assert sim.n_ipm_projections == k + 1 and sim.n_alm_newton_steps == 3 and sim.n_fallback_solves == 0

@@ -33,6 +33,7 @@ DENSE_MAX_ITER = 40
 LCP_PGS_SWEEPS = 8  # projected Gauss-Seidel sweeps (at most) that guess the starting free set of pivoting
 PGS_SWEEPS = 300  # projected Gauss-Seidel sweeps that guess the first active set of a large projection
 SPARSE_MAX_ITER = 6  # factorisations allowed to sparse pivoting on a large projection before the fallback
+IPM_TOL_M_S = 1e-9  # absolute KKT tolerance (m/s) of the interior point projection (project_gaps_ipm)
 REG_RELATIVE = 1e-8  # Tikhonov regularisation of W relative to its mean diagonal (W is singular in dense packings)
 
 
@@ -953,6 +954,38 @@ def project_gaps_qp(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s):
     x, z = _clarabel_solve(P, -mdiag * v0, (-Bn).tocsc(), c_gap / dt_s, "projection")
     vel[:, :2] = x.reshape(n, 2)
     return z
+
+
+def project_gaps_ipm(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s):
+    """The projection of :func:`project_gaps` by PIQP (a proximal interior point method, sparse LDLᵀ).
+
+    For large jams, where the augmented Lagrangian needs many Newton steps (each adds the constraints a
+    push passes on, so their number grows with the jam's diameter: 10-20 steps at 400 pedestrians,
+    30-70 at 1400) while an interior point method needs 15-18 iterations at any size. Its KKT residuals
+    are ≤ ``IPM_TOL_M_S``: slack ≥ −1e-9 m/s (overlap ≤ 1e-11 m per step; measured ≥ −6e-12 m/s) and v
+    within ~1e-7 m/s of the exact one. Modifies ``vel[:, :2]`` in place on success; returns ``(λ per contact, ok)``
+    (not ok: ``vel`` left alone)."""
+    import piqp
+    import scipy.sparse as sp
+
+    n = vel.shape[0]
+    m = c_a.shape[0]
+    if m == 0:
+        return np.zeros(0), True
+    bodies, la, lb = touched_bodies(n, c_a, c_b)
+    mdiag = np.repeat(mass[bodies], 2)
+    solver = piqp.SparseSolver()
+    solver.settings.eps_abs = IPM_TOL_M_S
+    solver.settings.eps_rel = 0.0
+    solver.settings.kkt_solver = piqp.KKTSolver.sparse_ldlt_cond  # normal equations M + Bᵀ D B
+    # min ½ vᵀ M v − (M v')ᵀ v  s.t.  B_n v ≥ −gap/h
+    solver.setup(sp.diags(mdiag).tocsc(), -mdiag * vel[bodies, :2].ravel(), None, None,
+                 _normal_rows_sparse(bodies.shape[0], la, lb, c_nx, c_ny).tocsc(), -np.asarray(c_gap) / dt_s, None)
+    status = solver.solve()
+    if status != piqp.Status.PIQP_SOLVED:
+        return np.zeros(m), False
+    vel[bodies, :2] = solver.result.x.reshape(-1, 2)
+    return np.maximum(np.asarray(solver.result.z_l), 0.0), True
 
 
 def project_gaps_large(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, pivot_first=True):
