@@ -42,7 +42,7 @@ from .stepper import (FUSED_OK, PROJECTION_TOL_M_S, VTOL_M_S, candidate_gaps_min
                       speeds)
 
 
-ALM_NEWTON_BUDGET = 30  # Newton steps given to project_gaps_alm before the interior point method (about as costly)
+ALM_NEWTON_BUDGET = 30  # Newton steps given to project_gaps_alm before the interior point method (break-even: 27-30)
 ALM_WARM_NEWTON_BUDGET = 10  # the same from the multipliers of an earlier projection in the step
 MAX_REDETECT = 10  # re-detection rounds per step (speeds are bounded: one or two rounds suffice in practice)
 
