@@ -960,8 +960,8 @@ def project_gaps_ipm(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s):
     """The projection of :func:`project_gaps` by PIQP (a proximal interior point method, sparse LDLᵀ).
 
     For large jams, where the augmented Lagrangian needs many Newton steps (each adds the constraints a
-    push passes on, so their number grows with the jam's diameter: 10-20 steps at 400 pedestrians,
-    30-70 at 1400) while an interior point method needs 15-18 iterations at any size. Its KKT residuals
+    push passes on, so their number grows with the jam's diameter: 10-21 steps at 400 pedestrians,
+    30-75 at 1400) while an interior point method needs 14-22 iterations at any size. Its KKT residuals
     are ≤ ``IPM_TOL_M_S``: slack ≥ −1e-9 m/s (overlap ≤ 1e-11 m per step; measured ≥ −6e-12 m/s) and v
     within ~1e-7 m/s of the exact one. Modifies ``vel[:, :2]`` in place on success; returns ``(λ per contact, ok)``
     (not ok: ``vel`` left alone)."""

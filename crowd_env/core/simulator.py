@@ -404,8 +404,8 @@ class Simulator:
         in degenerate jams) within ``ALM_NEWTON_BUDGET`` Newton steps, and to :func:`project_gaps_ipm`
         (PIQP, an interior point method) should that not converge; :func:`project_gaps_large`
         (pivoting, Clarabel, polish) serves if even that fails. The augmented Lagrangian's Newton
-        steps grow with the diameter of the jam (10-20 at 400 pedestrians in one jam, 30-70 at 1400),
-        the interior point iterations do not (15-18): after a miss the interior point method is used
+        steps grow with the diameter of the jam (10-21 at 400 pedestrians in one jam, 30-75 at 1400),
+        the interior point iterations do not (14-22): after a miss the interior point method is used
         directly for a while, the augmented Lagrangian tried again every 10th large projection.
 
         ``lam_warm`` (one per candidate, or None): multipliers of a projection of the same step from the
