@@ -830,6 +830,14 @@ def solve_rows_sparse(mass_diag, row_a, row_b, coef_a, coef_b, row_k, row_kind, 
     return 2.0 * y - v_minus, 2.0 * nu, status
 
 
+def _touched_projection_rows(n, mass, c_a, c_b, c_nx, c_ny):
+    """The large projections' data on the pedestrians some candidate touches (the others keep their
+    velocity): ``(bodies, rows a, rows b renumbered into bodies, mass per velocity component (2k,),
+    B_n (m, 2k) CSR)``."""
+    bodies, la, lb = touched_bodies(n, c_a, c_b)
+    return bodies, la, lb, np.repeat(mass[bodies], 2), _normal_rows_sparse(bodies.shape[0], la, lb, c_nx, c_ny)
+
+
 def _normal_rows_sparse(n, c_a, c_b, c_nx, c_ny):
     """B_n (m, 2n) on translational velocities only (the projection leaves ω alone)."""
     import scipy.sparse as sp
@@ -921,9 +929,7 @@ def project_gaps_sparse(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, free0=None
     m = c_a.shape[0]
     if m == 0:
         return np.zeros(0), STATUS_OK
-    bodies, la, lb = touched_bodies(vel.shape[0], c_a, c_b)
-    B = _normal_rows_sparse(bodies.shape[0], la, lb, c_nx, c_ny)
-    mdiag = np.repeat(mass[bodies], 2)
+    bodies, la, lb, mdiag, B = _touched_projection_rows(vel.shape[0], mass, c_a, c_b, c_nx, c_ny)
     q0 = np.asarray(c_gap) / dt_s
     if free0 is None:
         guess = _pgs_projection(vel[bodies, :2].copy(), 1.0 / mass[bodies], la, lb, np.ascontiguousarray(c_nx),
@@ -972,15 +978,14 @@ def project_gaps_ipm(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s):
     m = c_a.shape[0]
     if m == 0:
         return np.zeros(0), True
-    bodies, la, lb = touched_bodies(n, c_a, c_b)
-    mdiag = np.repeat(mass[bodies], 2)
+    bodies, _, _, mdiag, B = _touched_projection_rows(n, mass, c_a, c_b, c_nx, c_ny)
     solver = piqp.SparseSolver()
     solver.settings.eps_abs = IPM_TOL_M_S
     solver.settings.eps_rel = 0.0
     solver.settings.kkt_solver = piqp.KKTSolver.sparse_ldlt_cond  # normal equations M + Bᵀ D B
     # min ½ vᵀ M v − (M v')ᵀ v  s.t.  B_n v ≥ −gap/h
-    solver.setup(sp.diags(mdiag).tocsc(), -mdiag * vel[bodies, :2].ravel(), None, None,
-                 _normal_rows_sparse(bodies.shape[0], la, lb, c_nx, c_ny).tocsc(), -np.asarray(c_gap) / dt_s, None)
+    solver.setup(sp.diags(mdiag).tocsc(), -mdiag * vel[bodies, :2].ravel(), None, None, B.tocsc(),
+                 -np.asarray(c_gap) / dt_s, None)
     status = solver.solve()
     if status != piqp.Status.PIQP_SOLVED:
         return np.zeros(m), False
