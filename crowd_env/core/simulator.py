@@ -30,8 +30,8 @@ import shapely
 
 from .projection import project_gaps_alm
 from .collision import (MAX_DENSE_BODIES, MAX_DENSE_PROJECTION_ROWS, MAX_DENSE_ROWS, STATUS_OK, STATUS_TOO_LARGE,
-                        project_gaps, project_gaps_ipm, project_gaps_large, renumber_rows, resolve_impacts, solve_clusters, solve_rows_qp,
-                        solve_rows_sparse, touched_bodies)
+                        project_gaps, project_gaps_ipm, project_gaps_large, renumber_rows, resolve_impacts,
+                        solve_clusters, solve_rows_qp, solve_rows_sparse, touched_bodies)
 from .contacts import CONTACT_FIELDS, contact_candidates, link_geometry
 from .neighbors import grid_pairs, grid_pairs_around
 from .params import ModelParams, ParameterError
