@@ -46,6 +46,27 @@ def _objective(v, v0, mass):
     return 0.5 * float((mass[:, None] * (v[:, :2] - v0[:, :2]) ** 2).sum())
 
 
+def _percussion(n, lam, a, b, nx, ny):
+    """B_nᵀ λ (n, 2): what stationarity M (v − v') = B_nᵀ λ asks the velocity change to be."""
+    out = np.zeros((n, 2))
+    normal = np.stack([nx, ny], axis=1)
+    np.add.at(out, a, lam[:, None] * normal)
+    np.add.at(out, b[b >= 0], -(lam[b >= 0, None] * normal[b >= 0]))
+    return out
+
+
+def _jam_simulator(n):
+    """A Simulator of n pedestrians whose large-projection solvers serve the tests (its own state is
+    not used), with the dense projection limited to 8 rows so that every jam takes the large path."""
+    from crowd_env.core import ModelParams, Simulator
+    from crowd_env.core.state import CrowdState
+
+    xy = np.stack(np.meshgrid(np.arange(13.0), np.arange(13.0)), -1).reshape(-1, 2)[:n]
+    sim = Simulator(CrowdState.create(xy), params=ModelParams())
+    sim.max_dense_projection_rows = 8
+    return sim
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_alm_is_exact_on_degenerate_jams(seed):
     rng = np.random.default_rng(seed)
@@ -58,10 +79,8 @@ def test_alm_is_exact_on_degenerate_jams(seed):
     assert r.min() >= -1e-9  # feasible
     assert np.all(lam >= 0.0) and np.all(lam * np.abs(r) <= 1e-7 * (1.0 + lam.max()))  # complementarity
     # stationarity: M (v − v') = B_nᵀ λ
-    imp = np.zeros((v.shape[0], 2))
-    np.add.at(imp, a, lam[:, None] * np.stack([nx, ny], axis=1))
-    np.add.at(imp, b[b >= 0], -(lam[b >= 0, None] * np.stack([nx, ny], axis=1)[b >= 0]))
-    np.testing.assert_allclose(mass[:, None] * (v[:, :2] - vel[:, :2]), imp, atol=1e-7)
+    np.testing.assert_allclose(mass[:, None] * (v[:, :2] - vel[:, :2]), _percussion(v.shape[0], lam, a, b, nx, ny),
+                               atol=1e-7)
     # no energy added
     ke = lambda w: 0.5 * float((mass * (w[:, 0] ** 2 + w[:, 1] ** 2)).sum())
     assert ke(v) <= ke(vel) * (1 + 1e-9) + 1e-9
@@ -131,9 +150,6 @@ def test_simulator_large_projection_sees_only_the_touched_pedestrians():
     pedestrians some candidate touches: the jam's velocities equal the solver's on the jam alone, and
     the 40 pedestrians no candidate touches (numbered before, between and after the jam's) keep
     their velocities exactly."""
-    from crowd_env.core import ModelParams, Simulator
-    from crowd_env.core.state import CrowdState
-
     rng = np.random.default_rng(7)
     vel, mass, a, b, gap, nx, ny = _hex_jam(9, 10, rng)
     n_jam, n_far = vel.shape[0], 40
@@ -146,9 +162,7 @@ def test_simulator_large_projection_sees_only_the_touched_pedestrians():
     mass_all[jam_ids] = mass
     mass_all[far_ids] = rng.uniform(50.0, 100.0, n_far)
     con = {"a": jam_ids[a], "b": np.where(b >= 0, jam_ids[np.maximum(b, 0)], -1), "gap": gap, "nx": nx, "ny": ny}
-    xy = np.stack(np.meshgrid(np.arange(13.0), np.arange(13.0)), -1).reshape(-1, 2)[: n_jam + n_far]
-    sim = Simulator(CrowdState.create(xy), params=ModelParams())  # only its large-projection solvers serve
-    sim.max_dense_projection_rows = 8  # the jam is too large for the dense path
+    sim = _jam_simulator(n_jam + n_far)
     v_sim = vel_all.copy()
     lam_sim = sim._project(v_sim, mass_all, con, H, np.arange(n_jam + n_far))
     v_ref = vel.copy()
@@ -164,9 +178,6 @@ def _reprojection(later_kind):
     ``later`` (slack in the full solution, or wall contacts that bind), then with them, started from
     the first multipliers; and once from zero on all candidates. Returns the velocities and Newton
     steps of both, and how far the first solution is from the full one."""
-    from crowd_env.core import ModelParams, Simulator
-    from crowd_env.core.state import CrowdState
-
     rng = np.random.default_rng(11)
     vel, mass, a, b, gap, nx, ny = _hex_jam(8, 10, rng)
     n = vel.shape[0]
@@ -179,12 +190,7 @@ def _reprojection(later_kind):
     order = np.concatenate([np.setdiff1d(np.arange(a.shape[0]), later), later])
     con = {"a": a[order], "b": b[order], "gap": gap[order], "nx": nx[order], "ny": ny[order]}
     con_first = {k: v[: order.shape[0] - later.shape[0]] for k, v in con.items()}
-    xy = np.stack(np.meshgrid(np.arange(13.0), np.arange(13.0)), -1).reshape(-1, 2)[:n]
-    sims = []
-    for _ in range(2):
-        sims.append(Simulator(CrowdState.create(xy), params=ModelParams()))
-        sims[-1].max_dense_projection_rows = 8  # the jam is too large for the dense path
-    cold, warm = sims
+    cold, warm = _jam_simulator(n), _jam_simulator(n)
     v_cold = vel.copy()
     cold._project(v_cold, mass, con, H, np.arange(n))
     v_first = vel.copy()
@@ -234,11 +240,8 @@ def test_interior_point_projection_agrees_with_the_exact_one(seed):
     assert _residual(v, a, b, gap, nx, ny).min() >= -IPM_TOL_M_S
     np.testing.assert_allclose(v, v_exact, atol=1e-6)
     assert lam.min() >= 0.0
-    push = np.zeros((vel.shape[0], 2))
-    np.add.at(push, a, lam[:, None] * np.stack([nx, ny], axis=1))
-    wall = b < 0
-    np.add.at(push, b[~wall], -lam[~wall, None] * np.stack([nx[~wall], ny[~wall]], axis=1))
-    np.testing.assert_allclose(mass[:, None] * (v[:, :2] - vel[:, :2]), push, atol=1e-6 * mass.max())
+    np.testing.assert_allclose(mass[:, None] * (v[:, :2] - vel[:, :2]), _percussion(v.shape[0], lam, a, b, nx, ny),
+                               atol=1e-6 * mass.max())
     np.testing.assert_array_equal(v[:, 2], vel[:, 2])  # rotation untouched
 
 
@@ -253,8 +256,6 @@ def test_simulator_hands_a_slow_augmented_lagrangian_to_the_interior_point_metho
     """A large projection whose augmented Lagrangian misses its Newton budget goes to the interior point
     method (same v to 1e-6 m/s); the next nine large projections skip the augmented Lagrangian."""
     import crowd_env.core.simulator as simulator_module
-    from crowd_env.core import ModelParams, Simulator
-    from crowd_env.core.state import CrowdState
 
     rng = np.random.default_rng(5)
     vel, mass, a, b, gap, nx, ny = _hex_jam(9, 10, rng)
@@ -263,9 +264,7 @@ def test_simulator_hands_a_slow_augmented_lagrangian_to_the_interior_point_metho
     _, steps_exact, status = project_gaps_alm(v_exact, mass, a, b, gap, nx, ny, H, np.zeros(a.shape[0]), 400)
     assert status == STATUS_OK and steps_exact > 3
     monkeypatch.setattr(simulator_module, "ALM_NEWTON_BUDGET", 3)
-    xy = np.stack(np.meshgrid(np.arange(13.0), np.arange(13.0)), -1).reshape(-1, 2)[:n]
-    sim = Simulator(CrowdState.create(xy), params=ModelParams())
-    sim.max_dense_projection_rows = 8  # the jam is too large for the dense path
+    sim = _jam_simulator(n)
     con = {"a": a, "b": b, "gap": gap, "nx": nx, "ny": ny}
     for k in range(3):
         v = vel.copy()
