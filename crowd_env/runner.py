@@ -3,8 +3,8 @@
 One function serves the bottleneck reproduction, the calibration and the benchmarks:
 :func:`run_scenario` steps a :class:`~crowd_env.core.Simulator` until everyone has left (or a time
 limit), detects passages of the measurement line within each step (interpolated crossing times),
-records densities in the scenario's measurement areas and lateral positions inside the channel,
-and tracks the minimum gap.
+records densities and mean speeds in the scenario's measurement areas and lateral positions inside
+the channel, and tracks the minimum gap.
 """
 from __future__ import annotations
 
@@ -39,6 +39,7 @@ class RunResult:
     specific_flow_per_m_s: float
     min_gap_m: float
     density_per_m2: dict = field(default_factory=dict)  # area name -> (n_steps,) series
+    speed_m_s: dict = field(default_factory=dict)  # area name -> (n_steps,) mean speed there (nan: empty)
     lateral_positions_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
     n_fallback_solves: int = 0
 
@@ -59,24 +60,50 @@ class RunResult:
             return float(times[0]), float(times[-1])
         if window != "stationary":
             raise ValueError(f"window must be 'stationary' or 'passages', got {window!r}")
+        k0, k1 = self._stationary_passages(fractions)
+        return float(times[k0]), float(times[k1])
+
+    def _stationary_passages(self, fractions) -> tuple:
+        """Ranks (k0, k1) in the sorted passage times of the stationary window's ends (≥ 2 passages)."""
         lo, hi = (float(f) for f in fractions)
         if not 0.0 <= lo < hi <= 1.0:
             raise ValueError(f"fractions must satisfy 0 <= lo < hi <= 1, got {fractions!r}")
-        k0 = int(round(lo * (times.size - 1)))
-        k1 = max(int(round(hi * (times.size - 1))), k0 + 1)
-        return float(times[k0]), float(times[k1])
+        n = self.crossing_times_s.size
+        k0 = int(round(lo * (n - 1)))
+        return k0, max(int(round(hi * (n - 1))), k0 + 1)
+
+    def stationary_specific_flow_per_m_s(self, fractions=STATIONARY_PASSAGE_FRACTIONS) -> float:
+        """Passage rate per metre of width over the stationary window of :meth:`density_window_s`:
+        (k1 − k0) / ((t_k1 − t_k0) b) between the passages that bound it. Unlike Eq. 22's J_s (first to
+        last passage) it leaves out the build-up and the draining tail. In a stationary channel it
+        equals ρ_inside · v_inside (continuity), the two means of :meth:`mean_density_per_m2` and
+        :meth:`mean_speed_m_s`. nan with fewer than two passages or no width."""
+        if self.crossing_times_s.size < 2 or not self.width_m:
+            return float("nan")
+        times = np.sort(self.crossing_times_s)
+        k0, k1 = self._stationary_passages(fractions)
+        return float((k1 - k0) / ((times[k1] - times[k0]) * self.width_m))
 
     def mean_density_per_m2(self, name: str, window: str = "stationary",
                             fractions=STATIONARY_PASSAGE_FRACTIONS) -> float:
         """Mean density in an area over :meth:`density_window_s` (default: the stationary phase)."""
-        series = self.density_per_m2[name]
+        return self._window_mean(self.density_per_m2[name], window, fractions)
+
+    def mean_speed_m_s(self, name: str, window: str = "stationary", fractions=STATIONARY_PASSAGE_FRACTIONS) -> float:
+        """Mean speed ‖u‖ of the pedestrians in an area over :meth:`density_window_s`: the per-step mean
+        over the pedestrians there (Seyfried et al. 2009's "speed inside"), averaged over the steps
+        in the window at which the area holds someone."""
+        return self._window_mean(self.speed_m_s[name], window, fractions)
+
+    def _window_mean(self, series, window, fractions) -> float:
         t0, t1 = self.density_window_s(window, fractions)
         if not np.isfinite(t0):
             return float("nan")
         dt = self.simulated_time_s / max(self.n_steps, 1)
         t = (np.arange(series.shape[0]) + 1) * dt
-        sel = (t >= t0) & (t <= t1)
-        return float(series[sel].mean()) if sel.any() else float("nan")
+        values = series[(t >= t0) & (t <= t1)]
+        values = values[np.isfinite(values)]
+        return float(values.mean()) if values.size else float("nan")
 
 
 def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_time_s: float = 300.0,
@@ -101,6 +128,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     areas = {name: geometry.measurement_areas[name] for name in density_areas if name in geometry.measurement_areas}
     area_size = {name: float(poly.area) for name, poly in areas.items()}
     density = {name: [] for name in areas}
+    speed = {name: [] for name in areas}
     lane_poly = geometry.measurement_areas.get(lane_area) if lane_area else None
     lateral = []
     n_steps_max = int(round(max_time_s / params.dt_s))
@@ -120,10 +148,13 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
         if counter is not None:
             counter.update(prev, state.position_m, t_prev, sim.time_s, ids)
         pos = state.position_m[state.active]
+        speeds = np.hypot(*state.velocity_m_s[state.active].T)
         masks = {}
         for name, poly in areas.items():
             masks[name] = shapely.contains_xy(poly, pos[:, 0], pos[:, 1])
-            density[name].append(np.count_nonzero(masks[name]) / area_size[name])
+            count = np.count_nonzero(masks[name])
+            density[name].append(count / area_size[name])
+            speed[name].append(speeds[masks[name]].mean() if count else np.nan)
         if lane_poly is not None:
             inside = masks[lane_area] if lane_area in masks else shapely.contains_xy(lane_poly, pos[:, 0], pos[:, 1])
             lateral.append(pos[inside, 1])
@@ -144,6 +175,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
         evacuation_time_s=last_exit_time if n_left == state.n else float("nan"),
         crossing_times_s=times, flow_per_s=j, specific_flow_per_m_s=js, min_gap_m=float(min_gap),
         density_per_m2={k: np.asarray(v) for k, v in density.items()},
+        speed_m_s={k: np.asarray(v, dtype=float) for k, v in speed.items()},
         lateral_positions_m=np.concatenate(lateral) if lateral else np.zeros(0),
         n_fallback_solves=sim.n_fallback_solves,
     )

@@ -7,7 +7,7 @@ import pytest
 
 from baselines import SocialForceAgent
 from crowd_env.analysis.density import force_balance_jam_density_per_m2
-from crowd_env.analysis.experiment import seyfried_2009
+from crowd_env.analysis.experiment import INSIDE_SPEED_RANGE_M_S, seyfried_2009
 from crowd_env.cli.reproduce_bottleneck import main as reproduce
 from crowd_env.core import ModelParams, Simulator
 from crowd_env.runner import run_scenario
@@ -78,6 +78,16 @@ def test_reduced_seyfried_n60_b1():
     rho_front = np.mean([r.mean_density_per_m2("front") for r in runs])
     assert abs(rho_front / force_balance_jam_density_per_m2(790.0, 0.08) - 1.0) < 0.15
     assert rho_front < 4.0
+    # continuity in the channel: the stationary passage rate per metre equals ρ_inside · v_inside, two
+    # measurements made independently (passages of the line, counts and speeds in the channel area)
+    for r in runs:
+        rho_v = r.mean_density_per_m2("inside") * r.mean_speed_m_s("inside")
+        assert abs(r.stationary_specific_flow_per_m_s() / rho_v - 1.0) < 0.03
+    # Eq. 22's J_s mixes a stationary phase faster than the experiment (pedestrians cross the channel
+    # at about their desired speeds, above the measured 0.94-1.22 m/s) with a slow draining tail
+    stationary = np.mean([r.stationary_specific_flow_per_m_s() for r in runs])
+    assert stationary > 1.25 * np.mean([r.specific_flow_per_m_s for r in runs])
+    assert np.mean([r.mean_speed_m_s("inside") for r in runs]) > INSIDE_SPEED_RANGE_M_S[1] + 0.1
 
 
 def test_reproduction_cli_resumes_and_guards_config(tmp_path):
@@ -149,6 +159,31 @@ def test_density_windows():
     assert r.mean_density_per_m2("front", fractions=(0.0, 0.5)) == pytest.approx(4.0)
     with pytest.raises(ValueError):
         r.density_window_s("nonsense")
+
+
+def test_speed_and_stationary_flow_windows():
+    from crowd_env.runner import RunResult
+
+    # passages every 0.5 s for the first 8, then every 2 s (a draining tail); b = 0.8 m
+    times = np.concatenate([np.arange(8) * 0.5 + 10.0, 13.5 + 2.0 * np.arange(1, 4)])
+    speed = np.full(3000, 1.2)  # step j at t = (j + 1) h, h = 0.01 s
+    speed[1300:] = 0.6
+    speed[1150:1250] = np.nan  # nobody inside: those steps do not count
+    r = RunResult(n_pedestrians=11, width_m=0.8, seed=0, n_steps=3000, simulated_time_s=30.0, wall_time_s=0.0,
+                  n_evacuated=11, evacuation_time_s=30.0, crossing_times_s=times, flow_per_s=np.nan,
+                  specific_flow_per_m_s=np.nan, min_gap_m=0.0, speed_m_s={"inside": speed})
+    # the stationary window runs from the 2nd to the 8th passage (ranks 2 and 8 of 0..10)
+    assert r.density_window_s() == (11.0, 15.5)
+    assert r.stationary_specific_flow_per_m_s() == pytest.approx(6 / (4.5 * 0.8))
+    assert r.stationary_specific_flow_per_m_s(fractions=(0.0, 0.5)) == pytest.approx(5 / (2.5 * 0.8))
+    # in [11, 15.5] s: 100 samples of 1.2 m/s (the empty second skipped) and 250 of 0.6 m/s (± one
+    # sample at each end of the window)
+    assert r.mean_speed_m_s("inside") == pytest.approx((100 * 1.2 + 250 * 0.6) / 350, abs=0.005)
+    assert r.mean_speed_m_s("inside", fractions=(0.0, 0.1)) == pytest.approx(1.2)
+    one = RunResult(n_pedestrians=1, width_m=0.8, seed=0, n_steps=10, simulated_time_s=0.1, wall_time_s=0.0,
+                    n_evacuated=1, evacuation_time_s=0.1, crossing_times_s=np.array([0.05]), flow_per_s=np.nan,
+                    specific_flow_per_m_s=np.nan, min_gap_m=0.0, speed_m_s={"inside": np.ones(10)})
+    assert np.isnan(one.stationary_specific_flow_per_m_s()) and np.isnan(one.mean_speed_m_s("inside"))
 
 
 def test_presets_set_the_base_configuration_and_flags_override(tmp_path):

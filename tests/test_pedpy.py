@@ -170,6 +170,22 @@ def test_density_in_the_areas_agrees_with_pedpy(run, loaded, area):
     assert bound < 0.15 * mean_run
 
 
+def test_speed_inside_agrees_with_pedpy(run, loaded):
+    """The run's mean speed in the channel (instantaneous ‖u‖ of the pedestrians inside, every step)
+    against PedPy's mean speed per frame from positions (centred difference over ±1 frame = 8 steps).
+    Positions advance by h·u each step, so PedPy's speed is the length of u averaged over 0.08 s:
+    they differ only by how much u turns or changes in that time."""
+    sc, result, *_ = run
+    traj_data, geometry = loaded
+    data = fundamental_diagram_data(traj_data, pedpy_measurement_area(geometry, "inside"), speed_window_s=0.08)
+    t0, t1 = result.density_window_s()
+    sel = (data["time_s"] >= t0) & (data["time_s"] <= t1)
+    assert sel.sum() > 100
+    ours = result.speed_m_s["inside"][data["frame"][sel] * 4 - 1]  # step j ends at (j + 1) h
+    np.testing.assert_allclose(data["speed_m_s"][sel], ours, rtol=0.01)
+    assert float(data["speed_m_s"][sel].mean()) == pytest.approx(result.mean_speed_m_s("inside"), rel=0.005)
+
+
 def test_fundamental_diagram_data_and_cli(run, loaded, tmp_path):
     sc, result, traj, txt, *_ = run
     traj_data, geometry = loaded

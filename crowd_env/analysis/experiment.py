@@ -19,6 +19,11 @@ SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S = (1.77, 2.31)
 DIP_N20_WIDTH_M = 1.1
 # Norms of residuals of least-squares lines J = a b + c through the experimental flows (Kabalan Table 3).
 RESIDUAL_NORM_BY_GROUP = {20: 0.436, 40: 0.237, 60: 0.098}
+# Other N = 60 observations (Seyfried et al. 2009; shared data README): density in the jam 1 m in front of
+# the entrance, stationary density and speed inside the bottleneck, over all widths.
+FRONT_DENSITY_RANGE_PER_M2 = (4.0, 6.0)
+INSIDE_DENSITY_RANGE_PER_M2 = (1.42, 1.73)
+INSIDE_SPEED_RANGE_M_S = (0.94, 1.22)
 # The published two-decimal N = 60 specific flows (Seyfried 2009 Table 2); the CSV holds full precision.
 PUBLISHED_SPECIFIC_FLOW_N60_PER_M_S = (1.61, 1.86, 1.90, 1.93, 1.97)
 

@@ -5,7 +5,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .experiment import SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, seyfried_2009
+from .experiment import (FRONT_DENSITY_RANGE_PER_M2, INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RANGE_M_S,
+                         SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, seyfried_2009)
 from .flow import linear_fit
 from .lanes import detect_lanes
 
@@ -43,24 +44,30 @@ def bottleneck_figures(records: list, rows: list, out: Path) -> list:
         b = [r["width_m"] for r in sub]
         ax.errorbar(b, [r["specific_flow_mean"] for r in sub], yerr=[r["specific_flow_std"] for r in sub],
                     fmt="o-", capsize=3, label="crowd_env")
+        stationary = [r.get("stationary_specific_flow", np.nan) for r in sub]
+        if np.isfinite(stationary).any():
+            ax.plot(b, stationary, "v:", color="C0", alpha=0.6, label="crowd_env, stationary (middle 60 %)")
         if n == 60:
             ax.plot(exp.width_m[exp.n_pedestrians == 60], exp.specific_flow_per_m_s[exp.n_pedestrians == 60],
                     "ks--", label="Seyfried 2009")
         else:
             lo, hi = SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S
             ax.axhspan(lo, hi, color="0.85", label="experimental range")
-        ax.set(title=f"N = {n}", xlabel="b (m)", ylabel="J_s (1/(m s))", ylim=(1.0, 3.0))
+        ax.set(title=f"N = {n}", xlabel="b (m)", ylabel="J_s (1/(m s))", ylim=(1.0, 3.4))
         ax.legend(fontsize=8)
     paths.append(save_figure(fig, out / "fig11_specific_flow.png"))
-    # Fig. 12: densities in front of and inside the bottleneck (N = 60 where present).
+    # Fig. 12: densities in front of and inside the bottleneck, and the speed inside (N = 60 where
+    # present). In a stationary channel J_s = ρ_inside · v_inside: the last two panels split the flow.
     n_d = 60 if 60 in sizes else sizes[-1]
     sub = [r for r in rows if r["n_pedestrians"] == n_d]
-    fig, axes = plt.subplots(1, 2, figsize=(8.4, 3.6))
-    for ax, key, band, title in ((axes[0], "density_front", (4.0, 6.0), "1 m in front"),
-                                 (axes[1], "density_inside", (1.42, 1.73), "inside the bottleneck")):
-        ax.plot([r["width_m"] for r in sub], [r[key] for r in sub], "o-", label="crowd_env")
+    fig, axes = plt.subplots(1, 3, figsize=(12.6, 3.6))
+    for ax, key, band, title, unit, top in (
+            (axes[0], "density_front", FRONT_DENSITY_RANGE_PER_M2, "density 1 m in front", "ρ (1/m²)", 7),
+            (axes[1], "density_inside", INSIDE_DENSITY_RANGE_PER_M2, "density inside", "ρ (1/m²)", 7),
+            (axes[2], "speed_inside", INSIDE_SPEED_RANGE_M_S, "speed inside", "v (m/s)", 2)):
+        ax.plot([r["width_m"] for r in sub], [r.get(key, np.nan) for r in sub], "o-", label="crowd_env")
         ax.axhspan(*band, color="0.85", label="experiment")
-        ax.set(title=f"density {title}, N = {n_d}", xlabel="b (m)", ylabel="ρ (1/m²)", ylim=(0, 7))
+        ax.set(title=f"{title}, N = {n_d}", xlabel="b (m)", ylabel=unit, ylim=(0, top))
         ax.legend(fontsize=8)
     paths.append(save_figure(fig, out / "fig12_density.png"))
     # Fig. 13: J vs b with linear fits and residual norms.
@@ -120,13 +127,25 @@ def discharge_rate(crossing_times_s, window: int = 5):
 
 
 def discharge_figure(records: list, path: Path, window: int = 5):
-    """Specific discharge rate vs crowd left behind, pooled over runs, one colour per N; None without data."""
+    """Specific discharge rate vs crowd left behind: left, pooled over runs, one colour per N; right, for
+    the largest N, the median over runs per width (how the tail depends on b). None without data."""
     recs = [r for r in records if len(r.get("crossing_times_s") or []) > window]
     if not recs:
         return None
     plt = pyplot()
     exp = seyfried_2009()
-    fig, ax = plt.subplots(figsize=(5.6, 3.8))
+    fig, (ax, ax_b) = plt.subplots(1, 2, figsize=(11.2, 3.8), sharey=True)
+    n_max = max(r["n_pedestrians"] for r in recs)
+    for k, b in enumerate(sorted({r["width_m"] for r in recs if r["n_pedestrians"] == n_max})):
+        pooled = [discharge_rate(r["crossing_times_s"], window) for r in recs
+                  if r["n_pedestrians"] == n_max and r["width_m"] == b]
+        remaining = np.concatenate([p[0] for p in pooled])
+        rate = np.concatenate([p[1] for p in pooled]) / b
+        levels = np.unique(remaining)
+        ax_b.plot(levels, [np.median(rate[remaining == x]) for x in levels], "-", color=plt.cm.viridis(k / 4.0),
+                  label=f"b = {b:g} m")
+    ax_b.set(xlabel="pedestrians not yet passed", title=f"N = {n_max}: median over runs per width")
+    ax_b.legend(fontsize=7)
     for k, n in enumerate(sorted({r["n_pedestrians"] for r in recs})):
         first = True
         for r in recs:
