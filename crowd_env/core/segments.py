@@ -121,14 +121,14 @@ def _fill_wall_proximity(position, radius, index, segments, owner, margin, ped, 
         r = radius[i]
         for k in range(segments.shape[0]):
             cx, cy, t = closest_point_on_segment(px, py, segments[k, 0], segments[k, 1], segments[k, 2], segments[k, 3])
-            if (t == 0.0 and not _counts_vertex(px, py, k, 0, segments, owner)) or \
-                    (t == 1.0 and not _counts_vertex(px, py, k, 1, segments, owner)):
-                continue
             dx = px - cx
             dy = py - cy
             d = np.sqrt(dx * dx + dy * dy)
             gap = d - r
-            if gap > margin[a]:
+            if gap > margin[a]:  # the cheap test first: most walls are far
+                continue
+            if (t == 0.0 and not _counts_vertex(px, py, k, 0, segments, owner)) or \
+                    (t == 1.0 and not _counts_vertex(px, py, k, 1, segments, owner)):
                 continue
             if d > 1e-12:
                 nx = dx / d
