@@ -271,3 +271,38 @@ def test_simulator_hands_a_slow_augmented_lagrangian_to_the_interior_point_metho
         sim._project(v, mass, con, H, np.arange(n))
         np.testing.assert_allclose(v, v_exact, atol=1e-6)
         assert sim.n_ipm_projections == k + 1 and sim.n_alm_newton_steps == 3 and sim.n_fallback_solves == 0
+
+
+def test_misses_in_a_row_back_off_the_augmented_lagrangian(monkeypatch):
+    """Each miss in a row doubles the number of large projections that skip the augmented Lagrangian
+    (ALM_SKIP_AFTER_MISS, up to ALM_SKIP_MAX); a success from zero resets it. Every projection is exact."""
+    import crowd_env.core.simulator as simulator_module
+
+    rng = np.random.default_rng(5)
+    vel, mass, a, b, gap, nx, ny = _hex_jam(9, 10, rng)
+    n = vel.shape[0]
+    v_exact = vel.copy()
+    project_gaps_alm(v_exact, mass, a, b, gap, nx, ny, H, np.zeros(a.shape[0]), 400)
+    monkeypatch.setattr(simulator_module, "ALM_NEWTON_BUDGET", 3)
+    monkeypatch.setattr(simulator_module, "ALM_SKIP_AFTER_MISS", 2)
+    monkeypatch.setattr(simulator_module, "ALM_SKIP_MAX", 8)
+    sim = _jam_simulator(n)
+    con = {"a": a, "b": b, "gap": gap, "nx": nx, "ny": ny}
+
+    def tries(count):
+        out = []
+        for k in range(count):
+            before = sim.n_alm_newton_steps
+            v = vel.copy()
+            sim._project(v, mass, con, H, np.arange(n))
+            np.testing.assert_allclose(v, v_exact, atol=1e-6)
+            if sim.n_alm_newton_steps > before:
+                out.append(k)
+        return out
+
+    assert tries(31) == [0, 2, 6, 14, 22, 30]  # skips of 2, 4, 8, then 8 (the cap)
+    monkeypatch.setattr(simulator_module, "ALM_NEWTON_BUDGET", 400)
+    assert tries(10) == [7, 8, 9]  # the next try, 8 after the last, converges, and so does every one after
+    monkeypatch.setattr(simulator_module, "ALM_NEWTON_BUDGET", 3)
+    assert tries(7) == [0, 2, 6]  # the success reset the back-off
+    assert sim.n_fallback_solves == 0

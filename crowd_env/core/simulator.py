@@ -44,6 +44,11 @@ from .stepper import (FUSED_OK, PROJECTION_TOL_M_S, VTOL_M_S, candidate_gaps_min
 
 ALM_NEWTON_BUDGET = 30  # Newton steps given to project_gaps_alm before the interior point method (break-even: 27-30)
 ALM_WARM_NEWTON_BUDGET = 10  # the same from the multipliers of an earlier projection in the step
+# After the augmented Lagrangian misses from zero, the next ALM_SKIP_AFTER_MISS large projections go to
+# the interior point method directly; each further miss in a row doubles that, up to ALM_SKIP_MAX (a
+# jam that stays too large for it costs a wasted try only every ALM_SKIP_MAX projections).
+ALM_SKIP_AFTER_MISS = 10
+ALM_SKIP_MAX = 160
 MAX_REDETECT = 10  # re-detection rounds per step (speeds are bounded: one or two rounds suffice in practice)
 
 
@@ -117,6 +122,7 @@ class Simulator:
         self.max_dense_projection_rows = MAX_DENSE_PROJECTION_ROWS
         self._large_step = -2  # step of the last large projection
         self._skip_alm = 0  # large projections left before the augmented Lagrangian is tried again
+        self._alm_backoff = ALM_SKIP_AFTER_MISS  # what the next miss sets _skip_alm to
         self.profile = profile
         self._pairs_key = -1
         self._pairs = None
@@ -406,7 +412,8 @@ class Simulator:
         (pivoting, Clarabel, polish) serves if even that fails. The augmented Lagrangian's Newton
         steps grow with the diameter of the jam (10-21 at 400 pedestrians in one jam, 30-75 at 1400),
         the interior point iterations do not (14-22): after a miss the interior point method is used
-        directly for a while, the augmented Lagrangian tried again every 10th large projection.
+        directly for a while: the augmented Lagrangian is tried again after ``ALM_SKIP_AFTER_MISS`` large
+        projections, after twice as many at each further miss in a row (up to ``ALM_SKIP_MAX``).
 
         ``lam_warm`` (one per candidate, or None): multipliers of a projection of the same step from the
         same velocities on a subset of these candidates (before a re-detection added some). The
@@ -437,16 +444,19 @@ class Simulator:
     def _project_large(self, vel, mass, c_a, c_b, con, h, lam_warm=None):
         """:meth:`_project` for a projection too large for the dense path, in place on ``vel``."""
         args = (vel, mass, c_a, c_b, con["gap"], con["nx"], con["ny"], h)
-        starts = [] if lam_warm is None else [(lam_warm, ALM_WARM_NEWTON_BUDGET)]
+        starts = [] if lam_warm is None else [(lam_warm, ALM_WARM_NEWTON_BUDGET, False)]
         if self._skip_alm <= 0:
-            starts.append((np.zeros(c_a.shape[0]), ALM_NEWTON_BUDGET))
-        for lam0, budget in starts:
+            starts.append((np.zeros(c_a.shape[0]), ALM_NEWTON_BUDGET, True))
+        for lam0, budget, cold in starts:
             lam_p, steps, status = project_gaps_alm(*args, lam0, budget)
             self.n_alm_newton_steps += steps
             if status == STATUS_OK:
+                if cold:  # converged from zero: it suits this jam again
+                    self._alm_backoff = ALM_SKIP_AFTER_MISS
                 return lam_p
         if self._skip_alm <= 0:  # the augmented Lagrangian missed from zero: skip it for a while
-            self._skip_alm = 10
+            self._skip_alm = self._alm_backoff
+            self._alm_backoff = min(2 * self._alm_backoff, ALM_SKIP_MAX)
         self._skip_alm -= 1
         self.n_ipm_projections += 1
         lam_p, ok = project_gaps_ipm(*args)
