@@ -170,8 +170,8 @@ def run_one(task: dict) -> dict:
 
 RESULT_COLUMNS = ["width_m", "n_pedestrians", "seed", "specific_flow_per_m_s", "flow_per_s", "evacuation_time_s",
                   "n_evacuated", "min_gap_m", "density_front_per_m2", "density_inside_per_m2", "density_front_passages_per_m2",
-                  "density_inside_passages_per_m2", "speed_inside_m_s", "stationary_specific_flow_per_m_s", "first_passage_s",
-                  "last_passage_s", "n_passages", "wall_time_s", "n_steps", "n_fallback_solves"]
+                  "density_inside_passages_per_m2", "speed_inside_m_s", "stationary_specific_flow_per_m_s",
+                  "first_passage_s", "last_passage_s", "n_passages", "wall_time_s", "n_steps", "n_fallback_solves"]
 
 
 def navigation_clearance_from_args(args) -> float:
@@ -321,7 +321,8 @@ def print_summary(rows: list, records: list, params=None, radius_m: float | None
             else "OUT")
         print(f"{r['n_pedestrians']:>4} {r['width_m']:>6.2f} {r['runs']:>5} {r['specific_flow_mean']:>7.3f} ± "
               f"{r['specific_flow_std']:.3f} {exp:>11} {err:>8} {r['density_front']:>10.2f} {r['density_inside']:>10.2f} "
-              f"{r['speed_inside']:>10.2f} {r['stationary_specific_flow']:>8.3f} {str(r['all_evacuated']):>9} {r['min_gap_m']:>12.2e}")
+              f"{r['speed_inside']:>10.2f} {r['stationary_specific_flow']:>8.3f} {str(r['all_evacuated']):>9} "
+              f"{r['min_gap_m']:>12.2e}")
     print("front / inside: mean densities, v in: mean speed inside, J_s stat: passages per m and s, all over the "
           "stationary window (20 % to 80 % of the passages); J_s stat = inside · v in in a stationary channel "
           "(experiment, N = 60: inside 1.42-1.73 /m², v in 0.94-1.22 m/s)")
