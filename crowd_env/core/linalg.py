@@ -4,8 +4,8 @@ Not LAPACK: the systems are small or banded, and OpenBLAS threads fighting over 
 LAPACK calls 10-100 times slower than these loops. Inner products run over *unsigned* offsets
 (:func:`dot_range`): with signed indices numba keeps its negative-index wraparound test inside the loop
 and LLVM does not vectorise it, which made the factorisations about three times slower.
-No kernel here changes rounding for speed (``SAME_ROUNDING_FASTMATH``); four interleaved partial sums
-vectorise without reassociation. ``test_fused_and_staged_steps_agree_bitwise`` checks that the kernels
+No kernel here uses fast-math flags that change rounding (``SAME_ROUNDING_FASTMATH``); four interleaved
+partial sums vectorise without reassociation. ``test_fused_and_staged_steps_agree_bitwise`` checks that the kernels
 round the same wherever they are compiled (the fused step inlines them into one function, the staged
 step calls them one by one).
 """
@@ -95,19 +95,23 @@ def cholesky(A):
 @nb.njit(cache=True, fastmath=SAME_ROUNDING_FASTMATH)
 def envelope_cholesky(env, off, first):
     """In-place Cholesky of an SPD matrix in envelope storage: row i holds columns first[i] … i at
-    env[off[i] : off[i + 1]] (A[i, j] = env[off[i] + j − first[i]]). Raises on a non-positive pivot."""
+    env[off[i] : off[i + 1]] (A[i, j] = env[off[i] + j − first[i]]). Raises on a non-positive pivot.
+    Multiplies by reciprocal pivots rather than dividing (the inner products are short, so the
+    divisions cost about 15 % of the time: measured on the door jams of ``benchmarks/scaling.py``)."""
     nd = first.shape[0]
+    inv_pivot = np.empty(nd)
     for i in range(nd):
         fi = first[i]
         oi = off[i] - fi
         for j in range(fi, i):
             oj = off[j] - first[j]
             k0 = max(fi, first[j])
-            env[oi + j] = (env[oi + j] - dot_range(env, oi + k0, env, oj + k0, j - k0)) / env[oj + j]
+            env[oi + j] = (env[oi + j] - dot_range(env, oi + k0, env, oj + k0, j - k0)) * inv_pivot[j]
         s = env[oi + i] - dot_range(env, oi + fi, env, oi + fi, i - fi)
         if not s > 0.0:
             raise ValueError("Newton matrix is not positive definite")
         env[oi + i] = np.sqrt(s)
+        inv_pivot[i] = 1.0 / env[oi + i]
 
 
 @nb.njit(cache=True, fastmath=SAME_ROUNDING_FASTMATH)
