@@ -136,13 +136,14 @@ def discharge_figure(records: list, path: Path, window: int = 5):
     exp = seyfried_2009()
     fig, (ax, ax_b) = plt.subplots(1, 2, figsize=(11.2, 3.8), sharey=True)
     n_max = max(r["n_pedestrians"] for r in recs)
-    for k, b in enumerate(sorted({r["width_m"] for r in recs if r["n_pedestrians"] == n_max})):
+    widths = sorted({r["width_m"] for r in recs if r["n_pedestrians"] == n_max})
+    for k, b in enumerate(widths):
         pooled = [discharge_rate(r["crossing_times_s"], window) for r in recs
                   if r["n_pedestrians"] == n_max and r["width_m"] == b]
         remaining = np.concatenate([p[0] for p in pooled])
         rate = np.concatenate([p[1] for p in pooled]) / b
         levels = np.unique(remaining)
-        ax_b.plot(levels, [np.median(rate[remaining == x]) for x in levels], "-", color=plt.cm.viridis(k / 4.0),
+        ax_b.plot(levels, [np.median(rate[remaining == x]) for x in levels], "-", color=plt.cm.viridis(k / max(1, len(widths) - 1)),
                   label=f"b = {b:g} m")
     ax_b.set(xlabel="pedestrians not yet passed", title=f"N = {n_max}: median over runs per width")
     ax_b.legend(fontsize=7)
