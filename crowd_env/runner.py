@@ -11,6 +11,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import numba as nb
 import numpy as np
 import shapely
 
@@ -106,6 +107,22 @@ class RunResult:
         return float(values.mean()) if values.size else float("nan")
 
 
+@nb.njit(cache=True)
+def _mean_speed(velocity, active, inside):
+    """Mean ‖u‖ of the active pedestrians flagged by ``inside`` (one flag per active pedestrian, in
+    index order); nan when none is."""
+    total = 0.0
+    count = 0
+    k = 0
+    for i in range(active.shape[0]):
+        if active[i]:
+            if inside[k]:
+                total += np.sqrt(velocity[i, 0] ** 2 + velocity[i, 1] ** 2)
+                count += 1
+            k += 1
+    return total / count if count else np.nan
+
+
 def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_time_s: float = 300.0,
                  line: str = "bottleneck", density_areas=("front", "inside"), lane_area: str | None = "inside",
                  width_m: float | None = None, state=None, rng=None, progress=None) -> RunResult:
@@ -148,13 +165,11 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
         if counter is not None:
             counter.update(prev, state.position_m, t_prev, sim.time_s, ids)
         pos = state.position_m[state.active]
-        speeds = np.hypot(*state.velocity_m_s[state.active].T)
         masks = {}
         for name, poly in areas.items():
             masks[name] = shapely.contains_xy(poly, pos[:, 0], pos[:, 1])
-            count = np.count_nonzero(masks[name])
-            density[name].append(count / area_size[name])
-            speed[name].append(speeds[masks[name]].mean() if count else np.nan)
+            density[name].append(np.count_nonzero(masks[name]) / area_size[name])
+            speed[name].append(_mean_speed(state.velocity_m_s, state.active, masks[name]))
         if lane_poly is not None:
             inside = masks[lane_area] if lane_area in masks else shapely.contains_xy(lane_poly, pos[:, 0], pos[:, 1])
             lateral.append(pos[inside, 1])
