@@ -201,6 +201,19 @@ def test_presets_set_the_base_configuration_and_flags_override(tmp_path):
     assert set(PRESETS) == {"paper", "recalibrated"}
     with pytest.raises(SystemExit):
         build_parser().parse_args(["--preset", "nonsense"])
+    # the optional wall slowdown enters the configuration only when given (older run folders stay valid)
+    assert "navigation_wall_slowdown" not in config_of(args, model_params_from_args(args))["geometry"]
+    args = build_parser().parse_args(["--navigation-wall-slowdown", "0.5", "0.4"])
+    assert config_of(args, model_params_from_args(args))["geometry"]["navigation_wall_slowdown"] == [0.5, 0.4]
+
+
+def test_impossible_geometry_fails_before_the_output_folder_is_touched(tmp_path):
+    out = tmp_path / "out"
+    for argv, match in ((["--widths", "0.3"], "b = 0.3 m, N = 20: bottleneck width 0.3 m is not wider"),
+                        (["--navigation-wall-slowdown", "0.5", "2"], "navigation_wall_slowdown: .*speed_factor")):
+        with pytest.raises(SystemExit, match=match):
+            reproduce(argv + ["--sizes", "20", "--seeds", "1", "--out", str(out)])
+        assert not out.exists()
 
 
 def _run_with(a_n, b_m, clearance_m, wall_strength_n=None, seed=0, width_m=1.0, max_time_s=80.0):

@@ -207,3 +207,21 @@ def test_bottleneck_navigation_in_configuration_space():
     with pytest.raises(ScenarioError, match="navigation_clearance_m"):
         seyfried_bottleneck(width_m=1.0, n_pedestrians=20, navigation_clearance_m=-0.1)
     assert scenario_options("seyfried_bottleneck")["navigation_clearance_m"] == 0.0
+
+
+def test_bottleneck_navigation_wall_slowdown():
+    """navigation_wall_slowdown = (d, f) multiplies the eikonal wavefront speed by f within d of a wall
+    (Eq. 11 with 0 < V < 1 there): travel times grow only where paths run near walls, by at most 1/f,
+    and the option reaches the navigation field; None (the default, the paper's V = 1) changes nothing."""
+    plain = seyfried_bottleneck(width_m=1.0, n_pedestrians=20, seed=0)
+    slow = seyfried_bottleneck(width_m=1.0, n_pedestrians=20, seed=0, navigation_wall_slowdown=(0.5, 0.5))
+    assert plain.wall_slowdown is None and plain.metadata["navigation_wall_slowdown"] is None
+    assert slow.navigation().wall_slowdown == (0.5, 0.5) and slow.metadata["navigation_wall_slowdown"] == [0.5, 0.5]
+    # on the channel's axis (0.5 m from both walls at b = 1.0 m) and at a wall of the holding corridor
+    axis, near_wall = np.array([[0.2, 0.0]]), np.array([[-3.0, 1.9]])
+    t_axis = slow.navigation().travel_time(axis)[0] / plain.navigation().travel_time(axis)[0]
+    t_wall = slow.navigation().travel_time(near_wall)[0] / plain.navigation().travel_time(near_wall)[0]
+    assert 1.0 <= t_axis < t_wall <= 2.0 + 1e-9
+    for bad in ((0.5, 2.0), (0.0, 0.5), (0.5,), "x"):
+        with pytest.raises(ScenarioError, match="navigation_wall_slowdown"):
+            seyfried_bottleneck(width_m=1.0, n_pedestrians=20, navigation_wall_slowdown=bad)

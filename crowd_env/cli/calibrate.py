@@ -28,7 +28,7 @@ from pathlib import Path
 
 from crowd_env.analysis.calibration import PAPER_VALLEY_FIT, CalibrationError, check_grid_values, grid_axis
 from crowd_env.analysis.experiment import ExperimentError, ExperimentTable
-from crowd_env.cli.reproduce_bottleneck import PRESETS, GEOMETRY_OPTIONS, config_of, model_params_from_args
+from crowd_env.cli.reproduce_bottleneck import PRESETS, add_geometry_arguments, config_of, model_params_from_args
 from crowd_env.core.params import ParameterError
 
 
@@ -63,11 +63,8 @@ def build_parser() -> argparse.ArgumentParser:
                       help="Ray cluster to join (HOST:PORT, ray://HOST:PORT or auto); default: local Ray on all cores")
     dist.add_argument("--jobs", type=int, default=None, help="CPUs of the local Ray instance / process pool")
     dist.add_argument("--connect-timeout", type=float, default=5.0, help="seconds to reach --address before giving up")
-    g = common.add_argument_group("geometry (Seyfried 2009 defaults, as crowd-bottleneck)")
-    for flag, (_, default) in GEOMETRY_OPTIONS.items():
-        g.add_argument(f"--{flag.replace('_', '-')}", type=float, default=default, dest=flag, help=f"default {default}")
-    g.add_argument("--navigation-clearance", type=float, default=None, dest="navigation_clearance",
-                   help="default: the preset's (0 for 'paper', 0.23 for 'recalibrated')")
+    add_geometry_arguments(common.add_argument_group("geometry (Seyfried 2009 defaults, as crowd-bottleneck)"),
+                           "default: the preset's (0 for 'paper', 0.23 for 'recalibrated')")
     m = common.add_argument_group("fixed model parameters")
     m.add_argument("--preset", choices=sorted(PRESETS), default="paper",
                    help="base configuration as in crowd-bottleneck (A and B are then set by the grid/optimiser)")

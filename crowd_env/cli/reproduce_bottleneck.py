@@ -68,15 +68,11 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--max-time", type=float, default=300.0, help="simulated time limit per run (s)")
     ap.add_argument("--quick", action="store_true",
                     help="quick check for a fresh machine: N = 60, the 5 widths, 2 seeds (overrides --sizes/--seeds)")
-    g = ap.add_argument_group("geometry (Seyfried 2009 defaults)")
-    for flag, (_, default) in GEOMETRY_OPTIONS.items():
-        g.add_argument(f"--{flag.replace('_', '-')}", type=float, default=default, dest=flag,
-                       help=f"default {default}")
-    g.add_argument("--navigation-clearance", type=float, default=None, dest="navigation_clearance",
-                   help="erode the walkable area by this distance (m) before solving the eikonal field: the "
-                        "radius (0.23) gives the configuration space of the disk centres; default 0, the paper's "
-                        "point field (Eq. 11-13), with which its A = 790 N, B = 0.08 m were calibrated; "
-                        "0.23 with --preset recalibrated")
+    add_geometry_arguments(ap.add_argument_group("geometry (Seyfried 2009 defaults)"),
+                           "erode the walkable area by this distance (m) before solving the eikonal field: the "
+                           "radius (0.23) gives the configuration space of the disk centres; default 0, the paper's "
+                           "point field (Eq. 11-13), with which its A = 790 N, B = 0.08 m were calibrated; "
+                           "0.23 with --preset recalibrated")
     m = ap.add_argument_group("model (Kabalan Table 2 and A = 790 N, B = 0.08 m by default)")
     m.add_argument("--preset", choices=sorted(PRESETS), default="paper",
                    help="base configuration of model and navigation (see PRESETS): 'paper' (default) or "
@@ -101,6 +97,20 @@ def build_parser() -> argparse.ArgumentParser:
                    help="frame rate of the trajectory files, 1/(k h) for an integer k (default 25: every 4th step "
                         "of h = 0.01 s)")
     return ap
+
+
+def add_geometry_arguments(group, clearance_help: str) -> None:
+    """The scenario's geometry and navigation options (shared with ``crowd-calibrate``)."""
+    for flag, (_, default) in GEOMETRY_OPTIONS.items():
+        group.add_argument(f"--{flag.replace('_', '-')}", type=float, default=default, dest=flag,
+                           help=f"default {default}")
+    group.add_argument("--navigation-clearance", type=float, default=None, dest="navigation_clearance",
+                       help=clearance_help)
+    group.add_argument("--navigation-wall-slowdown", type=float, nargs=2, default=None, metavar=("DIST", "FACTOR"),
+                       dest="navigation_wall_slowdown",
+                       help="slower wavefront speed near walls, an option the paper describes with Eq. 11 but does not "
+                            "use: V is multiplied by FACTOR in (0, 1] within DIST m of a wall, so that desired "
+                            "directions keep away from walls; default off (V = 1 everywhere, as in the paper)")
 
 
 def model_params_from_args(args) -> ModelParams:
@@ -183,6 +193,9 @@ def navigation_clearance_from_args(args) -> float:
 def config_of(args, params: ModelParams) -> dict:
     geometry = {opt: float(getattr(args, flag)) for flag, (opt, _) in GEOMETRY_OPTIONS.items()}
     geometry["navigation_clearance_m"] = navigation_clearance_from_args(args)
+    slowdown = getattr(args, "navigation_wall_slowdown", None)
+    if slowdown is not None:  # only when set, so that folders of runs without it keep their configuration
+        geometry["navigation_wall_slowdown"] = [float(v) for v in slowdown]
     p = {f.name: getattr(params, f.name) for f in dataclasses.fields(params) if f.name != "extra"}
     return {"geometry": geometry, "params": p, "max_time_s": float(args.max_time)}
 
@@ -370,14 +383,19 @@ def main(argv=None) -> int:
         except TrajectoryFormatError as exc:
             raise SystemExit(f"error: --trajectory-fps: {exc}")
     config = config_of(args, params)
+    # Fail fast on impossible geometry, before the output folder is touched or workers are spawned.
+    from crowd_env.core.segments import GeometryError
+    from crowd_env.scenarios import ScenarioError, make_scenario
+    for b in args.widths:
+        for n in args.sizes:
+            try:
+                make_scenario("seyfried_bottleneck", width_m=b, n_pedestrians=n, seed=args.first_seed,
+                              **config["geometry"])
+            except (GeometryError, ScenarioError) as exc:
+                raise SystemExit(f"error: b = {b} m, N = {n}: {exc}")
     check_config(args.out, config)
     tasks = [dict(width_m=b, n_pedestrians=n, seed=s, trajectory_fps=fps, **config)
              for n in args.sizes for b in args.widths for s in range(args.first_seed, args.first_seed + args.seeds)]
-    # Fail fast on impossible geometry before spawning workers.
-    from crowd_env.scenarios import make_scenario
-    for b in args.widths:
-        for n in args.sizes:
-            make_scenario("seyfried_bottleneck", width_m=b, n_pedestrians=n, seed=args.first_seed, **config["geometry"])
     records = run_sweep(tasks, args.out, args.jobs)
     write_results(records, args.out)
     rows = summarise(records)

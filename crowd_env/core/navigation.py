@@ -188,7 +188,7 @@ class NavigationField:
             raise GeometryError(f"speed_m_s must be a positive finite number, got {speed_m_s!r}")
         self.geometry = geometry
         self.speed_m_s = float(speed_m_s)
-        self.wall_slowdown = self._check_slowdown(wall_slowdown)
+        self.wall_slowdown = self.check_wall_slowdown(wall_slowdown)
         self.clearance_m = self._check_clearance(clearance_m)
         self.exits = self._check_exits(exits, geometry)
         raster = geometry.rasterize(resolution_m)
@@ -286,7 +286,9 @@ class NavigationField:
         return skfmm.travel_time(phi, speed, dx=h)
 
     @staticmethod
-    def _check_slowdown(wall_slowdown):
+    def check_wall_slowdown(wall_slowdown):
+        """``wall_slowdown`` as a ``(distance_m, speed_factor)`` tuple of floats, or None; raises
+        :class:`GeometryError` naming what is wrong."""
         if wall_slowdown is None:
             return None
         try:
@@ -329,7 +331,7 @@ class NavigationField:
     def cached(cls, geometry: Geometry, resolution_m: float = 0.05, wall_slowdown=None,
                speed_m_s: float = 1.0, clearance_m: float = 0.0, exits=None) -> "NavigationField":
         """The field for ``geometry`` with these settings, computed on first use and then reused."""
-        key = (float(resolution_m), cls._check_slowdown(wall_slowdown), float(speed_m_s),
+        key = (float(resolution_m), cls.check_wall_slowdown(wall_slowdown), float(speed_m_s),
                cls._check_clearance(clearance_m))
         exits = cls._check_exits(exits, geometry)
         if exits is not None:

@@ -41,6 +41,7 @@ from shapely.geometry import Polygon, box
 from shapely.ops import unary_union
 
 from ..core.geometry import Geometry
+from ..core.navigation import NavigationField
 from ..core.segments import GeometryError
 from .base import Scenario, ScenarioError, check_positive as _positive, place_pedestrians, register_scenario
 
@@ -106,7 +107,7 @@ def seyfried_bottleneck(width_m: float = 1.0, n_pedestrians: int = 60, seed: int
                         block_start_upstream_m: float = 2.24, radius_m: float = 0.23, n_sections: int | None = None,
                         outflow_depth_m: float = 2.0, outflow_width_m: float | None = None,
                         exit_depth_m: float = 0.5, navigation_resolution_m: float = 0.05,
-                        navigation_clearance_m: float = 0.0) -> Scenario:
+                        navigation_clearance_m: float = 0.0, navigation_wall_slowdown=None) -> Scenario:
     """Seyfried et al. (2009) bottleneck of width ``width_m`` with ``n_pedestrians`` in the holding area.
 
     Sections of ``corridor_width_m`` x ``section_depth_m`` hold round(density x area) persons each (20 by
@@ -114,7 +115,8 @@ def seyfried_bottleneck(width_m: float = 1.0, n_pedestrians: int = 60, seed: int
     as many as N needs). Radii are ``radius_m`` for everybody (Table 2); desired speeds are drawn by
     :meth:`Scenario.make_state`. Raises :class:`ScenarioError` / :class:`GeometryError` naming the
     problem (bottleneck not wider than a pedestrian, wider than the corridor, non-positive values,
-    more pedestrians than fit).
+    more pedestrians than fit). ``navigation_wall_slowdown``: ``(distance_m, speed_factor)`` for a slower
+    eikonal wavefront near walls (Eq. 11's 0 < V < 1, which the paper describes but does not use), or None.
     """
     _positive(width_m=width_m, corridor_width_m=corridor_width_m, channel_length_m=channel_length_m,
               initial_density_per_m2=initial_density_per_m2, section_depth_m=section_depth_m,
@@ -126,6 +128,10 @@ def seyfried_bottleneck(width_m: float = 1.0, n_pedestrians: int = 60, seed: int
     if not isinstance(clearance, (int, float, np.integer, np.floating)) or not math.isfinite(clearance) or clearance < 0:
         raise ScenarioError(f"navigation_clearance_m must be a finite number >= 0, got {navigation_clearance_m!r}")
     clearance = float(clearance)
+    try:
+        slowdown = NavigationField.check_wall_slowdown(navigation_wall_slowdown)
+    except GeometryError as exc:
+        raise ScenarioError(f"navigation_wall_slowdown: {exc}") from exc
     if width_m <= 2.0 * radius_m:
         raise GeometryError(f"bottleneck width {width_m} m is not wider than a pedestrian (diameter "
                             f"{2 * radius_m} m): nobody can pass")
@@ -171,6 +177,7 @@ def seyfried_bottleneck(width_m: float = 1.0, n_pedestrians: int = 60, seed: int
         "block_start_upstream_m": float(block_start_upstream_m), "holding_sections": [s.bounds for s in sections],
         "section_counts": [min(per_section, max(0, n_pedestrians - k * per_section)) for k in range(n_sections)],
         "measurement_line_x_m": 0.5 * channel_length_m, "navigation_clearance_m": clearance,
+        "navigation_wall_slowdown": None if slowdown is None else list(slowdown),
         "confidence": {"widths": "high", "corridor_width": "medium", "channel_length": "medium-high",
                        "density_and_sections": "high (density), inference (which sections)",
                        "block_distance": "low-medium", "measurement_line": "medium",
@@ -179,7 +186,7 @@ def seyfried_bottleneck(width_m: float = 1.0, n_pedestrians: int = 60, seed: int
     return BottleneckScenario(geometry=geometry, position_m=position, pedestrian_params={"radius_m": float(radius_m)},
                               spawn_area=unary_union(sections), name="seyfried_bottleneck", metadata=metadata,
                               seed=seed, navigation_resolution_m=navigation_resolution_m,
-                              navigation_clearance_m=clearance)
+                              navigation_clearance_m=clearance, wall_slowdown=slowdown)
 
 
 register_scenario("seyfried_bottleneck", seyfried_bottleneck, aliases=("bottleneck",))
