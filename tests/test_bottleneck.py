@@ -274,6 +274,36 @@ def test_discharge_is_pressure_driven(tmp_path):
     assert path.exists() and path.stat().st_size > 1000
 
 
+def test_small_groups_queue_along_the_front_wall_beside_the_entrance():
+    """README (J_s for N = 20): the tail of a small group waits beside the entrance. Pedestrians from the
+    sides of the holding section reach the front wall next to the opening (each aims at its corner,
+    Eq. 11-13) and slide along it; they pass last. N = 20, b = 1.0 m, seeds 0-3: time spent against the
+    front wall beside the opening (x in (-0.6, 0) m, |y| > b/2) by the first six and the last six to pass."""
+    from crowd_env.analysis.flow import MeasurementLine, PassageCounter
+
+    first, last = [], []
+    for seed in range(4):
+        sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=20, seed=seed)
+        state = sc.make_state()
+        sim = sc.make_simulator(state, ModelParams())
+        agent = SocialForceAgent(sc.navigation())
+        counter = PassageCounter(MeasurementLine(*np.asarray(sc.geometry.measurement_lines["bottleneck"])))
+        beside_s = np.zeros(state.n)
+        while state.active.any() and sim.time_s < 60.0:
+            prev, t_prev = state.position_m.copy(), sim.time_s
+            intents, heading = agent(sim)
+            sim.step(intents, desired_heading_rad=heading)
+            counter.update(prev, state.position_m, t_prev, sim.time_s, np.arange(state.n))
+            x, y = state.position_m[:, 0], state.position_m[:, 1]
+            beside_s[state.active & (x > -0.6) & (x < 0.0) & (np.abs(y) > 0.5)] += sim.params.dt_s
+        assert len(counter) == 20
+        order = counter.ids[np.argsort(counter.times_s)]
+        first.append(beside_s[order[:6]])
+        last.append(beside_s[order[-6:]])
+    assert np.mean(last) > 3.0 and np.mean(first) < 1.0
+    assert np.mean(np.concatenate(last) > 4.0) >= 0.4  # 14 of the 24 wait there over 4 s
+
+
 def test_wall_repulsion_sets_the_lanes_at_the_paper_point():
     """README: at the paper's point (A = 790 N, B = 0.08 m) the lane pattern in the channel follows the
     social force of the walls, which the paper leaves open. At b = 1.2 m (3 seeds): walls repelling like
