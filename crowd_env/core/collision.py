@@ -994,7 +994,7 @@ def project_gaps_ipm(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s):
     return np.maximum(np.asarray(solver.result.z_l), 0.0), True
 
 
-def project_gaps_large(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, pivot_first=True):
+def project_gaps_large(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s):
     """The projection for clusters too large for :func:`project_gaps`, in place on ``vel[:, :2]``.
 
     1. :func:`project_gaps_sparse` (projected Gauss-Seidel guess, then exact sparse pivoting with
@@ -1003,15 +1003,13 @@ def project_gaps_large(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, pivot_first
        on the primal, whose v is unique, then a polish: pivoting started from the constraints
        Clarabel leaves tight, which certifies the exact solution in one or two factorisations;
     3. if even that fails, Clarabel's solution as it is (feasible to ~1e-12, v within ~1e-6).
-    Returns ``(λ per contact, path)`` with path 0, 1 or 2 as above. ``pivot_first=False`` skips
-    step 1 (in a persistent jam, where it keeps failing).
+    Returns ``(λ per contact, path)`` with path 0, 1 or 2 as above.
     """
     v_in = vel[:, :2].copy()
-    if pivot_first:
-        lam, status = project_gaps_sparse(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s)
-        if status == STATUS_OK:
-            return lam, 0
-        vel[:, :2] = v_in
+    lam, status = project_gaps_sparse(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s)
+    if status == STATUS_OK:
+        return lam, 0
+    vel[:, :2] = v_in
     lam = project_gaps_qp(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s)
     slack = gap_residuals(vel, c_gap / dt_s, c_a, c_b, c_nx, c_ny)
     tight = slack <= 1e-9 * (1.0 + float(np.abs(c_gap).max()) / dt_s)
