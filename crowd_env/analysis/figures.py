@@ -143,8 +143,8 @@ def discharge_figure(records: list, path: Path, window: int = 5):
         remaining = np.concatenate([p[0] for p in pooled])
         rate = np.concatenate([p[1] for p in pooled]) / b
         levels = np.unique(remaining)
-        ax_b.plot(levels, [np.median(rate[remaining == x]) for x in levels], "-", color=plt.cm.viridis(k / max(1, len(widths) - 1)),
-                  label=f"b = {b:g} m")
+        ax_b.plot(levels, [np.median(rate[remaining == x]) for x in levels], "-",
+                  color=plt.cm.viridis(k / max(1, len(widths) - 1)), label=f"b = {b:g} m")
     ax_b.set(xlabel="pedestrians not yet passed", title=f"N = {n_max}: median over runs per width")
     ax_b.legend(fontsize=7)
     for k, n in enumerate(sorted({r["n_pedestrians"] for r in recs})):

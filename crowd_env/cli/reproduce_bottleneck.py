@@ -321,14 +321,17 @@ def print_summary(rows: list, records: list, params=None, radius_m: float | None
     and the radius, the force-balance estimate of the density in front of the entrance."""
     from crowd_env.analysis.calibration import in_range_check
     from crowd_env.analysis.density import force_balance_jam_density_per_m2, hexagonal_density_per_m2
-    from crowd_env.analysis.experiment import SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, RESIDUAL_NORM_BY_GROUP
+    from crowd_env.analysis.experiment import (FRONT_DENSITY_RANGE_PER_M2, INSIDE_DENSITY_RANGE_PER_M2,
+                                               INSIDE_SPEED_RANGE_M_S, RESIDUAL_NORM_BY_GROUP,
+                                               SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S)
     from crowd_env.analysis.flow import linear_fit
 
     print("\nSpecific flow J_s = N/(Δt b) (1/(m s)), model mean ± std over seeds vs Seyfried et al. (2009)")
     print(f"{'N':>4} {'b (m)':>6} {'runs':>5} {'model':>14} {'experiment':>11} {'error':>8} {'front /m²':>10} "
           f"{'inside /m²':>10} {'v in (m/s)':>10} {'J_s stat':>8} {'evacuated':>9} {'min gap (m)':>12}")
     for r in rows:
-        exp = f"{r['specific_flow_exp']:.3f}" if np.isfinite(r["specific_flow_exp"]) else "[1.77,2.31]"
+        exp = f"{r['specific_flow_exp']:.3f}" if np.isfinite(r["specific_flow_exp"]) else \
+            "[{:g},{:g}]".format(*SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S)
         err = f"{100 * r['relative_error']:+.1f}%" if np.isfinite(r["relative_error"]) else (
             "in" if in_range_check(np.array([r["specific_flow_mean"]]), SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S).all_inside
             else "OUT")
@@ -338,7 +341,8 @@ def print_summary(rows: list, records: list, params=None, radius_m: float | None
               f"{r['min_gap_m']:>12.2e}")
     print("front / inside: mean densities, v in: mean speed inside, J_s stat: passages per m and s, all over the "
           "stationary window (20 % to 80 % of the passages); J_s stat = inside · v in in a stationary channel "
-          "(experiment, N = 60: inside 1.42-1.73 /m², v in 0.94-1.22 m/s)")
+          "(experiment, N = 60: inside {:g}-{:g} /m², v in {:g}-{:g} m/s)".format(
+              *INSIDE_DENSITY_RANGE_PER_M2, *INSIDE_SPEED_RANGE_M_S))
     for n in sorted({r["n_pedestrians"] for r in rows}):
         sub = [r for r in rows if r["n_pedestrians"] == n]
         if len(sub) >= 3:
@@ -350,11 +354,12 @@ def print_summary(rows: list, records: list, params=None, radius_m: float | None
         from crowd_env.core.params import PedestrianDefaults
 
         ped = PedestrianDefaults()
+        front_lo, front_hi = FRONT_DENSITY_RANGE_PER_M2
         rho = float(force_balance_jam_density_per_m2(params.social_strength_n, params.social_range_m, radius_m,
                                                      ped.mass_kg, ped.desired_speed_mean_m_s, ped.tau_s))
         print(f"density in front: force balance m‖u_d‖/τ = A exp((2r − d)/B) in a hexagonal packing gives "
               f"{rho:.2f} /m² for A = {params.social_strength_n:g} N, B = {params.social_range_m:g} m "
-              f"(experiment 4-6 /m²; densest packing of r = {radius_m:g} m disks "
+              f"(experiment {front_lo:g}-{front_hi:g} /m²; densest packing of r = {radius_m:g} m disks "
               f"{float(hexagonal_density_per_m2(2.0 * radius_m)):.2f} /m²)")
 
 
