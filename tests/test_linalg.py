@@ -5,10 +5,13 @@ import pytest
 from crowd_env.core.linalg import cholesky, cholesky_solve, dot_range, envelope_cholesky, envelope_solve, profile_cholesky
 
 
-def random_envelope_spd(n, rng):
-    """SPD matrix whose row i is zero left of first[i] (a random non-decreasing envelope)."""
+def random_envelope_spd(n, rng, paired=False):
+    """SPD matrix whose row i is zero left of first[i] (a random non-decreasing envelope). ``paired``:
+    rows 2k and 2k + 1 start at the same column (the x and y of one body in the projection), which
+    sends :func:`envelope_cholesky` through its 2×2 blocks."""
     first = np.minimum(np.maximum.accumulate(rng.integers(0, n, n)), np.arange(n))
-    first = np.minimum(first, np.arange(n))
+    if paired:
+        first[1::2] = first[0::2][: n // 2]
     A = np.zeros((n, n))
     for i in range(n):
         A[i, first[i]:i] = rng.standard_normal(i - first[i])
@@ -17,10 +20,13 @@ def random_envelope_spd(n, rng):
     return A, first
 
 
+@pytest.mark.parametrize("paired", [False, True])
 @pytest.mark.parametrize("n", [1, 2, 7, 33, 80])
-def test_profile_and_envelope_cholesky_match_lapack(n):
+def test_profile_and_envelope_cholesky_match_lapack(n, paired):
     rng = np.random.default_rng(n)
-    A, first = random_envelope_spd(n, rng)
+    A, first = random_envelope_spd(n, rng, paired)
+    if paired and n > 2:  # the 2×2 blocks are really taken
+        assert np.count_nonzero(first[1:] == first[:-1]) >= n // 3
     L_ref = np.linalg.cholesky(A)
     np.testing.assert_allclose(profile_cholesky(A, first), L_ref, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(cholesky(A), L_ref, rtol=1e-12, atol=1e-12)
