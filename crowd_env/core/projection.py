@@ -30,34 +30,37 @@ ALM_TOL_KKT_M_S = 1e-10  # constraint violation and multiplier change (÷ρ) tol
 
 
 @nb.njit(cache=True)
-def _slope(u, d, v0, mass, mu, rho, g, c_a, c_b, c_nx, c_ny, t):
-    """dφ(u + t d)/dt: non-decreasing in t (φ is convex). Computed from gradients, not from φ,
+def _slope(a0, a1, mu, rho, r, bd, t):
+    """dφ(u + t d)/dt = a0 + t a1 − Σ_k max(0, μ_k − ρ (r_k + t (B d)_k)) (B d)_k, non-decreasing in t
+    (φ is convex); a0 = (u − v')ᵀ M d, a1 = dᵀ M d, r = r(u). Computed from gradients, not from φ,
     so that it keeps its sign down to round-off where differences of φ no longer can."""
-    s = 0.0
-    for i in range(u.shape[0]):
-        s += mass[i] * ((u[i, 0] + t * d[i, 0] - v0[i, 0]) * d[i, 0] + (u[i, 1] + t * d[i, 1] - v0[i, 1]) * d[i, 1])
-    for k in range(c_a.shape[0]):
-        a = c_a[k]
-        b = c_b[k]
-        r = g[k] + c_nx[k] * (u[a, 0] + t * d[a, 0]) + c_ny[k] * (u[a, 1] + t * d[a, 1])
-        bd = c_nx[k] * d[a, 0] + c_ny[k] * d[a, 1]
-        if b >= 0:
-            r -= c_nx[k] * (u[b, 0] + t * d[b, 0]) + c_ny[k] * (u[b, 1] + t * d[b, 1])
-            bd -= c_nx[k] * d[b, 0] + c_ny[k] * d[b, 1]
-        w = mu[k] - rho * r
+    s = a0 + t * a1
+    for k in range(r.shape[0]):
+        w = mu[k] - rho * (r[k] + t * bd[k])
         if w > 0.0:
-            s -= w * bd
+            s -= w * bd[k]
     return s
 
 
 @nb.njit(cache=True)
-def _line_search(u, d, v0, mass, mu, rho, g, c_a, c_b, c_nx, c_ny):
-    """Step t ∈ (0, 1] along the Newton direction d: 1 when φ still decreases there (the usual case),
-    else a root of the piecewise linear, non-decreasing dφ/dt by Illinois regula falsi."""
-    s1 = _slope(u, d, v0, mass, mu, rho, g, c_a, c_b, c_nx, c_ny, 1.0)
+def _line_search(u, d, v0, mass, mu, rho, r, c_a, c_b, c_nx, c_ny):
+    """Step t ∈ (0, 1] along the Newton direction d from u (r = r(u)): 1 when φ still decreases there
+    (the usual case), else a root of the piecewise linear, non-decreasing dφ/dt by Illinois regula
+    falsi. The constraint residuals are linear along the line, so B d is formed once and each trial
+    costs one pass over the contacts."""
+    a0 = 0.0
+    a1 = 0.0
+    for i in range(u.shape[0]):
+        d0 = d[i, 0]
+        d1 = d[i, 1]
+        a0 += mass[i] * ((u[i, 0] - v0[i, 0]) * d0 + (u[i, 1] - v0[i, 1]) * d1)
+        a1 += mass[i] * (d0 * d0 + d1 * d1)
+    bd = np.zeros(r.shape[0])  # the residuals' rate along d: r(u + t d) = r + t B d
+    bd = gap_residuals(d, bd, c_a, c_b, c_nx, c_ny)
+    s1 = _slope(a0, a1, mu, rho, r, bd, 1.0)
     if s1 <= 0.0:
         return 1.0
-    s0 = _slope(u, d, v0, mass, mu, rho, g, c_a, c_b, c_nx, c_ny, 0.0)
+    s0 = _slope(a0, a1, mu, rho, r, bd, 0.0)
     if s0 >= 0.0:
         return 1.0  # not a descent direction (round-off level): take the Newton step as it is
     lo, hi = 0.0, 1.0
@@ -66,7 +69,7 @@ def _line_search(u, d, v0, mass, mu, rho, g, c_a, c_b, c_nx, c_ny):
     t = 1.0
     for _ in range(60):
         t = (lo * fhi - hi * flo) / (fhi - flo)
-        ft = _slope(u, d, v0, mass, mu, rho, g, c_a, c_b, c_nx, c_ny, t)
+        ft = _slope(a0, a1, mu, rho, r, bd, t)
         if abs(ft) <= 1e-3 * -s0 or hi - lo <= 1e-12:
             break
         if ft < 0.0:
@@ -255,7 +258,7 @@ def project_gaps_alm(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, lam0, max_new
                 factor = _newton_factor(n, mass, rho, pushing, c_a, c_b, c_nx, c_ny, pos)
                 n_factor += 1
             d = _newton_solve(grad, mass, pos, *factor)
-            t = _line_search(u, d, v0, mass, mu, rho, g, c_a, c_b, c_nx, c_ny)
+            t = _line_search(u, d, v0, mass, mu, rho, r, c_a, c_b, c_nx, c_ny)
             u = u + t * d
             r = gap_residuals(u, g, c_a, c_b, c_nx, c_ny)
             grad = _gradient(u, v0, mass, mu, rho, r, c_a, c_b, c_nx, c_ny, lam)
