@@ -908,12 +908,7 @@ def gap_residuals(u, g, c_a, c_b, c_nx, c_ny):
     m = c_a.shape[0]
     r = np.empty(m)
     for k in range(m):
-        a = c_a[k]
-        b = c_b[k]
-        s = g[k] + c_nx[k] * u[a, 0] + c_ny[k] * u[a, 1]
-        if b >= 0:
-            s -= c_nx[k] * u[b, 0] + c_ny[k] * u[b, 1]
-        r[k] = s
+        r[k] = g[k] + _normal_velocity(u, c_a[k], c_b[k], c_nx[k], c_ny[k])
     return r
 
 

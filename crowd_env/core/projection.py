@@ -18,7 +18,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from .collision import STATUS_MAX_ITER, STATUS_OK, _order_dofs, gap_residuals
+from .collision import STATUS_MAX_ITER, STATUS_OK, _normal_velocity, _order_dofs, gap_residuals
 from .linalg import envelope_cholesky, envelope_solve
 
 ALM_RHO_RELATIVE = 1e4  # penalty ρ relative to 1 / mean diag(W): large, so the multipliers converge in a few rounds
@@ -55,8 +55,9 @@ def _line_search(u, d, v0, mass, mu, rho, r, c_a, c_b, c_nx, c_ny):
         d1 = d[i, 1]
         a0 += mass[i] * ((u[i, 0] - v0[i, 0]) * d0 + (u[i, 1] - v0[i, 1]) * d1)
         a1 += mass[i] * (d0 * d0 + d1 * d1)
-    bd = np.zeros(r.shape[0])  # the residuals' rate along d: r(u + t d) = r + t B d
-    bd = gap_residuals(d, bd, c_a, c_b, c_nx, c_ny)
+    bd = np.empty(r.shape[0])  # the residuals' rate along d: r(u + t d) = r + t B d
+    for k in range(r.shape[0]):
+        bd[k] = _normal_velocity(d, c_a[k], c_b[k], c_nx[k], c_ny[k])
     s1 = _slope(a0, a1, mu, rho, r, bd, 1.0)
     if s1 <= 0.0:
         return 1.0
