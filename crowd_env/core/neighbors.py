@@ -3,7 +3,9 @@
 One call sorts the pedestrians into square cells of side ≥ the query radius (counting sort) and
 tests each cell against itself and four neighbouring cells (half stencil), so every pair within the
 radius is found exactly once in O(n) time for a crowd of bounded density. It serves the contact
-candidates, the social forces (Eq. 16) and the gap checks of :class:`~crowd_env.core.Simulator`.
+candidates, the social forces (Eq. 16) and the gap checks of :class:`~crowd_env.core.Simulator`;
+:func:`grid_k_nearest` searches the same grid ring by ring for the k nearest neighbours (the RL
+observations).
 """
 from __future__ import annotations
 
@@ -16,21 +18,28 @@ MAX_CELLS_PER_PEDESTRIAN = 4
 
 
 @nb.njit(cache=True)
-def _cell_grid(position, index, radius_m):
-    """Counting sort of the rows of ``index`` into square cells of side ≥ ``radius_m``: ``(order,
-    start, ncx, ncy, xmin, ymin, cell)``; cell c = cx + ncx·cy holds rows order[start[c]:start[c+1]]."""
-    n = index.shape[0]
+def _bounds(position, index):
+    """Bounding box ``(xmin, ymin, xmax, ymax)`` of the pedestrians ``index``."""
     xmin = np.inf
     ymin = np.inf
     xmax = -np.inf
     ymax = -np.inf
-    for k in range(n):
+    for k in range(index.shape[0]):
         x = position[index[k], 0]
         y = position[index[k], 1]
         xmin = min(xmin, x)
         xmax = max(xmax, x)
         ymin = min(ymin, y)
         ymax = max(ymax, y)
+    return xmin, ymin, xmax, ymax
+
+
+@nb.njit(cache=True)
+def _cell_grid(position, index, radius_m):
+    """Counting sort of the rows of ``index`` into square cells of side ≥ ``radius_m``: ``(order,
+    start, ncx, ncy, xmin, ymin, cell)``; cell c = cx + ncx·cy holds rows order[start[c]:start[c+1]]."""
+    n = index.shape[0]
+    xmin, ymin, xmax, ymax = _bounds(position, index)
     cell = radius_m
     while True:
         ncx = int((xmax - xmin) / cell) + 1
@@ -178,3 +187,72 @@ def _fill_pairs(position, index, order, start, ncx, ncy, r2, out):
                         if m < 0:
                             return -1
     return m
+
+
+@nb.njit(cache=True)
+def grid_k_nearest(position, index, query, k, radius_m):
+    """The k nearest of the pedestrians ``index`` to each pedestrian ``query`` (both global rows of
+    ``position``; a query's own row is left out), within ``radius_m``: (m, k) int64 rows into
+    ``index``, nearest first, −1 where fewer than k lie within the radius.
+
+    Cells of side ≈ √(k · bounding-box area / n) (at most ``radius_m``), so that the k nearest of a
+    uniform crowd usually lie in the 3 × 3 block around the query's cell; rings of cells are added
+    until the k-th distance found is within the rings' reach (every unseen cell is farther) or the
+    rings cover the radius or the grid. Exact, O(n + m) for a crowd of bounded density.
+    """
+    m = query.shape[0]
+    out = np.full((m, k), -1, np.int64)
+    n = index.shape[0]
+    if n == 0 or k <= 0 or not radius_m > 0.0:
+        return out
+    xmin, ymin, xmax, ymax = _bounds(position, index)
+    side = min(radius_m, np.sqrt(k * (xmax - xmin) * (ymax - ymin) / n))
+    order, start, ncx, ncy, x0, y0, cell = _cell_grid(position, index, max(side, 1e-6 * radius_m))
+    r2 = radius_m * radius_m
+    best_d2 = np.empty(k)
+    xs = np.empty(n)  # coordinates in cell order: the scans below read memory in sequence
+    ys = np.empty(n)
+    for t in range(n):
+        xs[t] = position[index[order[t]], 0]
+        ys[t] = position[index[order[t]], 1]
+    for a in range(m):
+        i = query[a]
+        xa = position[i, 0]
+        ya = position[i, 1]
+        cx = int(np.floor((xa - x0) / cell))  # may lie outside the grid: its cells are empty
+        cy = int(np.floor((ya - y0) / cell))
+        last = max(max(cx, ncx - 1 - cx), max(cy, ncy - 1 - cy))  # ring that covers the whole grid
+        cnt = 0
+        ring = 0
+        while True:
+            for qy in range(max(cy - ring, 0), min(cy + ring, ncy - 1) + 1):
+                edge = qy == cy - ring or qy == cy + ring
+                qx = cx - ring
+                while qx <= cx + ring:
+                    if 0 <= qx < ncx:
+                        q = qx + ncx * qy
+                        for t in range(start[q], start[q + 1]):
+                            dx = xs[t] - xa
+                            dy = ys[t] - ya
+                            d2 = dx * dx + dy * dy
+                            if d2 > r2 or (cnt == k and d2 >= best_d2[k - 1]):
+                                continue
+                            b = order[t]
+                            if index[b] == i:
+                                continue
+                            p = cnt if cnt < k else k - 1
+                            while p > 0 and best_d2[p - 1] > d2:  # insertion into the sorted best k
+                                best_d2[p] = best_d2[p - 1]
+                                out[a, p] = out[a, p - 1]
+                                p -= 1
+                            best_d2[p] = d2
+                            out[a, p] = b
+                            if cnt < k:
+                                cnt += 1
+                    # inner rows of the ring: only its left and right cells
+                    qx += 1 if (edge or ring == 0) else 2 * ring
+            reach = ring * cell  # cells outside the rings so far are at least this far
+            if ring >= last or reach >= radius_m or (cnt == k and best_d2[k - 1] <= reach * reach):
+                break
+            ring += 1
+    return out

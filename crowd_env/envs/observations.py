@@ -24,8 +24,9 @@ field                       size   meaning (units)
                                    capped at ``ray_range_m``
 ==========================  =====  ====================================================================
 
-Neighbours are every other active pedestrian, controlled or background. The builder makes one k-d
-tree query for all agents and one call of the compiled ray kernel
+Neighbours are every other active pedestrian, controlled or background. The builder makes one
+compiled k-nearest search on a cell grid for all agents
+(:func:`crowd_env.core.neighbors.grid_k_nearest`) and one call of the compiled ray kernel
 (:func:`crowd_env.core.segments.ray_distances`); nothing loops over agents in Python.
 """
 from __future__ import annotations
@@ -34,8 +35,8 @@ from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
-from scipy.spatial import cKDTree
 
+from ..core.neighbors import grid_k_nearest
 from ..core.segments import ray_distances
 
 __all__ = ["OBSERVATION_FIELDS", "ObservationField", "observation_layout", "observation_size", "ObservationBuilder"]
@@ -140,7 +141,7 @@ class ObservationBuilder:
         obs[:, L["desired_direction"]] = e_d
         obs[:, L["travel_time"].start] = travel
         if self.n_neighbors:
-            self._neighbors(state, index, pos, vel, obs)
+            self._neighbors(state, index, obs)
         if self.n_rays:
             if self.walls.shape[0]:
                 angles = theta[:, None] + self.ray_offsets[None, :]
@@ -149,41 +150,30 @@ class ObservationBuilder:
                 obs[:, L["wall_rays"]] = self.ray_range_m
         return obs, travel
 
-    def _neighbors(self, state, index, pos, vel, out: np.ndarray) -> None:
+    def _neighbors(self, state, index, out: np.ndarray) -> None:
         """Write the k nearest other active pedestrians' relative positions/velocities and the mask into ``out``."""
         active = np.flatnonzero(state.active)
         if active.size == 0:
             return
-        m = index.shape[0]
-        kq = min(self.n_neighbors + 1, active.size)
-        tree = cKDTree(state.position_m[active])
-        _, j = tree.query(pos, k=kq, distance_upper_bound=self.neighbor_radius_m)
-        j = np.ascontiguousarray(np.asarray(j, dtype=np.int64).reshape(m, kq))
-        _fill_neighbors(out, self.layout["neighbors"].start, self.layout["neighbor_mask"].start, self.n_neighbors,
-                        index, j, active, state.position_m, state.velocity_m_s)
+        j = grid_k_nearest(state.position_m, active, index, self.n_neighbors, self.neighbor_radius_m)
+        _fill_neighbors(out, self.layout["neighbors"].start, self.layout["neighbor_mask"].start, index, j, active,
+                        state.position_m, state.velocity_m_s)
 
 
 @nb.njit(cache=True)
-def _fill_neighbors(out, col_rel, col_mask, k, index, j, active, position, velocity):
-    """For each row a: the first k entries of j[a] (k-d tree rows into ``active``, nearest first; ==
-    active.size when missing) that are not the agent itself -> relative position/velocity and mask 1."""
-    n_act = active.shape[0]
+def _fill_neighbors(out, col_rel, col_mask, index, j, active, position, velocity):
+    """For each row a: the neighbours j[a] (rows into ``active``, nearest first, −1 when missing) ->
+    relative position/velocity and mask 1."""
     for a in range(index.shape[0]):
         i = index[a]
-        slot = 0
-        for c in range(j.shape[1]):
-            if slot == k:
-                break
-            r = j[a, c]
-            if r >= n_act:
+        for slot in range(j.shape[1]):
+            r = j[a, slot]
+            if r < 0:
                 break  # the rest are missing too
             g = active[r]
-            if g == i:
-                continue
             base = col_rel + 4 * slot
             out[a, base] = position[g, 0] - position[i, 0]
             out[a, base + 1] = position[g, 1] - position[i, 1]
             out[a, base + 2] = velocity[g, 0] - velocity[i, 0]
             out[a, base + 3] = velocity[g, 1] - velocity[i, 1]
             out[a, col_mask + slot] = 1.0
-            slot += 1
