@@ -388,6 +388,8 @@ def test_grid_k_nearest_matches_brute_force(layout, k):
         assert not np.any(index[rows] == q)
         np.testing.assert_allclose(d[rows], want, rtol=0, atol=1e-12)
     assert np.all(grid_k_nearest(pos, index[:0], query, k, radius) == -1)
+    far = np.concatenate([pos, [[np.nan, 1.0], [np.inf, 0.0]]])
+    assert np.all(grid_k_nearest(far, index, np.array([n, n + 1]), k, radius) == -1)
     assert np.all(grid_k_nearest(pos, index, query, k, 0.0) == -1)
 
 

@@ -193,7 +193,8 @@ def _fill_pairs(position, index, order, start, ncx, ncy, r2, out):
 def grid_k_nearest(position, index, query, k, radius_m):
     """The k nearest of the pedestrians ``index`` to each pedestrian ``query`` (both global rows of
     ``position``; a query's own row is left out), within ``radius_m``: (m, k) int64 rows into
-    ``index``, nearest first, −1 where fewer than k lie within the radius.
+    ``index``, nearest first, −1 where fewer than k lie within the radius (all −1 for a query whose
+    position is not finite).
 
     Cells of side ≈ √(k · bounding-box area / n) (at most ``radius_m``), so that the k nearest of a
     uniform crowd usually lie in the 3 × 3 block around the query's cell; rings of cells are added
@@ -219,6 +220,8 @@ def grid_k_nearest(position, index, query, k, radius_m):
         i = query[a]
         xa = position[i, 0]
         ya = position[i, 1]
+        if not (np.isfinite(xa) and np.isfinite(ya)):
+            continue  # no position, no neighbours
         cx = int(np.floor((xa - x0) / cell))  # may lie outside the grid: its cells are empty
         cy = int(np.floor((ya - y0) / cell))
         last = max(max(cx, ncx - 1 - cx), max(cy, ncy - 1 - cy))  # ring that covers the whole grid
