@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from crowd_env.core.collision import IPM_TOL_M_S, STATUS_OK, project_gaps, project_gaps_ipm, project_gaps_large, project_gaps_qp
-from crowd_env.core.projection import project_gaps_alm
+from crowd_env.core.projection import project_gaps_alm, project_gaps_interior_point
 
 H = 0.01
 
@@ -245,6 +245,36 @@ def test_interior_point_projection_agrees_with_the_exact_one(seed):
     np.testing.assert_array_equal(v[:, 2], vel[:, 2])  # rotation untouched
 
 
+
+@pytest.mark.parametrize("seed", range(4))
+def test_own_interior_point_projection_agrees_with_the_exact_one(seed):
+    """project_gaps_interior_point (Mehrotra with dual regularisation) on degenerate jams, where the
+    unregularised weights would break the Cholesky factorisation: converged, feasible to round-off,
+    percussions ≥ 0 that satisfy stationarity M (v − v') = B_nᵀ z, the exact objective to 1e-9, and v
+    within 1e-8 m/s of the augmented Lagrangian's exact v."""
+    rng = np.random.default_rng(seed)
+    vel, mass, a, b, gap, nx, ny = _hex_jam(8 + seed, 10, rng, squeeze=float(seed % 2))
+    v_exact = vel.copy()
+    _, _, status = project_gaps_alm(v_exact, mass, a, b, gap, nx, ny, H, np.zeros(a.shape[0]), 400)
+    assert status == STATUS_OK
+    v = vel.copy()
+    z, iterations, status = project_gaps_interior_point(v, mass, a, b, gap, nx, ny, H)
+    assert status == STATUS_OK and 5 <= iterations <= 40
+    assert _residual(v, a, b, gap, nx, ny).min() >= -1e-11
+    np.testing.assert_allclose(v, v_exact, rtol=0, atol=1e-8)
+    assert z.min() >= 0.0
+    np.testing.assert_allclose(mass[:, None] * (v[:, :2] - vel[:, :2]), _percussion(v.shape[0], z, a, b, nx, ny),
+                               atol=1e-9 * mass.max())
+    assert _objective(v, vel, mass) == pytest.approx(_objective(v_exact, vel, mass), rel=1e-9)
+    np.testing.assert_array_equal(v[:, 2], vel[:, 2])
+    v = vel.copy()
+    _, iterations, status = project_gaps_interior_point(v, mass, a, b, gap, nx, ny, H, 3)
+    assert status != STATUS_OK and iterations == 3 and np.array_equal(v, vel)  # a miss leaves vel alone
+    v = np.ones((3, 3))
+    z, iterations, status = project_gaps_interior_point(v, np.ones(3), np.zeros(0, np.int64), np.zeros(0, np.int64),
+                                                        np.zeros(0), np.zeros(0), np.zeros(0), H)
+    assert status == STATUS_OK and z.shape == (0,) and iterations == 0 and np.all(v == 1.0)
+
 def test_interior_point_projection_without_candidates():
     v = np.ones((3, 3))
     lam, ok = project_gaps_ipm(v, np.ones(3), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0),
@@ -271,6 +301,7 @@ def test_simulator_hands_a_slow_augmented_lagrangian_to_the_interior_point_metho
         sim._project(v, mass, con, H, np.arange(n))
         np.testing.assert_allclose(v, v_exact, atol=1e-6)
         assert sim.n_ipm_projections == k + 1 and sim.n_alm_newton_steps == 3 and sim.n_fallback_solves == 0
+        assert sim.n_piqp_projections == 0  # the own interior point method converged
 
 
 def test_misses_in_a_row_back_off_the_augmented_lagrangian(monkeypatch):

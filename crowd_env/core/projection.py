@@ -12,6 +12,16 @@ one a sparse SPD system M + ρ Σ_{k∈I} B_kᵀ B_k (I: the constraints pushing
 Cholesky in reverse Cuthill-McKee order of the contact graph. Then μ ← max(0, μ − ρ r(v)). A fixed
 point is an exact KKT point; the loop stops when μ moves by less than ρ · 1e-12 m/s (constraint
 violation and complementarity below that). Compiled with numba.
+
+The augmented Lagrangian's Newton steps grow with the jam's diameter (each adds the constraints a push
+passes on). :func:`project_gaps_interior_point` does not: a Mehrotra predictor-corrector interior
+point method whose iterations stay at 9-20 at any size, each one factorisation of
+M + Bᵀ W B over all candidates on the same envelope (pattern and ordering computed once). In a jam,
+contacts outnumber degrees of freedom and the plain weights W = Z S⁻¹ reach 1e20 on the dependent
+ones, where the Cholesky factorisation breaks down; a dual regularisation δ (the proximal term of an
+interior point-proximal method of multipliers, centred at the current iterate) bounds them by 1/δ:
+W = Z (S + δ Z)⁻¹. The residuals it drives to zero are those of the unregularised problem, so the
+solution is the same.
 """
 from __future__ import annotations
 
@@ -27,6 +37,10 @@ ALM_MAX_OUTER = 60
 ALM_MAX_NEWTON = 200  # Newton steps over all rounds
 ALM_TOL_M_S = 1e-10  # stationarity residual tolerated at termination (m/s)
 ALM_TOL_KKT_M_S = 1e-10  # constraint violation and multiplier change (÷ρ) tolerated at termination
+IP_MAX_ITER = 60  # interior point iterations (measured: 9-20 on door jams of 400-1400 pedestrians)
+IP_TOL_M_S = 1e-10  # stationarity (÷ mass) and constraint residuals at termination, relative to the largest speed
+IP_GAP_TOL = 1e-16  # mean complementarity sᵀz/m at termination, relative to (largest speed × mean mass)
+IP_DELTA = 1e-10  # dual regularisation δ/m̄ (s/m per kg): the Newton weights z/(s + δz) stay ≤ m̄/1e-10
 
 
 @nb.njit(cache=True)
@@ -108,10 +122,10 @@ def _gradient(u, v0, mass, mu, rho, r, c_a, c_b, c_nx, c_ny, lam):
 
 
 @nb.njit(cache=True, fastmath=True)
-def _newton_factor(n, mass, rho, pushing, c_a, c_b, c_nx, c_ny, pos):
-    """Envelope Cholesky factor of M + ρ Σ_{k pushing} B_kᵀ B_k over the degrees of freedom numbered
-    by ``pos`` (body b, axis x/y → pos[3b], pos[3b + 1]; −1: no row ever couples it, so the system
-    is diagonal there). Returns ``(dof, first, off, env)``: L[i, j] = env[off[i] + j − first[i]]."""
+def _envelope_pattern(n, used, c_a, c_b, pos):
+    """Envelope of M + Σ_{k used} w_k B_kᵀ B_k over the degrees of freedom numbered by ``pos`` (body b,
+    axis x/y → pos[3b], pos[3b + 1]; −1: no row ever couples it, so the system is diagonal there):
+    ``(dof, first, off)``, L[i, j] stored at off[i] + j − first[i]."""
     nd = 0
     for i in range(3 * n):
         if pos[i] >= 0:
@@ -123,11 +137,8 @@ def _newton_factor(n, mass, rho, pushing, c_a, c_b, c_nx, c_ny, pos):
             if p >= 0:
                 dof[p] = 2 * b + d
     first = np.arange(nd)
-    idx = np.empty(4, np.int64)
-    coef = np.empty(4)
-    m = c_a.shape[0]
-    for k in range(m):
-        if not pushing[k]:
+    for k in range(c_a.shape[0]):
+        if not used[k]:
             continue
         lo = nd
         for body in (c_a[k], c_b[k]):
@@ -146,11 +157,20 @@ def _newton_factor(n, mass, rho, pushing, c_a, c_b, c_nx, c_ny, pos):
     off[0] = 0
     for i in range(nd):
         off[i + 1] = off[i] + i - first[i] + 1
-    env = np.zeros(off[nd])
+    return dof, first, off
+
+
+@nb.njit(cache=True, fastmath=True)
+def _envelope_factor(mass, weight, used, c_a, c_b, c_nx, c_ny, pos, dof, first, off, env):
+    """Cholesky factor of M + Σ_{k used} weight_k B_kᵀ B_k in ``env`` (pattern of :func:`_envelope_pattern`)."""
+    nd = dof.shape[0]
+    env[:] = 0.0
     for i in range(nd):
         env[off[i + 1] - 1] = mass[dof[i] // 2]
-    for k in range(m):
-        if not pushing[k]:
+    idx = np.empty(4, np.int64)
+    coef = np.empty(4)
+    for k in range(c_a.shape[0]):
+        if not used[k]:
             continue
         cnt = 0
         for side in range(2):
@@ -168,8 +188,16 @@ def _newton_factor(n, mass, rho, pushing, c_a, c_b, c_nx, c_ny, pos):
             for y in range(cnt):
                 if idx[y] <= idx[x]:
                     i = idx[x]
-                    env[off[i] + idx[y] - first[i]] += rho * coef[x] * coef[y]
+                    env[off[i] + idx[y] - first[i]] += weight[k] * coef[x] * coef[y]
     envelope_cholesky(env, off, first)
+
+
+@nb.njit(cache=True)
+def _newton_factor(n, mass, rho, pushing, c_a, c_b, c_nx, c_ny, pos):
+    """Envelope Cholesky factor of M + ρ Σ_{k pushing} B_kᵀ B_k: ``(dof, first, off, env)``."""
+    dof, first, off = _envelope_pattern(n, pushing, c_a, c_b, pos)
+    env = np.empty(off[dof.shape[0]])
+    _envelope_factor(mass, np.full(c_a.shape[0], rho), pushing, c_a, c_b, c_nx, c_ny, pos, dof, first, off, env)
     return dof, first, off, env
 
 
@@ -279,3 +307,131 @@ def project_gaps_alm(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, lam0, max_new
             factor = None
         last_viol = viol
     return lam, steps, STATUS_MAX_ITER
+
+
+@nb.njit(cache=True)
+def _percussion_sum(z, n, c_a, c_b, c_nx, c_ny):
+    """B_nᵀ z (n, 2): the velocity change times mass that percussions z (one per contact) produce."""
+    out = np.zeros((n, 2))
+    for k in range(c_a.shape[0]):
+        a = c_a[k]
+        b = c_b[k]
+        out[a, 0] += z[k] * c_nx[k]
+        out[a, 1] += z[k] * c_ny[k]
+        if b >= 0:
+            out[b, 0] -= z[k] * c_nx[k]
+            out[b, 1] -= z[k] * c_ny[k]
+    return out
+
+
+@nb.njit(cache=True)
+def _step_to_boundary(x, dx):
+    """Largest t ≤ 1 with x + t dx ≥ 0 (x > 0)."""
+    t = 1.0
+    for k in range(x.shape[0]):
+        if dx[k] < 0.0:
+            t = min(t, -x[k] / dx[k])
+    return t
+
+
+@nb.njit(cache=True)
+def _ip_direction(u_rhs_d, s, z, rp, rc, dl, n, mass, c_a, c_b, c_nx, c_ny, pos, factor):
+    """Newton direction (du, ds, dz) of the regularised KKT system for complementarity target rc:
+    (M + Bᵀ W B) du = −r_d + Bᵀ (S + δZ)⁻¹ (rc − Z r_p), dz = (rc − Z r_p − Z B du)/(s + δz),
+    ds = B du + r_p + δ dz."""
+    m = s.shape[0]
+    t = np.empty(m)
+    for k in range(m):
+        t[k] = (rc[k] - z[k] * rp[k]) / (s[k] + dl * z[k])
+    rhs = _percussion_sum(t, n, c_a, c_b, c_nx, c_ny) - u_rhs_d
+    du = _newton_solve(-rhs, mass, pos, *factor)
+    bdu = gap_residuals(du, np.zeros(m), c_a, c_b, c_nx, c_ny)
+    dz = np.empty(m)
+    ds = np.empty(m)
+    for k in range(m):
+        dz[k] = (rc[k] - z[k] * rp[k] - z[k] * bdu[k]) / (s[k] + dl * z[k])
+        ds[k] = bdu[k] + rp[k] + dl * dz[k]
+    return du, ds, dz
+
+
+@nb.njit(cache=True)
+def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, max_iter=IP_MAX_ITER):
+    """The projection of :func:`~crowd_env.core.collision.project_gaps` on all candidates by a
+    Mehrotra predictor-corrector interior point method with dual regularisation (module docstring).
+
+    Slacks s = r(v) ≥ 0 and percussions z ≥ 0 start at 0.1 × (largest speed) and 0.1 × (largest speed
+    × mean mass); every iteration takes one common step length for v, s and z (the dual residual
+    couples them), 99 % of the way to the boundary. Stops when stationarity ‖M (v − v') − Bᵀ z‖/m and
+    ‖r(v) − s‖ are ≤ ``IP_TOL_M_S`` and sᵀz/m ≤ ``IP_GAP_TOL`` (both relative to the largest speed,
+    the latter times the mean mass): on door jams of 400-1400 pedestrians v then agrees with the
+    augmented Lagrangian's exact v to 3e-9 m/s and r(v) ≥ −2e-13 m/s. Modifies ``vel[:, :2]`` in place
+    on success; returns ``(z per contact, iterations, status)`` (STATUS_MAX_ITER: no convergence
+    within ``max_iter``, ``vel`` left alone)."""
+    n = vel.shape[0]
+    m = c_a.shape[0]
+    if m == 0:
+        return np.zeros(0), 0, STATUS_OK
+    g = c_gap / dt_s
+    v0 = vel[:, :2].copy()
+    coef_a = np.zeros((m, 3))
+    coef_b = np.zeros((m, 3))
+    for k in range(m):
+        coef_a[k, 0] = c_nx[k]
+        coef_a[k, 1] = c_ny[k]
+        coef_b[k, 0] = -c_nx[k]
+        coef_b[k, 1] = -c_ny[k]
+    _, pos = _order_dofs(n, c_a, c_b, coef_a, coef_b)
+    used = np.ones(m, np.bool_)
+    dof, first, off = _envelope_pattern(n, used, c_a, c_b, pos)
+    env = np.empty(off[dof.shape[0]])
+    factor = (dof, first, off, env)
+    vscale = 1.0
+    mbar = 0.0
+    for i in range(n):
+        vscale = max(vscale, abs(v0[i, 0]), abs(v0[i, 1]))
+        mbar += mass[i] / n
+    dl = IP_DELTA / mbar
+    u = v0.copy()
+    r = gap_residuals(u, g, c_a, c_b, c_nx, c_ny)
+    s = np.empty(m)
+    z = np.empty(m)
+    for k in range(m):
+        s[k] = max(r[k], 0.0) + 0.1 * vscale
+        z[k] = 0.1 * vscale * mbar
+    w = np.empty(m)
+    rc = np.empty(m)
+    rd = np.empty((n, 2))
+    for it in range(max_iter + 1):
+        bz = _percussion_sum(z, n, c_a, c_b, c_nx, c_ny)
+        dmax = 0.0
+        for i in range(n):
+            for d in range(2):
+                rd[i, d] = mass[i] * (u[i, d] - v0[i, d]) - bz[i, d]
+                dmax = max(dmax, abs(rd[i, d]) / mass[i])
+        rp = gap_residuals(u, g, c_a, c_b, c_nx, c_ny) - s
+        pmax = np.max(np.abs(rp))
+        mu = np.dot(s, z) / m
+        if not (np.isfinite(dmax) and np.isfinite(pmax) and np.isfinite(mu)):
+            break
+        if dmax <= IP_TOL_M_S * vscale and pmax <= IP_TOL_M_S * vscale and mu <= IP_GAP_TOL * vscale * mbar:
+            vel[:, :2] = u
+            return z, it, STATUS_OK
+        if it == max_iter:
+            break
+        for k in range(m):
+            w[k] = z[k] / (s[k] + dl * z[k])
+        _envelope_factor(mass, w, used, c_a, c_b, c_nx, c_ny, pos, dof, first, off, env)
+        for k in range(m):  # predictor (affine scaling): complementarity target 0
+            rc[k] = -s[k] * z[k]
+        du, ds, dz = _ip_direction(rd, s, z, rp, rc, dl, n, mass, c_a, c_b, c_nx, c_ny, pos, factor)
+        t = min(_step_to_boundary(s, ds), _step_to_boundary(z, dz))
+        mu_aff = np.dot(s + t * ds, z + t * dz) / m
+        sigma = (mu_aff / mu) ** 3
+        for k in range(m):  # corrector: centring σμ and the second-order term
+            rc[k] = -s[k] * z[k] - ds[k] * dz[k] + sigma * mu
+        du, ds, dz = _ip_direction(rd, s, z, rp, rc, dl, n, mass, c_a, c_b, c_nx, c_ny, pos, factor)
+        t = min(1.0, 0.99 * min(_step_to_boundary(s, ds), _step_to_boundary(z, dz)))
+        u = u + t * du
+        s = s + t * ds
+        z = z + t * dz
+    return z, max_iter, STATUS_MAX_ITER

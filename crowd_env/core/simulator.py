@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
-from .projection import project_gaps_alm
+from .projection import project_gaps_alm, project_gaps_interior_point
 from .collision import (MAX_DENSE_BODIES, MAX_DENSE_PROJECTION_ROWS, MAX_DENSE_ROWS, STATUS_OK, STATUS_TOO_LARGE,
                         project_gaps, project_gaps_ipm, project_gaps_large, renumber_rows, resolve_impacts,
                         solve_clusters, solve_rows_qp, solve_rows_sparse, touched_bodies)
@@ -114,7 +114,8 @@ class Simulator:
         self.n_sparse_solves = 0  # impact clusters / projections too large for the dense path
         self.n_staged_steps = 0  # steps run stage by stage (profiling, fallbacks, re-detection)
         self.n_alm_newton_steps = 0  # Newton steps of the augmented Lagrangian projection (project_gaps_alm)
-        self.n_ipm_projections = 0  # large projections solved by the interior point method (project_gaps_ipm)
+        self.n_ipm_projections = 0  # large projections given to the interior point method (project_gaps_interior_point)
+        self.n_piqp_projections = 0  # ... of which it missed and PIQP solved (project_gaps_ipm)
         # Size limits of the dense (compiled) solvers; larger problems take the sparse path. Exposed so
         # that tests can force either path; both are exact, so results agree to round-off.
         self.max_dense_rows = MAX_DENSE_ROWS
@@ -407,9 +408,10 @@ class Simulator:
 
         Components of active constraints small enough are solved densely (:func:`project_gaps`);
         otherwise the whole projection goes to :func:`project_gaps_alm` (augmented Lagrangian, exact
-        in degenerate jams) within ``ALM_NEWTON_BUDGET`` Newton steps, and to :func:`project_gaps_ipm`
-        (PIQP, an interior point method) should that not converge; :func:`project_gaps_large`
-        (pivoting, Clarabel, polish) serves if even that fails. The augmented Lagrangian's Newton
+        in degenerate jams) within ``ALM_NEWTON_BUDGET`` Newton steps, and to
+        :func:`project_gaps_interior_point` (Mehrotra, dual-regularised, on the same envelope Cholesky)
+        should that not converge; PIQP (:func:`project_gaps_ipm`) and then :func:`project_gaps_large`
+        (pivoting, Clarabel, polish) serve if even that fails. The augmented Lagrangian's Newton
         steps grow with the diameter of the jam (10-21 at 400 pedestrians in one jam, 30-75 at 1400),
         the interior point iterations do not (14-22): after a miss the interior point method is used
         directly for a while: the augmented Lagrangian is tried again after ``ALM_SKIP_AFTER_MISS`` large
@@ -459,6 +461,10 @@ class Simulator:
             self._alm_backoff = min(2 * self._alm_backoff, ALM_SKIP_MAX)
         self._skip_alm -= 1
         self.n_ipm_projections += 1
+        lam_p, _, status = project_gaps_interior_point(*args)
+        if status == STATUS_OK:
+            return lam_p
+        self.n_piqp_projections += 1  # not seen in practice: PIQP, a proximal interior point method
         lam_p, ok = project_gaps_ipm(*args)
         if ok:
             return lam_p
