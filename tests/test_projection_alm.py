@@ -225,15 +225,22 @@ def test_reprojection_whose_new_candidates_bind_stays_exact():
     assert steps_warm == ALM_WARM_NEWTON_BUDGET + steps_cold  # here the warm start missed, then from zero
 
 
-@pytest.mark.parametrize("seed", range(4))
-def test_interior_point_projection_agrees_with_the_exact_one(seed):
-    """project_gaps_ipm (PIQP) on degenerate jams: feasible to its tolerance, multipliers ≥ 0 that satisfy
-    stationarity M (v − v') = B_nᵀ λ, and v within 1e-6 m/s of the augmented Lagrangian's exact v."""
+def _jam_and_exact_projection(seed):
+    """A degenerate jam of (8 + seed) × 10 disks (squeezed for odd seeds) and the augmented
+    Lagrangian's exact projected velocities: ``(vel, mass, a, b, gap, nx, ny, v_exact)``."""
     rng = np.random.default_rng(seed)
     vel, mass, a, b, gap, nx, ny = _hex_jam(8 + seed, 10, rng, squeeze=float(seed % 2))
     v_exact = vel.copy()
     _, _, status = project_gaps_alm(v_exact, mass, a, b, gap, nx, ny, H, np.zeros(a.shape[0]), 400)
     assert status == STATUS_OK
+    return vel, mass, a, b, gap, nx, ny, v_exact
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_interior_point_projection_agrees_with_the_exact_one(seed):
+    """project_gaps_ipm (PIQP) on degenerate jams: feasible to its tolerance, multipliers ≥ 0 that satisfy
+    stationarity M (v − v') = B_nᵀ λ, and v within 1e-6 m/s of the augmented Lagrangian's exact v."""
+    vel, mass, a, b, gap, nx, ny, v_exact = _jam_and_exact_projection(seed)
     v = vel.copy()
     lam, ok = project_gaps_ipm(v, mass, a, b, gap, nx, ny, H)
     assert ok
@@ -252,11 +259,7 @@ def test_own_interior_point_projection_agrees_with_the_exact_one(seed):
     unregularised weights would break the Cholesky factorisation: converged, feasible to round-off,
     percussions ≥ 0 that satisfy stationarity M (v − v') = B_nᵀ z, the exact objective to 1e-9, and v
     within 1e-8 m/s of the augmented Lagrangian's exact v."""
-    rng = np.random.default_rng(seed)
-    vel, mass, a, b, gap, nx, ny = _hex_jam(8 + seed, 10, rng, squeeze=float(seed % 2))
-    v_exact = vel.copy()
-    _, _, status = project_gaps_alm(v_exact, mass, a, b, gap, nx, ny, H, np.zeros(a.shape[0]), 400)
-    assert status == STATUS_OK
+    vel, mass, a, b, gap, nx, ny, v_exact = _jam_and_exact_projection(seed)
     v = vel.copy()
     z, iterations, status = project_gaps_interior_point(v, mass, a, b, gap, nx, ny, H)
     assert status == STATUS_OK and 5 <= iterations <= 40

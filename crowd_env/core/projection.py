@@ -221,6 +221,31 @@ def _newton_solve(grad, mass, pos, dof, first, off, env):
 
 
 @nb.njit(cache=True)
+def _projection_dofs(n, c_a, c_b, c_nx, c_ny):
+    """``pos`` of :func:`~crowd_env.core.collision._order_dofs` for the projection's rows (translations
+    only): old DOF 3b + axis → envelope index, reverse Cuthill-McKee order of the contact graph."""
+    m = c_a.shape[0]
+    coef_a = np.zeros((m, 3))
+    coef_b = np.zeros((m, 3))
+    for k in range(m):
+        coef_a[k, 0] = c_nx[k]
+        coef_a[k, 1] = c_ny[k]
+        coef_b[k, 0] = -c_nx[k]
+        coef_b[k, 1] = -c_ny[k]
+    _, pos = _order_dofs(n, c_a, c_b, coef_a, coef_b)
+    return pos
+
+
+@nb.njit(cache=True)
+def _speed_scale(v0):
+    """max(1 m/s, largest velocity component): the scale of the projections' tolerances."""
+    vscale = 1.0
+    for i in range(v0.shape[0]):
+        vscale = max(vscale, abs(v0[i, 0]), abs(v0[i, 1]))
+    return vscale
+
+
+@nb.njit(cache=True)
 def project_gaps_alm(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, lam0, max_newton=ALM_MAX_NEWTON):
     """The projection of :func:`~crowd_env.core.collision.project_gaps` on all candidates at once by
     the augmented Lagrangian method (module docstring), from the multipliers ``lam0`` (≥ 0, e.g. the
@@ -234,19 +259,11 @@ def project_gaps_alm(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, lam0, max_new
     g = c_gap / dt_s
     v0 = vel[:, :2].copy()
     wdiag = 0.0
-    coef_a = np.zeros((m, 3))
-    coef_b = np.zeros((m, 3))
     for k in range(m):
         wdiag += 1.0 / mass[c_a[k]] + (1.0 / mass[c_b[k]] if c_b[k] >= 0 else 0.0)
-        coef_a[k, 0] = c_nx[k]
-        coef_a[k, 1] = c_ny[k]
-        coef_b[k, 0] = -c_nx[k]
-        coef_b[k, 1] = -c_ny[k]
     rho = ALM_RHO_RELATIVE * m / wdiag
-    _, pos = _order_dofs(n, c_a, c_b, coef_a, coef_b)
-    vscale = 1.0
-    for i in range(n):
-        vscale = max(vscale, abs(v0[i, 0]), abs(v0[i, 1]))
+    pos = _projection_dofs(n, c_a, c_b, c_nx, c_ny)
+    vscale = _speed_scale(v0)
     tol = ALM_TOL_M_S * vscale
     mu = np.maximum(lam0, 0.0)
     lam = np.zeros(m)
@@ -371,24 +388,17 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
     m = c_a.shape[0]
     if m == 0:
         return np.zeros(0), 0, STATUS_OK
-    g = c_gap / dt_s
-    v0 = vel[:, :2].copy()
-    coef_a = np.zeros((m, 3))
-    coef_b = np.zeros((m, 3))
-    for k in range(m):
-        coef_a[k, 0] = c_nx[k]
-        coef_a[k, 1] = c_ny[k]
-        coef_b[k, 0] = -c_nx[k]
-        coef_b[k, 1] = -c_ny[k]
-    _, pos = _order_dofs(n, c_a, c_b, coef_a, coef_b)
+    # every candidate stays in the Newton matrix: its pattern and ordering are fixed for the whole solve
     used = np.ones(m, np.bool_)
+    pos = _projection_dofs(n, c_a, c_b, c_nx, c_ny)
     dof, first, off = _envelope_pattern(n, used, c_a, c_b, pos)
     env = np.empty(off[dof.shape[0]])
     factor = (dof, first, off, env)
-    vscale = 1.0
+    g = c_gap / dt_s
+    v0 = vel[:, :2].copy()
+    vscale = _speed_scale(v0)
     mbar = 0.0
     for i in range(n):
-        vscale = max(vscale, abs(v0[i, 0]), abs(v0[i, 1]))
         mbar += mass[i] / n
     dl = IP_DELTA / mbar
     u = v0.copy()
