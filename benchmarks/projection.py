@@ -1,0 +1,119 @@
+"""The large-jam gap projection: augmented Lagrangian, own interior point method and PIQP, same problems.
+
+Runs the dense room of ``scaling.py`` (N pedestrians at 3 /m² pushing into a door, baseline agents,
+full model) for ``--warmup`` steps, then records the projections of the next ``--steps`` steps that
+are too large for the dense path (the jam in front of the door) and solves each of them, in one run,
+with:
+
+* ``project_gaps_alm`` from zero within the simulator's Newton budget (``ALM_NEWTON_BUDGET``), the
+  first stage of ``Simulator._project_large`` (misses count as its time spent);
+* ``project_gaps_interior_point``, the own Mehrotra method with dual regularisation, the second stage;
+* ``project_gaps_ipm`` (PIQP), its fallback.
+
+Prints per solver the mean time per projection, the range of iterations (Newton steps for the
+augmented Lagrangian), the own method's speed-up over PIQP (ratio of the totals) and the largest
+velocity difference between the two interior point methods and to the augmented Lagrangian's exact
+solution where that converged.
+
+    python benchmarks/projection.py [--n 10000] [--warmup 300] [--steps 20]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from scaling import dense_room  # noqa: E402
+
+from baselines.social_force import SocialForceAgent  # noqa: E402
+from crowd_env.core import ModelParams, Simulator  # noqa: E402
+from crowd_env.core.collision import STATUS_OK, project_gaps_ipm  # noqa: E402
+from crowd_env.core.projection import project_gaps_alm, project_gaps_interior_point  # noqa: E402
+from crowd_env.core.simulator import ALM_NEWTON_BUDGET  # noqa: E402
+
+
+class RecordingSimulator(Simulator):
+    """A Simulator that keeps a copy of every large projection's data before solving it as usual."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.recorded = []
+        self.recording = False
+
+    def _project_large(self, vel, mass, c_a, c_b, con, h, lam_warm=None):
+        if self.recording:
+            self.recorded.append((vel.copy(), mass.copy(), c_a.copy(), c_b.copy(), con["gap"].copy(),
+                                  con["nx"].copy(), con["ny"].copy(), h))
+        return super()._project_large(vel, mass, c_a, c_b, con, h, lam_warm)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--n", type=int, default=10000, help="pedestrians in the room")
+    ap.add_argument("--warmup", type=int, default=300, help="steps before recording (the jam builds up)")
+    ap.add_argument("--steps", type=int, default=20, help="steps whose large projections are recorded")
+    args = ap.parse_args(argv)
+
+    scenario = dense_room(args.n, 0)
+    agent = SocialForceAgent(scenario.navigation())
+    sim = RecordingSimulator(scenario.make_state(), geometry=scenario.geometry, params=ModelParams())
+    for k in range(args.warmup + args.steps):
+        sim.recording = k >= args.warmup
+        intents, heading = agent(sim)
+        sim.step(intents, desired_heading_rad=heading)
+    problems = sim.recorded
+    if not problems:
+        print(f"no projection too large for the dense path in {args.steps} steps after {args.warmup}")
+        return
+    # compile everything once outside the timings (same argument types as below)
+    project_gaps_alm(problems[0][0].copy(), *problems[0][1:], np.zeros(problems[0][2].shape[0]), ALM_NEWTON_BUDGET)
+    project_gaps_interior_point(problems[0][0].copy(), *problems[0][1:])
+    project_gaps_ipm(problems[0][0].copy(), *problems[0][1:])
+
+    times = {"alm": 0.0, "own": 0.0, "piqp": 0.0}
+    iterations = {"alm": [], "own": []}
+    d_piqp, d_exact, alm_ok = 0.0, 0.0, 0
+    for vel, *rest in problems:
+        m = rest[1].shape[0]
+        v_alm = vel.copy()
+        t0 = time.perf_counter()
+        _, steps, status_alm = project_gaps_alm(v_alm, *rest, np.zeros(m), ALM_NEWTON_BUDGET)
+        t1 = time.perf_counter()
+        v_own = vel.copy()
+        _, its, status_own = project_gaps_interior_point(v_own, *rest)
+        t2 = time.perf_counter()
+        v_piqp = vel.copy()
+        _, ok = project_gaps_ipm(v_piqp, *rest)
+        t3 = time.perf_counter()
+        if status_own != STATUS_OK or not ok:
+            raise RuntimeError("an interior point method failed on a recorded projection")
+        times["alm"] += t1 - t0
+        times["own"] += t2 - t1
+        times["piqp"] += t3 - t2
+        iterations["alm"].append(steps)
+        iterations["own"].append(its)
+        d_piqp = max(d_piqp, float(np.abs(v_own[:, :2] - v_piqp[:, :2]).max()))
+        if status_alm == STATUS_OK:
+            alm_ok += 1
+            d_exact = max(d_exact, float(np.abs(v_own[:, :2] - v_alm[:, :2]).max()))
+    k = len(problems)
+    sizes = [p[2].shape[0] for p in problems]
+    print(f"dense room N = {args.n}: {k} large projections in {args.steps} steps after {args.warmup}, "
+          f"{min(sizes)}-{max(sizes)} candidates, {min(p[0].shape[0] for p in problems)}-"
+          f"{max(p[0].shape[0] for p in problems)} pedestrians")
+    print(f"  augmented Lagrangian (budget {ALM_NEWTON_BUDGET}): {1e3 * times['alm'] / k:7.2f} ms, "
+          f"{min(iterations['alm'])}-{max(iterations['alm'])} Newton steps, converged {alm_ok}/{k}")
+    print(f"  own interior point:                {1e3 * times['own'] / k:7.2f} ms, "
+          f"{min(iterations['own'])}-{max(iterations['own'])} iterations")
+    print(f"  PIQP:                              {1e3 * times['piqp'] / k:7.2f} ms")
+    print(f"  own / PIQP speed-up: {times['piqp'] / times['own']:.2f}x; max |v_own - v_PIQP| = {d_piqp:.1e} m/s; "
+          f"max |v_own - v_exact| = {d_exact:.1e} m/s over the {alm_ok} the augmented Lagrangian solved")
+
+
+if __name__ == "__main__":
+    main()
