@@ -32,7 +32,7 @@ from scaling import dense_room  # noqa: E402
 
 from baselines.social_force import SocialForceAgent  # noqa: E402
 from crowd_env.core import ModelParams, Simulator  # noqa: E402
-from crowd_env.core.collision import STATUS_OK, project_gaps_ipm  # noqa: E402
+from crowd_env.core.collision import STATUS_OK, gap_residuals, project_gaps_ipm  # noqa: E402
 from crowd_env.core.projection import project_gaps_alm, project_gaps_interior_point  # noqa: E402
 from crowd_env.core.simulator import ALM_NEWTON_BUDGET  # noqa: E402
 
@@ -77,7 +77,7 @@ def main(argv=None) -> None:
 
     times = {"alm": 0.0, "own": 0.0, "piqp": 0.0}
     iterations = {"alm": [], "own": []}
-    d_piqp, d_exact, alm_ok = 0.0, 0.0, 0
+    d_piqp, d_exact, alm_ok, min_slack = 0.0, 0.0, 0, np.inf
     for vel, *rest in problems:
         m = rest[1].shape[0]
         v_alm = vel.copy()
@@ -98,6 +98,8 @@ def main(argv=None) -> None:
         iterations["alm"].append(steps)
         iterations["own"].append(its)
         d_piqp = max(d_piqp, float(np.abs(v_own[:, :2] - v_piqp[:, :2]).max()))
+        mass, c_a, c_b, gap, nx, ny, h = rest
+        min_slack = min(min_slack, float(gap_residuals(v_own, gap / h, c_a, c_b, nx, ny).min()))
         if status_alm == STATUS_OK:
             alm_ok += 1
             d_exact = max(d_exact, float(np.abs(v_own[:, :2] - v_alm[:, :2]).max()))
@@ -109,7 +111,7 @@ def main(argv=None) -> None:
     print(f"  augmented Lagrangian (budget {ALM_NEWTON_BUDGET}): {1e3 * times['alm'] / k:7.2f} ms, "
           f"{min(iterations['alm'])}-{max(iterations['alm'])} Newton steps, converged {alm_ok}/{k}")
     print(f"  own interior point:                {1e3 * times['own'] / k:7.2f} ms, "
-          f"{min(iterations['own'])}-{max(iterations['own'])} iterations")
+          f"{min(iterations['own'])}-{max(iterations['own'])} iterations, smallest slack gap/h + B v = {min_slack:.1e} m/s")
     print(f"  PIQP:                              {1e3 * times['piqp'] / k:7.2f} ms")
     print(f"  own / PIQP speed-up: {times['piqp'] / times['own']:.2f}x; max |v_own - v_PIQP| = {d_piqp:.1e} m/s; "
           f"max |v_own - v_exact| = {d_exact:.1e} m/s over the {alm_ok} the augmented Lagrangian solved")
