@@ -111,7 +111,8 @@ def main(argv=None) -> None:
     print(f"  augmented Lagrangian (budget {ALM_NEWTON_BUDGET}): {1e3 * times['alm'] / k:7.2f} ms, "
           f"{min(iterations['alm'])}-{max(iterations['alm'])} Newton steps, converged {alm_ok}/{k}")
     print(f"  own interior point:                {1e3 * times['own'] / k:7.2f} ms, "
-          f"{min(iterations['own'])}-{max(iterations['own'])} iterations, smallest slack gap/h + B v = {min_slack:.1e} m/s")
+          f"{min(iterations['own'])}-{max(iterations['own'])} iterations, "
+          f"smallest slack gap/h + B v = {min_slack:.1e} m/s")
     print(f"  PIQP:                              {1e3 * times['piqp'] / k:7.2f} ms")
     print(f"  own / PIQP speed-up: {times['piqp'] / times['own']:.2f}x; max |v_own - v_PIQP| = {d_piqp:.1e} m/s; "
           f"max |v_own - v_exact| = {d_exact:.1e} m/s over the {alm_ok} the augmented Lagrangian solved")

@@ -381,9 +381,9 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
     couples them), 99 % of the way to the boundary. Stops when stationarity ‖M (v − v') − Bᵀ z‖/m and
     ‖r(v) − s‖ are ≤ ``IP_TOL_M_S`` and sᵀz/m ≤ ``IP_GAP_TOL`` (both relative to the largest speed,
     the latter times the mean mass): on door jams of 460-1400 pedestrians v then agrees with the
-    augmented Lagrangian's exact v to 1.4e-8 m/s and r(v) ≥ −1.1e-12 m/s (``benchmarks/projection.py``). Modifies ``vel[:, :2]`` in place
-    on success; returns ``(z per contact, iterations, status)`` (STATUS_MAX_ITER: no convergence
-    within ``max_iter``, ``vel`` left alone)."""
+    augmented Lagrangian's exact v to 1.4e-8 m/s and r(v) ≥ −1.1e-12 m/s (``benchmarks/projection.py``).
+    Modifies ``vel[:, :2]`` in place on success; returns ``(z per contact, iterations, status)``
+    (STATUS_MAX_ITER: no convergence within ``max_iter``, ``vel`` left alone)."""
     n = vel.shape[0]
     m = c_a.shape[0]
     if m == 0:
