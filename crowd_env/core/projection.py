@@ -57,6 +57,15 @@ def _slope(a0, a1, mu, rho, r, bd, t):
 
 
 @nb.njit(cache=True)
+def _normal_velocities(d, c_a, c_b, c_nx, c_ny):
+    """B_n d: the normal relative velocity of every contact for velocities ``d`` ((n, ≥2))."""
+    out = np.empty(c_a.shape[0])
+    for k in range(c_a.shape[0]):
+        out[k] = _normal_velocity(d, c_a[k], c_b[k], c_nx[k], c_ny[k])
+    return out
+
+
+@nb.njit(cache=True)
 def _line_search(u, d, v0, mass, mu, rho, r, c_a, c_b, c_nx, c_ny):
     """Step t ∈ (0, 1] along the Newton direction d from u (r = r(u)): 1 when φ still decreases there
     (the usual case), else a root of the piecewise linear, non-decreasing dφ/dt by Illinois regula
@@ -69,9 +78,7 @@ def _line_search(u, d, v0, mass, mu, rho, r, c_a, c_b, c_nx, c_ny):
         d1 = d[i, 1]
         a0 += mass[i] * ((u[i, 0] - v0[i, 0]) * d0 + (u[i, 1] - v0[i, 1]) * d1)
         a1 += mass[i] * (d0 * d0 + d1 * d1)
-    bd = np.empty(r.shape[0])  # the residuals' rate along d: r(u + t d) = r + t B d
-    for k in range(r.shape[0]):
-        bd[k] = _normal_velocity(d, c_a[k], c_b[k], c_nx[k], c_ny[k])
+    bd = _normal_velocities(d, c_a, c_b, c_nx, c_ny)  # the residuals' rate along d: r(u + t d) = r + t B d
     s1 = _slope(a0, a1, mu, rho, r, bd, 1.0)
     if s1 <= 0.0:
         return 1.0
@@ -352,7 +359,7 @@ def _step_to_boundary(x, dx):
 
 
 @nb.njit(cache=True)
-def _ip_direction(u_rhs_d, s, z, rp, rc, dl, n, mass, c_a, c_b, c_nx, c_ny, pos, factor):
+def _ip_direction(rd, s, z, rp, rc, dl, n, mass, c_a, c_b, c_nx, c_ny, pos, factor):
     """Newton direction (du, ds, dz) of the regularised KKT system for complementarity target rc:
     (M + Bᵀ W B) du = −r_d + Bᵀ (S + δZ)⁻¹ (rc − Z r_p), dz = (rc − Z r_p − Z B du)/(s + δz),
     ds = B du + r_p + δ dz."""
@@ -360,9 +367,9 @@ def _ip_direction(u_rhs_d, s, z, rp, rc, dl, n, mass, c_a, c_b, c_nx, c_ny, pos,
     t = np.empty(m)
     for k in range(m):
         t[k] = (rc[k] - z[k] * rp[k]) / (s[k] + dl * z[k])
-    rhs = _percussion_sum(t, n, c_a, c_b, c_nx, c_ny) - u_rhs_d
+    rhs = _percussion_sum(t, n, c_a, c_b, c_nx, c_ny) - rd
     du = _newton_solve(-rhs, mass, pos, *factor)
-    bdu = gap_residuals(du, np.zeros(m), c_a, c_b, c_nx, c_ny)
+    bdu = _normal_velocities(du, c_a, c_b, c_nx, c_ny)
     dz = np.empty(m)
     ds = np.empty(m)
     for k in range(m):

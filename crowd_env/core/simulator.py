@@ -115,7 +115,7 @@ class Simulator:
         self.n_staged_steps = 0  # steps run stage by stage (profiling, fallbacks, re-detection)
         self.n_alm_newton_steps = 0  # Newton steps of the augmented Lagrangian projection (project_gaps_alm)
         self.n_ipm_projections = 0  # large projections given to the interior point method (project_gaps_interior_point)
-        self.n_piqp_projections = 0  # ... of which it missed and PIQP solved (project_gaps_ipm)
+        self.n_piqp_projections = 0  # ... of which it missed, handed to PIQP (project_gaps_ipm)
         # Size limits of the dense (compiled) solvers; larger problems take the sparse path. Exposed so
         # that tests can force either path; both are exact, so results agree to round-off.
         self.max_dense_rows = MAX_DENSE_ROWS
@@ -413,7 +413,7 @@ class Simulator:
         should that not converge; PIQP (:func:`project_gaps_ipm`) and then :func:`project_gaps_large`
         (pivoting, Clarabel, polish) serve if even that fails. The augmented Lagrangian's Newton
         steps grow with the diameter of the jam (10-21 at 400 pedestrians in one jam, 30-75 at 1400),
-        the interior point iterations do not (14-22): after a miss the interior point method is used
+        the interior point iterations do not (13-21): after a miss the interior point method is used
         directly for a while: the augmented Lagrangian is tried again after ``ALM_SKIP_AFTER_MISS`` large
         projections, after twice as many at each further miss in a row (up to ``ALM_SKIP_MAX``).
 
