@@ -8,12 +8,16 @@ with:
 * ``project_gaps_alm`` from zero within the simulator's Newton budget (``ALM_NEWTON_BUDGET``), the
   first stage of ``Simulator._project_large`` (misses count as its time spent);
 * ``project_gaps_interior_point``, the own Mehrotra method with dual regularisation, the second stage;
+* ``project_gaps_working_set``: the same method on the simulator's working set (the previous step's
+  active contacts and the nearly closing candidates), grown until nothing is violated, which is what
+  the second stage runs when the previous step had a large projection;
 * ``project_gaps_ipm`` (PIQP), its fallback.
 
 Prints per solver the mean time per projection, the range of iterations (Newton steps for the
-augmented Lagrangian), the own method's speed-up over PIQP (ratio of the totals) and the largest
-velocity difference between the two interior point methods and to the augmented Lagrangian's exact
-solution where that converged.
+augmented Lagrangian, solves for the working set), the own method's speed-up over PIQP and the
+working set's over the whole own method (ratios of the totals, the latter on the projections that
+had a working set), and the largest velocity difference between the methods and to the augmented
+Lagrangian's exact solution where that converged.
 
     python benchmarks/projection.py [--n 10000] [--warmup 300] [--steps 20]
 """
@@ -33,23 +37,27 @@ from scaling import dense_room  # noqa: E402
 from baselines.social_force import SocialForceAgent  # noqa: E402
 from crowd_env.core import ModelParams, Simulator  # noqa: E402
 from crowd_env.core.collision import STATUS_OK, gap_residuals, project_gaps_ipm  # noqa: E402
-from crowd_env.core.projection import project_gaps_alm, project_gaps_interior_point  # noqa: E402
+from crowd_env.core.projection import (project_gaps_alm, project_gaps_interior_point,  # noqa: E402
+                                       project_gaps_working_set)
 from crowd_env.core.simulator import ALM_NEWTON_BUDGET  # noqa: E402
 
 
 class RecordingSimulator(Simulator):
-    """A Simulator that keeps a copy of every large projection's data before solving it as usual."""
+    """A Simulator that keeps a copy of every large projection's data (and its working set, None
+    without one) before solving it as usual."""
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.recorded = []
+        self.working = []
         self.recording = False
 
-    def _project_large(self, vel, mass, c_a, c_b, con, h, lam_warm=None):
+    def _project_large(self, vel, mass, c_a, c_b, con, h, lam_warm=None, keys=None):
         if self.recording:
             self.recorded.append((vel.copy(), mass.copy(), c_a.copy(), c_b.copy(), con["gap"].copy(),
                                   con["nx"].copy(), con["ny"].copy(), h))
-        return super()._project_large(vel, mass, c_a, c_b, con, h, lam_warm)
+            self.working.append(self._working_set(vel, c_a, c_b, con, h, keys))
+        return super()._project_large(vel, mass, c_a, c_b, con, h, lam_warm, keys)
 
 
 def main(argv=None) -> None:
@@ -75,10 +83,10 @@ def main(argv=None) -> None:
     project_gaps_interior_point(problems[0][0].copy(), *problems[0][1:])
     project_gaps_ipm(problems[0][0].copy(), *problems[0][1:])
 
-    times = {"alm": 0.0, "own": 0.0, "piqp": 0.0}
-    iterations = {"alm": [], "own": []}
-    d_piqp, d_exact, alm_ok, min_slack = 0.0, 0.0, 0, np.inf
-    for vel, *rest in problems:
+    times = {"alm": 0.0, "own": 0.0, "piqp": 0.0, "ws": 0.0, "own_ws": 0.0}
+    iterations = {"alm": [], "own": [], "ws": []}
+    d_piqp, d_exact, d_ws, alm_ok, min_slack = 0.0, 0.0, 0.0, 0, np.inf
+    for (vel, *rest), working in zip(problems, sim.working):
         m = rest[1].shape[0]
         v_alm = vel.copy()
         t0 = time.perf_counter()
@@ -95,6 +103,16 @@ def main(argv=None) -> None:
         times["alm"] += t1 - t0
         times["own"] += t2 - t1
         times["piqp"] += t3 - t2
+        if working is not None:
+            v_ws = vel.copy()
+            t4 = time.perf_counter()
+            _, solves, status_ws = project_gaps_working_set(v_ws, *rest, working)
+            times["ws"] += time.perf_counter() - t4
+            times["own_ws"] += t2 - t1
+            if status_ws != STATUS_OK:
+                raise RuntimeError("the working set method failed on a recorded projection")
+            iterations["ws"].append(solves)
+            d_ws = max(d_ws, float(np.abs(v_ws[:, :2] - v_own[:, :2]).max()))
         iterations["alm"].append(steps)
         iterations["own"].append(its)
         d_piqp = max(d_piqp, float(np.abs(v_own[:, :2] - v_piqp[:, :2]).max()))
@@ -116,6 +134,14 @@ def main(argv=None) -> None:
     print(f"  PIQP:                              {1e3 * times['piqp'] / k:7.2f} ms")
     print(f"  own / PIQP speed-up: {times['piqp'] / times['own']:.2f}x; max |v_own - v_PIQP| = {d_piqp:.1e} m/s; "
           f"max |v_own - v_exact| = {d_exact:.1e} m/s over the {alm_ok} the augmented Lagrangian solved")
+    n_ws = len(iterations["ws"])
+    if n_ws:
+        solves = np.bincount(iterations["ws"])[1:]
+        print(f"  own on the working set:            {1e3 * times['ws'] / n_ws:7.2f} ms on {n_ws} projections "
+              f"(whole own: {1e3 * times['own_ws'] / n_ws:.2f} ms), solves " +
+              ", ".join(f"{s + 1}: {c}" for s, c in enumerate(solves) if c))
+        print(f"  working set / whole own speed-up: {times['own_ws'] / times['ws']:.2f}x; "
+              f"max |v_ws - v_own| = {d_ws:.1e} m/s")
 
 
 if __name__ == "__main__":

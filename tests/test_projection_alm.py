@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from crowd_env.core.collision import IPM_TOL_M_S, STATUS_OK, project_gaps, project_gaps_ipm, project_gaps_large, project_gaps_qp
-from crowd_env.core.projection import project_gaps_alm, project_gaps_interior_point
+from crowd_env.core.projection import project_gaps_alm, project_gaps_interior_point, project_gaps_working_set
 
 H = 0.01
 
@@ -53,6 +53,11 @@ def _percussion(n, lam, a, b, nx, ny):
     np.add.at(out, a, lam[:, None] * normal)
     np.add.at(out, b[b >= 0], -(lam[b >= 0, None] * normal[b >= 0]))
     return out
+
+
+def _con(a, b, gap, nx, ny):
+    """The simulator's candidate dict for these rows (every wall contact on segment 0)."""
+    return {"a": a, "b": b, "wall": np.where(b < 0, 0, -1), "gap": gap, "nx": nx, "ny": ny}
 
 
 def _jam_simulator(n):
@@ -161,7 +166,7 @@ def test_simulator_large_projection_sees_only_the_touched_pedestrians():
     mass_all = np.empty(n_jam + n_far)
     mass_all[jam_ids] = mass
     mass_all[far_ids] = rng.uniform(50.0, 100.0, n_far)
-    con = {"a": jam_ids[a], "b": np.where(b >= 0, jam_ids[np.maximum(b, 0)], -1), "gap": gap, "nx": nx, "ny": ny}
+    con = _con(jam_ids[a], np.where(b >= 0, jam_ids[np.maximum(b, 0)], -1), gap, nx, ny)
     sim = _jam_simulator(n_jam + n_far)
     v_sim = vel_all.copy()
     lam_sim = sim._project(v_sim, mass_all, con, H, np.arange(n_jam + n_far))
@@ -188,7 +193,7 @@ def _reprojection(later_kind):
     else:  # the right wall in front of every third pedestrian along it
         later = np.flatnonzero((b < 0) & (nx < -0.5))[::3]
     order = np.concatenate([np.setdiff1d(np.arange(a.shape[0]), later), later])
-    con = {"a": a[order], "b": b[order], "gap": gap[order], "nx": nx[order], "ny": ny[order]}
+    con = _con(a[order], b[order], gap[order], nx[order], ny[order])
     con_first = {k: v[: order.shape[0] - later.shape[0]] for k, v in con.items()}
     cold, warm = _jam_simulator(n), _jam_simulator(n)
     v_cold = vel.copy()
@@ -298,7 +303,7 @@ def test_simulator_hands_a_slow_augmented_lagrangian_to_the_interior_point_metho
     assert status == STATUS_OK and steps_exact > 3
     monkeypatch.setattr(simulator_module, "ALM_NEWTON_BUDGET", 3)
     sim = _jam_simulator(n)
-    con = {"a": a, "b": b, "gap": gap, "nx": nx, "ny": ny}
+    con = _con(a, b, gap, nx, ny)
     for k in range(3):
         v = vel.copy()
         sim._project(v, mass, con, H, np.arange(n))
@@ -321,7 +326,7 @@ def test_misses_in_a_row_back_off_the_augmented_lagrangian(monkeypatch):
     monkeypatch.setattr(simulator_module, "ALM_SKIP_AFTER_MISS", 2)
     monkeypatch.setattr(simulator_module, "ALM_SKIP_MAX", 8)
     sim = _jam_simulator(n)
-    con = {"a": a, "b": b, "gap": gap, "nx": nx, "ny": ny}
+    con = _con(a, b, gap, nx, ny)
 
     def tries(count):
         out = []
@@ -340,3 +345,62 @@ def test_misses_in_a_row_back_off_the_augmented_lagrangian(monkeypatch):
     monkeypatch.setattr(simulator_module, "ALM_NEWTON_BUDGET", 3)
     assert tries(7) == [0, 2, 6]  # the success reset the back-off
     assert sim.n_fallback_solves == 0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_working_set_projection_grows_to_the_exact_one(seed):
+    """project_gaps_working_set from the candidates violated at v' alone: the first answer violates
+    others, they join and it solves again; the end is the exact projection (within 1e-7 m/s of the
+    augmented Lagrangian's v), a KKT point with zero percussion outside the final working set. From
+    all candidates it solves once."""
+    vel, mass, a, b, gap, nx, ny, v_exact = _jam_and_exact_projection(seed)
+    violated = _residual(vel, a, b, gap, nx, ny) < 0.0
+    assert 0 < violated.sum() < a.shape[0]
+    v = vel.copy()
+    lam, solves, status = project_gaps_working_set(v, mass, a, b, gap, nx, ny, H, violated, max_rounds=50)
+    assert status == STATUS_OK and solves >= 2
+    np.testing.assert_allclose(v, v_exact, atol=1e-7)
+    assert _residual(v, a, b, gap, nx, ny).min() >= -1e-9 and lam.min() >= 0.0
+    assert np.all(lam[violated] >= 0.0) and np.count_nonzero(lam) < a.shape[0]  # some never joined
+    np.testing.assert_allclose(mass[:, None] * (v[:, :2] - vel[:, :2]), _percussion(v.shape[0], lam, a, b, nx, ny),
+                               atol=1e-7 * mass.max())
+    v_all = vel.copy()
+    _, solves_all, status_all = project_gaps_working_set(v_all, mass, a, b, gap, nx, ny, H, np.ones(a.shape[0], bool))
+    v_ipm = vel.copy()
+    project_gaps_interior_point(v_ipm, mass, a, b, gap, nx, ny, H)
+    assert status_all == STATUS_OK and solves_all == 1
+    np.testing.assert_array_equal(v_all, v_ipm)
+
+
+def test_working_set_projection_reports_a_miss_and_bad_input():
+    """Out of solves, the working set method says so and leaves the velocities alone; a working set of
+    the wrong shape is refused by name."""
+    vel, mass, a, b, gap, nx, ny, _ = _jam_and_exact_projection(0)
+    violated = _residual(vel, a, b, gap, nx, ny) < 0.0
+    v = vel.copy()
+    _, solves, status = project_gaps_working_set(v, mass, a, b, gap, nx, ny, H, violated, max_rounds=1)
+    assert status != STATUS_OK and solves == 1
+    np.testing.assert_array_equal(v, vel)
+    with pytest.raises(ValueError, match="working"):
+        project_gaps_working_set(v, mass, a, b, gap, nx, ny, H, violated[:-1])
+
+
+def test_simulator_starts_the_interior_point_method_from_the_last_active_set(monkeypatch):
+    """After a large projection, the next one (same or next step) goes to the interior point method on
+    the working set (last active contacts and nearly closing candidates) and is still exact; two steps
+    later it no longer does."""
+    import crowd_env.core.simulator as simulator_module
+
+    vel, mass, a, b, gap, nx, ny, v_exact = _jam_and_exact_projection(1)
+    n = vel.shape[0]
+    monkeypatch.setattr(simulator_module, "ALM_NEWTON_BUDGET", 3)  # the augmented Lagrangian misses
+    sim = _jam_simulator(n)
+    con = _con(a, b, gap, nx, ny)
+    for call, (step, uses_working_set) in enumerate([(0, False), (0, True), (1, True), (3, False)]):
+        sim.step_count = step
+        before = sim.n_working_set_solves
+        v = vel.copy()
+        sim._project(v, mass, con, H, np.arange(n))
+        np.testing.assert_allclose(v, v_exact, atol=1e-7)
+        assert (sim.n_working_set_solves > before) == uses_working_set, call
+    assert sim.n_ipm_projections == 4 and sim.n_piqp_projections == 0 and sim.n_fallback_solves == 0

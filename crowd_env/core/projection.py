@@ -22,13 +22,19 @@ ones, where the Cholesky factorisation breaks down; a dual regularisation δ (th
 interior point-proximal method of multipliers, centred at the current iterate) bounds them by 1/δ:
 W = Z (S + δ Z)⁻¹. The residuals it drives to zero are those of the unregularised problem, so the
 solution is the same.
+
+In a door jam only about 40 % of the candidates end up active, and the active set changes little from
+one step to the next. :func:`project_gaps_working_set` solves the interior point problem on a working
+set (the caller's guess: the last step's active contacts and those nearly closing), adds the
+candidates the answer violates, and solves again until none is: each solve is smaller, and the
+result is the exact projection on all candidates.
 """
 from __future__ import annotations
 
 import numba as nb
 import numpy as np
 
-from .collision import STATUS_MAX_ITER, STATUS_OK, _normal_velocity, _order_dofs, gap_residuals
+from .collision import STATUS_MAX_ITER, STATUS_OK, _normal_velocity, _order_dofs, gap_residuals, touched_bodies
 from .linalg import envelope_cholesky, envelope_solve
 
 ALM_RHO_RELATIVE = 1e4  # penalty ρ relative to 1 / mean diag(W): large, so the multipliers converge in a few rounds
@@ -41,6 +47,7 @@ IP_MAX_ITER = 60  # interior point iterations (measured: 13-21 on door jams of 4
 IP_TOL_M_S = 1e-10  # stationarity (÷ mass) and constraint residuals at termination, relative to the largest speed
 IP_GAP_TOL = 1e-16  # mean complementarity sᵀz/m at termination, relative to (largest speed × mean mass)
 IP_DELTA = 1e-10  # dual regularisation δ/m̄ (s/m per kg): the Newton weights z/(s + δz) stay ≤ m̄/1e-10
+WORKING_SET_MAX_ROUNDS = 4  # solves of project_gaps_working_set before it gives up (measured: 1, rarely 2)
 
 
 @nb.njit(cache=True)
@@ -452,3 +459,38 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
         s = s + t * ds
         z = z + t * dz
     return z, max_iter, STATUS_MAX_ITER
+
+
+def project_gaps_working_set(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, working,
+                             max_rounds=WORKING_SET_MAX_ROUNDS):
+    """The projection of :func:`~crowd_env.core.collision.project_gaps` on all candidates by
+    :func:`project_gaps_interior_point` on the candidates ``working`` (bool, one per candidate) only,
+    on the pedestrians they touch; the candidates its answer violates (r_k(v) < 0) join the working
+    set and it solves again. The answer, with zero percussion on the candidates never in the working
+    set, is then a KKT point of the whole problem (feasible, and the others are inactive): the exact
+    projection. Modifies ``vel[:, :2]`` in place on success; returns ``(λ per contact, solves,
+    status)`` (STATUS_MAX_ITER: not settled within ``max_rounds`` solves or a solve did not converge;
+    ``vel`` left alone)."""
+    m = c_a.shape[0]
+    working = np.asarray(working, dtype=bool).copy()
+    if working.shape != (m,):
+        raise ValueError(f"working must be one bool per candidate ({m},), got shape {working.shape}")
+    g = c_gap / dt_s
+    for solves in range(1, max_rounds + 1):
+        rows = np.flatnonzero(working)
+        bodies, a_w, b_w = touched_bodies(vel.shape[0], c_a[rows], c_b[rows])
+        v_w = vel[bodies]
+        z_w, _, status = project_gaps_interior_point(v_w, mass[bodies], a_w, b_w, c_gap[rows], c_nx[rows],
+                                                     c_ny[rows], dt_s)
+        if status != STATUS_OK:
+            return np.zeros(m), solves, status
+        u = vel[:, :2].copy()
+        u[bodies] = v_w[:, :2]
+        violated = (gap_residuals(u, g, c_a, c_b, c_nx, c_ny) < 0.0) & ~working
+        if not violated.any():
+            vel[:, :2] = u
+            lam = np.zeros(m)
+            lam[rows] = z_w
+            return lam, solves, STATUS_OK
+        working |= violated
+    return np.zeros(m), max_rounds, STATUS_MAX_ITER
