@@ -275,6 +275,12 @@ def test_own_interior_point_projection_agrees_with_the_exact_one(seed):
                                atol=1e-9 * mass.max())
     assert _objective(v, vel, mass) == pytest.approx(_objective(v_exact, vel, mass), rel=1e-9)
     np.testing.assert_array_equal(v[:, 2], vel[:, 2])
+    # only closed contacts push: z is exactly 0 on every open gap, and positive wherever the augmented
+    # Lagrangian's exact multiplier is
+    slack = _residual(v, a, b, gap, nx, ny)
+    lam_exact, _, _ = project_gaps_alm(vel.copy(), mass, a, b, gap, nx, ny, H, np.zeros(a.shape[0]), 400)
+    assert (slack > 1e-9).any() and np.all(z[slack > 1e-9] == 0.0)
+    assert np.all(z[lam_exact > 1e-6 * lam_exact.max()] > 0.0)
     v = vel.copy()
     _, iterations, status = project_gaps_interior_point(v, mass, a, b, gap, nx, ny, H, 3)
     assert status != STATUS_OK and iterations == 3 and np.array_equal(v, vel)  # a miss leaves vel alone
