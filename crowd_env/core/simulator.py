@@ -427,7 +427,7 @@ class Simulator:
         projections, after twice as many at each further miss in a row (up to ``ALM_SKIP_MAX``). Right
         after a large projection, the interior point method starts from a working set
         (:meth:`_working_set`, :func:`project_gaps_working_set`): the same exact answer from smaller
-        solves (1.3-1.4× faster in the door jam of ``benchmarks/projection.py`` at N = 10 000).
+        solves (1.2-1.3× faster in the door jams of ``benchmarks/projection.py`` at N = 1000-10 000).
 
         ``lam_warm`` (one per candidate, or None): multipliers of a projection of the same step from the
         same velocities on a subset of these candidates (before a re-detection added some). The
