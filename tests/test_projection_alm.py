@@ -257,7 +257,6 @@ def test_interior_point_projection_agrees_with_the_exact_one(seed):
     np.testing.assert_array_equal(v[:, 2], vel[:, 2])  # rotation untouched
 
 
-
 @pytest.mark.parametrize("seed", range(4))
 def test_own_interior_point_projection_agrees_with_the_exact_one(seed):
     """project_gaps_interior_point (Mehrotra with dual regularisation) on degenerate jams, where the
@@ -288,6 +287,7 @@ def test_own_interior_point_projection_agrees_with_the_exact_one(seed):
     z, iterations, status = project_gaps_interior_point(v, np.ones(3), np.zeros(0, np.int64), np.zeros(0, np.int64),
                                                         np.zeros(0), np.zeros(0), np.zeros(0), H)
     assert status == STATUS_OK and z.shape == (0,) and iterations == 0 and np.all(v == 1.0)
+
 
 def test_interior_point_projection_without_candidates():
     v = np.ones((3, 3))

@@ -354,7 +354,6 @@ def test_grid_pairs_match_brute_force(layout):
     assert grid_pairs(pos, index, 0.0).shape == (0, 2)
 
 
-
 @pytest.mark.parametrize("layout", ["uniform", "clustered", "spread", "duplicates"])
 @pytest.mark.parametrize("k", [1, 6, 40])
 def test_grid_k_nearest_matches_brute_force(layout, k):

@@ -54,7 +54,6 @@ ALM_SKIP_MAX = 160
 # Measured on door jams of 1250 pedestrians: 0.3 m/s needs a second solve in 7 of 24 steps, 0.5 m/s in
 # 1 of 24, while each solve shrinks to about 70 % of the candidates (benchmarks/projection.py).
 WORKING_SET_SLACK_M_S = 0.5
-ACTIVE_RELATIVE = 1e-9  # a projection percussion above this times the largest counts as active
 MAX_REDETECT = 10  # re-detection rounds per step (speeds are bounded: one or two rounds suffice in practice)
 
 
@@ -455,9 +454,8 @@ class Simulator:
                                  con["wall"], self.state.n, self.walls.shape[0])
             lam_p = self._project_large(v_sub, m_sub, c_a, c_b, con, h, lam_warm, keys)
             vel[bodies, :2] = v_sub[:, :2]
-            if lam_p.shape[0]:
-                self._active_keys = keys[lam_p > ACTIVE_RELATIVE * lam_p.max()]
-                self._active_keys_step = self.step_count
+            self._active_keys = keys[lam_p > 0.0]  # pushed, as compact_contacts counts them
+            self._active_keys_step = self.step_count
         return lam_p
 
     def _project_large(self, vel, mass, c_a, c_b, con, h, lam_warm=None, keys=None):
@@ -563,7 +561,8 @@ class Simulator:
 
 def _contact_keys(a, b, wall, n, n_walls):
     """One int64 per contact, equal for the same pair (a < b, pedestrian numbers below ``n``) or the
-    same pedestrian and wall segment (b < 0, segment ``wall`` of ``n_walls``), whatever their order."""
+    same pedestrian and wall segment (b < 0, segment ``wall`` of ``n_walls``) wherever it stands in a
+    candidate list: matches contacts across lists (re-detection, the previous step's projection)."""
     a = np.asarray(a, np.int64)
     return np.where(b >= 0, a * n + b, n * n + a * max(1, n_walls) + wall)
 
