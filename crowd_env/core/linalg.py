@@ -4,10 +4,14 @@ Not LAPACK: the systems are small or banded, and OpenBLAS threads fighting over 
 LAPACK calls 10-100 times slower than these loops. Inner products run over *unsigned* offsets
 (:func:`dot_range`): with signed indices numba keeps its negative-index wraparound test inside the loop
 and LLVM does not vectorise it, which made the factorisations about three times slower.
-No kernel here uses fast-math flags that change rounding (``SAME_ROUNDING_FASTMATH``); four interleaved
-partial sums vectorise without reassociation. ``test_fused_and_staged_steps_agree_bitwise`` checks that the kernels
-round the same wherever they are compiled (the fused step inlines them into one function, the staged
-step calls them one by one).
+The dense kernels use no fast-math flags that change rounding (``SAME_ROUNDING_FASTMATH``); four
+interleaved partial sums vectorise without reassociation. ``test_fused_and_staged_steps_agree_bitwise``
+checks that they round the same wherever they are compiled (the fused step inlines them into one
+function, the staged step calls them one by one). The envelope kernels serve only the large-jam
+projection (:mod:`crowd_env.core.projection`), which runs in the staged step alone: they are compiled
+with full fast-math, which lets LLVM vectorise their short inner products (the projection stage of
+``benchmarks/scaling.py`` at N = 10 000: 19-22 ms per step against 24-25 ms with rounding-preserving
+flags, alternating runs of the two builds; factors equal to about 1e-14 relative).
 """
 from __future__ import annotations
 
@@ -25,9 +29,10 @@ SAME_ROUNDING_FASTMATH = {"nnan", "ninf", "nsz"}
 def dot_range(a, ia, b, ib, n):
     """Σ_{t < n} a[ia + t] · b[ib + t] for 1-D arrays (offsets ≥ 0; n ≤ 0 gives 0).
 
-    Four interleaved partial sums combined in a fixed order; inlined, and callers must be compiled
-    with ``SAME_ROUNDING_FASTMATH`` or no fast-math (reassociation would let LLVM round differently
-    in different callers)."""
+    Four interleaved partial sums combined in a fixed order; inlined, so it rounds as its caller is
+    compiled: callers that must round the same wherever they are compiled (the dense kernels) use
+    ``SAME_ROUNDING_FASTMATH`` or no fast-math (reassociation would let LLVM round differently in
+    different callers)."""
     if n <= 0:
         return 0.0
     ua = nb.uint64(ia)
@@ -118,7 +123,7 @@ def dot_2x2(a, ia0, ia1, b, ib0, ib1, n):
     return s00, s01, s10, s11
 
 
-@nb.njit(cache=True, fastmath=SAME_ROUNDING_FASTMATH)
+@nb.njit(cache=True, fastmath=True)
 def envelope_cholesky(env, off, first):
     """In-place Cholesky of an SPD matrix in envelope storage: row i holds columns first[i] … i at
     env[off[i] : off[i + 1]] (A[i, j] = env[off[i] + j − first[i]]). Raises on a non-positive pivot.
@@ -172,7 +177,7 @@ def envelope_cholesky(env, off, first):
         i = last + 1
 
 
-@nb.njit(cache=True, fastmath=SAME_ROUNDING_FASTMATH)
+@nb.njit(cache=True, fastmath=True)
 def envelope_solve(env, off, first, x):
     """x ← (L Lᵀ)⁻¹ x in place with the factor of :func:`envelope_cholesky`."""
     nd = first.shape[0]
