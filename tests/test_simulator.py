@@ -154,6 +154,27 @@ def test_jam_without_overlap_through_sparse_paths():
     assert worst >= -1e-3 and inside, worst
 
 
+def test_candidate_keys_are_unique_in_a_walled_jam(monkeypatch):
+    """The large projection's contact keys (matched with np.isin(assume_unique=True) against the last
+    step's active contacts and re-detected candidates) are unique: every pair and every pedestrian-wall
+    segment contact appears once in a candidate list, walls and a corner included."""
+    import crowd_env.core.simulator as simulator_module
+
+    seen = []
+    project_large = simulator_module.Simulator._project_large
+
+    def recording(self, vel, mass, c_a, c_b, con, h, lam_warm=None, keys=None):
+        seen.append((keys.copy(), int((con["b"] < 0).sum())))
+        return project_large(self, vel, mass, c_a, c_b, con, h, lam_warm, keys)
+
+    monkeypatch.setattr(simulator_module.Simulator, "_project_large", recording)
+    sim, worst, inside = _pushing_run(150, max_dense_projection_rows=10)
+    assert len(seen) > 50 and sum(walls > 0 for _, walls in seen) > 50
+    for keys, _ in seen:
+        assert np.unique(keys).shape == keys.shape
+    assert sim.n_working_set_solves + sim.n_alm_newton_steps > 0 and worst >= -1e-3 and inside
+
+
 def test_dense_and_sparse_paths_give_the_same_steps():
     """Both paths are exact solvers of the same problems: identical trajectories to round-off
     (as long as neither falls back on the interior-point solver)."""

@@ -216,21 +216,27 @@ def _newton_factor(n, mass, rho, pushing, c_a, c_b, c_nx, c_ny, pos):
 
 
 @nb.njit(cache=True, fastmath=True)
-def _newton_solve(grad, mass, pos, dof, first, off, env):
-    """d solving (M + ρ Σ B_kᵀ B_k) d = −grad with the factor of :func:`_newton_factor`."""
+def _newton_solve_into(grad, mass, pos, dof, first, off, env, x, out):
+    """d solving (M + Σ w_k B_kᵀ B_k) d = −grad into ``out`` ((n, 2)), with the envelope factor and
+    ``x`` (one per envelope row) as work space."""
     n = grad.shape[0]
     nd = dof.shape[0]
-    out = np.empty_like(grad)
     for b in range(n):
         for d in range(2):
             if pos[3 * b + d] < 0:
                 out[b, d] = -grad[b, d] / mass[b]
-    x = np.empty(nd)
     for i in range(nd):
         x[i] = -grad[dof[i] // 2, dof[i] % 2]
     envelope_solve(env, off, first, x)
     for i in range(nd):
         out[dof[i] // 2, dof[i] % 2] = x[i]
+
+
+@nb.njit(cache=True)
+def _newton_solve(grad, mass, pos, dof, first, off, env):
+    """d solving (M + ρ Σ B_kᵀ B_k) d = −grad with the factor of :func:`_newton_factor`."""
+    out = np.empty_like(grad)
+    _newton_solve_into(grad, mass, pos, dof, first, off, env, np.empty(dof.shape[0]), out)
     return out
 
 
@@ -341,9 +347,10 @@ def project_gaps_alm(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, lam0, max_new
 
 
 @nb.njit(cache=True)
-def _percussion_sum(z, n, c_a, c_b, c_nx, c_ny):
-    """B_nᵀ z (n, 2): the velocity change times mass that percussions z (one per contact) produce."""
-    out = np.zeros((n, 2))
+def _percussion_sum_into(z, c_a, c_b, c_nx, c_ny, out):
+    """``out`` ((n, 2)) ← B_nᵀ z: the velocity change times mass that percussions z (one per contact)
+    produce."""
+    out[:] = 0.0
     for k in range(c_a.shape[0]):
         a = c_a[k]
         b = c_b[k]
@@ -352,6 +359,13 @@ def _percussion_sum(z, n, c_a, c_b, c_nx, c_ny):
         if b >= 0:
             out[b, 0] -= z[k] * c_nx[k]
             out[b, 1] -= z[k] * c_ny[k]
+
+
+@nb.njit(cache=True)
+def _percussion_sum(z, n, c_a, c_b, c_nx, c_ny):
+    """B_nᵀ z (n, 2), allocated (:func:`_percussion_sum_into`)."""
+    out = np.empty((n, 2))
+    _percussion_sum_into(z, c_a, c_b, c_nx, c_ny, out)
     return out
 
 
@@ -366,23 +380,24 @@ def _step_to_boundary(x, dx):
 
 
 @nb.njit(cache=True)
-def _ip_direction(rd, s, z, rp, rc, dl, n, mass, c_a, c_b, c_nx, c_ny, pos, factor):
-    """Newton direction (du, ds, dz) of the regularised KKT system for complementarity target rc:
-    (M + Bᵀ W B) du = −r_d + Bᵀ (S + δZ)⁻¹ (rc − Z r_p), dz = (rc − Z r_p − Z B du)/(s + δz),
-    ds = B du + r_p + δ dz."""
+def _ip_direction(rd, s, z, rp, rc, dl, mass, c_a, c_b, c_nx, c_ny, pos, factor, work, du, ds, dz):
+    """Newton direction (du, ds, dz), written into those arrays, of the regularised KKT system for
+    complementarity target rc: (M + Bᵀ W B) du = −r_d + Bᵀ (S + δZ)⁻¹ (rc − Z r_p),
+    dz = (rc − Z r_p − Z B du)/(s + δz), ds = B du + r_p + δ dz. ``work``: (t (m,), rhs (n, 2),
+    x (envelope rows,)) scratch."""
+    t, rhs, x = work
     m = s.shape[0]
-    t = np.empty(m)
     for k in range(m):
         t[k] = (rc[k] - z[k] * rp[k]) / (s[k] + dl * z[k])
-    rhs = _percussion_sum(t, n, c_a, c_b, c_nx, c_ny) - rd
-    du = _newton_solve(-rhs, mass, pos, *factor)
-    bdu = _normal_velocities(du, c_a, c_b, c_nx, c_ny)
-    dz = np.empty(m)
-    ds = np.empty(m)
+    _percussion_sum_into(t, c_a, c_b, c_nx, c_ny, rhs)
+    for i in range(rhs.shape[0]):  # the solve takes −(right-hand side): rd − Bᵀ t
+        rhs[i, 0] = rd[i, 0] - rhs[i, 0]
+        rhs[i, 1] = rd[i, 1] - rhs[i, 1]
+    _newton_solve_into(rhs, mass, pos, *factor, x, du)
     for k in range(m):
-        dz[k] = (rc[k] - z[k] * rp[k] - z[k] * bdu[k]) / (s[k] + dl * z[k])
-        ds[k] = bdu[k] + rp[k] + dl * dz[k]
-    return du, ds, dz
+        bdu = _normal_velocity(du, c_a[k], c_b[k], c_nx[k], c_ny[k])
+        dz[k] = (rc[k] - z[k] * rp[k] - z[k] * bdu) / (s[k] + dl * z[k])
+        ds[k] = bdu + rp[k] + dl * dz[k]
 
 
 @nb.njit(cache=True)
@@ -427,17 +442,27 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
         z[k] = 0.1 * vscale * mbar
     w = np.empty(m)
     rc = np.empty(m)
+    rp = np.empty(m)
     rd = np.empty((n, 2))
+    bz = np.empty((n, 2))
+    du = np.empty((n, 2))
+    ds = np.empty(m)
+    dz = np.empty(m)
+    work = (np.empty(m), np.empty((n, 2)), np.empty(dof.shape[0]))  # scratch of _ip_direction
     for it in range(max_iter + 1):
-        bz = _percussion_sum(z, n, c_a, c_b, c_nx, c_ny)
+        _percussion_sum_into(z, c_a, c_b, c_nx, c_ny, bz)
         dmax = 0.0
         for i in range(n):
             for d in range(2):
                 rd[i, d] = mass[i] * (u[i, d] - v0[i, d]) - bz[i, d]
                 dmax = max(dmax, abs(rd[i, d]) / mass[i])
-        rp = gap_residuals(u, g, c_a, c_b, c_nx, c_ny) - s
-        pmax = np.max(np.abs(rp))
-        mu = np.dot(s, z) / m
+        pmax = 0.0
+        mu = 0.0
+        for k in range(m):
+            rp[k] = g[k] + _normal_velocity(u, c_a[k], c_b[k], c_nx[k], c_ny[k]) - s[k]
+            pmax = max(pmax, abs(rp[k]))
+            mu += s[k] * z[k]
+        mu /= m
         if not (np.isfinite(dmax) and np.isfinite(pmax) and np.isfinite(mu)):
             break
         if dmax <= IP_TOL_M_S * vscale and pmax <= IP_TOL_M_S * vscale and mu <= IP_GAP_TOL * vscale * mbar:
@@ -453,17 +478,23 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
         _envelope_factor(mass, w, used, c_a, c_b, c_nx, c_ny, pos, dof, first, off, env)
         for k in range(m):  # predictor (affine scaling): complementarity target 0
             rc[k] = -s[k] * z[k]
-        du, ds, dz = _ip_direction(rd, s, z, rp, rc, dl, n, mass, c_a, c_b, c_nx, c_ny, pos, factor)
+        _ip_direction(rd, s, z, rp, rc, dl, mass, c_a, c_b, c_nx, c_ny, pos, factor, work, du, ds, dz)
         t = min(_step_to_boundary(s, ds), _step_to_boundary(z, dz))
-        mu_aff = np.dot(s + t * ds, z + t * dz) / m
+        mu_aff = 0.0
+        for k in range(m):
+            mu_aff += (s[k] + t * ds[k]) * (z[k] + t * dz[k])
+        mu_aff /= m
         sigma = (mu_aff / mu) ** 3
         for k in range(m):  # corrector: centring σμ and the second-order term
             rc[k] = -s[k] * z[k] - ds[k] * dz[k] + sigma * mu
-        du, ds, dz = _ip_direction(rd, s, z, rp, rc, dl, n, mass, c_a, c_b, c_nx, c_ny, pos, factor)
+        _ip_direction(rd, s, z, rp, rc, dl, mass, c_a, c_b, c_nx, c_ny, pos, factor, work, du, ds, dz)
         t = min(1.0, 0.99 * min(_step_to_boundary(s, ds), _step_to_boundary(z, dz)))
-        u = u + t * du
-        s = s + t * ds
-        z = z + t * dz
+        for i in range(n):
+            u[i, 0] += t * du[i, 0]
+            u[i, 1] += t * du[i, 1]
+        for k in range(m):
+            s[k] += t * ds[k]
+            z[k] += t * dz[k]
     return z, max_iter, STATUS_MAX_ITER
 
 
