@@ -83,6 +83,9 @@ def main(argv=None) -> None:
     project_gaps_alm(problems[0][0].copy(), *problems[0][1:], np.zeros(problems[0][2].shape[0]), ALM_NEWTON_BUDGET)
     project_gaps_interior_point(problems[0][0].copy(), *problems[0][1:])
     project_gaps_ipm(problems[0][0].copy(), *problems[0][1:])
+    m0 = problems[0][2].shape[0]
+    for guess in (np.zeros(m0), None):  # both start signatures of the working set's solves
+        project_gaps_working_set(problems[0][0].copy(), *problems[0][1:], np.ones(m0, bool), z0=guess)
 
     times = {"alm": 0.0, "own": 0.0, "piqp": 0.0, "ws": 0.0, "ws_cold": 0.0, "own_ws": 0.0}
     iterations = {"alm": [], "own": [], "ws": [], "ws_cold": []}

@@ -427,7 +427,7 @@ class Simulator:
         projections, after twice as many at each further miss in a row (up to ``ALM_SKIP_MAX``). Right
         after a large projection, the interior point method starts from a working set
         (:meth:`_working_set`, :func:`project_gaps_working_set`): the same exact answer from smaller
-        solves (1.2-1.3× faster in the door jams of ``benchmarks/projection.py`` at N = 1000-10 000).
+        solves (1.2-1.4× faster in the door jams of ``benchmarks/projection.py`` at N = 1000-10 000).
 
         ``lam_warm`` (one per candidate, or None): multipliers of a projection of the same step from the
         same velocities on a subset of these candidates (before a re-detection added some). The
@@ -506,8 +506,8 @@ class Simulator:
         :func:`project_gaps_working_set`, or None without keys or a large projection in the previous
         step. ``working`` (bool per candidate): the contacts active in that projection and the
         candidates whose slack at ``vel`` is below :data:`WORKING_SET_SLACK_M_S`; ``z0``: their
-        percussions there (0 for the others), from which the first solve starts (1.09× faster than
-        from the cold start on the door jams of ``benchmarks/projection.py`` at N = 10 000)."""
+        percussions there (0 for the others), from which the first solve starts (1.02-1.09× faster than
+        from the cold start on the door jams of ``benchmarks/projection.py`` at N = 1000-10 000)."""
         if keys is None or self._active_keys_step < self.step_count - 1:
             return None
         slack = gap_residuals(vel, con["gap"] / h, c_a, c_b, con["nx"], con["ny"])
