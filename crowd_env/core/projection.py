@@ -520,8 +520,9 @@ def project_gaps_working_set(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, worki
     on the pedestrians they touch; the candidates its answer violates (r_k(v) < 0) join the working
     set and it solves again. The answer, with zero percussion on the candidates never in the working
     set, is then a KKT point of the whole problem (feasible, and the others are inactive): the exact
-    projection. ``z0`` (one per candidate, or None): guessed percussions (e.g. the last step's), from
-    which the first solve starts (:func:`project_gaps_interior_point`). Modifies ``vel[:, :2]`` in
+    projection. ``z0`` (one per candidate, or None: the cold start): guessed percussions (e.g. the last
+    step's), from which the first solve starts (:func:`project_gaps_interior_point`); every later
+    solve starts from the previous one's percussions. Modifies ``vel[:, :2]`` in
     place on success; returns ``(λ per contact, solves, status)`` (STATUS_MAX_ITER: not settled
     within ``max_rounds`` solves or a solve did not converge; ``vel`` left alone)."""
     m = c_a.shape[0]
@@ -537,7 +538,7 @@ def project_gaps_working_set(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, worki
         rows = np.flatnonzero(working)
         bodies, a_w, b_w = touched_bodies(vel.shape[0], c_a[rows], c_b[rows])
         v_w = vel[bodies]
-        start = None if z0 is None or solves > 1 else z0[rows]
+        start = None if z0 is None else z0[rows]
         z_w, _, status = project_gaps_interior_point(v_w, mass[bodies], a_w, b_w, c_gap[rows], c_nx[rows],
                                                      c_ny[rows], dt_s, IP_MAX_ITER, start)
         if status != STATUS_OK:
@@ -551,4 +552,6 @@ def project_gaps_working_set(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, worki
             lam[rows] = z_w
             return lam, solves, STATUS_OK
         working |= violated
+        z0 = np.zeros(m)  # the next solve starts from this one's percussions
+        z0[rows] = z_w
     return np.zeros(m), max_rounds, STATUS_MAX_ITER
