@@ -208,6 +208,31 @@ def test_redetection_after_a_push_through_a_chain():
     assert p == pytest.approx(160.0, rel=1e-12)
 
 
+@pytest.mark.parametrize("last_gap_m, binds", [(0.006, False), (0.002, True)])
+def test_redetection_after_the_projection_projects_again_only_if_a_new_candidate_binds(last_gap_m, binds):
+    """Disk 0 at 2 m/s closes a 5 mm gap to a resting touching chain within the step: the projection
+    (not an impact) sets the chain moving at 0.375 m/s, which makes its last disk a candidate for a
+    resting disk ``last_gap_m`` away (not one with the pre-step speeds). At 6 mm the chain does not
+    reach it within the step: the projected velocities stand (one projection). At 2 mm it binds:
+    projected again over all candidates, the chain pushes that disk too. Momentum is conserved and
+    nothing overlaps either way."""
+    r = 0.23
+    xs = [0.0, 0.465, 0.925, 1.385, 1.845 + last_gap_m]
+    st = CrowdState.create([[x, 0.0] for x in xs], velocity_m_s=[[2.0, 0.0]] + [[0.0, 0.0]] * 4, radius_m=r,
+                           mass_kg=80.0, tau_s=1e12)
+    sim = Simulator(st, params=ModelParams(rotation=False))
+    projections = []
+    project = sim._project
+    sim._project = lambda *args, **kwargs: projections.append(1) or project(*args, **kwargs)
+    sim.step(st.velocity_m_s.copy())
+    assert sim.n_redetections == 1 and len(projections) == (2 if binds else 1)
+    assert (st.velocity_m_s[4, 0] > 0.1) == binds
+    if not binds:
+        np.testing.assert_allclose(st.velocity_m_s[:, 0], [0.875, 0.375, 0.375, 0.375, 0.0], atol=1e-12)
+    assert (st.mass_kg * st.velocity_m_s[:, 0]).sum() == pytest.approx(160.0, rel=1e-12)
+    assert sim.min_gap_m() >= -1e-12
+
+
 # ---------------------------------------------------------------- permutation invariance
 @pytest.mark.parametrize("seed", [0, 1])
 def test_step_is_permutation_invariant(seed):

@@ -330,7 +330,8 @@ class Simulator:
         # left out has gap > ε + 2h (s_i + s_j), so it cannot close within the step while every speed
         # satisfies |u_i| ≤ 2 s_i + ε/(2h). Impacts and the projection can speed a pedestrian up beyond
         # that (a push passed along a jammed chain): then detect again with the larger speeds (before
-        # projecting, and after it if needed) and project from the post-impact velocities again.
+        # projecting, and after it if needed) and, if a new candidate binds, project from the
+        # post-impact velocities again.
         v_impact = vel[:, :2].copy()
         det_speed = speed_star
         lam_p = None
@@ -346,11 +347,17 @@ class Simulator:
                     p_n = np.concatenate([p_n, np.zeros(extra)])
                     p_t = np.concatenate([p_t, np.zeros(extra)])
                     in_impact = np.concatenate([in_impact, np.zeros(extra, dtype=bool)])
-                    vel[:, :2] = v_impact
-                    if lam_p is not None:
-                        lam_warm = np.concatenate([lam_p, np.zeros(extra)])
-                    lam_p = None
                     self.n_redetections += 1
+                    if lam_p is not None:
+                        lam_p = np.concatenate([lam_p, np.zeros(extra)])
+                        new = slice(con["a"].shape[0] - extra, None)
+                        if gap_residuals(vel, con["gap"][new] / h, con["a"][new], con["b"][new], con["nx"][new],
+                                         con["ny"][new]).min() < 0.0:  # a new candidate binds: project again
+                            vel[:, :2] = v_impact
+                            lam_warm = lam_p
+                            lam_p = None
+                        # else the projected velocities satisfy the new candidates too: with zero percussion
+                        # on them they are the exact projection over all (its KKT point), nothing to redo
             if lam_p is not None:
                 break
             lam_p = self._project(vel, mass, con, h, idx, lam_warm)
