@@ -409,7 +409,7 @@ def test_working_set_projection_grows_to_the_exact_one(seed):
 
 def test_working_set_projection_reports_a_miss_and_bad_input():
     """Out of solves, the working set method says so and leaves the velocities alone; a working set of
-    the wrong shape, or a start z0 of the wrong shape or not finite, is refused by name."""
+    the wrong shape, or a start z0 of the wrong shape, not finite or negative, is refused by name."""
     vel, mass, a, b, gap, nx, ny, _ = _jam_and_exact_projection(0)
     violated = _residual(vel, a, b, gap, nx, ny) < 0.0
     v = vel.copy()
@@ -418,7 +418,7 @@ def test_working_set_projection_reports_a_miss_and_bad_input():
     np.testing.assert_array_equal(v, vel)
     with pytest.raises(ValueError, match="working"):
         project_gaps_working_set(v, mass, a, b, gap, nx, ny, H, violated[:-1])
-    for z0 in (np.zeros(a.shape[0] - 1), np.full(a.shape[0], np.nan)):
+    for z0 in (np.zeros(a.shape[0] - 1), np.full(a.shape[0], np.nan), np.full(a.shape[0], -1.0)):
         with pytest.raises(ValueError, match="z0"):
             project_gaps_working_set(v, mass, a, b, gap, nx, ny, H, violated, z0=z0)
 

@@ -364,14 +364,6 @@ def _percussion_sum_into(z, c_a, c_b, c_nx, c_ny, out):
 
 
 @nb.njit(cache=True)
-def _percussion_sum(z, n, c_a, c_b, c_nx, c_ny):
-    """B_nᵀ z (n, 2), allocated (:func:`_percussion_sum_into`)."""
-    out = np.empty((n, 2))
-    _percussion_sum_into(z, c_a, c_b, c_nx, c_ny, out)
-    return out
-
-
-@nb.njit(cache=True)
 def _step_to_boundary(x, dx):
     """Largest t ≤ 1 with x + t dx ≥ 0 (x > 0)."""
     t = 1.0
@@ -408,7 +400,8 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
     Mehrotra predictor-corrector interior point method with dual regularisation (module docstring).
 
     Slacks s = r(v) ≥ 0 and percussions z ≥ 0 start at 0.1 × (largest speed) and 0.1 × (largest speed
-    × mean mass); with guessed percussions ``z0`` (one per contact, e.g. the last step's), at the
+    × mean mass); with guessed percussions ``z0`` (one per contact, e.g. the last step's; negative
+    entries count as 0), at the
     velocities u = v' + M⁻¹ Bᵀ z0 they imply, with s = max(r(u), 0) and z = z0 shifted by 0.01 × the same
     scales (``IP_WARM_START``). Every iteration takes one common step length for v, s and z (the dual residual
     couples them), 99 % of the way to the boundary. Stops when stationarity ‖M (v − v') − Bᵀ z‖/m and
@@ -439,6 +432,7 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
     dl = IP_DELTA / mbar
     u = v0.copy()
     z = np.empty(m)
+    bz = np.empty((n, 2))  # B_nᵀ z
     if z0 is None:
         shift = IP_COLD_START
         z[:] = 0.0
@@ -446,7 +440,7 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
         shift = IP_WARM_START
         for k in range(m):
             z[k] = max(z0[k], 0.0)
-        bz = _percussion_sum(z, n, c_a, c_b, c_nx, c_ny)
+        _percussion_sum_into(z, c_a, c_b, c_nx, c_ny, bz)
         for i in range(n):
             u[i, 0] += bz[i, 0] / mass[i]
             u[i, 1] += bz[i, 1] / mass[i]
@@ -459,7 +453,6 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
     rc = np.empty(m)
     rp = np.empty(m)
     rd = np.empty((n, 2))
-    bz = np.empty((n, 2))
     du = np.empty((n, 2))
     ds = np.empty(m)
     dz = np.empty(m)
@@ -520,8 +513,8 @@ def project_gaps_working_set(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, worki
     on the pedestrians they touch; the candidates its answer violates (r_k(v) < 0) join the working
     set and it solves again. The answer, with zero percussion on the candidates never in the working
     set, is then a KKT point of the whole problem (feasible, and the others are inactive): the exact
-    projection. ``z0`` (one per candidate, or None: the cold start): guessed percussions (e.g. the last
-    step's), from which the first solve starts (:func:`project_gaps_interior_point`); every later
+    projection. ``z0`` (one per candidate, ≥ 0, or None: the cold start): guessed percussions (e.g. the
+    last step's), from which the first solve starts (:func:`project_gaps_interior_point`); every later
     solve starts from the previous one's percussions. Modifies ``vel[:, :2]`` in
     place on success; returns ``(λ per contact, solves, status)`` (STATUS_MAX_ITER: not settled
     within ``max_rounds`` solves or a solve did not converge; ``vel`` left alone)."""
@@ -531,8 +524,8 @@ def project_gaps_working_set(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, worki
         raise ValueError(f"working must be one bool per candidate ({m},), got shape {working.shape}")
     if z0 is not None:
         z0 = np.asarray(z0, dtype=float)
-        if z0.shape != (m,) or not np.all(np.isfinite(z0)):
-            raise ValueError(f"z0 must be one finite percussion per candidate ({m},), got shape {z0.shape}")
+        if z0.shape != (m,) or not np.all(np.isfinite(z0)) or np.any(z0 < 0.0):
+            raise ValueError(f"z0 must be one finite percussion ≥ 0 per candidate ({m},), got shape {z0.shape}")
     g = c_gap / dt_s
     for solves in range(1, max_rounds + 1):
         rows = np.flatnonzero(working)
