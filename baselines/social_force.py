@@ -15,6 +15,7 @@ import numba as nb
 import numpy as np
 
 from crowd_env.core.forces import social_repulsion, total_social_forces
+from crowd_env.core.stepper import direction_angles_rad
 
 
 @nb.njit(cache=True)
@@ -40,12 +41,13 @@ def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, hea
             rad[k] = radius[index[k]]
         total_social_forces(pos, rad, e_d, pairs, np.arange(n), walls, wall_owner, strength_n, range_m, anisotropy,
                             cutoff_m, wall_strength_n, wall_range_m, force)
+    angles = direction_angles_rad(e_d)
     for k in range(n):
         i = index[k]
         scale = tau[i] / mass[i]
         intents[i, 0] = desired_speed[i] * e_d[k, 0] + scale * force[k, 0]
         intents[i, 1] = desired_speed[i] * e_d[k, 1] + scale * force[k, 1]
-        theta_d[i] = np.arctan2(e_d[k, 1], e_d[k, 0])
+        theta_d[i] = angles[k]
     return intents, theta_d
 
 

@@ -33,6 +33,18 @@ def wrap_angle_scalar(angle):
 
 
 @nb.njit(cache=True)
+def direction_angles_rad(vectors):
+    """atan2(y, x) of each row of ``vectors`` ((n, 2)), in rad, by the same compiled atan2 as the kernels
+    (numpy's vectorised ``np.arctan2`` can differ from it in the last bit, as numpy 2.4's does): headings
+    computed here and inside a kernel (the baseline agent's θ_d, Eq. 15) agree bitwise, as
+    ``test_equivalence_all_controlled_with_baseline_intents`` requires."""
+    out = np.empty(vectors.shape[0])
+    for i in range(vectors.shape[0]):
+        out[i] = np.arctan2(vectors[i, 1], vectors[i, 0])
+    return out
+
+
+@nb.njit(cache=True)
 def smooth_update(velocity, angular_velocity, heading, mass, inertia, tau, stiffness, damping, intents,
                   theta_d, has_theta_d, force, has_force, index, dt_s, rotation):
     """Step 1, the smooth dynamics (Eq. 3, 14, 15) of the pedestrians ``index``: compact (n, 3) u*, ω*.

@@ -84,6 +84,7 @@ from pettingzoo.utils.conversions import parallel_to_aec
 
 from ..core.params import ModelParams
 from ..core.simulator import Simulator
+from ..core.stepper import direction_angles_rad
 from ..scenarios import Scenario, make_scenario, scenario_options as _scenario_option_defaults
 from .observations import OBSERVATION_FIELDS, ObservationBuilder
 from .rewards import DefaultReward
@@ -513,7 +514,7 @@ class CrowdParallelEnv(ParallelEnv):
         if self.heading_target == "intent":
             speed_c = np.hypot(intent_c[:, 0], intent_c[:, 1])
             zero_c = speed_c <= 1e-12
-            theta_int = np.arctan2(intent_c[:, 1], intent_c[:, 0])
+            theta_int = direction_angles_rad(intent_c)
         hooks = self.substep_hooks
         for _ in range(self.frame_skip):
             if not st.active.any():
@@ -529,7 +530,7 @@ class CrowdParallelEnv(ParallelEnv):
             else:
                 e_d = (self.navigation.direction(st.position_m[idx_c], idx_c) if self._per_pedestrian_navigation
                        else self.navigation.direction(st.position_m[idx_c]))
-                heading[idx_c] = np.arctan2(e_d[:, 1], e_d[:, 0])
+                heading[idx_c] = direction_angles_rad(e_d)
             if hooks:
                 prev_pos, prev_t = st.position_m.copy(), sim.time_s
             res = sim.step(intents, desired_heading_rad=heading)
@@ -581,7 +582,7 @@ class CrowdParallelEnv(ParallelEnv):
             raise ValueError(f"background policy returned intents of shape {intents.shape}, expected ({n}, 2)")
         if heading is None:
             speed = np.hypot(intents[:, 0], intents[:, 1])
-            heading = np.where(speed > 1e-12, np.arctan2(intents[:, 1], intents[:, 0]), sim.state.heading_rad)
+            heading = np.where(speed > 1e-12, direction_angles_rad(intents), sim.state.heading_rad)
         else:
             heading = np.array(heading, dtype=np.float64)
             if heading.shape != (n,):
