@@ -455,3 +455,36 @@ def test_simulator_starts_the_interior_point_method_from_the_last_active_set(mon
         lam_last = lam
     assert len(starts) == 2
     assert sim.n_ipm_projections == 4 and sim.n_piqp_projections == 0 and sim.n_fallback_solves == 0
+
+
+def test_envelope_factor_is_the_cholesky_factor_of_the_newton_matrix():
+    """The interior point method's Newton matrix M + Σ_k w_k B_kᵀ B_k, assembled by scattering weights
+    into the entries _envelope_entries precomputes and factorised in envelope storage, is L Lᵀ for the
+    same matrix assembled densely from the rows B_k (with wall rows and rows left out)."""
+    from crowd_env.core.projection import _envelope_entries, _envelope_factor, _envelope_pattern, _projection_dofs
+
+    rng = np.random.default_rng(3)
+    vel, mass, a, b, gap, nx, ny = _hex_jam(6, 7, rng)
+    n, m = vel.shape[0], a.shape[0]
+    b = b.copy()
+    b[::5] = -1  # some wall contacts: one body only
+    weight = np.exp(rng.uniform(-3.0, 12.0, m))
+    used = rng.random(m) < 0.8
+    pos = _projection_dofs(n, a, b, nx, ny)
+    dof, first, off = _envelope_pattern(n, used, a, b, pos)
+    env = np.empty(off[-1])
+    _envelope_factor(mass, np.where(used, weight, 0.0), dof, first, off,
+                     _envelope_entries(used, a, b, nx, ny, pos, first, off), env)
+    dense = np.diag(np.repeat(mass, 2))
+    for k in np.flatnonzero(used):
+        row = np.zeros(2 * n)
+        row[2 * a[k]: 2 * a[k] + 2] = nx[k], ny[k]
+        if b[k] >= 0:
+            row[2 * b[k]: 2 * b[k] + 2] = -nx[k], -ny[k]
+        dense += weight[k] * np.outer(row, row)
+    nd = dof.shape[0]
+    lower = np.zeros((nd, nd))
+    for i in range(nd):
+        lower[i, first[i]: i + 1] = env[off[i]: off[i + 1]]
+    np.testing.assert_allclose(lower @ lower.T, dense[np.ix_(dof, dof)], rtol=1e-12, atol=1e-9 * dense.max())
+    assert np.all(lower[np.triu_indices(nd, 1)] == 0.0) and np.all(np.diag(lower) > 0.0)

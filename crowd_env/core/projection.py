@@ -176,35 +176,58 @@ def _envelope_pattern(n, used, c_a, c_b, pos):
     return dof, first, off
 
 
-@nb.njit(cache=True, fastmath=True)
-def _envelope_factor(mass, weight, used, c_a, c_b, c_nx, c_ny, pos, dof, first, off, env):
-    """Cholesky factor of M + Σ_{k used} weight_k B_kᵀ B_k in ``env`` (pattern of :func:`_envelope_pattern`)."""
-    nd = dof.shape[0]
-    env[:] = 0.0
-    for i in range(nd):
-        env[off[i + 1] - 1] = mass[dof[i] // 2]
+@nb.njit(cache=True)
+def _envelope_entries(used, c_a, c_b, c_nx, c_ny, pos, first, off):
+    """Where the terms of Σ_{k used} w_k B_kᵀ B_k fall in the envelope of :func:`_envelope_pattern`
+    (computed once per pattern; :func:`_envelope_factor` then only scatters weights):
+    ``(start, at, coef_r, coef_c)``: row k adds w_k · coef_r[e] · coef_c[e] to env[at[e]] for e in
+    start[k] … start[k + 1] − 1 (up to ten entries: its four velocity coefficients, lower triangle)."""
+    m = c_a.shape[0]
+    start = np.zeros(m + 1, np.int64)
+    at = np.empty(10 * m, np.int64)
+    coef_r = np.empty(10 * m)
+    coef_c = np.empty(10 * m)
     idx = np.empty(4, np.int64)
     coef = np.empty(4)
-    for k in range(c_a.shape[0]):
-        if not used[k]:
-            continue
-        cnt = 0
-        for side in range(2):
-            body = c_a[k] if side == 0 else c_b[k]
-            sg = 1.0 if side == 0 else -1.0
-            if body >= 0:
-                for d in range(2):
-                    p = pos[3 * body + d]
-                    cf = sg * (c_nx[k] if d == 0 else c_ny[k])
-                    if p >= 0 and cf != 0.0:
-                        idx[cnt] = p
-                        coef[cnt] = cf
-                        cnt += 1
-        for x in range(cnt):
-            for y in range(cnt):
-                if idx[y] <= idx[x]:
-                    i = idx[x]
-                    env[off[i] + idx[y] - first[i]] += weight[k] * coef[x] * coef[y]
+    e = 0
+    for k in range(m):
+        if used[k]:
+            cnt = 0
+            for side in range(2):
+                body = c_a[k] if side == 0 else c_b[k]
+                sg = 1.0 if side == 0 else -1.0
+                if body >= 0:
+                    for d in range(2):
+                        p = pos[3 * body + d]
+                        cf = sg * (c_nx[k] if d == 0 else c_ny[k])
+                        if p >= 0 and cf != 0.0:
+                            idx[cnt] = p
+                            coef[cnt] = cf
+                            cnt += 1
+            for x in range(cnt):
+                for y in range(cnt):
+                    if idx[y] <= idx[x]:
+                        i = idx[x]
+                        at[e] = off[i] + idx[y] - first[i]
+                        coef_r[e] = coef[x]
+                        coef_c[e] = coef[y]
+                        e += 1
+        start[k + 1] = e
+    return start, at[:e], coef_r[:e], coef_c[:e]
+
+
+@nb.njit(cache=True, fastmath=True)
+def _envelope_factor(mass, weight, dof, first, off, entries, env):
+    """Cholesky factor of M + Σ_k weight_k B_kᵀ B_k in ``env`` (pattern of :func:`_envelope_pattern`,
+    ``entries`` of :func:`_envelope_entries`)."""
+    start, at, coef_r, coef_c = entries
+    env[:] = 0.0
+    for i in range(dof.shape[0]):
+        env[off[i + 1] - 1] = mass[dof[i] // 2]
+    for k in range(start.shape[0] - 1):
+        wk = weight[k]
+        for e in range(start[k], start[k + 1]):
+            env[at[e]] += wk * coef_r[e] * coef_c[e]
     envelope_cholesky(env, off, first)
 
 
@@ -213,7 +236,8 @@ def _newton_factor(n, mass, rho, pushing, c_a, c_b, c_nx, c_ny, pos):
     """Envelope Cholesky factor of M + ρ Σ_{k pushing} B_kᵀ B_k: ``(dof, first, off, env)``."""
     dof, first, off = _envelope_pattern(n, pushing, c_a, c_b, pos)
     env = np.empty(off[dof.shape[0]])
-    _envelope_factor(mass, np.full(c_a.shape[0], rho), pushing, c_a, c_b, c_nx, c_ny, pos, dof, first, off, env)
+    entries = _envelope_entries(pushing, c_a, c_b, c_nx, c_ny, pos, first, off)
+    _envelope_factor(mass, np.full(c_a.shape[0], rho), dof, first, off, entries, env)
     return dof, first, off, env
 
 
@@ -401,13 +425,15 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
 
     Slacks s = r(v) ≥ 0 and percussions z ≥ 0 start at 0.1 × (largest speed) and 0.1 × (largest speed
     × mean mass); with guessed percussions ``z0`` (one per contact, e.g. the last step's; negative
-    entries count as 0), at the
-    velocities u = v' + M⁻¹ Bᵀ z0 they imply, with s = max(r(u), 0) and z = z0 shifted by 0.01 × the same
-    scales (``IP_WARM_START``). Every iteration takes one common step length for v, s and z (the dual residual
-    couples them), 99 % of the way to the boundary. Stops when stationarity ‖M (v − v') − Bᵀ z‖/m and
-    ‖r(v) − s‖ are ≤ ``IP_TOL_M_S`` and sᵀz/m ≤ ``IP_GAP_TOL`` (both relative to the largest speed,
-    the latter times the mean mass): on door jams of 460-1400 pedestrians v then agrees with the
-    augmented Lagrangian's exact v to 1.4e-8 m/s and r(v) ≥ −1.1e-12 m/s (``benchmarks/projection.py``).
+    entries count as 0), at the velocities u = v' + M⁻¹ Bᵀ z0 they imply, with s = max(r(u), 0) and
+    z = z0 shifted by 0.01 × the same scales (``IP_WARM_START``). A candidate violated at the start
+    (r_k(u) < 0) also starts with the percussion m̄ |r_k(u)| that would close it on a body of mean
+    mass m̄. Every iteration steps 99 % of the way to the boundary, with separate step lengths for the
+    primal (v, s) and the dual (z) variables (in the predictor's estimate of the complementarity too).
+    Stops when stationarity ‖M (v − v') − Bᵀ z‖/m and ‖r(v) − s‖ are ≤ ``IP_TOL_M_S`` and
+    sᵀz/m ≤ ``IP_GAP_TOL`` (both relative to the largest speed, the latter times the mean mass): on
+    door jams of 460-1400 pedestrians v then agrees with the augmented Lagrangian's exact v to
+    1.4e-8 m/s and r(v) ≥ −1.1e-12 m/s (``benchmarks/projection.py``).
     The percussion z of a candidate whose slack exceeds z/m̄ at the end (an open gap: the exact z is
     0, the iterate's is about 1e-14 m̄ m/s) is returned as 0, as the other solvers do, so that only
     closed contacts count as pushed. Modifies ``vel[:, :2]`` in place on success; returns ``(z per
@@ -421,6 +447,7 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
     used = np.ones(m, np.bool_)
     pos = _projection_dofs(n, c_a, c_b, c_nx, c_ny)
     dof, first, off = _envelope_pattern(n, used, c_a, c_b, pos)
+    entries = _envelope_entries(used, c_a, c_b, c_nx, c_ny, pos, first, off)
     env = np.empty(off[dof.shape[0]])
     factor = (dof, first, off, env)
     g = c_gap / dt_s
@@ -446,9 +473,9 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
             u[i, 1] += bz[i, 1] / mass[i]
     r = gap_residuals(u, g, c_a, c_b, c_nx, c_ny)
     s = np.empty(m)
-    for k in range(m):
+    for k in range(m):  # a candidate violated at u starts with the percussion that closes it on a body of mass m̄
         s[k] = max(r[k], 0.0) + shift * vscale
-        z[k] += shift * vscale * mbar
+        z[k] += shift * vscale * mbar + max(-r[k], 0.0) * mbar
     w = np.empty(m)
     rc = np.empty(m)
     rp = np.empty(m)
@@ -483,26 +510,28 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
             break
         for k in range(m):
             w[k] = z[k] / (s[k] + dl * z[k])
-        _envelope_factor(mass, w, used, c_a, c_b, c_nx, c_ny, pos, dof, first, off, env)
+        _envelope_factor(mass, w, dof, first, off, entries, env)
         for k in range(m):  # predictor (affine scaling): complementarity target 0
             rc[k] = -s[k] * z[k]
         _ip_direction(rd, s, z, rp, rc, dl, mass, c_a, c_b, c_nx, c_ny, pos, factor, work, du, ds, dz)
-        t = min(_step_to_boundary(s, ds), _step_to_boundary(z, dz))
+        tp = _step_to_boundary(s, ds)
+        td = _step_to_boundary(z, dz)
         mu_aff = 0.0
         for k in range(m):
-            mu_aff += (s[k] + t * ds[k]) * (z[k] + t * dz[k])
+            mu_aff += (s[k] + tp * ds[k]) * (z[k] + td * dz[k])
         mu_aff /= m
         sigma = (mu_aff / mu) ** 3
         for k in range(m):  # corrector: centring σμ and the second-order term
             rc[k] = -s[k] * z[k] - ds[k] * dz[k] + sigma * mu
         _ip_direction(rd, s, z, rp, rc, dl, mass, c_a, c_b, c_nx, c_ny, pos, factor, work, du, ds, dz)
-        t = min(1.0, 0.99 * min(_step_to_boundary(s, ds), _step_to_boundary(z, dz)))
+        tp = min(1.0, 0.99 * _step_to_boundary(s, ds))  # primal (v, s) and dual (z) step lengths
+        td = min(1.0, 0.99 * _step_to_boundary(z, dz))
         for i in range(n):
-            u[i, 0] += t * du[i, 0]
-            u[i, 1] += t * du[i, 1]
+            u[i, 0] += tp * du[i, 0]
+            u[i, 1] += tp * du[i, 1]
         for k in range(m):
-            s[k] += t * ds[k]
-            z[k] += t * dz[k]
+            s[k] += tp * ds[k]
+            z[k] += td * dz[k]
     return z, max_iter, STATUS_MAX_ITER
 
 
