@@ -176,12 +176,39 @@ def _envelope_pattern(n, used, c_a, c_b, pos):
     return dof, first, off
 
 
+@nb.njit(cache=True, inline="always")
+def _row_coefficients(k, c_a, c_b, c_nx, c_ny, pos, idx, coef):
+    """Row k of B_n on the envelope rows: its nonzero velocity coefficients ``coef[:cnt]`` (n on body a,
+    −n on body b) at envelope rows ``idx[:cnt]`` (up to four); returns cnt."""
+    cnt = 0
+    for side in range(2):
+        body = c_a[k] if side == 0 else c_b[k]
+        sg = 1.0 if side == 0 else -1.0
+        if body >= 0:
+            for d in range(2):
+                p = pos[3 * body + d]
+                cf = sg * (c_nx[k] if d == 0 else c_ny[k])
+                if p >= 0 and cf != 0.0:
+                    idx[cnt] = p
+                    coef[cnt] = cf
+                    cnt += 1
+    return cnt
+
+
+@nb.njit(cache=True, fastmath=True)
+def _envelope_diagonal(mass, dof, off, env):
+    """``env`` ← M in the envelope storage of :func:`_envelope_pattern` (zeros off the diagonal)."""
+    env[:] = 0.0
+    for i in range(dof.shape[0]):
+        env[off[i + 1] - 1] = mass[dof[i] // 2]
+
+
 @nb.njit(cache=True)
 def _envelope_entries(used, c_a, c_b, c_nx, c_ny, pos, first, off):
-    """Where the terms of Σ_{k used} w_k B_kᵀ B_k fall in the envelope of :func:`_envelope_pattern`
-    (computed once per pattern; :func:`_envelope_factor` then only scatters weights):
-    ``(start, at, coef_r, coef_c)``: row k adds w_k · coef_r[e] · coef_c[e] to env[at[e]] for e in
-    start[k] … start[k + 1] − 1 (up to ten entries: its four velocity coefficients, lower triangle)."""
+    """Where the terms of Σ_{k used} w_k B_kᵀ B_k fall in the envelope of :func:`_envelope_pattern`,
+    for a solve that factorises the same pattern many times (:func:`_envelope_factor` then only
+    scatters weights): ``(start, at, coef_r, coef_c)``: row k adds w_k · coef_r[e] · coef_c[e] to
+    env[at[e]] for e in start[k] … start[k + 1] − 1 (up to ten entries, the lower triangle)."""
     m = c_a.shape[0]
     start = np.zeros(m + 1, np.int64)
     at = np.empty(10 * m, np.int64)
@@ -192,18 +219,7 @@ def _envelope_entries(used, c_a, c_b, c_nx, c_ny, pos, first, off):
     e = 0
     for k in range(m):
         if used[k]:
-            cnt = 0
-            for side in range(2):
-                body = c_a[k] if side == 0 else c_b[k]
-                sg = 1.0 if side == 0 else -1.0
-                if body >= 0:
-                    for d in range(2):
-                        p = pos[3 * body + d]
-                        cf = sg * (c_nx[k] if d == 0 else c_ny[k])
-                        if p >= 0 and cf != 0.0:
-                            idx[cnt] = p
-                            coef[cnt] = cf
-                            cnt += 1
+            cnt = _row_coefficients(k, c_a, c_b, c_nx, c_ny, pos, idx, coef)
             for x in range(cnt):
                 for y in range(cnt):
                     if idx[y] <= idx[x]:
@@ -221,9 +237,7 @@ def _envelope_factor(mass, weight, dof, first, off, entries, env):
     """Cholesky factor of M + Σ_k weight_k B_kᵀ B_k in ``env`` (pattern of :func:`_envelope_pattern`,
     ``entries`` of :func:`_envelope_entries`)."""
     start, at, coef_r, coef_c = entries
-    env[:] = 0.0
-    for i in range(dof.shape[0]):
-        env[off[i + 1] - 1] = mass[dof[i] // 2]
+    _envelope_diagonal(mass, dof, off, env)
     for k in range(start.shape[0] - 1):
         wk = weight[k]
         for e in range(start[k], start[k + 1]):
@@ -231,13 +245,25 @@ def _envelope_factor(mass, weight, dof, first, off, entries, env):
     envelope_cholesky(env, off, first)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, fastmath=True)
 def _newton_factor(n, mass, rho, pushing, c_a, c_b, c_nx, c_ny, pos):
-    """Envelope Cholesky factor of M + ρ Σ_{k pushing} B_kᵀ B_k: ``(dof, first, off, env)``."""
+    """Envelope Cholesky factor of M + ρ Σ_{k pushing} B_kᵀ B_k: ``(dof, first, off, env)``. The
+    augmented Lagrangian factorises each pattern about once, so the terms are added as they are found
+    rather than through :func:`_envelope_entries`."""
     dof, first, off = _envelope_pattern(n, pushing, c_a, c_b, pos)
     env = np.empty(off[dof.shape[0]])
-    entries = _envelope_entries(pushing, c_a, c_b, c_nx, c_ny, pos, first, off)
-    _envelope_factor(mass, np.full(c_a.shape[0], rho), dof, first, off, entries, env)
+    _envelope_diagonal(mass, dof, off, env)
+    idx = np.empty(4, np.int64)
+    coef = np.empty(4)
+    for k in range(c_a.shape[0]):
+        if pushing[k]:
+            cnt = _row_coefficients(k, c_a, c_b, c_nx, c_ny, pos, idx, coef)
+            for x in range(cnt):
+                for y in range(cnt):
+                    if idx[y] <= idx[x]:
+                        i = idx[x]
+                        env[off[i] + idx[y] - first[i]] += rho * coef[x] * coef[y]
+    envelope_cholesky(env, off, first)
     return dof, first, off, env
 
 
