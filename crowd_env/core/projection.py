@@ -15,7 +15,7 @@ violation and complementarity below that). Compiled with numba.
 
 The augmented Lagrangian's Newton steps grow with the jam's diameter (each adds the constraints a push
 passes on). :func:`project_gaps_interior_point` does not: a Mehrotra predictor-corrector interior
-point method whose iterations stay at 12-18 at any size, each one factorisation of
+point method whose iterations stay at 11-17 at any size, each one factorisation of
 M + Bᵀ W B over all candidates on the same envelope (pattern and ordering computed once). In a jam,
 contacts outnumber degrees of freedom and the plain weights W = Z S⁻¹ reach 1e20 on the dependent
 ones, where the Cholesky factorisation breaks down; a dual regularisation δ (the proximal term of an
@@ -43,7 +43,7 @@ ALM_MAX_OUTER = 60
 ALM_MAX_NEWTON = 200  # Newton steps over all rounds
 ALM_TOL_M_S = 1e-10  # stationarity residual tolerated at termination (m/s)
 ALM_TOL_KKT_M_S = 1e-10  # constraint violation and multiplier change (÷ρ) tolerated at termination
-IP_MAX_ITER = 60  # interior point iterations (measured: 12-18 on door jams of 460-1400 pedestrians)
+IP_MAX_ITER = 60  # interior point iterations (measured: 11-17 on door jams of 460-1400 pedestrians)
 IP_TOL_M_S = 1e-10  # stationarity (÷ mass) and constraint residuals at termination, relative to the largest speed
 IP_GAP_TOL = 1e-16  # mean complementarity sᵀz/m at termination, relative to (largest speed × mean mass)
 IP_DELTA = 1e-10  # dual regularisation δ/m̄ (s/m per kg): the Newton weights z/(s + δz) stay ≤ m̄/1e-10
@@ -454,12 +454,12 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
     entries count as 0), at the velocities u = v' + M⁻¹ Bᵀ z0 they imply, with s = max(r(u), 0) and
     z = z0 shifted by 0.01 × the same scales (``IP_WARM_START``). A candidate violated at the start
     (r_k(u) < 0) also starts with the percussion m̄ |r_k(u)| that would close it on a body of mean
-    mass m̄. Every iteration steps 99 % of the way to the boundary, with separate step lengths for the
+    mass m̄. Every iteration steps 99.9 % of the way to the boundary, with separate step lengths for the
     primal (v, s) and the dual (z) variables (in the predictor's estimate of the complementarity too).
     Stops when stationarity ‖M (v − v') − Bᵀ z‖/m and ‖r(v) − s‖ are ≤ ``IP_TOL_M_S`` and
     sᵀz/m ≤ ``IP_GAP_TOL`` (both relative to the largest speed, the latter times the mean mass): on
     door jams of 460-1400 pedestrians v then agrees with the augmented Lagrangian's exact v to
-    1.7e-8 m/s and r(v) ≥ −1.1e-12 m/s (``benchmarks/projection.py``).
+    7e-9 m/s and r(v) ≥ −1e-12 m/s (``benchmarks/projection.py``).
     The percussion z of a candidate whose slack exceeds z/m̄ at the end (an open gap: the exact z is
     0, the iterate's is about 1e-14 m̄ m/s) is returned as 0, as the other solvers do, so that only
     closed contacts count as pushed. Modifies ``vel[:, :2]`` in place on success; returns ``(z per
@@ -550,8 +550,8 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
         for k in range(m):  # corrector: centring σμ and the second-order term
             rc[k] = -s[k] * z[k] - ds[k] * dz[k] + sigma * mu
         _ip_direction(rd, s, z, rp, rc, dl, mass, c_a, c_b, c_nx, c_ny, pos, factor, work, du, ds, dz)
-        tp = min(1.0, 0.99 * _step_to_boundary(s, ds))  # primal (v, s) and dual (z) step lengths
-        td = min(1.0, 0.99 * _step_to_boundary(z, dz))
+        tp = min(1.0, 0.999 * _step_to_boundary(s, ds))  # primal (v, s) and dual (z) step lengths
+        td = min(1.0, 0.999 * _step_to_boundary(z, dz))
         for i in range(n):
             u[i, 0] += tp * du[i, 0]
             u[i, 1] += tp * du[i, 1]

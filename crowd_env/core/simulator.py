@@ -429,7 +429,7 @@ class Simulator:
         should that not converge; PIQP (:func:`project_gaps_ipm`) and then :func:`project_gaps_large`
         (pivoting, Clarabel, polish) serve if even that fails. The augmented Lagrangian's Newton
         steps grow with the diameter of the jam (10-21 at 400 pedestrians in one jam, 30-75 at 1400),
-        the interior point iterations do not (12-18): after a miss the interior point method is used
+        the interior point iterations do not (11-17): after a miss the interior point method is used
         directly for a while: the augmented Lagrangian is tried again after ``ALM_SKIP_AFTER_MISS`` large
         projections, after twice as many at each further miss in a row (up to ``ALM_SKIP_MAX``). Right
         after a large projection, the interior point method starts from a working set
