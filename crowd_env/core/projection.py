@@ -195,6 +195,23 @@ def _row_coefficients(k, c_a, c_b, c_nx, c_ny, pos, idx, coef):
     return cnt
 
 
+@nb.njit(cache=True, inline="always")
+def _row_entries(k, c_a, c_b, c_nx, c_ny, pos, first, off, idx, coef, at, coef_r, coef_c):
+    """The lower-triangle terms of B_kᵀ B_k in envelope storage: env[at[e]] gets w_k · coef_r[e] ·
+    coef_c[e] for e < the returned count (≤ 10); ``idx``, ``coef``: scratch of 4."""
+    cnt = _row_coefficients(k, c_a, c_b, c_nx, c_ny, pos, idx, coef)
+    e = 0
+    for x in range(cnt):
+        for y in range(cnt):
+            if idx[y] <= idx[x]:
+                i = idx[x]
+                at[e] = off[i] + idx[y] - first[i]
+                coef_r[e] = coef[x]
+                coef_c[e] = coef[y]
+                e += 1
+    return e
+
+
 @nb.njit(cache=True, fastmath=True)
 def _envelope_diagonal(mass, dof, off, env):
     """``env`` ← M in the envelope storage of :func:`_envelope_pattern` (zeros off the diagonal)."""
@@ -219,15 +236,7 @@ def _envelope_entries(used, c_a, c_b, c_nx, c_ny, pos, first, off):
     e = 0
     for k in range(m):
         if used[k]:
-            cnt = _row_coefficients(k, c_a, c_b, c_nx, c_ny, pos, idx, coef)
-            for x in range(cnt):
-                for y in range(cnt):
-                    if idx[y] <= idx[x]:
-                        i = idx[x]
-                        at[e] = off[i] + idx[y] - first[i]
-                        coef_r[e] = coef[x]
-                        coef_c[e] = coef[y]
-                        e += 1
+            e += _row_entries(k, c_a, c_b, c_nx, c_ny, pos, first, off, idx, coef, at[e:], coef_r[e:], coef_c[e:])
         start[k + 1] = e
     return start, at[:e], coef_r[:e], coef_c[:e]
 
@@ -255,14 +264,13 @@ def _newton_factor(n, mass, rho, pushing, c_a, c_b, c_nx, c_ny, pos):
     _envelope_diagonal(mass, dof, off, env)
     idx = np.empty(4, np.int64)
     coef = np.empty(4)
+    at = np.empty(10, np.int64)
+    coef_r = np.empty(10)
+    coef_c = np.empty(10)
     for k in range(c_a.shape[0]):
         if pushing[k]:
-            cnt = _row_coefficients(k, c_a, c_b, c_nx, c_ny, pos, idx, coef)
-            for x in range(cnt):
-                for y in range(cnt):
-                    if idx[y] <= idx[x]:
-                        i = idx[x]
-                        env[off[i] + idx[y] - first[i]] += rho * coef[x] * coef[y]
+            for e in range(_row_entries(k, c_a, c_b, c_nx, c_ny, pos, first, off, idx, coef, at, coef_r, coef_c)):
+                env[at[e]] += rho * coef_r[e] * coef_c[e]
     envelope_cholesky(env, off, first)
     return dof, first, off, env
 
