@@ -473,8 +473,8 @@ def test_envelope_factor_is_the_cholesky_factor_of_the_newton_matrix():
     pos = _projection_dofs(n, a, b, nx, ny)
     dof, first, off = _envelope_pattern(n, used, a, b, pos)
     env = np.empty(off[-1])
-    _envelope_factor(mass, np.where(used, weight, 0.0), dof, first, off,
-                     _envelope_entries(used, a, b, nx, ny, pos, first, off), env)
+    # the unused rows get weights too: the entries must leave them out
+    _envelope_factor(mass, weight, dof, first, off, _envelope_entries(used, a, b, nx, ny, pos, first, off), env)
     dense = np.diag(np.repeat(mass, 2))
     for k in np.flatnonzero(used):
         row = np.zeros(2 * n)
