@@ -28,9 +28,10 @@ import numpy as np
 
 from ..analysis.calibration import CalibrationError
 from ..analysis.experiment import ExperimentTable, seyfried_2009
+from ..analysis.targets import TargetWeights, required_cases, target_error
 from .backends import execute
 from .grid import INCOMPLETE_RULES, check_run_plan, point_error_of, point_tasks
-from .runs import RunStore, canonical, run_task
+from .runs import RunStore, canonical, make_task, run_task
 
 FAILED_OBJECTIVE = 1.0e6  # objective of a point whose runs failed (not cached: retried next time)
 
@@ -56,6 +57,9 @@ FREE_PARAMETERS = {
     "speed_std": FreeParameter("desired_speed_std_m_s", "pedestrian", True, (0.01, 1.0), 0.26, 0.3),
 }
 METHODS = ("Nelder-Mead", "Powell")
+# "epsilon": Eq. 24-25 (+ the optional N = 20/40 range penalty), the paper's objective; "targets": every
+# figure the experiment measured (crowd_env.analysis.targets), on the runs of its required_cases.
+OBJECTIVES = ("epsilon", "targets")
 
 
 @dataclass
@@ -69,12 +73,15 @@ class OptimResult:
     message: str
 
 
-def _setup_hash(widths, sizes, seeds, reference: ExperimentTable | None, range_weight: float, incomplete: str) -> str:
+def _setup_hash(widths, sizes, seeds, reference: ExperimentTable | None, range_weight: float, incomplete: str,
+                objective: str = "epsilon", weights: TargetWeights | None = None) -> str:
     ref = seyfried_2009() if reference is None else reference
-    blob = json.dumps({"widths": widths, "sizes": sizes, "seeds": seeds, "range_weight": float(range_weight),
-                       "incomplete": incomplete,
-                       "ref": [ref.width_m.tolist(), ref.n_pedestrians.tolist(), ref.specific_flow_per_m_s.tolist()]},
-                      sort_keys=True)
+    setup = {"widths": widths, "sizes": sizes, "seeds": seeds, "range_weight": float(range_weight),
+             "incomplete": incomplete,
+             "ref": [ref.width_m.tolist(), ref.n_pedestrians.tolist(), ref.specific_flow_per_m_s.tolist()]}
+    if objective != "epsilon":  # the ε_T set-up keeps the hash it always had (caches stay valid)
+        setup.update(objective=objective, weights=(weights or TargetWeights()).as_dict())
+    blob = json.dumps(setup, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
@@ -143,8 +150,11 @@ class EvaluationCache:
 def optimise(out, config: dict, free, widths_m, sizes, seeds, backend, *, x0: dict | None = None,
              bounds: dict | None = None, method: str = "Nelder-Mead", max_evaluations: int = 60,
              xatol: float = 0.02, fatol: float = 1e-4, reference: ExperimentTable | None = None,
-             range_weight: float = 0.0, run_fn=run_task, verbose: bool = True, incomplete: str = "bound") -> OptimResult:
-    """argmin ε_T (+ range_weight × N = 20/40 range penalty) over the ``free`` parameters (Eq. 25).
+             range_weight: float = 0.0, run_fn=run_task, verbose: bool = True, incomplete: str = "bound",
+             objective: str = "epsilon", weights: TargetWeights | None = None) -> OptimResult:
+    """argmin ε_T (+ range_weight × N = 20/40 range penalty) over the ``free`` parameters (Eq. 25), or, with
+    ``objective="targets"``, argmin of :func:`crowd_env.analysis.targets.target_error` (``weights``) on the
+    runs of :func:`~crowd_env.analysis.targets.required_cases` at ``widths_m`` (``sizes`` is then unused).
 
     ``free``: names in :data:`FREE_PARAMETERS`; ``x0``/``bounds``: per-name start values and bounds in
     natural units. All candidates use the same ``seeds`` (common random numbers).
@@ -158,10 +168,14 @@ def optimise(out, config: dict, free, widths_m, sizes, seeds, backend, *, x0: di
     names, lo, hi, z0 = _check_free(free, x0, bounds)
     if incomplete not in INCOMPLETE_RULES:
         raise CalibrationError(f"incomplete must be one of {INCOMPLETE_RULES}, got {incomplete!r}")
+    if objective not in OBJECTIVES:
+        raise CalibrationError(f"unknown objective {objective!r}; choose one of {OBJECTIVES}")
     widths_m, sizes, seeds = check_run_plan(widths_m, sizes, seeds)
+    if objective == "targets":
+        sizes = sorted({n for _, n in required_cases(widths_m)})
     store = RunStore(out, config)
     cache = EvaluationCache(Path(out) / "optimise" / "evaluations.jsonl",
-                            _setup_hash(widths_m, sizes, seeds, reference, range_weight, incomplete))
+                            _setup_hash(widths_m, sizes, seeds, reference, range_weight, incomplete, objective, weights))
     history = []
     n_computed = 0
 
@@ -169,19 +183,24 @@ def optimise(out, config: dict, free, widths_m, sizes, seeds, backend, *, x0: di
         z = np.clip(z, lo, hi)
         return {n: canonical(math.exp(v) if FREE_PARAMETERS[n].log else v) for n, v in zip(names, z)}
 
-    def objective(z) -> float:
+    def evaluate(z) -> float:
         nonlocal n_computed
         values = values_of(z)
         entry = cache.get(values)
         if entry is None:
             model = {FREE_PARAMETERS[n].field: v for n, v in values.items() if FREE_PARAMETERS[n].target == "model"}
             ped = {FREE_PARAMETERS[n].field: v for n, v in values.items() if FREE_PARAMETERS[n].target == "pedestrian"}
-            tasks = point_tasks(config, model, ped, widths_m, sizes, seeds)
+            tasks = (target_tasks(config, model, ped, widths_m, seeds) if objective == "targets"
+                     else point_tasks(config, model, ped, widths_m, sizes, seeds))
             failed = execute(tasks, store, backend, run_fn, desc=f"evaluation {len(history) + 1}", leave=False)
             n_computed += 1
             if failed:
                 entry = {"values": values, "objective": FAILED_OBJECTIVE, "epsilon_total": float("nan"),
                          "failed_runs": failed}
+            elif objective == "targets":
+                entry = target_entry(values, target_error([store.load(t) for t in tasks], weights=weights,
+                                                          reference=reference))
+                cache.add(entry)
             else:
                 e = point_error_of(tasks, [store.load(t) for t in tasks], reference, range_weight, incomplete)
                 entry = {"values": values, "objective": e.objective, "epsilon_total": e.epsilon_total,
@@ -206,7 +225,7 @@ def optimise(out, config: dict, free, widths_m, sizes, seeds, backend, *, x0: di
         options.update(initial_simplex=np.clip(simplex, lo, hi), xatol=xatol, fatol=fatol)
     else:
         options.update(xtol=xatol, ftol=fatol)
-    res = minimize(objective, z0, method=method, bounds=list(zip(lo, hi)), options=options)
+    res = minimize(evaluate, z0, method=method, bounds=list(zip(lo, hi)), options=options)
     k = int(np.argmin([h["objective"] for h in history]))
     result = OptimResult(history[k]["values"], float(history[k]["objective"]), float(history[k]["epsilon_total"]),
                          len(history), n_computed, history, str(res.message))
@@ -214,17 +233,34 @@ def optimise(out, config: dict, free, widths_m, sizes, seeds, backend, *, x0: di
     return result
 
 
+def target_tasks(config: dict, model: dict, pedestrian: dict, widths_m, seeds) -> list:
+    """The runs :func:`~crowd_env.analysis.targets.target_error` needs at one parameter point."""
+    return [make_task(config, model, pedestrian, b, n, s) for b, n in required_cases(widths_m) for s in seeds]
+
+
+def target_entry(values: dict, e) -> dict:
+    """An evaluation record of the target objective (``e``: a :class:`~crowd_env.analysis.targets.TargetError`)."""
+    return {"values": values, "objective": e.objective, "epsilon_total": e.terms.get("epsilon_60", float("nan")),
+            "terms": e.terms, "n_incomplete": e.n_incomplete, "n_stalled": e.n_stalled, "failed_point": e.failed,
+            "capacity_ratio": {f"{b:g}": v for b, v in e.capacity_ratio.items()}, "figures": e.figures}
+
+
 def write_optimum(result: OptimResult, folder: Path, names: list, method: str) -> list:
-    """``optimum.json`` (best point) and ``history.csv`` (every evaluation in order)."""
+    """``optimum.json`` (best point; with the target objective its terms too) and ``history.csv`` (every
+    evaluation in order, a column per target term when there are any)."""
     folder.mkdir(parents=True, exist_ok=True)
     fields = {n: FREE_PARAMETERS[n].field for n in names}
+    best = min(result.history, key=lambda h: h["objective"])
+    term_names = list(best.get("terms") or {})
     (folder / "optimum.json").write_text(json.dumps({
         "best": {fields[n]: v for n, v in result.best.items()}, "objective": result.objective,
-        "epsilon_total": result.epsilon_total, "n_evaluations": result.n_evaluations,
+        "epsilon_total": result.epsilon_total, "terms": best.get("terms"), "n_evaluations": result.n_evaluations,
         "n_computed": result.n_computed, "method": method, "message": result.message}, indent=2))
     with open(folder / "history.csv", "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["evaluation"] + [fields[n] for n in names] + ["objective", "epsilon_total"])
+        w.writerow(["evaluation"] + [fields[n] for n in names] + ["objective", "epsilon_total"] + term_names)
         for i, h in enumerate(result.history, 1):
-            w.writerow([i] + [h["values"][n] for n in names] + [h["objective"], h["epsilon_total"]])
+            terms = h.get("terms") or {}
+            w.writerow([i] + [h["values"][n] for n in names] + [h["objective"], h["epsilon_total"]]
+                       + [terms.get(t, "") for t in term_names])
     return [folder / "optimum.json", folder / "history.csv"]

@@ -1,0 +1,183 @@
+"""Everything the Seyfried et al. (2009) experiment measured, as one calibration objective.
+
+Kabalan et al. (2016) calibrate A, B against one figure, the N = 60 specific flows (ε_T, Eq. 23-24).
+A model fitted to that alone can reach it by the wrong mechanism: a discharge driven by the pressure
+of the crowd behind (the rate then grows with N, a real bottleneck's does not), pedestrians pushed
+through the channel faster than they walk, a jam held apart at half the observed density. The
+experiment measured more than the N = 60 flows (``shared/data/README.md``; constants in
+:mod:`crowd_env.analysis.experiment`), and :func:`target_error` scores a parameter point against all
+of it at once:
+
+======================  =====================================================================  ==========
+term                    what it measures (means over seeds per (b, N) first)                   known value
+======================  =====================================================================  ==========
+``epsilon_60``          Eq. 24: mean over b of (J_s / J_s,exp − 1)², N = 60                      Table 2
+``small_groups``        N = 20, 40 at every b: J_s inside the band (squared relative miss)       [1.77, 2.31]
+``ordering``            N = 20, 40 not below N = 60 at the same b: (J_s,60 / J_s,n − 1)² if > 0   "mostly above"
+``speed_inside``        N = 60, every b: stationary speed in the channel inside the band          [0.94, 1.22] m/s
+``density_inside``      N = 60, every b: stationary density in the channel inside the band       [1.42, 1.73] /m²
+``density_front``       N = 60, every b: stationary density 1 m in front, inside the band        [4, 6] /m²
+``capacity``            b = 1.0, 1.2 m: stationary rate of N = 120 / N = 60 inside the band      [0.95, 1.10]
+======================  =====================================================================  ==========
+
+Each term is a mean squared *relative* miss (0 inside a band), so a 5 % miss costs 0.0025 wherever it
+is; the objective is Σ w_k · term_k with every weight 1 by default (:class:`TargetWeights`): no term
+is privileged over the paper's ε_T except by being outside its band. The capacity band is the one
+judgement here: experiments through one door at N = 20 ... 60 give rates independent of N within
+their scatter (Seyfried's N = 20, 40 flows lie *above* N = 60), so the stationary rate (20 % to 80 %
+of the passages, :meth:`crowd_env.runner.RunResult.stationary_specific_flow_per_m_s`) of twice the
+crowd may be at most 10 % higher and 5 % lower. A point with any incomplete run (a stall, or people
+still inside at the time limit) is a failed point: its objective is :data:`FAILED_POINT_OBJECTIVE`
+plus the fraction of incomplete runs, above any objective of a complete point, so that an optimiser
+moves away from clogs while still telling a nearly-working point from a hopeless one.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from .calibration import CalibrationError, relative_squared_errors
+from .experiment import (FRONT_DENSITY_RANGE_PER_M2, INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RANGE_M_S,
+                         SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, WIDTHS_M, ExperimentTable, seyfried_2009)
+
+__all__ = ["CAPACITY_RANGE", "CAPACITY_SIZES", "CAPACITY_WIDTHS_M", "FAILED_POINT_OBJECTIVE", "TargetError",
+           "TargetWeights", "band_miss", "required_cases", "target_error"]
+
+# Stationary discharge rate of the larger crowd over the smaller one, at these widths.
+CAPACITY_SIZES = (60, 120)
+CAPACITY_WIDTHS_M = (1.0, 1.2)
+CAPACITY_RANGE = (0.95, 1.10)
+SMALL_GROUP_SIZES = (20, 40)
+REFERENCE_SIZE = 60
+FAILED_POINT_OBJECTIVE = 10.0
+
+
+@dataclass(frozen=True)
+class TargetWeights:
+    """Weights of the terms of :func:`target_error` (all 1: each a squared relative miss)."""
+
+    epsilon_60: float = 1.0
+    small_groups: float = 1.0
+    ordering: float = 1.0
+    speed_inside: float = 1.0
+    density_inside: float = 1.0
+    density_front: float = 1.0
+    capacity: float = 1.0
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
+                raise CalibrationError(f"weight {f.name} must be a finite number >= 0, got {value!r}")
+
+    def as_dict(self) -> dict:
+        return {f.name: float(getattr(self, f.name)) for f in fields(self)}
+
+
+@dataclass(frozen=True)
+class TargetError:
+    """Score of one parameter point: ``objective`` = Σ weight · term over :attr:`terms`, or
+    :data:`FAILED_POINT_OBJECTIVE` + the incomplete fraction when a run did not complete.
+
+    ``figures`` holds the seed means the terms were computed from, keyed ``"<name> b<b> n<N>"``, and
+    ``capacity_ratio`` the N = 120 / N = 60 stationary rate ratio per width.
+    """
+
+    objective: float
+    terms: dict
+    n_runs: int
+    n_incomplete: int
+    n_stalled: int
+    failed: bool
+    figures: dict
+    capacity_ratio: dict
+
+
+def band_miss(value, low: float, high: float) -> np.ndarray:
+    """Relative distance of ``value`` outside [low, high]: value/low − 1 below, value/high − 1 above, 0 in."""
+    v = np.asarray(value, dtype=np.float64)
+    return np.where(v < low, v / low - 1.0, np.where(v > high, v / high - 1.0, 0.0))
+
+
+def required_cases(widths_m=WIDTHS_M, capacity_widths_m=CAPACITY_WIDTHS_M) -> list:
+    """The (b, N) runs :func:`target_error` needs: N = 20, 40, 60 at ``widths_m``, N = 120 at
+    ``capacity_widths_m`` (which must be among ``widths_m``)."""
+    widths = [float(b) for b in widths_m]
+    missing = [b for b in capacity_widths_m if not any(abs(b - w) < 1e-9 for w in widths)]
+    if missing:
+        raise CalibrationError(f"capacity widths {missing} are not among the widths {widths}")
+    cases = [(b, n) for n in (*SMALL_GROUP_SIZES, REFERENCE_SIZE) for b in widths]
+    return cases + [(float(b), CAPACITY_SIZES[1]) for b in capacity_widths_m]
+
+
+def _complete(record: dict) -> bool:
+    if "complete" in record:
+        return bool(record["complete"])
+    return int(record["n_evacuated"]) == int(record["n_pedestrians"])
+
+
+def target_error(records: list, *, weights: TargetWeights | None = None,
+                 reference: ExperimentTable | None = None) -> TargetError:
+    """Score the runs of one parameter point against every target of the module table.
+
+    ``records``: the reproduction's run records (``crowd_env.cli.reproduce_bottleneck.run_one``) of at
+    least the cases of :func:`required_cases` at the widths present for N = 60, any number of seeds
+    (the same for every case: common random numbers). Raises :class:`CalibrationError` naming a
+    missing case or a record without the figures a term needs.
+    """
+    w = TargetWeights() if weights is None else weights
+    ref = seyfried_2009() if reference is None else reference
+    if not records:
+        raise CalibrationError("no run records given")
+    n_incomplete = sum(not _complete(r) for r in records)
+    n_stalled = sum(bool(r.get("stalled", False)) for r in records)
+    groups: dict = {}
+    for r in records:
+        groups.setdefault((round(float(r["width_m"]), 6), int(r["n_pedestrians"])), []).append(r)
+    widths = sorted(b for (b, n) in groups if n == REFERENCE_SIZE)
+    if not widths:
+        raise CalibrationError(f"no N = {REFERENCE_SIZE} runs: the objective needs them at every width")
+    cap_widths = [b for b in CAPACITY_WIDTHS_M if round(b, 6) in widths]
+    for b, n in required_cases(widths, cap_widths):
+        if (round(b, 6), n) not in groups:
+            raise CalibrationError(f"the objective needs runs at b = {b:g} m, N = {n}; none given")
+    if n_incomplete:
+        return TargetError(FAILED_POINT_OBJECTIVE + n_incomplete / len(records), {}, len(records), n_incomplete,
+                           n_stalled, True, {}, {})
+
+    def mean(b, n, key):
+        values = [r.get(key, np.nan) for r in groups[(b, n)]]
+        if any(v is None for v in values):
+            raise CalibrationError(f"a run at b = {b:g} m, N = {n} has no {key!r}")
+        v = np.asarray(values, dtype=np.float64)
+        v = v[np.isfinite(v)]
+        return float(v.mean()) if v.size else float("nan")
+
+    figures = {}
+    for (b, n) in groups:
+        for key in ("specific_flow_per_m_s", "stationary_specific_flow_per_m_s", "speed_inside_m_s",
+                    "density_inside_per_m2", "density_front_per_m2"):
+            figures[f"{key} b{b:g} n{n}"] = mean(b, n, key)
+    js60 = np.array([figures[f"specific_flow_per_m_s b{b:g} n{REFERENCE_SIZE}"] for b in widths])
+    terms = {"epsilon_60": float(relative_squared_errors(widths, REFERENCE_SIZE, js60, ref).mean())}
+    low, high = SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S
+    small = np.array([[figures[f"specific_flow_per_m_s b{b:g} n{n}"] for b in widths] for n in SMALL_GROUP_SIZES])
+    terms["small_groups"] = float(np.mean(band_miss(small, low, high) ** 2))
+    terms["ordering"] = float(np.mean(np.clip(js60[None, :] / small - 1.0, 0.0, None) ** 2))
+    for term, key, (lo, hi) in (("speed_inside", "speed_inside_m_s", INSIDE_SPEED_RANGE_M_S),
+                                ("density_inside", "density_inside_per_m2", INSIDE_DENSITY_RANGE_PER_M2),
+                                ("density_front", "density_front_per_m2", FRONT_DENSITY_RANGE_PER_M2)):
+        values = np.array([figures[f"{key} b{b:g} n{REFERENCE_SIZE}"] for b in widths])
+        terms[term] = float(np.mean(band_miss(values, lo, hi) ** 2))
+    small_n, large_n = CAPACITY_SIZES
+    ratios = {b: figures[f"stationary_specific_flow_per_m_s b{b:g} n{large_n}"]
+              / figures[f"stationary_specific_flow_per_m_s b{b:g} n{small_n}"] for b in cap_widths}
+    terms["capacity"] = float(np.mean(band_miss(list(ratios.values()), *CAPACITY_RANGE) ** 2)) if ratios else 0.0
+    bad = sorted(k for k, v in terms.items() if not np.isfinite(v))
+    if bad:
+        raise CalibrationError(f"objective terms {bad} are undefined (a run without passages in its stationary "
+                               f"window or an empty measurement area)")
+    wd = w.as_dict()
+    objective = float(sum(wd[k] * v for k, v in terms.items()))
+    return TargetError(objective, terms, len(records), 0, n_stalled, False, figures, ratios)
