@@ -294,6 +294,23 @@ def test_lcp_bpp_on_singular_psd_matrix():
     np.testing.assert_allclose(w, w_star, atol=1e-9)
 
 
+def test_lcp_bpp_keeps_a_solution_when_the_polish_drifts_on_a_singular_free_set():
+    """Regression (issue 20): the projection LCP of a 51-contact cluster of the Seyfried jam (b = 1.0 m,
+    N = 180, seed 2, t = 6.27 s; W of rank 50). Pivoting ends on a free set whose W_FF is singular with
+    q_F partly outside its range: iterative refinement then moved λ along the null space of W_FF by
+    about 6 kg m/s per step, down to −21, and clipping that to 0 left w = −0.153 m/s: 1.53 mm of
+    overlap in one step. The polish is now kept only while λ stays a solution."""
+    data = np.load(ROOT / "tests" / "data" / "jam_lcp_singular.npz")
+    W, q = data["W"], data["q"]
+    assert np.linalg.matrix_rank(W) < W.shape[0]
+    lam, st = lcp_bpp(W, q)
+    w = W @ lam + q
+    assert st == STATUS_OK
+    assert lam.min() >= 0.0
+    assert w.min() >= -1e-7  # m/s: below 1e-9 m of overlap per 0.01 s step (was -0.153 m/s)
+    assert np.abs(lam * w).max() < 1e-6
+
+
 # ---------------------------------------------------------------- hand-holding links (Eq. 2)
 def _linked_pair(k_v, u_apart=1.0, spin=0.0):
     """Two disks side by side (not touching), holding hands: shoulders at (±0.25, 0) in the body
