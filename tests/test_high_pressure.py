@@ -33,7 +33,7 @@ def test_seyfried_jam_seed2_overlap_stays_within_contact_tolerance():
     the contact tolerance; measured after the fix: 2.5e-11 m."""
     params = ModelParams()  # the paper preset
     scenario = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=180, seed=2, corridor_width_m=7.0,
-                             channel_length_m=4.0)
+                             channel_length_m=4.0, navigation_clearance_m=0.0)
     state = scenario.make_state()
     saved = np.load(DATA / "seyfried_b1.0_n180_seed2_step620.npz")
     for name in ("position_m", "velocity_m_s", "heading_rad", "angular_velocity_rad_s", "active"):
