@@ -9,9 +9,17 @@ for at most ``max_time_s`` of simulated time, measuring at every simulator step 
 environment's ``substep_hooks``):
 
 - ``specific_flow_per_m_s`` J_s = N / (Δt b) at the scenario's measurement line (Kabalan Eq. 22;
-  NaN with fewer than two passages or no width in the scenario metadata); the line is ``line``, by
-  default "bottleneck" where the geometry has one, else its first measurement line (e.g. "door" of
-  ``room_pillar``, "middle" of ``corridor_bidirectional``), and none (NaN) without lines;
+  NaN with fewer than two passages or no width in the scenario metadata, and NaN unless the episode is
+  ``complete``); the line is ``line``, by default "bottleneck" where the geometry has one, else its
+  first measurement line (e.g. "door" of ``room_pillar``, "middle" of ``corridor_bidirectional``), and
+  none (NaN) without lines; ``flow_per_s`` likewise;
+- ``complete``: nobody remains at the end (each pedestrian crossed the line or left; without a line:
+  left); ``partial_specific_flow_per_m_s`` / ``partial_flow_per_s``: Eq. 22 over the passages that
+  happened, for incomplete episodes too;
+- ``stalled`` / ``stall_time_s``: the runner's stall rule (:class:`crowd_env.runner.StallDetector`:
+  nobody crossed the line or left for 20 s while those remaining stood still, mean speed below
+  0.05 m/s) fired at that time. Unlike ``run_scenario`` the episode is not stopped there, so that every
+  policy's return covers the same horizon; ``stall_time_s`` is the first detection;
 - ``evacuation_time_s``: time of the last exit if everybody left, else NaN (``n_evacuated`` says
   how many did);
 - ``mean_speed_m_s``: mean speed over pedestrians on the floor and simulator steps;
@@ -26,13 +34,14 @@ from __future__ import annotations
 import csv
 import math
 import time
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from crowd_env.analysis.flow import MeasurementLine, PassageCounter, specific_flow
 from crowd_env.envs.crowd_v0 import CrowdParallelEnv
+from crowd_env.runner import StallDetector
 
 from .reference_policies import as_policy
 
@@ -67,6 +76,11 @@ class EpisodeMetrics:
     min_gap_m: float
     mean_return: float
     wall_time_s: float
+    complete: bool = True
+    stalled: bool = False
+    stall_time_s: float = field(default=float("nan"), compare=False)  # nan unless stalled (nan != nan)
+    partial_specific_flow_per_m_s: float = float("nan")
+    partial_flow_per_s: float = float("nan")
 
 
 @dataclass
@@ -117,6 +131,8 @@ class _Probe:
         self.perc_sum = 0.0
         self.last_exit_s = float("nan")
         self.min_gap = self._gap(env)
+        self.passed = np.zeros(env.n_pedestrians, dtype=bool)
+        self.stall = StallDetector(env.sim.params.dt_s, start_s=env.sim.time_s)
 
     @staticmethod
     def _gap(env) -> float:
@@ -137,8 +153,13 @@ class _Probe:
 
     def __call__(self, env, res, prev_pos, prev_t):
         st = env.sim.state
+        progressed = res.exited.size > 0
         if self.counter is not None:
-            self.counter.update(prev_pos, st.position_m, prev_t, env.sim.time_s, self.ids)
+            new = self.counter.update(prev_pos, st.position_m, prev_t, env.sim.time_s, self.ids)
+            if new:
+                self.passed[self.counter.ids[-new:]] = True
+                progressed = True
+        self.stall.update(env.sim.time_s, st.velocity_m_s, st.active & ~self.passed, progressed)
         v = st.velocity_m_s[st.active]
         if v.shape[0]:
             self.speed_sum += float(np.hypot(v[:, 0], v[:, 1]).sum())
@@ -189,16 +210,18 @@ def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", se
         fr = specific_flow(times, width if width else 1.0)
         j = fr.flow_per_s
         js = fr.specific_flow_per_m_s if width else float("nan")
+    complete = not (env.sim.state.active & ~probe.passed).any()
     result = EpisodeMetrics(
         policy=policy.name, scenario=spec.label, seed=int(seed), n_pedestrians=n, n_evacuated=n_out,
         simulated_time_s=env.sim.time_s,
         evacuation_time_s=probe.last_exit_s if n_out == n else float("nan"),
-        specific_flow_per_m_s=js, flow_per_s=j,
+        specific_flow_per_m_s=js if complete else float("nan"), flow_per_s=j if complete else float("nan"),
         mean_speed_m_s=probe.speed_sum / probe.speed_n if probe.speed_n else float("nan"),
         n_percussions=probe.n_perc,
         mean_percussion_kg_m_s=probe.perc_sum / probe.n_perc if probe.n_perc else 0.0,
         min_gap_m=probe.min_gap, mean_return=float(np.mean(list(returns.values()))),
-        wall_time_s=time.perf_counter() - t0)
+        wall_time_s=time.perf_counter() - t0, complete=bool(complete), stalled=probe.stall.stalled,
+        stall_time_s=probe.stall.stall_time_s, partial_specific_flow_per_m_s=js, partial_flow_per_s=j)
     env.close()
     return result
 
@@ -219,7 +242,9 @@ def evaluate(policies, scenarios=("seyfried_bottleneck",), seeds=(0, 1, 2), *, e
                 results.append(r)
                 if progress is not None:
                     progress(f"  {r.policy:>12s} | {r.scenario} | seed {seed}: J_s {r.specific_flow_per_m_s:.3f}, "
-                             f"evacuated {r.n_evacuated}/{r.n_pedestrians} ({r.wall_time_s:.1f} s wall)")
+                             f"evacuated {r.n_evacuated}/{r.n_pedestrians}"
+                             + (f", stalled at {r.stall_time_s:.1f} s" if r.stalled else "")
+                             + f" ({r.wall_time_s:.1f} s wall)")
     return results
 
 
@@ -231,7 +256,8 @@ def summarize(results) -> list:
     rows = []
     for (scen, pol), rs in groups.items():
         row = {"scenario": scen, "policy": pol, "n_episodes": len(rs),
-               "evacuated_fraction": float(np.mean([r.n_evacuated / r.n_pedestrians for r in rs]))}
+               "evacuated_fraction": float(np.mean([r.n_evacuated / r.n_pedestrians for r in rs])),
+               "n_complete": sum(bool(r.complete) for r in rs), "n_stalled": sum(bool(r.stalled) for r in rs)}
         for key, _ in METRICS:
             vals = np.array([getattr(r, key) for r in rs], dtype=float)
             finite = vals[np.isfinite(vals)]
@@ -243,11 +269,13 @@ def summarize(results) -> list:
 
 
 def format_table(rows) -> str:
-    """One plain-text table of the summary (means over seeds; NaN-valued episodes left out, counted in [k/n])."""
-    head = ["scenario", "policy", "evac."] + [label for _, label in METRICS]
+    """One plain-text table of the summary (means over seeds; NaN-valued episodes left out, counted in [k/n];
+    J_s is NaN for incomplete episodes, so its mean is over the complete ones)."""
+    head = ["scenario", "policy", "evac.", "stalled"] + [label for _, label in METRICS]
     lines = []
     for row in rows:
-        cells = [row["scenario"], row["policy"], f"{100 * row['evacuated_fraction']:.0f}%"]
+        cells = [row["scenario"], row["policy"], f"{100 * row['evacuated_fraction']:.0f}%",
+                 f"{row.get('n_stalled', 0)}/{row['n_episodes']}"]
         for key, _ in METRICS:
             v, k, n = row[key], row[key + "_n"], row["n_episodes"]
             s = "nan" if not np.isfinite(v) else (f"{v:.0f}" if key == "n_percussions" else

@@ -31,7 +31,12 @@ def save_figure(fig, path):
 
 
 def bottleneck_figures(records: list, rows: list, out: Path) -> list:
-    """Write Figs. 11-14 analogues into ``out``; returns the paths written."""
+    """Write Figs. 11-14 analogues into ``out``; returns the paths written.
+
+    ``rows``: :func:`crowd_env.cli.reproduce_bottleneck.summarise`, whose means are over complete runs
+    only; a width with stalled or otherwise incomplete runs is labelled with their count in Fig. 11, and
+    the discharge diagnostic uses complete runs only.
+    """
     plt = pyplot()
     out = Path(out)
     exp = seyfried_2009()
@@ -43,7 +48,12 @@ def bottleneck_figures(records: list, rows: list, out: Path) -> list:
         sub = [r for r in rows if r["n_pedestrians"] == n]
         b = [r["width_m"] for r in sub]
         ax.errorbar(b, [r["specific_flow_mean"] for r in sub], yerr=[r["specific_flow_std"] for r in sub],
-                    fmt="o-", capsize=3, label="crowd_env")
+                    fmt="o-", capsize=3, label="crowd_env (complete runs)")
+        for r in sub:
+            bad = r["runs"] - r.get("complete", r["runs"])
+            if bad:
+                ax.annotate(f"{r.get('stalled', 0)} stalled, {r.get('incomplete', 0)} inc. of {r['runs']}",
+                            (r["width_m"], 1.05), fontsize=6, rotation=90, ha="center", va="bottom", color="C3")
         stationary = [r.get("stationary_specific_flow", np.nan) for r in sub]
         if np.isfinite(stationary).any():
             ax.plot(b, stationary, "v:", color="C0", alpha=0.6, label="crowd_env, stationary (middle 60 %)")
@@ -75,7 +85,8 @@ def bottleneck_figures(records: list, rows: list, out: Path) -> list:
     for ax, n in zip(axes[0], sizes):
         sub = [r for r in rows if r["n_pedestrians"] == n]
         b = np.array([r["width_m"] for r in sub])
-        j = np.array([r["flow_mean"] for r in sub])
+        j = np.array([r["flow_mean"] for r in sub], dtype=float)
+        b, j = b[np.isfinite(j)], j[np.isfinite(j)]  # widths without a complete run have no flow
         ax.plot(b, j, "o", label="crowd_env")
         if b.size >= 2:
             fit = linear_fit(b, j)
@@ -128,8 +139,10 @@ def discharge_rate(crossing_times_s, window: int = 5):
 
 def discharge_figure(records: list, path: Path, window: int = 5):
     """Specific discharge rate vs crowd left behind: left, pooled over runs, one colour per N; right, for
-    the largest N, the median over runs per width (how the tail depends on b). None without data."""
-    recs = [r for r in records if len(r.get("crossing_times_s") or []) > window]
+    the largest N, the median over runs per width (how the tail depends on b). Complete runs only (the
+    number not yet passed is counted from N). None without data."""
+    recs = [r for r in records if len(r.get("crossing_times_s") or []) > window
+            and len(r["crossing_times_s"]) == r["n_pedestrians"]]
     if not recs:
         return None
     plt = pyplot()

@@ -4,12 +4,23 @@ Every grid point is the bottleneck reproduction's (b, N) runs × seeds with A an
 at every point (common random numbers). :func:`evaluate_grid` runs what is missing, then
 :func:`write_grid_outputs` writes the surface table, the valley of minima with its exponential fit
 A(B) = a exp(c B) beside the paper's A = 1501 exp(-7.98 B), the best point and the figure.
+
+Incomplete and stalled runs. A run in which not everybody passed reports no J_s (``complete`` False);
+``--incomplete`` says how it enters ε_T: ``bound`` (default) with the largest J_s consistent with the
+time limit, ``partial`` with the flow of the passages that happened. A *stalled* run (the runner's stall
+rule: nobody passed for 20 s while those left stood still; the run stopped there) is a failure of the
+parameter point, whatever ε_T says: the point's objective becomes :data:`STALLED_OBJECTIVE` ×
+(1 + fraction of its runs that stalled) + its objective, above any stall-free point (whose objectives
+are far below 1000) and ordered by how many runs stalled, so that an optimiser walks out of a clogging
+region. ε_T itself stays the measured one. ``surface.csv`` counts ``n_stalled`` beside ``n_clogged``
+(all incomplete runs, stalled included); the best point and the valley of minima skip points with a
+stall, and the figure marks them.
 """
 from __future__ import annotations
 
 import csv
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -44,16 +55,24 @@ def point_tasks(config: dict, model: dict, pedestrian: dict, widths_m, sizes, se
 
 
 INCOMPLETE_RULES = ("bound", "partial")
+STALLED_OBJECTIVE = 1000.0  # a point with stalled runs: objective 1000 × (1 + stalled fraction) + objective
+
+
+def n_stalled_runs(records: list) -> int:
+    """Runs the stall rule stopped (``stalled``; records from before the rule count as not stalled)."""
+    return sum(bool(r.get("stalled", False)) for r in records)
 
 
 def point_error_of(tasks: list, records: list, reference: ExperimentTable | None, range_weight: float,
                    incomplete: str = "bound") -> PointError:
     """Eq. 23-24 of one point from its tasks and run records.
 
-    ``incomplete``: how a run in which not all N passed within the time limit counts: ``bound`` (default)
-    with the bound of :func:`censored_specific_flow` (a stuck pedestrian makes the flow small, as
-    Δt = first to last of N passages demands), ``partial`` with the reproduction's value (passages so
-    far over their Δt).
+    ``incomplete``: how a run in which not all N passed (stalled, or people left at the time limit)
+    counts: ``bound`` (default) with the bound of :func:`censored_specific_flow` (a stuck pedestrian makes
+    the flow small, as Δt = first to last of N passages demands; T is the task's time limit also for a
+    run stopped early by a stall), ``partial`` with the flow of the passages that happened
+    (``partial_specific_flow_per_m_s``). A point with stalled runs gets the objective of the module
+    docstring (:data:`STALLED_OBJECTIVE`); its ε_T is unchanged.
     """
     if incomplete not in INCOMPLETE_RULES:
         raise CalibrationError(f"incomplete must be one of {INCOMPLETE_RULES}, got {incomplete!r}")
@@ -63,7 +82,15 @@ def point_error_of(tasks: list, records: list, reference: ExperimentTable | None
     if incomplete == "bound":
         js = censored_specific_flow(js, col["n_pedestrians"], col["n_passages"], col["first_passage_s"],
                                     [t["max_time_s"] for t in tasks], col["width_m"])
-    return point_error(col["width_m"], col["n_pedestrians"].astype(np.int64), js, reference, range_weight)
+    else:
+        partial = np.array([r.get("partial_specific_flow_per_m_s", r["specific_flow_per_m_s"]) for r in records],
+                           dtype=np.float64)
+        js = np.where(col["n_passages"] < col["n_pedestrians"], partial, js)
+    e = point_error(col["width_m"], col["n_pedestrians"].astype(np.int64), js, reference, range_weight)
+    stalled = n_stalled_runs(records)
+    if stalled:
+        e = replace(e, objective=STALLED_OBJECTIVE * (1.0 + stalled / len(records)) + e.objective)
+    return e
 
 
 @dataclass
@@ -76,7 +103,8 @@ class GridResult:
     objective: np.ndarray
     errors: dict = field(default_factory=dict)  # (i, j) -> PointError
     n_failed_runs: int = 0
-    n_clogged: np.ndarray | None = None  # (n_A, n_B) runs where not all N passed within the time limit
+    n_clogged: np.ndarray | None = None  # (n_A, n_B) runs where not all N passed (stalled ones included)
+    n_stalled: np.ndarray | None = None  # (n_A, n_B) runs stopped by the stall rule
 
 
 def evaluate_grid(out, config: dict, social_strength_n, social_range_m, widths_m, sizes, seeds, backend, *,
@@ -109,6 +137,7 @@ def evaluate_grid(out, config: dict, social_strength_n, social_range_m, widths_m
     eps = np.full((a.size, bb.size), np.nan)
     obj = np.full_like(eps, np.nan)
     clogged = np.zeros(eps.shape, dtype=np.int64)
+    stalled = np.zeros(eps.shape, dtype=np.int64)
     errors = {}
     for (i, j), ts in tasks.items():
         records = [store.load(t) for t in ts]
@@ -117,13 +146,17 @@ def evaluate_grid(out, config: dict, social_strength_n, social_range_m, widths_m
         e = point_error_of(ts, records, reference, range_weight, incomplete)
         errors[(i, j)] = e
         clogged[i, j] = sum(r["n_passages"] < r["n_pedestrians"] for r in records)
+        stalled[i, j] = n_stalled_runs(records)
         eps[i, j], obj[i, j] = e.epsilon_total, e.objective
-    return GridResult(a, bb, eps, obj, errors, failed, clogged)
+    return GridResult(a, bb, eps, obj, errors, failed, clogged, stalled)
 
 
 def analyse_surface(result: GridResult, use_objective: bool = False, exclude_edges: bool = True) -> dict:
-    """Best point, valley of minima and its exponential fit (with the paper's for comparison)."""
+    """Best point, valley of minima and its exponential fit (with the paper's for comparison); points with
+    a stalled run are left out (failed points, module docstring)."""
     surface = result.objective if use_objective else result.epsilon_total
+    if result.n_stalled is not None and result.n_stalled.any():
+        surface = np.where(result.n_stalled > 0, np.nan, surface)
     a_best, b_best, e_best = best_grid_point(result.social_strength_n, result.social_range_m, surface)
     valley = valley_of_minima(result.social_strength_n, result.social_range_m, surface)
     use = ~valley.at_edge if exclude_edges and np.count_nonzero(~valley.at_edge) >= 2 else np.ones_like(valley.at_edge)
@@ -153,7 +186,8 @@ def write_grid_outputs(result: GridResult, out, analysis: dict, meta: dict | Non
     js_cols = [f"js_mean_b{b:.2f}_n{n}" for b, n in keys]
     groups = sorted({g for e in result.errors.values() for g in e.epsilon_by_group})
     header = (["social_strength_n", "social_range_m", "epsilon_total", "objective"]
-              + [f"epsilon_n{g}" for g in groups] + ["range_penalty", "range_all_inside", "n_runs", "n_clogged"]
+              + [f"epsilon_n{g}" for g in groups] + ["range_penalty", "range_all_inside", "n_runs", "n_clogged",
+                                                       "n_stalled"]
               + js_cols)
     path = out / "surface.csv"
     with open(path, "w", newline="") as fh:
@@ -168,7 +202,8 @@ def write_grid_outputs(result: GridResult, out, analysis: dict, meta: dict | Non
                 js = {(float(bb), int(nn)): v for bb, nn, v in zip(e.width_m, e.n_pedestrians, e.mean_specific_flow_per_m_s)}
                 w.writerow([a, b, e.epsilon_total, e.objective] + [e.epsilon_by_group.get(g, "") for g in groups]
                            + [e.range_penalty, e.range_all_inside, e.n_runs,
-                              int(result.n_clogged[i, j]) if result.n_clogged is not None else ""]
+                              int(result.n_clogged[i, j]) if result.n_clogged is not None else "",
+                              int(result.n_stalled[i, j]) if result.n_stalled is not None else ""]
                            + [js.get(k, "") for k in keys])
     paths.append(path)
     valley: Valley = analysis["valley"]
@@ -184,7 +219,9 @@ def write_grid_outputs(result: GridResult, out, analysis: dict, meta: dict | Non
         "best_point": analysis["best"], "valley_fit": _fit_json(fit), "paper_valley_fit": _fit_json(PAPER_VALLEY_FIT),
         "grid": {"social_strength_n": result.social_strength_n.tolist(), "social_range_m": result.social_range_m.tolist()},
         "n_points_complete": int(np.isfinite(result.epsilon_total).sum()), "n_points": int(result.epsilon_total.size),
-        "n_failed_runs": result.n_failed_runs, **(meta or {}),
+        "n_failed_runs": result.n_failed_runs,
+        "n_points_with_stalls": int((result.n_stalled > 0).sum()) if result.n_stalled is not None else 0,
+        **(meta or {}),
     }
     path = out / "calibration.json"
     path.write_text(json.dumps(summary, indent=2, default=float))
@@ -220,6 +257,9 @@ def surface_figure(result: GridResult, analysis: dict, path) -> Path:
         f = analysis["fit"]
         ax.plot(bs, f(bs), "r-", label=f"fit A = {f.coefficient_n:.0f} exp({f.rate_per_m:.2f} B)")
     ax.plot(bs, PAPER_VALLEY_FIT(bs), "w--", label="paper A = 1501 exp(-7.98 B)")
+    if result.n_stalled is not None and result.n_stalled.any():
+        ia, ib = np.nonzero(result.n_stalled > 0)
+        ax.plot(b[ib], a[ia], "x", color="red", ms=9, mew=2, label="stalled run(s): failed point")
     best = analysis["best"]
     ax.plot(best["social_range_m"], best["social_strength_n"], "*", color="orange", ms=14,
             label=f"best ε_T = {best['epsilon']:.3g}")

@@ -30,7 +30,7 @@ from ..analysis.calibration import CalibrationError
 from ..analysis.experiment import ExperimentTable, seyfried_2009
 from ..analysis.targets import TargetWeights, required_cases, target_error
 from .backends import execute
-from .grid import INCOMPLETE_RULES, check_run_plan, point_error_of, point_tasks
+from .grid import INCOMPLETE_RULES, check_run_plan, n_stalled_runs, point_error_of, point_tasks
 from .runs import RunStore, canonical, make_task, run_task
 
 FAILED_OBJECTIVE = 1.0e6  # objective of a point whose runs failed (not cached: retried next time)
@@ -202,10 +202,12 @@ def optimise(out, config: dict, free, widths_m, sizes, seeds, backend, *, x0: di
                                                           reference=reference))
                 cache.add(entry)
             else:
-                e = point_error_of(tasks, [store.load(t) for t in tasks], reference, range_weight, incomplete)
+                records = [store.load(t) for t in tasks]
+                e = point_error_of(tasks, records, reference, range_weight, incomplete)
                 entry = {"values": values, "objective": e.objective, "epsilon_total": e.epsilon_total,
                          "epsilon_by_group": {str(k): v for k, v in e.epsilon_by_group.items()},
-                         "range_penalty": e.range_penalty, "n_undefined": e.n_undefined}
+                         "range_penalty": e.range_penalty, "n_undefined": e.n_undefined,
+                         "n_stalled": n_stalled_runs(records)}  # > 0: a failed point (grid.STALLED_OBJECTIVE)
                 cache.add(entry)
         history.append(entry)
         if verbose:

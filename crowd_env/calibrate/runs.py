@@ -2,10 +2,13 @@
 
 A task is the reproduction's task dict (``crowd_env.cli.reproduce_bottleneck.run_one``: ``width_m``,
 ``n_pedestrians``, ``seed``, ``geometry``, ``params``, ``max_time_s``) plus ``pedestrian``: overrides of
-:class:`~crowd_env.core.params.PedestrianDefaults` (τ, desired-speed mean/std), empty by default. With
-no pedestrian overrides a task runs through ``run_one`` itself, so calibration numbers are those of the
-bottleneck reproduction. Each finished run is written at once as one JSON file (atomic rename after
-fsync) named by a hash of the whole task, so a rerun after a crash or kill skips it and loses nothing.
+:class:`~crowd_env.core.params.PedestrianDefaults` (τ, desired-speed mean/std), empty by default. Every
+task runs through ``run_one`` itself (which applies the pedestrian overrides), so calibration numbers
+are those of the bottleneck reproduction and its records hold the same figures (J_s, speed inside,
+densities, stationary flow, ``complete``/``stalled``). Records saved before the stall rule load through
+:func:`~crowd_env.cli.reproduce_bottleneck.normalise_record`. Each finished run is written at once as
+one JSON file (atomic rename after fsync) named by a hash of the whole task, so a rerun after a crash or
+kill skips it and loses nothing.
 """
 from __future__ import annotations
 
@@ -15,8 +18,8 @@ import os
 from pathlib import Path
 
 from ..analysis.calibration import CalibrationError
-from ..cli.reproduce_bottleneck import config_hash, run_one
-from ..core.params import ModelParams, ParameterError, PedestrianDefaults
+from ..cli.reproduce_bottleneck import config_hash, normalise_record, run_one
+from ..core.params import ModelParams, ParameterError
 
 # PedestrianDefaults fields a calibration may vary (per-pedestrian, drawn/set in Scenario.make_state).
 PEDESTRIAN_FIELDS = ("tau_s", "desired_speed_mean_m_s", "desired_speed_std_m_s")
@@ -73,26 +76,9 @@ def task_key(task: dict) -> str:
 
 
 def run_task(task: dict) -> dict:
-    """Run one task: the reproduction's ``run_one`` or, with pedestrian overrides, the same measurement
-    on a state drawn with those :class:`PedestrianDefaults` (same seed, so common random numbers)."""
-    if not task.get("pedestrian"):
-        return run_one(task)
-    from baselines.social_force import SocialForceAgent
-    from crowd_env.runner import run_scenario
-    from crowd_env.scenarios import make_scenario
-
-    scenario = make_scenario("seyfried_bottleneck", width_m=task["width_m"], n_pedestrians=task["n_pedestrians"],
-                             seed=task["seed"], **task["geometry"])
-    state = scenario.make_state(defaults=dataclasses.replace(PedestrianDefaults(), **task["pedestrian"]))
-    r = run_scenario(scenario, SocialForceAgent(scenario.navigation()), ModelParams.from_dict(task["params"]),
-                     max_time_s=task["max_time_s"], state=state)
-    return {"width_m": task["width_m"], "n_pedestrians": task["n_pedestrians"], "seed": task["seed"],
-            "specific_flow_per_m_s": r.specific_flow_per_m_s, "flow_per_s": r.flow_per_s,
-            "evacuation_time_s": r.evacuation_time_s, "n_evacuated": r.n_evacuated, "min_gap_m": r.min_gap_m,
-            "n_passages": int(r.crossing_times_s.size),
-            "first_passage_s": float(r.crossing_times_s.min()) if r.crossing_times_s.size else float("nan"),
-            "wall_time_s": r.wall_time_s, "n_steps": r.n_steps,
-            "crossing_times_s": [round(float(t), 4) for t in r.crossing_times_s]}
+    """Run one task: the reproduction's ``run_one`` (pedestrian overrides, if any, draw the state with those
+    :class:`PedestrianDefaults` from the same seed, so common random numbers)."""
+    return run_one(task)
 
 
 def _write_atomic(path: Path, text: str) -> None:
@@ -134,7 +120,7 @@ class RunStore:
             raise CalibrationError(f"{path}: unreadable run record ({exc}); delete it to rerun that run") from None
         if data.get("task") != task:
             raise CalibrationError(f"{path} holds a different task than its name says; delete it to rerun that run")
-        return data["record"]
+        return normalise_record(data["record"])
 
     def log_error(self, task: dict, message: str) -> None:
         with open(self.out / "errors.jsonl", "a") as fh:
