@@ -25,6 +25,7 @@ import shapely
 
 from .analysis.flow import MeasurementLine, PassageCounter, specific_flow
 from .core.params import ModelParams
+from .core.presets import DEFAULT_PRESET, get_preset
 
 # Stationary phase for densities: between the passages of these fractions of the pedestrians (the
 # middle 60 %), see RunResult.density_window_s.
@@ -241,7 +242,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     :class:`StallDetector` (None switches it off); a stalled run stops at once with ``stalled`` set.
     Returns a :class:`RunResult`; its flows are nan unless the run is complete (module docstring).
     """
-    params = ModelParams() if params is None else params
+    params = get_preset(DEFAULT_PRESET).params() if params is None else params
     state = scenario.make_state(rng=rng) if state is None else state
     sim = scenario.make_simulator(state, params)  # with the scenario's destinations, if any
     geometry = scenario.geometry

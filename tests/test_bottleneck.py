@@ -16,7 +16,7 @@ from crowd_env.scenarios import make_scenario
 
 @pytest.fixture(scope="module")
 def scenario():
-    return make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=60, seed=0)
+    return make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=60, seed=0, navigation_clearance_m=0.0)
 
 
 def test_key_equivalence_step_by_step(scenario):
@@ -67,7 +67,7 @@ def test_reduced_seyfried_n60_b1():
     notes), everybody evacuated, no overlap beyond 1e-3 m."""
     runs = []
     for seed in range(4):
-        sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=60, seed=seed)
+        sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=60, seed=seed, navigation_clearance_m=0.0)
         runs.append(run_scenario(sc, SocialForceAgent(sc.navigation()), ModelParams(), max_time_s=120))
     exp = seyfried_2009()
     js_exp = float(exp.specific_flow_per_m_s[exp.lookup(1.0, 60)[0]])
@@ -189,7 +189,12 @@ def test_speed_and_stationary_flow_windows():
 def test_presets_set_the_base_configuration_and_flags_override(tmp_path):
     from crowd_env.cli.reproduce_bottleneck import PRESETS, build_parser, config_of, model_params_from_args
 
-    for argv, a, b, wall, clearance in (([], 790.0, 0.08, None, 0.0),
+    from crowd_env.core.presets import DEFAULT_PRESET
+
+    cal = PRESETS["calibrated"].model
+    assert DEFAULT_PRESET == "calibrated"
+    for argv, a, b, wall, clearance in (([], cal["social_strength_n"], cal["social_range_m"], 0.0, 0.23),
+                                         (["--preset", "paper"], 790.0, 0.08, None, 0.0),
                                          (["--preset", "recalibrated"], 1150.0, 0.2, 0.0, 0.23),
                                          (["--preset", "recalibrated", "--A", "900", "--navigation-clearance", "0.1"],
                                           900.0, 0.2, 0.0, 0.1)):
@@ -198,7 +203,7 @@ def test_presets_set_the_base_configuration_and_flags_override(tmp_path):
         assert config["params"]["social_strength_n"] == a and config["params"]["social_range_m"] == b
         assert config["params"]["wall_social_strength_n"] == wall
         assert config["geometry"]["navigation_clearance_m"] == clearance
-    assert set(PRESETS) == {"paper", "recalibrated"}
+    assert set(PRESETS) == {"calibrated", "paper", "recalibrated"}
     with pytest.raises(SystemExit):
         build_parser().parse_args(["--preset", "nonsense"])
     # the optional wall slowdown enters the configuration only when given (older run folders stay valid)
@@ -265,7 +270,7 @@ def test_discharge_is_pressure_driven(tmp_path):
     np.testing.assert_allclose(rate, 2.0)
     np.testing.assert_allclose(remaining, 12 - (np.arange(7) + 2.5))
     assert discharge_rate([1.0, 2.0], window=5)[0].size == 0
-    sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=40, seed=0)
+    sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=40, seed=0, navigation_clearance_m=0.0)
     r = run_scenario(sc, SocialForceAgent(sc.navigation()), ModelParams(), max_time_s=120)
     remaining, rate = discharge_rate(r.crossing_times_s, window=5)
     third = rate.size // 3
@@ -285,7 +290,7 @@ def test_small_groups_queue_along_the_front_wall_beside_the_entrance():
 
     first, last, early_rates = [], [], []
     for seed in range(4):
-        sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=20, seed=seed)
+        sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=20, seed=seed, navigation_clearance_m=0.0)
         state = sc.make_state()
         sim = sc.make_simulator(state, ModelParams())
         agent = SocialForceAgent(sc.navigation())

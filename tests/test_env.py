@@ -139,7 +139,7 @@ def test_equivalence_all_controlled_with_baseline_intents(heading_target):
     one.reset(seed=seed)
     agent_one = SocialForceAgent(one.navigation)
     sc = make_scenario("seyfried_bottleneck", **opts)
-    sim = Simulator(sc.make_state(np.random.default_rng(seed)), geometry=sc.geometry)
+    sim = Simulator(sc.make_state(np.random.default_rng(seed)), geometry=sc.geometry, params=env.params)
     ref = SocialForceAgent(sc.navigation())
     n_contacts = 0
     for _ in range(650):

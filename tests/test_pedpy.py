@@ -45,8 +45,8 @@ N = 30
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     """One recorded run, exported; returns (scenario, RunResult, Trajectories, txt path, geometry path)."""
-    sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=N, seed=0)
-    result, traj = record_run(sc, SocialForceAgent(sc.navigation()), frame_rate_per_s=FPS, max_time_s=120)
+    sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=N, seed=0, navigation_clearance_m=0.0)
+    result, traj = record_run(sc, SocialForceAgent(sc.navigation()), ModelParams(), frame_rate_per_s=FPS, max_time_s=120)
     stem = tmp_path_factory.mktemp("traj") / "b1.000_n30_s0"
     txt, geometry_json, wkt = export_run(stem, traj, sc.geometry, comments=["test run"])
     return sc, result, traj, txt, geometry_json, wkt

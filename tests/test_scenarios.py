@@ -191,11 +191,12 @@ def test_registry():
 
 
 def test_bottleneck_navigation_in_configuration_space():
-    """navigation_clearance_m = r solves the eikonal field for disk centres (walls inflated by the radius);
-    the default 0 is the paper's literal point field. Beside the entrance the former steers into the
-    usable opening, the latter straight at the wall beside it."""
-    point = seyfried_bottleneck(width_m=1.0, n_pedestrians=20, seed=0)
+    """navigation_clearance_m = r (the default, as in every scenario) solves the eikonal field for disk
+    centres (walls inflated by the radius); 0 is the paper's literal point field. Beside the entrance the
+    former steers into the usable opening, the latter straight at the wall beside it."""
+    point = seyfried_bottleneck(width_m=1.0, n_pedestrians=20, seed=0, navigation_clearance_m=0.0)
     assert point.navigation_clearance_m == 0.0 and point.navigation().clearance_m == 0.0
+    assert seyfried_bottleneck(width_m=1.0, n_pedestrians=20, seed=0).navigation_clearance_m == pytest.approx(R)
     sc = seyfried_bottleneck(width_m=1.0, n_pedestrians=20, seed=0, navigation_clearance_m=R)
     assert sc.metadata["navigation_clearance_m"] == pytest.approx(R)
     nav = sc.navigation()
@@ -206,7 +207,7 @@ def test_bottleneck_navigation_in_configuration_space():
     assert np.all(np.abs(d_pt[:, 1]) < 0.1)  # straight at the wall beside the opening
     with pytest.raises(ScenarioError, match="navigation_clearance_m"):
         seyfried_bottleneck(width_m=1.0, n_pedestrians=20, navigation_clearance_m=-0.1)
-    assert scenario_options("seyfried_bottleneck")["navigation_clearance_m"] == 0.0
+    assert scenario_options("seyfried_bottleneck")["navigation_clearance_m"] is None  # None: the radius
 
 
 def test_bottleneck_navigation_wall_slowdown():

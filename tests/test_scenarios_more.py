@@ -186,7 +186,9 @@ def shoulder_distance(st):
 
 
 def test_groups_are_placed_side_by_side():
-    sc = make_scenario("bottleneck_groups", n_pedestrians=30, n_pairs=3, n_triples=2, seed=4, hand_gap_m=0.05)
+    # the point field (the placement's tolerance below is stated for it)
+    sc = make_scenario("bottleneck_groups", n_pedestrians=30, n_pairs=3, n_triples=2, seed=4, hand_gap_m=0.05,
+                       navigation_clearance_m=0.0)
     groups = sc.metadata["groups"]
     assert sorted(len(g) for g in groups) == [2, 2, 2, 3, 3]
     assert sc.links.shape == (3 * 1 + 2 * 2, 2)

@@ -306,10 +306,10 @@ def record_run(scenario, policy, params=None, *, frame_rate_per_s: float = DEFAU
     (recording only reads the state). ``run_kwargs`` go to ``run_scenario`` (``state``, ``rng`` and
     ``progress`` are honoured). Returns ``(RunResult, Trajectories)``.
     """
-    from ..core.params import ModelParams
+    from ..core.presets import DEFAULT_PRESET, get_preset
     from ..runner import run_scenario
 
-    params = ModelParams() if params is None else params
+    params = get_preset(DEFAULT_PRESET).params() if params is None else params
     every = steps_per_frame(frame_rate_per_s, params.dt_s)
     state = run_kwargs.pop("state", None)
     rng = run_kwargs.pop("rng", None)

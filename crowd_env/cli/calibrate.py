@@ -28,7 +28,8 @@ from pathlib import Path
 
 from crowd_env.analysis.calibration import PAPER_VALLEY_FIT, CalibrationError, check_grid_values, grid_axis
 from crowd_env.analysis.experiment import ExperimentError, ExperimentTable
-from crowd_env.cli.reproduce_bottleneck import PRESETS, add_geometry_arguments, config_of, model_params_from_args
+from crowd_env.cli.reproduce_bottleneck import add_geometry_arguments, config_of, model_params_from_args
+from crowd_env.core.presets import DEFAULT_PRESET, PRESETS
 from crowd_env.core.params import ParameterError
 
 
@@ -64,10 +65,11 @@ def build_parser() -> argparse.ArgumentParser:
     dist.add_argument("--jobs", type=int, default=None, help="CPUs of the local Ray instance / process pool")
     dist.add_argument("--connect-timeout", type=float, default=5.0, help="seconds to reach --address before giving up")
     add_geometry_arguments(common.add_argument_group("geometry (Seyfried 2009 defaults, as crowd-bottleneck)"),
-                           "default: the preset's (0 for 'paper', 0.23 for 'recalibrated')")
+                           "default: the preset's (0 for 'paper', 0.23 for 'calibrated' and 'recalibrated')")
     m = common.add_argument_group("fixed model parameters")
-    m.add_argument("--preset", choices=sorted(PRESETS), default="paper",
-                   help="base configuration as in crowd-bottleneck (A and B are then set by the grid/optimiser)")
+    m.add_argument("--preset", choices=sorted(PRESETS), default=DEFAULT_PRESET,
+                   help="base configuration as in crowd-bottleneck (crowd_env.core.presets; A, B and the other free "
+                        "parameters are then set by the grid/optimiser)")
     m.add_argument("--anisotropy", type=float, default=None, dest="social_anisotropy", help="λ in [0, 1]")
     m.add_argument("--kn", type=float, default=None, dest="normal_dissipation_kg", help="K_n (kg)")
     m.add_argument("--no-rotation", action="store_true", help="freeze headings (Section 4.1.1)")

@@ -32,6 +32,7 @@ import numpy as np
 
 from crowd_env.analysis.trajectories import DEFAULT_FRAME_RATE_PER_S
 from crowd_env.core.params import ModelParams, ParameterError
+from crowd_env.core.presets import DEFAULT_PRESET, PRESETS, get_preset
 
 GEOMETRY_OPTIONS = {  # CLI flag -> seyfried_bottleneck option, with the Seyfried defaults
     "corridor_width": ("corridor_width_m", 4.0),
@@ -44,20 +45,8 @@ GEOMETRY_OPTIONS = {  # CLI flag -> seyfried_bottleneck option, with the Seyfrie
 LANE_BIN_M = 0.01  # Kabalan Section 4.2
 
 
-# Configurations of the model and the navigation, the base that explicit flags override.
-# ``paper``: the published validation point A = 790 N, B = 0.08 m (Section 4.1.3) with the literal point
-# eikonal field (Eq. 11-13) and walls repelling like pedestrians. ``recalibrated``: the paper's own
-# calibration procedure (ε_T, Eq. 23-24, scripts/calibrate.py) redone for the configuration-space field
-# (walls eroded by the radius: e_d never points into a wall) and no social force from walls (Eq. 16 is
-# written between pedestrians; walls act through contacts only): A = 1150 N, B = 0.2 m. With the point
-# field, pairs of pedestrians stall for good beside the entrance when A·B is large (each aims at its
-# corner of the opening and repels the other); only the two changes together cure it
-# (tests/test_bottleneck.py).
-PRESETS = {
-    "paper": {"params": {}, "navigation_clearance_m": 0.0},
-    "recalibrated": {"params": {"social_strength_n": 1150.0, "social_range_m": 0.2, "wall_social_strength_n": 0.0},
-                     "navigation_clearance_m": 0.23},
-}
+# Configurations of the model and the navigation, the base that explicit flags override: see
+# crowd_env.core.presets (calibrated, the default; paper, the literal Section 4; recalibrated).
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -80,14 +69,15 @@ def build_parser() -> argparse.ArgumentParser:
                     help="quick check for a fresh machine: N = 60, the 5 widths, 2 seeds (overrides --sizes/--seeds)")
     add_geometry_arguments(ap.add_argument_group("geometry (Seyfried 2009 defaults)"),
                            "erode the walkable area by this distance (m) before solving the eikonal field: the "
-                           "radius (0.23) gives the configuration space of the disk centres; default 0, the paper's "
-                           "point field (Eq. 11-13), with which its A = 790 N, B = 0.08 m were calibrated; "
-                           "0.23 with --preset recalibrated")
-    m = ap.add_argument_group("model (Kabalan Table 2 and A = 790 N, B = 0.08 m by default)")
-    m.add_argument("--preset", choices=sorted(PRESETS), default="paper",
-                   help="base configuration of model and navigation (see PRESETS): 'paper' (default) or "
-                        "'recalibrated' (A = 1150 N, B = 0.2 m, configuration-space field, no wall social force); "
-                        "the flags below override it")
+                           "radius (0.23) gives the configuration space of the disk centres (presets calibrated and "
+                           "recalibrated); 0 is the paper's point field (Eq. 11-13, preset paper); default: the "
+                           "preset's")
+    m = ap.add_argument_group("model (Kabalan Table 2 with the preset's social force)")
+    m.add_argument("--preset", choices=sorted(PRESETS), default=DEFAULT_PRESET,
+                   help="base configuration of model and navigation (crowd_env.core.presets): "
+                        + "; ".join(f"'{k}'{' (default)' if k == DEFAULT_PRESET else ''}: {v.summary}"
+                                    for k, v in sorted(PRESETS.items()))
+                        + "; the flags below override it")
     m.add_argument("--A", type=float, default=None, dest="social_strength_n", help="social strength A (N)")
     m.add_argument("--B", type=float, default=None, dest="social_range_m", help="social range B (m)")
     m.add_argument("--anisotropy", type=float, default=None, dest="social_anisotropy", help="λ in [0, 1]")
@@ -124,7 +114,7 @@ def add_geometry_arguments(group, clearance_help: str) -> None:
 
 
 def model_params_from_args(args) -> ModelParams:
-    changes = dict(PRESETS[getattr(args, "preset", "paper")]["params"])
+    changes = dict(get_preset(getattr(args, "preset", DEFAULT_PRESET)).model)
     for name in ("social_strength_n", "social_range_m", "social_anisotropy", "normal_dissipation_kg"):
         if getattr(args, name) is not None:
             changes[name] = getattr(args, name)
@@ -237,7 +227,7 @@ def normalise_record(record: dict) -> dict:
 def navigation_clearance_from_args(args) -> float:
     """--navigation-clearance if given, else the preset's."""
     value = getattr(args, "navigation_clearance", None)
-    return float(PRESETS[getattr(args, "preset", "paper")]["navigation_clearance_m"] if value is None else value)
+    return float(get_preset(getattr(args, "preset", DEFAULT_PRESET)).navigation_clearance_m if value is None else value)
 
 
 def config_of(args, params: ModelParams) -> dict:

@@ -82,7 +82,8 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from ..core.params import ModelParams
+from ..core.params import ModelParams, ParameterError
+from ..core.presets import DEFAULT_PRESET, get_preset
 from ..core.simulator import Simulator
 from ..core.stepper import direction_angles_rad
 from ..scenarios import Scenario, make_scenario, scenario_options as _scenario_option_defaults
@@ -192,7 +193,12 @@ class CrowdParallelEnv(ParallelEnv):
       in (0, 1], or a list of ids (``"ped_3"`` or ``3``).
     - ``background_policy``: ``policy(sim) -> intents (N, 2)`` or ``(intents, desired_heading (N,))``
       for the pedestrians not controlled; default: the calibrated social-force agent.
-    - ``params``: :class:`~crowd_env.core.params.ModelParams` (or a dict of its fields).
+    - ``preset``: the model configuration (:mod:`crowd_env.core.presets`; default ``"calibrated"``,
+      calibrated on every figure of the Seyfried experiment); ``params``: a
+      :class:`~crowd_env.core.params.ModelParams` used as it is instead, or a dict of fields that
+      override the preset's. The preset's navigation clearance applies to the bottleneck scenarios
+      through their factory defaults (the radius), not here: pass ``navigation_clearance_m`` in
+      ``scenario_options`` to change it.
     - ``max_steps``: environment steps before truncation (default: 60 s of simulated time).
     - ``action_max_m_s``: a_max of the action Box (default 2.5 m/s).
     - ``n_neighbors`` (k, default 6), ``neighbor_radius_m`` (4 m), ``n_rays`` (R, default 8),
@@ -212,7 +218,7 @@ class CrowdParallelEnv(ParallelEnv):
                 "is_parallelizable": True}
 
     def __init__(self, *, scenario="seyfried_bottleneck", scenario_options=None, controlled="all",
-                 background_policy=None, params=None, max_steps=None, action_max_m_s=DEFAULT_ACTION_MAX_M_S,
+                 background_policy=None, preset=None, params=None, max_steps=None, action_max_m_s=DEFAULT_ACTION_MAX_M_S,
                  n_neighbors=6, n_rays=8, neighbor_radius_m=4.0, ray_range_m=5.0, reward_fn=None, render_mode=None,
                  frame_skip=1, heading_target="intent", reseed_scenario=None):
         # -- scenario
@@ -242,11 +248,21 @@ class CrowdParallelEnv(ParallelEnv):
             raise EnvOptionError("reseed_scenario=True needs a scenario given by name whose factory takes a 'seed'")
         self.reseed_scenario = bool(reseed_scenario)
         # -- model and options
+        if preset is not None and isinstance(params, ModelParams):
+            raise EnvOptionError("give preset or a ModelParams as params, not both (a dict of params overrides the "
+                                 "preset's fields)")
+        try:
+            base = get_preset(DEFAULT_PRESET if preset is None else preset)
+        except ParameterError as exc:
+            raise EnvOptionError(str(exc)) from None
+        self.preset = base.name  # None when a ModelParams object was given
         if params is None:
-            params = ModelParams()
+            params = base.params()
         elif isinstance(params, dict):
-            params = ModelParams.from_dict(params)
-        elif not isinstance(params, ModelParams):
+            params = base.params(**params)
+        elif isinstance(params, ModelParams):
+            self.preset = None
+        else:
             raise EnvOptionError(f"params must be a ModelParams or a dict, got {type(params).__name__}")
         self.params = params
         self.frame_skip = _positive_number("frame_skip", frame_skip, integer=True)

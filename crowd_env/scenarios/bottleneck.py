@@ -21,8 +21,9 @@ axis at y = 0. Geometry and protocol follow ``shared/data/README.md`` (confidenc
   sites nearest the entrance centre; N > 60 adds sections further upstream. Disks lie entirely
   inside their section, so neighbouring sections never overlap.
 
-Navigation (``navigation_clearance_m``). The default 0 solves Eq. 11-13 for points, as the paper does
-(V = 0 only inside walls); its A = 790 N, B = 0.08 m were calibrated with such a field. For disks this
+Navigation (``navigation_clearance_m``). 0 solves Eq. 11-13 for points, as the paper does (V = 0 only
+inside walls); its A = 790 N, B = 0.08 m were calibrated with such a field (preset ``paper``). The
+default, the radius, solves it for the disk centres (presets ``calibrated`` and ``recalibrated``). For disks this
 field aims pedestrians beside the entrance at the wall next to the opening (the geodesic of a point
 grazes the corner vertex, which a centre cannot reach): a lone pedestrian starting 0.6 m off-axis
 needs 4.7 s instead of 2.7 s to cross the empty 1 m bottleneck, and in crowds people stall at the
@@ -43,7 +44,7 @@ from shapely.ops import unary_union
 from ..core.geometry import Geometry
 from ..core.navigation import NavigationField
 from ..core.segments import GeometryError
-from .base import Scenario, ScenarioError, check_positive as _positive, place_pedestrians, register_scenario
+from .base import Scenario, ScenarioError, check_clearance, check_positive as _positive, place_pedestrians, register_scenario
 
 __all__ = ["seyfried_bottleneck", "bottleneck_geometry", "BottleneckScenario"]
 
@@ -107,7 +108,7 @@ def seyfried_bottleneck(width_m: float = 1.0, n_pedestrians: int = 60, seed: int
                         block_start_upstream_m: float = 2.24, radius_m: float = 0.23, n_sections: int | None = None,
                         outflow_depth_m: float = 2.0, outflow_width_m: float | None = None,
                         exit_depth_m: float = 0.5, navigation_resolution_m: float = 0.05,
-                        navigation_clearance_m: float = 0.0, navigation_wall_slowdown=None) -> Scenario:
+                        navigation_clearance_m: float | None = None, navigation_wall_slowdown=None) -> Scenario:
     """Seyfried et al. (2009) bottleneck of width ``width_m`` with ``n_pedestrians`` in the holding area.
 
     Sections of ``corridor_width_m`` x ``section_depth_m`` hold round(density x area) persons each (20 by
@@ -115,7 +116,9 @@ def seyfried_bottleneck(width_m: float = 1.0, n_pedestrians: int = 60, seed: int
     as many as N needs). Radii are ``radius_m`` for everybody (Table 2); desired speeds are drawn by
     :meth:`Scenario.make_state`. Raises :class:`ScenarioError` / :class:`GeometryError` naming the
     problem (bottleneck not wider than a pedestrian, wider than the corridor, non-positive values,
-    more pedestrians than fit). ``navigation_wall_slowdown``: ``(distance_m, speed_factor)`` for a slower
+    more pedestrians than fit). ``navigation_clearance_m``: default the radius (the configuration space of
+    the disk centres, as every other scenario and the ``calibrated`` preset); 0 is the paper's point
+    field (preset ``paper``). ``navigation_wall_slowdown``: ``(distance_m, speed_factor)`` for a slower
     eikonal wavefront near walls (Eq. 11's 0 < V < 1, which the paper describes but does not use), or None.
     """
     _positive(width_m=width_m, corridor_width_m=corridor_width_m, channel_length_m=channel_length_m,
@@ -124,10 +127,7 @@ def seyfried_bottleneck(width_m: float = 1.0, n_pedestrians: int = 60, seed: int
     if int(n_pedestrians) != n_pedestrians or n_pedestrians < 1:
         raise ScenarioError(f"n_pedestrians must be a positive integer, got {n_pedestrians!r}")
     n_pedestrians = int(n_pedestrians)
-    clearance = navigation_clearance_m
-    if not isinstance(clearance, (int, float, np.integer, np.floating)) or not math.isfinite(clearance) or clearance < 0:
-        raise ScenarioError(f"navigation_clearance_m must be a finite number >= 0, got {navigation_clearance_m!r}")
-    clearance = float(clearance)
+    clearance = check_clearance(navigation_clearance_m, radius_m)
     try:
         slowdown = NavigationField.check_wall_slowdown(navigation_wall_slowdown)
     except GeometryError as exc:
