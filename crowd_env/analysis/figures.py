@@ -8,7 +8,7 @@ import numpy as np
 from .experiment import (FRONT_DENSITY_RANGE_PER_M2, INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RANGE_M_S,
                          SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, seyfried_2009)
 from .flow import linear_fit
-from .lanes import detect_lanes
+from .lanes import pooled_lanes
 
 
 def pyplot():
@@ -102,12 +102,11 @@ def bottleneck_figures(records: list, rows: list, out: Path) -> list:
     fig, axes = plt.subplots(1, len(widths), figsize=(3.2 * len(widths), 3.2), squeeze=False, sharey=True)
     for ax, b in zip(axes[0], widths):
         recs = [r for r in records if r["n_pedestrians"] == n_d and r["width_m"] == b]
-        counts = np.sum([r["lane_counts"] for r in recs], axis=0).astype(float)
+        lanes = pooled_lanes(recs)
         start, step, n_edges = recs[0]["lane_bin_edges_m"]
         centers = start + step * (np.arange(n_edges - 1) + 0.5)
-        prob = counts / max(counts.sum(), 1.0)
-        lanes = detect_lanes(centers, prob)
-        ax.bar(centers, prob, width=step)
+        counts = np.sum([r["lane_counts"] for r in recs], axis=0).astype(float)
+        ax.bar(centers, counts / max(counts.sum(), 1.0), width=step)
         ax.set(title=f"b = {b:.1f} m: {lanes.n_lanes} lane(s)", xlabel="y (m)", xlim=(-b / 2 - 0.05, b / 2 + 0.05))
     axes[0][0].set_ylabel("probability")
     paths.append(save_figure(fig, out / "fig14_lanes.png"))

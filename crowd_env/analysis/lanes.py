@@ -89,3 +89,15 @@ def detect_lanes(centers_m, probability, smoothing_m: float = 0.02, min_prominen
     peaks, _ = find_peaks(padded, prominence=min_prominence * top)
     peaks = peaks - 1
     return LaneResult(int(peaks.size), c[peaks], smooth)
+
+
+def pooled_lanes(records) -> LaneResult:
+    """Lanes in the channel from run records' lateral-position counts (``lane_counts`` over the bins
+    ``lane_bin_edges_m`` = [first edge, bin width, number of edges]), pooled over the records."""
+    records = list(records)
+    if not records:
+        raise LaneError("no run records to pool")
+    counts = np.sum([r["lane_counts"] for r in records], axis=0).astype(float)
+    start, step, n_edges = records[0]["lane_bin_edges_m"]
+    centers = start + step * (np.arange(int(n_edges) - 1) + 0.5)
+    return detect_lanes(centers, counts / max(counts.sum(), 1.0))

@@ -181,3 +181,80 @@ def target_error(records: list, *, weights: TargetWeights | None = None,
     wd = w.as_dict()
     objective = float(sum(wd[k] * v for k, v in terms.items()))
     return TargetError(objective, terms, len(records), 0, n_stalled, False, figures, ratios)
+
+
+# --- the issue's acceptance table: every target with its figure and verdict ------------------------
+
+RESIDUAL_NORM_MAX = 0.14  # J(b) = a b + c through the N = 60 flows: residual norm at most this
+N60_TOLERANCE = 0.05  # J_s of N = 60 within ±5 % of the experiment at every width
+EXPECTED_LANES = {0.8: 1, 1.0: 2, 1.1: 2, 1.2: 2}  # Seyfried et al. 2009: one lane at 0.8 m, two (zipper) from 0.9 m
+
+
+def target_table(records: list, *, reference: ExperimentTable | None = None) -> list:
+    """One row per target of the calibration (``target``, ``figure``, ``criterion``, ``passed``) from the
+    run records of one model configuration (seed means per (b, N); every required case present).
+
+    Incomplete runs are counted (``stalls`` row) and left out of the means, never averaged in.
+    """
+    from .flow import linear_fit
+    from .lanes import pooled_lanes
+
+    ref = seyfried_2009() if reference is None else reference
+    complete = [r for r in records if _complete(r)]
+    rows = []
+    n_stalled = sum(bool(r.get("stalled", False)) for r in records)
+    rows.append({"target": "stalls / incomplete runs", "figure": f"{n_stalled} / {len(records) - len(complete)} of "
+                 f"{len(records)}", "criterion": "0", "passed": len(complete) == len(records)})
+    worst_gap = min(float(r["min_gap_m"]) for r in records)
+    rows.append({"target": "smallest gap (overlap)", "figure": f"{worst_gap * 1e3:+.2f} mm", "criterion": ">= -1 mm",
+                 "passed": worst_gap >= -1e-3})
+    groups: dict = {}
+    for r in complete:
+        groups.setdefault((round(float(r["width_m"]), 6), int(r["n_pedestrians"])), []).append(r)
+
+    def mean(b, n, key):
+        v = np.array([r[key] for r in groups.get((b, n), [])], dtype=np.float64)
+        v = v[np.isfinite(v)]
+        return float(v.mean()) if v.size else float("nan")
+
+    widths = sorted(b for (b, n) in groups if n == REFERENCE_SIZE)
+    errors = []
+    for b in widths:
+        js_exp = float(ref.specific_flow_per_m_s[ref.lookup(b, REFERENCE_SIZE)[0]])
+        errors.append(mean(b, REFERENCE_SIZE, "specific_flow_per_m_s") / js_exp - 1.0)
+    rows.append({"target": "J_s N = 60 vs experiment, b = " + "/".join(f"{b:g}" for b in widths),
+                 "figure": " / ".join(f"{100 * e:+.1f} %" for e in errors), "criterion": "each within ±5 %",
+                 "passed": bool(errors) and all(abs(e) <= N60_TOLERANCE for e in errors)})
+    low, high = SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S
+    for n in SMALL_GROUP_SIZES:
+        js = [mean(b, n, "specific_flow_per_m_s") for b in widths]
+        rows.append({"target": f"J_s N = {n}, b = " + "/".join(f"{b:g}" for b in widths),
+                     "figure": " / ".join(f"{v:.2f}" for v in js), "criterion": f"each in [{low:g}, {high:g}]",
+                     "passed": all(low <= v <= high for v in js)})
+    small_n, large_n = CAPACITY_SIZES
+    ratios = [mean(b, large_n, "stationary_specific_flow_per_m_s") / mean(b, small_n, "stationary_specific_flow_per_m_s")
+              for b in CAPACITY_WIDTHS_M if (round(b, 6), large_n) in groups]
+    rows.append({"target": f"capacity: stationary rate N = {large_n} / N = {small_n}, b = "
+                 + "/".join(f"{b:g}" for b in CAPACITY_WIDTHS_M),
+                 "figure": " / ".join(f"{v:.3f}" for v in ratios),
+                 "criterion": f"each in [{CAPACITY_RANGE[0]:g}, {CAPACITY_RANGE[1]:g}]",
+                 "passed": bool(ratios) and all(CAPACITY_RANGE[0] <= v <= CAPACITY_RANGE[1] for v in ratios)})
+    for label, key, (lo, hi), unit in (("speed inside", "speed_inside_m_s", INSIDE_SPEED_RANGE_M_S, "m/s"),
+                                       ("density inside", "density_inside_per_m2", INSIDE_DENSITY_RANGE_PER_M2, "/m²"),
+                                       ("density in front", "density_front_per_m2", FRONT_DENSITY_RANGE_PER_M2, "/m²")):
+        v = [mean(b, REFERENCE_SIZE, key) for b in widths]
+        rows.append({"target": f"{label} (N = 60, stationary), min-max over b", "figure": f"{min(v):.2f}-{max(v):.2f} {unit}",
+                     "criterion": f"in [{lo:g}, {hi:g}]", "passed": all(lo <= x <= hi for x in v)})
+    if len(widths) >= 3:
+        fit = linear_fit(widths, [mean(b, REFERENCE_SIZE, "flow_per_s") for b in widths])
+        rows.append({"target": "J(b) linear, N = 60", "figure": f"residual norm {fit.residual_norm:.3f} "
+                     f"(J = {fit.slope:.2f} b {fit.intercept:+.2f})", "criterion": f"<= {RESIDUAL_NORM_MAX:g}",
+                     "passed": fit.residual_norm <= RESIDUAL_NORM_MAX})
+    lanes = {b: pooled_lanes(groups[(b, REFERENCE_SIZE)]).n_lanes for b in widths
+             if any("lane_counts" in r for r in groups[(b, REFERENCE_SIZE)])}
+    if lanes:
+        rows.append({"target": "lanes N = 60, b = " + "/".join(f"{b:g}" for b in lanes),
+                     "figure": " / ".join(str(v) for v in lanes.values()),
+                     "criterion": "1 at 0.8 m, 2 at >= 1.0 m",
+                     "passed": all(lanes[b] == EXPECTED_LANES[b] for b in lanes if b in EXPECTED_LANES)})
+    return rows

@@ -105,7 +105,57 @@ def build_parser() -> argparse.ArgumentParser:
                          "experiment measured (crowd_env.analysis.targets: N = 60 flows, N = 20/40 range and order, "
                          "speed and densities, capacity N = 120 vs 60), on N = 20, 40, 60 at --widths and N = 120 "
                          "at 1.0 and 1.2 m (--sizes is then unused); a point with a stalled run counts as failed")
+    tp = sub.add_parser("targets", parents=[common],
+                        help="every preset against every target of the experiment (one table; N = 20, 40, 60 at "
+                             "--widths and N = 120 at 1.0 and 1.2 m, --seeds seeds each)")
+    tp.add_argument("--presets", nargs="+", choices=sorted(PRESETS), default=sorted(PRESETS),
+                    help="presets to compare (default all); runs go to OUT/<preset>/ (resumable)")
     return ap
+
+
+def run_targets(args) -> int:
+    """``crowd-calibrate targets``: the target table of each preset, side by side (crowd_env.analysis.targets)."""
+    import json
+
+    from crowd_env.analysis.targets import required_cases, target_error, target_table
+    from crowd_env.calibrate import RunStore, base_config, execute, make_backend, run_task
+    from crowd_env.calibrate.grid import check_run_plan
+    from crowd_env.calibrate.optimize import target_tasks
+
+    seeds = list(range(args.first_seed, args.first_seed + args.seeds)) if args.seeds >= 1 else []
+    widths, _, seeds = check_run_plan(args.widths, [60], seeds)
+    required_cases(widths)  # capacity widths among --widths, or a clear error
+    tables, scores = {}, {}
+    with make_backend(args.backend, address=args.address, jobs=args.jobs, connect_timeout_s=args.connect_timeout) as be:
+        for name in args.presets:
+            args.preset = name
+            params = model_params_from_args(args)
+            cfg = config_of(args, params)
+            config = base_config(cfg["geometry"], params, cfg["max_time_s"])
+            store = RunStore(args.out / name, config)
+            tasks = target_tasks(config, {}, {}, widths, seeds)
+            failed = execute(tasks, store, be, run_task, desc=f"targets: {name}")
+            if failed:
+                raise CalibrationError(f"{failed} run(s) of preset {name} failed (see {args.out / name / 'errors.jsonl'}); "
+                                       f"rerun to retry them")
+            records = [store.load(t) for t in tasks]
+            tables[name] = target_table(records)
+            scores[name] = target_error(records)
+    print(f"every target, {len(seeds)} seed(s) per (b, N); figures are seed means over complete runs")
+    width = max(len(r["target"]) for t in tables.values() for r in t)
+    print(f"{'target':<{width}}  {'criterion':<22}" + "".join(f"  {n:<34}" for n in tables))
+    for k, row in enumerate(next(iter(tables.values()))):
+        cells = "".join(f"  {('ok  ' if t[k]['passed'] else 'MISS') + ' ' + t[k]['figure']:<34}" for t in tables.values())
+        print(f"{row['target']:<{width}}  {row['criterion']:<22}{cells}")
+    print("objective (crowd_env.analysis.targets, lower is better): "
+          + ", ".join(f"{n} {e.objective:.4f}" + (" (failed: incomplete runs)" if e.failed else "")
+                      for n, e in scores.items()))
+    out = args.out / "targets.json"
+    out.write_text(json.dumps({"seeds": seeds, "widths_m": widths, "tables": tables,
+                               "objective": {n: e.objective for n, e in scores.items()},
+                               "terms": {n: e.terms for n, e in scores.items()}}, indent=2))
+    print(f"wrote {out}")
+    return 0
 
 
 def _reference(path: Path | None):
@@ -141,6 +191,8 @@ def _grid_axes(args):
 
 
 def run(args) -> int:
+    if args.mode == "targets":
+        return run_targets(args)
     from crowd_env.calibrate import (RunStore, analyse_surface, base_config, evaluate_grid, make_backend, optimise,
                                      write_grid_outputs)
     from crowd_env.calibrate.grid import check_run_plan

@@ -45,7 +45,7 @@ class Preset:
 
 
 PRESETS = {
-    "calibrated": Preset("calibrated", {"social_strength_n": 300.0, "social_range_m": 0.04, "social_anisotropy": 0.1,
+    "calibrated": Preset("calibrated", {"social_strength_n": 331.5, "social_range_m": 0.04111, "social_anisotropy": 0.1093,
                                         "wall_social_strength_n": 0.0}, _RADIUS_M,
                          "all of Seyfried 2009's figures at once; λ in (0, 1); configuration-space field; "
                          "no wall social force"),
