@@ -10,6 +10,7 @@ import pytest
 
 from baselines import SocialForceAgent
 from crowd_env.core import ModelParams
+from crowd_env.core.presets import DEFAULT_PRESET, get_preset
 from crowd_env.runner import STALL_SPEED_M_S, STALL_WINDOW_S, RunResult, StallDetector, run_scenario
 from crowd_env.scenarios import make_scenario
 from crowd_env.scenarios.bottleneck import BottleneckScenario, bottleneck_geometry
@@ -61,12 +62,15 @@ def test_stall_after_some_passed_keeps_the_partial_flow_apart():
     assert r.partial_specific_flow_per_m_s == pytest.approx(7 / ((last - r.crossing_times_s.min()) * 1.0))
 
 
-@pytest.mark.parametrize("width_m, n, seed", [(0.8, 60, 1), (0.8, 20, 0)])
-def test_slow_seyfried_runs_are_not_stalled(width_m, n, seed):
-    """b = 0.8 m is the slowest Seyfried width; seed 1 at N = 60 holds the longest pause between passages
-    of the paper point's seeds 0-9 (5.9 s when measured)."""
-    sc = make_scenario("seyfried_bottleneck", width_m=width_m, n_pedestrians=n, seed=seed)
-    r = run_scenario(sc, SocialForceAgent(sc.navigation()), ModelParams(), max_time_s=300.0)
+@pytest.mark.parametrize("preset, width_m, n, seed", [("paper", 0.8, 60, 1), ("paper", 0.8, 20, 0),
+                                                      (DEFAULT_PRESET, 0.8, 60, 0)])
+def test_slow_seyfried_runs_are_not_stalled(preset, width_m, n, seed):
+    """b = 0.8 m is the slowest Seyfried width; with the paper preset seed 1 at N = 60 holds the longest
+    pause between passages of seeds 0-9 (5.9 s when measured)."""
+    p = get_preset(preset)
+    sc = make_scenario("seyfried_bottleneck", width_m=width_m, n_pedestrians=n, seed=seed,
+                       navigation_clearance_m=p.navigation_clearance_m)
+    r = run_scenario(sc, SocialForceAgent(sc.navigation()), p.params(), max_time_s=300.0)
     assert r.complete and not r.stalled and np.isnan(r.stall_time_s)
     assert r.n_passed == n and np.isfinite(r.specific_flow_per_m_s)
     assert r.partial_specific_flow_per_m_s == r.specific_flow_per_m_s
