@@ -66,7 +66,8 @@ def _run(job: dict) -> dict:
     snap.pop("last", None)
     return {**job, "complete": r.complete, "stalled": r.stalled, "stall_time_s": r.stall_time_s,
             "n_passed": r.n_passed, "specific_flow_per_m_s": r.specific_flow_per_m_s, "min_gap_m": r.min_gap_m,
-            "time_s": r.simulated_time_s, "snapshot": snap or None, "geometry": scenario.geometry}
+            "time_s": r.simulated_time_s, "snapshot": snap or None,
+            "outline_m": np.asarray(scenario.geometry.walkable_area.exterior.coords)}
 
 
 def figure(paper: dict, calibrated: dict, path: Path) -> Path:
@@ -77,17 +78,15 @@ def figure(paper: dict, calibrated: dict, path: Path) -> Path:
 
     fig, axes = plt.subplots(1, 2, figsize=(12, 5.4), sharey=True)
     for ax, run in zip(axes, (paper, calibrated)):
-        snap, geo = run["snapshot"], run["geometry"]
-        area = geo.walkable_area
-        x, y = area.exterior.xy
-        ax.plot(x, y, "k-", lw=1.5)
+        snap = run["snapshot"]
+        ax.plot(run["outline_m"][:, 0], run["outline_m"][:, 1], "k-", lw=1.5)
         p, e, f, v = snap["position_m"], snap["e_d"], snap["force_n"], snap["speed_m_s"]
         still = v < 0.05
         for k in range(p.shape[0]):
             ax.add_patch(plt.Circle(p[k], 0.23, fc="tab:red" if still[k] else "tab:blue", ec="k", lw=0.4, alpha=0.55))
         ax.quiver(p[:, 0], p[:, 1], e[:, 0], e[:, 1], color="k", scale=18, width=0.004, label="e_d (Eq. 13)")
         ax.quiver(p[:, 0], p[:, 1], f[:, 0], f[:, 1], color="tab:orange", scale=4000, width=0.004,
-                  label="social force (Eq. 16), 1 cm : 23 N")
+                  label="social force (Eq. 16)")
         ax.set_xlim(-4.5, 1.5)
         ax.set_ylim(-2.2, 2.2)
         ax.set_aspect("equal")
