@@ -17,6 +17,13 @@ pedestrians still on the floor,
 
 The checks read the state only; they never call the simulator (whose per-step neighbour caches they
 would otherwise touch), so a checked run is bitwise the same as an unchecked one.
+
+High pressure (:data:`PRESSURE_CASES`, :func:`pressure_soak`): hundreds of pedestrians on the calibrated
+baseline agent pressing into a door (a widened Seyfried bottleneck and a packed room), with the paper's
+parameters and with a strong push (desired speeds doubled), checked step by step by the same
+:class:`InvariantChecker`. The environment soak's crowds stay small (its largest impact cluster is about
+17 pedestrians); here the contacts that carry force join 100-350 pedestrians and the projection runs on
+the large (sparse, interior point) path.
 """
 from __future__ import annotations
 
@@ -37,7 +44,9 @@ from .scenarios import list_scenarios, scenario_options
 
 __all__ = ["OVERLAP_TOLERANCE_M", "VIOLATION_KINDS", "InvariantChecker", "MemoryProbe", "ACTION_MODES",
            "EXAMPLE_OPTIONS", "distinct_scenarios", "required_options", "soak_options", "max_intent_toward",
-           "random_actions", "toward_neighbour_actions", "toward_wall_actions", "trajectory_hashes"]
+           "random_actions", "toward_neighbour_actions", "toward_wall_actions", "trajectory_hashes",
+           "PressureCase", "PRESSURE_CASES", "pressure_scenario", "run_pressure_episode", "pressure_soak",
+           "largest_contact_group"]
 
 OVERLAP_TOLERANCE_M = 1e-3
 # Energies are compared to round-off: the impact and projection solvers are exact (pivoting) or polished
@@ -92,6 +101,21 @@ def soak_options(name: str):
     return {k: EXAMPLE_OPTIONS[k] for k in need}
 
 
+def largest_contact_group(result, n: int) -> int:
+    """Pedestrians in the largest group joined by pedestrian-pedestrian contacts that carried a percussion
+    in the step of ``result`` (impact or projection; ``StepResult.contact_i/j``), ``n`` the crowd's size:
+    the jam through which one step's pushes were passed (0 when no pair touched)."""
+    pair = result.contact_j >= 0
+    if not pair.any():
+        return 0
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    i, j = result.contact_i[pair], result.contact_j[pair]
+    _, label = connected_components(coo_matrix((np.ones(i.shape[0]), (i, j)), shape=(n, n)), directed=False)
+    return int(np.bincount(label[np.union1d(i, j)]).max())
+
+
 def _kinetic_energy_j(state, index) -> float:
     m, inertia = state.mass_kg[index], state.inertia_kg_m2[index]
     u, w = state.velocity_m_s[index], state.angular_velocity_rad_s[index]
@@ -105,6 +129,9 @@ class InvariantChecker:
     ``max_overlap_m`` is the largest overlap seen (pedestrian pairs and walls; ≤ 0 means none),
     ``max_impact_energy_increase_j`` / ``max_projection_energy_increase_j`` the largest energy change
     across each stage (negative = always dissipated), ``examples`` the first violations in words.
+    ``max_cluster_size``: the largest impact cluster (``StepResult.max_cluster_size``);
+    ``max_contact_group``: the largest group of pedestrians joined by contacts that carried a percussion
+    in one step (:func:`largest_contact_group`; resting contacts held by the projection included).
     """
 
     overlap_tolerance_m: float = OVERLAP_TOLERANCE_M
@@ -120,6 +147,7 @@ class InvariantChecker:
     max_impact_energy_increase_rel: float = -np.inf
     n_impact_steps: int = 0  # steps with at least one impact cluster (the energy check had work to do)
     max_cluster_size: int = 0
+    max_contact_group: int = 0
     examples: list = field(default_factory=list)
     label: str = ""
 
@@ -170,6 +198,7 @@ class InvariantChecker:
             k = int(np.flatnonzero(~inside)[0])
             self._flag("outside_walkable", sim, f"pedestrian {idx[k]} centre at {pos[k].tolist()} is outside the "
                                                 f"walkable area ({int((~inside).sum())} in all)")
+        self.max_contact_group = max(self.max_contact_group, largest_contact_group(result, st.n))
         # energies
         e0, e1, e2 = (result.kinetic_energy_before_impact_j, result.kinetic_energy_after_impact_j,
                       result.kinetic_energy_after_projection_j)
@@ -196,6 +225,7 @@ class InvariantChecker:
         self.n_checked_steps += other.n_checked_steps
         self.n_impact_steps += other.n_impact_steps
         self.max_cluster_size = max(self.max_cluster_size, other.max_cluster_size)
+        self.max_contact_group = max(self.max_contact_group, other.max_contact_group)
         for name in ("max_overlap_m", "max_wall_overlap_m", "max_impact_energy_increase_j",
                      "max_projection_energy_increase_j", "max_impact_energy_increase_rel"):
             setattr(self, name, max(getattr(self, name), getattr(other, name)))
@@ -325,3 +355,149 @@ def trajectory_hashes(seed: int, n_steps: int = 1000, n_pedestrians: int = 8, mo
         st = env.sim.state
         out.append(hashlib.sha256(st.position_m.tobytes() + st.active.tobytes()).hexdigest())
     return out
+
+
+# ---------------------------------------------------------------------------------------------- high pressure
+@dataclass(frozen=True)
+class PressureCase:
+    """A high-pressure jam: ``n_pedestrians`` on the calibrated baseline agent pressing into a door.
+
+    ``geometry``: ``"bottleneck"`` (Seyfried's, widened: corridor ``corridor_width_m``, channel
+    ``channel_length_m``, entrance ``door_width_m``) or ``"room"`` (a square room packed at
+    ``room_density_per_m2`` with a door of ``door_width_m`` in the middle of its right wall, the jam of
+    ``benchmarks/scaling.py``). ``speed_factor`` multiplies the drawn desired speeds (1: the paper's
+    N(1.34, 0.26) m/s; 2: a strong push). ``params``: :class:`ModelParams` changes as ``(name, value)``
+    pairs (none: the ``paper`` preset, with the paper's point navigation field, clearance 0).
+    An episode lasts ``max_time_s`` or until everybody has left.
+    """
+
+    name: str
+    geometry: str
+    n_pedestrians: int
+    door_width_m: float
+    speed_factor: float = 1.0
+    params: tuple = ()
+    max_time_s: float = 20.0
+    corridor_width_m: float = 7.0
+    channel_length_m: float = 4.0
+    room_density_per_m2: float = 3.0
+
+    def model_params(self):
+        from .core.params import ModelParams
+
+        return ModelParams().replace(**dict(self.params))
+
+
+PRESSURE_CASES = (
+    PressureCase("bottleneck_paper", "bottleneck", 220, 1.0),
+    PressureCase("bottleneck_push", "bottleneck", 250, 0.9, speed_factor=2.0),
+    PressureCase("room_paper", "room", 300, 1.0),
+    PressureCase("room_push", "room", 400, 0.8, speed_factor=2.0),
+)
+
+
+def pressure_scenario(case: PressureCase, seed: int):
+    """The :class:`~crowd_env.scenarios.Scenario` of ``case`` with start positions (and desired speeds)
+    from ``seed``."""
+    import math
+
+    from .core.geometry import Geometry
+    from .scenarios import make_scenario
+    from .scenarios.base import Scenario, place_pedestrians
+
+    if case.geometry == "bottleneck":
+        return make_scenario("seyfried_bottleneck", width_m=case.door_width_m, n_pedestrians=case.n_pedestrians,
+                             seed=seed, corridor_width_m=case.corridor_width_m,
+                             channel_length_m=case.channel_length_m, navigation_clearance_m=0.0)
+    if case.geometry == "room":
+        side = math.sqrt(case.n_pedestrians / case.room_density_per_m2) + 0.6  # the outer 0.3 m holds no centre
+        y0, y1 = 0.5 * (side - case.door_width_m), 0.5 * (side + case.door_width_m)
+        geometry = Geometry([(0, 0), (side, 0), (side, side), (0, side)],
+                            [[(side, y0), (side + 0.5, y0), (side + 0.5, y1), (side, y1)]], name=f"room_{case.name}")
+        position = place_pedestrians(geometry.walkable_area, case.n_pedestrians, 0.23, np.random.default_rng(seed))
+        return Scenario(geometry, position, name=case.name, seed=seed, navigation_resolution_m=0.1)
+    raise ValueError(f"unknown pressure geometry {case.geometry!r}; known: 'bottleneck', 'room'")
+
+
+def run_pressure_episode(case: PressureCase, seed: int, checker: InvariantChecker, max_agent_steps=None) -> dict:
+    """One episode of ``case`` (seed ``seed``) with every step checked by ``checker``; stops at
+    ``case.max_time_s``, when everybody has left, or after ``max_agent_steps`` (pedestrians on the floor
+    summed over steps). Returns its counts and the simulator's solver counters."""
+    from baselines.social_force import SocialForceAgent
+
+    scenario = pressure_scenario(case, seed)
+    state = scenario.make_state()
+    state.desired_speed_m_s *= case.speed_factor
+    sim = scenario.make_simulator(state, case.model_params())
+    agent = SocialForceAgent(scenario.navigation())
+    agent_steps = 0
+    n_steps = int(round(case.max_time_s / sim.params.dt_s))
+    for _ in range(n_steps):
+        n_live = int(sim.active_index.shape[0])
+        if n_live == 0 or (max_agent_steps is not None and agent_steps >= max_agent_steps):
+            break
+        intents, heading = agent(sim)
+        result = sim.step(intents, desired_heading_rad=heading)
+        checker.check(sim, scenario.geometry, result)
+        agent_steps += n_live
+    return {"agent_steps": agent_steps, "sim_steps": sim.step_count, "time_s": sim.time_s,
+            "left": int(state.n - state.active.sum()), "n_pedestrians": state.n,
+            "large_solves": sim.n_sparse_solves, "fallback_solves": sim.n_fallback_solves}
+
+
+def pressure_soak(agent_steps: int, *, cases=None, seed: int = 0, overlap_tolerance_m: float = OVERLAP_TOLERANCE_M,
+                  progress=None) -> dict:
+    """The high-pressure phase of the soak: ``agent_steps`` split evenly over ``cases`` (names or
+    :class:`PressureCase`; default :data:`PRESSURE_CASES`), each running episodes with seeds ``seed``,
+    ``seed + 1``, ... until its share is spent. Returns a JSON-able summary with the merged
+    :class:`InvariantChecker` under ``"checker"`` (not JSON) and one entry per case."""
+    import time
+
+    known = {c.name: c for c in PRESSURE_CASES}
+    chosen = []
+    for c in (PRESSURE_CASES if cases is None else cases):
+        if isinstance(c, str):
+            if c not in known:
+                raise ValueError(f"unknown pressure case {c!r}; known: {sorted(known)}")
+            c = known[c]
+        chosen.append(c)
+    if not chosen:
+        raise ValueError("no pressure case to run")
+    share = int(np.ceil(agent_steps / len(chosen)))
+    total = InvariantChecker(overlap_tolerance_m=overlap_tolerance_m)
+    per_case = {}
+    t0 = time.perf_counter()
+    for case in chosen:
+        checker = InvariantChecker(overlap_tolerance_m=overlap_tolerance_m, label=f"pressure/{case.name}")
+        t_case = time.perf_counter()
+        done, episodes, counts = 0, 0, Counter()
+        while done < share:
+            ep = run_pressure_episode(case, seed + episodes, checker, max_agent_steps=share - done)
+            done += ep["agent_steps"]
+            episodes += 1
+            counts.update({k: ep[k] for k in ("sim_steps", "left", "n_pedestrians", "large_solves",
+                                              "fallback_solves")})
+            if ep["agent_steps"] == 0:
+                break  # cannot happen with pedestrians on the floor; never loop forever
+        per_case[case.name] = {
+            "agent_steps": done, "sim_steps": checker.n_checked_steps, "episodes": episodes,
+            "pedestrians": counts["n_pedestrians"], "left": counts["left"],
+            "large_solves": counts["large_solves"], "fallback_solves": counts["fallback_solves"],
+            "max_cluster_size": checker.max_cluster_size, "max_contact_group": checker.max_contact_group,
+            "violations": dict(checker.counts), "max_overlap_m": checker.max_overlap_m,
+            "max_wall_overlap_m": checker.max_wall_overlap_m, "wall_s": time.perf_counter() - t_case}
+        total.merge(checker)
+        if progress is not None:
+            r = per_case[case.name]
+            progress(f"pressure/{case.name}: {done} agent-steps, {r['sim_steps']} simulator steps, {episodes} "
+                     f"episodes ({r['left']} of {r['pedestrians']} pedestrians left), largest impact cluster "
+                     f"{r['max_cluster_size']}, largest contact group {r['max_contact_group']}, "
+                     f"{r['large_solves']} large (sparse) solves, violations {r['violations'] or 0}, "
+                     f"max overlap {r['max_overlap_m']:.3g} m ({r['wall_s']:.0f} s)")
+    return {"agent_steps": sum(r["agent_steps"] for r in per_case.values()), "sim_steps": total.n_checked_steps,
+            "cases": [c.name for c in chosen], "violations": dict(total.counts), "n_violations": total.n_violations,
+            "max_cluster_size": total.max_cluster_size, "max_contact_group": total.max_contact_group,
+            "max_overlap_m": total.max_overlap_m, "max_wall_overlap_m": total.max_wall_overlap_m,
+            "max_impact_energy_increase_j": total.max_impact_energy_increase_j,
+            "max_projection_energy_increase_j": total.max_projection_energy_increase_j,
+            "examples": total.examples, "per_case": per_case, "wall_s": time.perf_counter() - t0, "checker": total}

@@ -12,6 +12,14 @@ the PettingZoo parallel environment with every pedestrian controlled (even episo
 Scenarios whose factory requires options (the user polygon) get them from ``--scenario-options`` or
 ``crowd_env.reliability.EXAMPLE_OPTIONS``; any still missing is skipped and listed.
 
+Then the high-pressure phase (:func:`crowd_env.reliability.pressure_soak`, ``--pressure-agent-steps``,
+by default as many as ``--agent-steps``; 0 skips it): hundreds of pedestrians on the calibrated baseline
+agent pressing into a door, :data:`crowd_env.reliability.PRESSURE_CASES`: a widened Seyfried bottleneck
+(corridor 7 m, channel 4 m; N = 220 at b = 1.0 m with the ``paper`` preset, N = 250 at b = 0.9 m with
+desired speeds doubled) and a room packed at 3 /m² (N = 300, 1.0 m door, ``paper``; N = 400, 0.8 m door,
+doubled speeds), episodes of 20 s with seeds ``--seed``, ``--seed`` + 1, ... It prints the largest
+impact cluster and the largest group of pedestrians joined by contacts that carried a percussion.
+
 After every simulator step :class:`crowd_env.reliability.InvariantChecker` checks overlaps (pairs and
 walls, tolerance 1e-3 m), centres inside the walkable area, kinetic energy across the impact and the
 projection stages, and finite state. Memory (RSS, and tracemalloc with ``--tracemalloc``) is sampled
@@ -19,9 +27,11 @@ at every episode end; the growth after the first quarter of the run, fitted by l
 below ``--memory-tolerance-mib`` over the fitted window. The budget of agent-steps (live agents summed
 over environment steps) is split evenly over (scenario, mode) pairs.
 
-Exit status: 0 when nothing was violated, 1 otherwise. Example (about 10⁶ agent-steps)::
+Exit status: 0 when nothing was violated, 1 otherwise. Example (about 10⁶ agent-steps in each phase)::
 
     nice -n 5 python scripts/soak.py --agent-steps 1000000
+
+or the high-pressure phase alone: ``--agent-steps 0 --pressure-agent-steps 8000000``.
 """
 from __future__ import annotations
 
@@ -39,11 +49,13 @@ DEFAULT_AGENT_STEPS = 1_000_000
 def soak(agent_steps: int = DEFAULT_AGENT_STEPS, *, scenarios=None, modes=None, seed: int = 0, max_steps: int = 200,
          frame_skip: int = 1, fixed_start: bool = False, trace_memory: bool = False,
          memory_tolerance_mib: float = 16.0, overlap_tolerance_m: float = 1e-3, scenario_options: dict | None = None,
-         progress=print) -> dict:
-    """Run the soak; returns a JSON-able summary (see :func:`format_summary`)."""
+         pressure_agent_steps: int = 0, pressure_cases=None, progress=print) -> dict:
+    """Run the soak; returns a JSON-able summary (see :func:`format_summary`). ``agent_steps`` = 0 skips
+    the environment phase; ``pressure_agent_steps`` > 0 adds the high-pressure phase
+    (:func:`crowd_env.reliability.pressure_soak` over ``pressure_cases``, default all)."""
     from crowd_env.envs import crowd_v0
     from crowd_env.reliability import (ACTION_MODES, InvariantChecker, MemoryProbe, distinct_scenarios,
-                                       required_options, soak_options)
+                                       pressure_soak, required_options, soak_options)
 
     names = list(scenarios) if scenarios else distinct_scenarios()
     modes = list(modes) if modes else list(ACTION_MODES)
@@ -62,8 +74,8 @@ def soak(agent_steps: int = DEFAULT_AGENT_STEPS, *, scenarios=None, modes=None, 
     names = [n for n in names if n not in skipped]
     if not names:
         raise SystemExit("error: no scenario to soak")
-    pairs = [(n, m) for n in names for m in modes]
-    share = int(np.ceil(agent_steps / len(pairs)))
+    pairs = [(n, m) for n in names for m in modes] if agent_steps > 0 else []
+    share = int(np.ceil(agent_steps / max(len(pairs), 1)))
     total = InvariantChecker()
     memory = MemoryProbe(trace=trace_memory)
     memory.start()
@@ -109,6 +121,12 @@ def soak(agent_steps: int = DEFAULT_AGENT_STEPS, *, scenarios=None, modes=None, 
                  f"({checker.n_impact_steps} with impacts), {k} episodes, "
                  f"violations {dict(checker.counts) or 0}, max overlap {checker.max_overlap_m:.3g} m "
                  f"({time.perf_counter() - pair_t0:.0f} s)")
+    environment_cluster, environment_group = total.max_cluster_size, total.max_contact_group
+    pressure = None
+    if pressure_agent_steps > 0:
+        pressure = pressure_soak(pressure_agent_steps, cases=pressure_cases, seed=seed,
+                                 overlap_tolerance_m=overlap_tolerance_m, progress=progress)
+        total.merge(pressure.pop("checker"))  # memory is judged on the environment phase only
     memory.stop()
     mib = 2.0**20
     window = memory.window()
@@ -121,7 +139,9 @@ def soak(agent_steps: int = DEFAULT_AGENT_STEPS, *, scenarios=None, modes=None, 
     s = memory.samples
     return {
         "agent_steps": done_agent_steps, "env_steps": env_steps, "sim_steps": total.n_checked_steps,
-        "impact_steps": total.n_impact_steps, "max_cluster_size": total.max_cluster_size, "episodes": episodes,
+        "impact_steps": total.n_impact_steps, "max_cluster_size": total.max_cluster_size,
+        "max_contact_group": total.max_contact_group, "environment_max_cluster_size": environment_cluster,
+        "environment_max_contact_group": environment_group, "episodes": episodes, "pressure": pressure,
         "scenarios": names, "skipped_scenarios": skipped, "modes": modes,
         "violations": violations, "n_violations": int(sum(violations.values())),
         "overlap_tolerance_m": overlap_tolerance_m, "max_overlap_m": total.max_overlap_m,
@@ -146,15 +166,18 @@ def soak(agent_steps: int = DEFAULT_AGENT_STEPS, *, scenarios=None, modes=None, 
 def format_summary(r: dict) -> str:
     m = r["memory"]
     lines = [
-        f"agent-steps {r['agent_steps']}, environment steps {r['env_steps']}, "
+        f"environment phase: agent-steps {r['agent_steps']}, environment steps {r['env_steps']}; "
         f"simulator steps checked {r['sim_steps']}, "
-        f"episodes {r['episodes']}, wall time {r['wall_s']:.0f} s",
+        f"episodes {r['episodes']}; wall time {r['wall_s']:.0f} s in all",
         f"scenarios {r['scenarios']}" + (f", skipped {r['skipped_scenarios']}" if r["skipped_scenarios"] else "")
         + f"; modes {r['modes']}",
         f"violations: {r['violations'] or 'none'}",
         f"max overlap {r['max_overlap_m']:.3g} m (walls {r['max_wall_overlap_m']:.3g} m; tolerance "
         f"{r['overlap_tolerance_m']:g} m)",
-        f"simulator steps with impacts {r['impact_steps']} (largest cluster {r['max_cluster_size']} pedestrians)",
+        f"simulator steps with impacts {r['impact_steps']} (largest impact cluster {r['max_cluster_size']} "
+        f"pedestrians, {r['environment_max_cluster_size']} in the environment phase; largest group joined by "
+        f"contacts carrying a percussion {r['max_contact_group']}, {r['environment_max_contact_group']} in the "
+        f"environment phase)",
         f"max KE change across impacts {r['max_impact_energy_increase_j']:+.3g} J "
         f"(relative {r['max_impact_energy_increase_rel']:+.3g}); across the projection "
         f"{r['max_projection_energy_increase_j']:+.3g} J",
@@ -166,13 +189,24 @@ def format_summary(r: dict) -> str:
         + f"; growth over the last {m['fit_window_agent_steps']:.0f} agent-steps "
         f"{m['growth_over_window_mib'][m['judged_on']]:.3g} MiB ({m['judged_on']}, tolerance {m['tolerance_mib']} MiB)",
     ]
+    p = r.get("pressure")
+    if p:
+        lines.append(f"pressure phase ({', '.join(p['cases'])}): {p['agent_steps']} agent-steps, {p['sim_steps']} "
+                     f"simulator steps, largest impact cluster {p['max_cluster_size']}, largest contact group "
+                     f"{p['max_contact_group']}, max overlap {p['max_overlap_m']:.3g} m, violations "
+                     f"{p['violations'] or 'none'} ({p['wall_s']:.0f} s)")
     lines += [f"  {e}" for e in r["examples"]]
     return "\n".join(lines)
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--agent-steps", type=int, default=DEFAULT_AGENT_STEPS, help="total agent-steps (all scenarios)")
+    ap.add_argument("--agent-steps", type=int, default=DEFAULT_AGENT_STEPS,
+                    help="total agent-steps of the environment phase (all scenarios; 0: skip it)")
+    ap.add_argument("--pressure-agent-steps", type=int, default=None,
+                    help="agent-steps of the high-pressure phase (default: as many as --agent-steps; 0: skip it)")
+    ap.add_argument("--pressure-cases", nargs="+", default=None,
+                    help="bottleneck_paper, bottleneck_push, room_paper, room_push (default: all)")
     ap.add_argument("--scenarios", nargs="+", default=None, help="default: every registered scenario")
     ap.add_argument("--modes", nargs="+", default=None, help="random, toward_neighbour, toward_wall (default: all)")
     ap.add_argument("--scenario-options", type=json.loads, default=None, metavar="JSON",
@@ -189,13 +223,20 @@ def main(argv=None) -> int:
                     help="largest overlap accepted (a negative value flags every step: checks the checker)")
     ap.add_argument("--json", default=None, help="write the summary here as JSON")
     args = ap.parse_args(argv)
-    if args.agent_steps < 1:
-        raise SystemExit("error: --agent-steps must be >= 1")
+    pressure = args.agent_steps if args.pressure_agent_steps is None else args.pressure_agent_steps
+    if args.agent_steps < 0 or pressure < 0 or args.agent_steps + pressure < 1:
+        raise SystemExit("error: --agent-steps and --pressure-agent-steps must be >= 0, one of them >= 1")
+    from crowd_env.reliability import PRESSURE_CASES
+
+    known = [c.name for c in PRESSURE_CASES]
+    unknown = sorted(set(args.pressure_cases or ()) - set(known))
+    if unknown:
+        raise SystemExit(f"error: unknown pressure case(s) {unknown}; known: {known}")
     r = soak(args.agent_steps, scenarios=args.scenarios, modes=args.modes, seed=args.seed, max_steps=args.max_steps,
              frame_skip=args.frame_skip, fixed_start=args.fixed_start, trace_memory=args.tracemalloc,
              memory_tolerance_mib=args.memory_tolerance_mib, overlap_tolerance_m=args.overlap_tolerance_m,
-             scenario_options=args.scenario_options,
-             progress=lambda s: print(s, flush=True))
+             scenario_options=args.scenario_options, pressure_agent_steps=pressure,
+             pressure_cases=args.pressure_cases, progress=lambda s: print(s, flush=True))
     print(format_summary(r))
     if args.json:
         with open(args.json, "w") as fh:
