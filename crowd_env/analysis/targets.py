@@ -111,6 +111,25 @@ def required_cases(widths_m=WIDTHS_M, capacity_widths_m=CAPACITY_WIDTHS_M) -> li
     return cases + [(float(b), CAPACITY_SIZES[1]) for b in capacity_widths_m]
 
 
+def _by_case(records) -> dict:
+    """Records grouped by (b rounded to 1 µm, N)."""
+    groups: dict = {}
+    for r in records:
+        groups.setdefault((round(float(r["width_m"]), 6), int(r["n_pedestrians"])), []).append(r)
+    return groups
+
+
+def _seed_mean(groups: dict, b: float, n: int, key: str) -> float:
+    """Mean of ``key`` over the finite values of case (b, N); nan when there is none. A record with the
+    key set to None (a figure never measured) raises naming the case."""
+    values = [r.get(key, np.nan) for r in groups.get((b, n), [])]
+    if any(v is None for v in values):
+        raise CalibrationError(f"a run at b = {b:g} m, N = {n} has no {key!r}")
+    v = np.asarray(values, dtype=np.float64)
+    v = v[np.isfinite(v)]
+    return float(v.mean()) if v.size else float("nan")
+
+
 def _complete(record: dict) -> bool:
     if "complete" in record:
         return bool(record["complete"])
@@ -132,9 +151,7 @@ def target_error(records: list, *, weights: TargetWeights | None = None,
         raise CalibrationError("no run records given")
     n_incomplete = sum(not _complete(r) for r in records)
     n_stalled = sum(bool(r.get("stalled", False)) for r in records)
-    groups: dict = {}
-    for r in records:
-        groups.setdefault((round(float(r["width_m"]), 6), int(r["n_pedestrians"])), []).append(r)
+    groups = _by_case(records)
     widths = sorted(b for (b, n) in groups if n == REFERENCE_SIZE)
     if not widths:
         raise CalibrationError(f"no N = {REFERENCE_SIZE} runs: the objective needs them at every width")
@@ -147,12 +164,7 @@ def target_error(records: list, *, weights: TargetWeights | None = None,
                            n_stalled, True, {}, {})
 
     def mean(b, n, key):
-        values = [r.get(key, np.nan) for r in groups[(b, n)]]
-        if any(v is None for v in values):
-            raise CalibrationError(f"a run at b = {b:g} m, N = {n} has no {key!r}")
-        v = np.asarray(values, dtype=np.float64)
-        v = v[np.isfinite(v)]
-        return float(v.mean()) if v.size else float("nan")
+        return _seed_mean(groups, b, n, key)
 
     figures = {}
     for (b, n) in groups:
@@ -208,14 +220,10 @@ def target_table(records: list, *, reference: ExperimentTable | None = None) -> 
     worst_gap = min(float(r["min_gap_m"]) for r in records)
     rows.append({"target": "smallest gap (overlap)", "figure": f"{worst_gap * 1e3:+.2f} mm", "criterion": ">= -1 mm",
                  "passed": worst_gap >= -1e-3})
-    groups: dict = {}
-    for r in complete:
-        groups.setdefault((round(float(r["width_m"]), 6), int(r["n_pedestrians"])), []).append(r)
+    groups = _by_case(complete)
 
     def mean(b, n, key):
-        v = np.array([r[key] for r in groups.get((b, n), [])], dtype=np.float64)
-        v = v[np.isfinite(v)]
-        return float(v.mean()) if v.size else float("nan")
+        return _seed_mean(groups, b, n, key)
 
     widths = sorted(b for (b, n) in groups if n == REFERENCE_SIZE)
     errors = []
