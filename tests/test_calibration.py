@@ -360,3 +360,33 @@ def test_process_backend_and_powell_give_the_serial_numbers(tmp_path):
     res = optimise(tmp_path / "s", config(), ["A"], WIDTHS, [60], [0], SerialBackend(), x0={"A": 200.0},
                    method="Powell", max_evaluations=40, run_fn=FakeRun(b0=0.08), verbose=False)
     assert res.best["A"] == pytest.approx(400.0, rel=0.05)
+
+
+# --- landscape along one parameter -------------------------------------------------------------------------
+
+def test_landscape_is_the_optimisers_objective_along_a_line_and_shares_its_cache(tmp_path):
+    from crowd_env.calibrate.landscape import landscape, write_landscape
+    from crowd_env.calibrate.optimize import PointEvaluator
+
+    fake = FakeRun(a0=400.0, b0=0.05)
+    cfg = config(social_range_m=0.05)  # B fixed at the fake's optimum: ε_T(A) = mean((1 + 0.5 ln²(A/400))·... - 1)²
+    ev = PointEvaluator(tmp_path, cfg, WIDTHS, [60], [0], SerialBackend(), run_fn=fake)
+    a_values = [200.0, 400.0, 800.0]
+    entries = landscape(ev, "A", a_values, verbose=False)
+    dev = [0.5 * math.log(a / 400.0) ** 2 for a in a_values]
+    assert [e["epsilon_total"] for e in entries] == pytest.approx([d ** 2 for d in dev], abs=1e-12)
+    assert entries[1]["objective"] == pytest.approx(0.0, abs=1e-12)
+    calls = fake.calls
+    # the optimiser in the same folder evaluates the same point from the cache: no new run
+    again = PointEvaluator(tmp_path, cfg, WIDTHS, [60], [0], SerialBackend(), run_fn=fake)
+    assert again({"A": 800.0}) == entries[2] and fake.calls == calls and again.n_computed == 0
+    paths = write_landscape("A", entries, tmp_path, figure=True)
+    rows = paths[0].read_text().splitlines()
+    assert rows[0].startswith("A,objective,epsilon_total") and len(rows) == 4
+    assert paths[1].stat().st_size > 0
+    for values, msg in [(["x"], "could not convert|outside"), ([1e9], "outside its admissible"), ([], "at least one"),
+                        ([300.0, 300.0], "repeated")]:
+        with pytest.raises((CalibrationError, ValueError), match=msg):
+            landscape(ev, "A", values, verbose=False)
+    with pytest.raises(CalibrationError, match="unknown parameter"):
+        landscape(ev, "C", [1.0], verbose=False)

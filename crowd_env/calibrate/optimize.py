@@ -147,6 +147,67 @@ class EvaluationCache:
         self.entries[self.key(entry["values"])] = entry
 
 
+class PointEvaluator:
+    """The objective at one parameter point, from stored runs or new ones: one implementation for the
+    optimiser and the landscape (:mod:`crowd_env.calibrate.landscape`).
+
+    ``values``: names of :data:`FREE_PARAMETERS` → natural values, set on top of ``config``'s model. The
+    entry (objective, ε_T, terms or ε_j, stall counts) is cached in ``OUT/optimise/evaluations.jsonl``
+    under the set-up hash; a point whose runs raised is not cached (retried next time).
+    """
+
+    def __init__(self, out, config: dict, widths_m, sizes, seeds, backend, *, reference: ExperimentTable | None = None,
+                 range_weight: float = 0.0, run_fn=run_task, incomplete: str = "bound", objective: str = "epsilon",
+                 weights: TargetWeights | None = None):
+        if incomplete not in INCOMPLETE_RULES:
+            raise CalibrationError(f"incomplete must be one of {INCOMPLETE_RULES}, got {incomplete!r}")
+        if objective not in OBJECTIVES:
+            raise CalibrationError(f"unknown objective {objective!r}; choose one of {OBJECTIVES}")
+        self.widths_m, sizes, self.seeds = check_run_plan(widths_m, sizes, seeds)
+        if objective == "targets":
+            sizes = sorted({n for _, n in required_cases(self.widths_m)})
+        self.sizes, self.config, self.backend, self.run_fn = sizes, config, backend, run_fn
+        self.reference, self.range_weight, self.incomplete = reference, range_weight, incomplete
+        self.objective, self.weights = objective, weights
+        self.store = RunStore(out, config)
+        self.cache = EvaluationCache(Path(out) / "optimise" / "evaluations.jsonl",
+                                     _setup_hash(self.widths_m, sizes, self.seeds, reference, range_weight, incomplete,
+                                                 objective, weights))
+        self.n_computed = 0  # points that needed runs in this object's life
+
+    def tasks(self, values: dict) -> list:
+        model = {FREE_PARAMETERS[n].field: v for n, v in values.items() if FREE_PARAMETERS[n].target == "model"}
+        ped = {FREE_PARAMETERS[n].field: v for n, v in values.items() if FREE_PARAMETERS[n].target == "pedestrian"}
+        if self.objective == "targets":
+            return target_tasks(self.config, model, ped, self.widths_m, self.seeds)
+        return point_tasks(self.config, model, ped, self.widths_m, self.sizes, self.seeds)
+
+    def __call__(self, values: dict, desc: str = "evaluation") -> dict:
+        unknown = sorted(set(values) - set(FREE_PARAMETERS))
+        if unknown:
+            raise CalibrationError(f"unknown parameter(s) {unknown}; choose from {list(FREE_PARAMETERS)}")
+        values = {n: canonical(v) for n, v in values.items()}
+        entry = self.cache.get(values)
+        if entry is not None:
+            return entry
+        tasks = self.tasks(values)
+        failed = execute(tasks, self.store, self.backend, self.run_fn, desc=desc, leave=False)
+        self.n_computed += 1
+        if failed:
+            return {"values": values, "objective": FAILED_OBJECTIVE, "epsilon_total": float("nan"), "failed_runs": failed}
+        records = [self.store.load(t) for t in tasks]
+        if self.objective == "targets":
+            entry = target_entry(values, target_error(records, weights=self.weights, reference=self.reference))
+        else:
+            e = point_error_of(tasks, records, self.reference, self.range_weight, self.incomplete)
+            entry = {"values": values, "objective": e.objective, "epsilon_total": e.epsilon_total,
+                     "epsilon_by_group": {str(k): v for k, v in e.epsilon_by_group.items()},
+                     "range_penalty": e.range_penalty, "n_undefined": e.n_undefined,
+                     "n_stalled": n_stalled_runs(records)}  # > 0: a failed point (grid.STALLED_OBJECTIVE)
+        self.cache.add(entry)
+        return self.cache.get(values)  # the stored form, as a later call reads it
+
+
 def optimise(out, config: dict, free, widths_m, sizes, seeds, backend, *, x0: dict | None = None,
              bounds: dict | None = None, method: str = "Nelder-Mead", max_evaluations: int = 60,
              xatol: float = 0.02, fatol: float = 1e-4, reference: ExperimentTable | None = None,
@@ -166,49 +227,18 @@ def optimise(out, config: dict, free, widths_m, sizes, seeds, backend, *, x0: di
     if isinstance(max_evaluations, bool) or int(max_evaluations) != max_evaluations or max_evaluations < 1:
         raise CalibrationError(f"max_evaluations must be a positive integer, got {max_evaluations!r}")
     names, lo, hi, z0 = _check_free(free, x0, bounds)
-    if incomplete not in INCOMPLETE_RULES:
-        raise CalibrationError(f"incomplete must be one of {INCOMPLETE_RULES}, got {incomplete!r}")
-    if objective not in OBJECTIVES:
-        raise CalibrationError(f"unknown objective {objective!r}; choose one of {OBJECTIVES}")
-    widths_m, sizes, seeds = check_run_plan(widths_m, sizes, seeds)
-    if objective == "targets":
-        sizes = sorted({n for _, n in required_cases(widths_m)})
-    store = RunStore(out, config)
-    cache = EvaluationCache(Path(out) / "optimise" / "evaluations.jsonl",
-                            _setup_hash(widths_m, sizes, seeds, reference, range_weight, incomplete, objective, weights))
+    evaluator = PointEvaluator(out, config, widths_m, sizes, seeds, backend, reference=reference,
+                               range_weight=range_weight, run_fn=run_fn, incomplete=incomplete, objective=objective,
+                               weights=weights)
     history = []
-    n_computed = 0
 
     def values_of(z) -> dict:
         z = np.clip(z, lo, hi)
         return {n: canonical(math.exp(v) if FREE_PARAMETERS[n].log else v) for n, v in zip(names, z)}
 
     def evaluate(z) -> float:
-        nonlocal n_computed
         values = values_of(z)
-        entry = cache.get(values)
-        if entry is None:
-            model = {FREE_PARAMETERS[n].field: v for n, v in values.items() if FREE_PARAMETERS[n].target == "model"}
-            ped = {FREE_PARAMETERS[n].field: v for n, v in values.items() if FREE_PARAMETERS[n].target == "pedestrian"}
-            tasks = (target_tasks(config, model, ped, widths_m, seeds) if objective == "targets"
-                     else point_tasks(config, model, ped, widths_m, sizes, seeds))
-            failed = execute(tasks, store, backend, run_fn, desc=f"evaluation {len(history) + 1}", leave=False)
-            n_computed += 1
-            if failed:
-                entry = {"values": values, "objective": FAILED_OBJECTIVE, "epsilon_total": float("nan"),
-                         "failed_runs": failed}
-            elif objective == "targets":
-                entry = target_entry(values, target_error([store.load(t) for t in tasks], weights=weights,
-                                                          reference=reference))
-                cache.add(entry)
-            else:
-                records = [store.load(t) for t in tasks]
-                e = point_error_of(tasks, records, reference, range_weight, incomplete)
-                entry = {"values": values, "objective": e.objective, "epsilon_total": e.epsilon_total,
-                         "epsilon_by_group": {str(k): v for k, v in e.epsilon_by_group.items()},
-                         "range_penalty": e.range_penalty, "n_undefined": e.n_undefined,
-                         "n_stalled": n_stalled_runs(records)}  # > 0: a failed point (grid.STALLED_OBJECTIVE)
-                cache.add(entry)
+        entry = evaluator(values, desc=f"evaluation {len(history) + 1}")
         history.append(entry)
         if verbose:
             best = min(h["objective"] for h in history)
@@ -230,7 +260,7 @@ def optimise(out, config: dict, free, widths_m, sizes, seeds, backend, *, x0: di
     res = minimize(evaluate, z0, method=method, bounds=list(zip(lo, hi)), options=options)
     k = int(np.argmin([h["objective"] for h in history]))
     result = OptimResult(history[k]["values"], float(history[k]["objective"]), float(history[k]["epsilon_total"]),
-                         len(history), n_computed, history, str(res.message))
+                         len(history), evaluator.n_computed, history, str(res.message))
     write_optimum(result, Path(out) / "optimise", names, method)
     return result
 

@@ -7,6 +7,9 @@ reproduction's (b, N) runs × seeds; writes ``surface.csv``, ``valley.csv`` (for
 A = 1501 exp(-7.98 B)) and ``fig10_epsilon_surface.png``.
 ``optimize``: Nelder–Mead (or Powell) on log-parameters over A, B and optionally lambda, tau,
 speed_mean, speed_std, with the same seeds for every candidate; writes ``optimise/optimum.json``.
+``targets``: every preset against every target of the experiment (``targets.json``).
+``landscape``: the objective along one parameter, the others fixed by the preset (e.g. ε_T in λ);
+writes ``landscape_<param>.csv`` and ``.png``.
 
 Runs execute as single Ray tasks (A, B, b, N, seed): locally on all cores by default, on a running
 cluster with ``--address HOST:PORT``; ``--backend process|serial`` without Ray. Every finished run is
@@ -110,7 +113,40 @@ def build_parser() -> argparse.ArgumentParser:
                              "--widths and N = 120 at 1.0 and 1.2 m, --seeds seeds each)")
     tp.add_argument("--presets", nargs="+", choices=sorted(PRESETS), default=sorted(PRESETS),
                     help="presets to compare (default all); runs go to OUT/<preset>/ (resumable)")
+    lp = sub.add_parser("landscape", parents=[common],
+                        help="the objective along one parameter, the others fixed by the preset (e.g. ε_T in λ)")
+    lp.add_argument("--vary", required=True, choices=["A", "B", "lambda", "tau", "speed_mean", "speed_std"],
+                    help="the parameter to vary")
+    lp.add_argument("--values", type=float, nargs="+", required=True, help="its values (natural units)")
+    lp.add_argument("--objective", choices=["epsilon", "targets"], default="targets",
+                    help="as optimize (default 'targets': the figures of every target are kept per value)")
+    lp.add_argument("--no-figures", action="store_true")
     return ap
+
+
+def run_landscape(args) -> int:
+    """``crowd-calibrate landscape``: :func:`crowd_env.calibrate.landscape.landscape` and its outputs."""
+    from crowd_env.calibrate import base_config, make_backend
+    from crowd_env.calibrate.landscape import landscape, write_landscape
+    from crowd_env.calibrate.optimize import PointEvaluator
+
+    params = model_params_from_args(args)
+    cfg = config_of(args, params)
+    config = base_config(cfg["geometry"], params, cfg["max_time_s"])
+    seeds = list(range(args.first_seed, args.first_seed + args.seeds)) if args.seeds >= 1 else []
+    with make_backend(args.backend, address=args.address, jobs=args.jobs, connect_timeout_s=args.connect_timeout) as be:
+        evaluator = PointEvaluator(args.out, config, args.widths, args.sizes, seeds, be,
+                                   reference=_reference(args.reference), range_weight=args.range_weight,
+                                   incomplete=args.incomplete, objective=args.objective)
+        entries = landscape(evaluator, args.vary, args.values)
+    print(f"{args.vary:>10}  {'objective':>10}  {'ε_T':>10}  failed")
+    for e in entries:
+        failed = bool(e.get("failed_point") or e.get("n_stalled") or e.get("failed_runs"))
+        print(f"{e['values'][args.vary]:>10.4g}  {e['objective']:>10.4g}  {e['epsilon_total']:>10.4g}  "
+              f"{'yes' if failed else 'no'}")
+    for p in write_landscape(args.vary, entries, args.out, figure=not args.no_figures):
+        print(f"wrote {p}")
+    return 0
 
 
 def run_targets(args) -> int:
@@ -193,6 +229,8 @@ def _grid_axes(args):
 def run(args) -> int:
     if args.mode == "targets":
         return run_targets(args)
+    if args.mode == "landscape":
+        return run_landscape(args)
     from crowd_env.calibrate import (RunStore, analyse_surface, base_config, evaluate_grid, make_backend, optimise,
                                      write_grid_outputs)
     from crowd_env.calibrate.grid import check_run_plan
