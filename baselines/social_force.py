@@ -79,7 +79,7 @@ class SocialForceAgent:
         pos = st.position_m[idx]
         radius = st.radius_m[idx]
         pairs = sim.neighbor_pairs(2.0 * float(radius.max()) + p.social_cutoff_m) if idx.size else np.zeros((0, 2), np.int64)
-        return social_repulsion(pos, radius, e_d, pairs, sim.walls, sim._wall_owner, p)
+        return social_repulsion(pos, radius, e_d, pairs, sim.walls, sim.wall_owner, p)
 
     def __call__(self, sim):
         st = sim.state
@@ -91,6 +91,6 @@ class SocialForceAgent:
         pairs = sim.neighbor_pairs(2.0 * float(st.radius_m[idx].max()) + p.social_cutoff_m) if p.social_forces \
             else np.zeros((0, 2), np.int64)
         return baseline_intents(st.position_m, st.radius_m, idx, e_d, st.desired_speed_m_s, st.tau_s, st.mass_kg,
-                                st.heading_rad, pairs, sim.walls, sim._wall_owner, p.social_forces,
+                                st.heading_rad, pairs, sim.walls, sim.wall_owner, p.social_forces,
                                 float(p.social_strength_n), float(p.social_range_m), float(p.social_anisotropy),
                                 float(p.social_cutoff_m), float(p.wall_strength_n), float(p.wall_range_m))

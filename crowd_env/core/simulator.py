@@ -186,6 +186,12 @@ class Simulator:
         """The previous step (or this one) needed a projection too large for the dense path."""
         return self._large_step >= self.step_count - 1
 
+    @property
+    def wall_owner(self) -> np.ndarray:
+        """Shared wall vertices, :func:`~crowd_env.core.segments.endpoint_owners` of :attr:`walls`: what
+        wall contacts and wall repulsion need so that a vertex shared by segments counts once."""
+        return self._wall_owner
+
     # ------------------------------------------------------------------ neighbours
     @property
     def active_index(self) -> np.ndarray:
