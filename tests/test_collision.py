@@ -16,7 +16,7 @@ from crowd_env.core.collision import (STATUS_OK, lcp_bpp, project_gaps, project_
                                       project_gaps_sparse, resolve_impacts, solve_rows, solve_rows_qp,
                                       solve_rows_sparse)
 from crowd_env.core.contacts import LINK, NORMAL, TANGENT, detect_contacts, rows_to_dense
-from crowd_env.core.forces import wall_repulsion
+from crowd_env.walking.social_force import wall_repulsion
 from crowd_env.core.reference import random_cluster, solve_rows_cvxpy
 from crowd_env.core.segments import as_segments, endpoint_owners, wall_proximity
 

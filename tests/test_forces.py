@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from crowd_env.core.forces import (social_forces, social_forces_dense_reference, social_repulsion,
-                                   wall_repulsion)
+from crowd_env.walking.social_force import (social_forces, social_forces_dense_reference, social_repulsion,
+                                            wall_repulsion)
 from crowd_env.core.params import ModelParams
 from crowd_env.core.segments import as_segments, endpoint_owners
 

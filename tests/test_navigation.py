@@ -4,7 +4,7 @@ import pytest
 from shapely.geometry import box
 
 from crowd_env.core.geometry import Geometry
-from crowd_env.core.navigation import NavigationField
+from crowd_env.walking.navigation import NavigationField
 from crowd_env.core.segments import GeometryError
 
 H = 0.05

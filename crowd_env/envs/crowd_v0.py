@@ -16,7 +16,7 @@ Agents
     Every pedestrian of the scenario has a stable id ``"ped_<i>"`` (``i`` = its index in the
     scenario). The ``controlled`` option picks which of them are agents (``possible_agents``); the
     others are driven each simulator step by the ``background_policy`` (default: the calibrated
-    eikonal + social-force agent, :class:`baselines.social_force.SocialForceAgent`).
+    eikonal + social-force agent, :class:`crowd_env.walking.agent.SocialForceAgent`).
 
 Actions
     A velocity intent ``(2,)`` in m/s (world frame) in ``Box(-a_max, a_max)``, ``a_max =
@@ -69,7 +69,7 @@ Equivalence
 
 Decision interval
     ``frame_skip × params.dt_s``: 0.01 s by default (``frame_skip=1``); the registered Gymnasium ids and
-    ``scripts/train_ppo.py`` use ``frame_skip=10`` (0.1 s).
+    ``crowd-train-ppo`` use ``frame_skip=10`` (0.1 s).
 """
 from __future__ import annotations
 
@@ -85,8 +85,9 @@ from pettingzoo.utils.conversions import parallel_to_aec
 from ..core.params import ModelParams, ParameterError
 from ..core.presets import DEFAULT_PRESET, get_preset
 from ..core.simulator import Simulator
-from ..core.stepper import direction_angles_rad
+from ..core.angles import direction_angles_rad
 from ..scenarios import Scenario, make_scenario, scenario_options as _scenario_option_defaults
+from ..walking.agent import SocialForceAgent
 from .observations import OBSERVATION_FIELDS, ObservationBuilder
 from .rewards import DefaultReward
 
@@ -111,16 +112,8 @@ def agent_id(index: int) -> str:
 
 
 def default_background_policy(scenario):
-    """The calibrated eikonal + social-force agent for ``scenario``.
-
-    This is the one place where ``crowd_env`` reaches into ``baselines``, lazily, so that importing
-    ``crowd_env`` never imports ``baselines`` (the dependency stays one-way).
-    """
-    try:
-        from baselines.social_force import SocialForceAgent
-    except ImportError as exc:  # pragma: no cover - baselines ships with the package
-        raise ImportError("the default background policy is baselines.social_force.SocialForceAgent, which "
-                          "could not be imported; pass background_policy=... explicitly") from exc
+    """The calibrated eikonal + social-force agent for ``scenario``
+    (:class:`crowd_env.walking.agent.SocialForceAgent`, which ``baselines.social_force`` names for users)."""
     return SocialForceAgent(scenario.navigation())
 
 

@@ -17,7 +17,7 @@ import shapely
 from scipy.spatial import cKDTree
 
 from ..core.geometry import Geometry, as_polygon
-from ..core.navigation import DestinationNavigation, NavigationField
+from ..walking.navigation import DestinationNavigation, NavigationField
 from ..core.params import ModelParams, PedestrianDefaults
 from ..core.simulator import Simulator
 from ..core.state import CrowdState, first_overlap
@@ -105,12 +105,12 @@ class Scenario:
     ...). ``destination`` None: everybody walks to the nearest exit and leaves through any (the
     paper's setting). Otherwise (N,) exit indices or names (-1 = nearest/any exit): pedestrian i
     follows the eikonal field of its own exit (Eq. 11-13 with T = 0 on that exit only, see
-    :class:`~crowd_env.core.navigation.DestinationNavigation`) and leaves only through it; other exits
+    :class:`~crowd_env.walking.navigation.DestinationNavigation`) and leaves only through it; other exits
     are floor for it, so every exit that is somebody's "other" exit must be closed by walls (lie
     inside the walkable area without removing any wall), or pedestrians could walk out through it.
     ``navigation_clearance_m``: the eikonal field is solved on the walkable area minus this band
     along the walls (0: the paper's point field; the radius: the disk centres' configuration space;
-    see :class:`~crowd_env.core.navigation.NavigationField`). Validated on construction.
+    see :class:`~crowd_env.walking.navigation.NavigationField`). Validated on construction.
     """
 
     geometry: Geometry

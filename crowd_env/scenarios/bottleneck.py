@@ -42,7 +42,7 @@ from shapely.geometry import Polygon, box
 from shapely.ops import unary_union
 
 from ..core.geometry import Geometry
-from ..core.navigation import NavigationField
+from ..walking.navigation import NavigationField
 from ..core.segments import GeometryError
 from .base import Scenario, ScenarioError, check_clearance, check_positive as _positive, place_pedestrians, register_scenario
 
@@ -53,7 +53,7 @@ __all__ = ["seyfried_bottleneck", "bottleneck_geometry", "BottleneckScenario"]
 class BottleneckScenario(Scenario):
     """The Seyfried bottleneck :class:`Scenario` (kept as a type for existing code): its
     ``navigation_clearance_m`` (a field of every Scenario) erodes the walkable area by this distance from
-    the walls before solving Eq. 11 (see :class:`~crowd_env.core.navigation.NavigationField`,
+    the walls before solving Eq. 11 (see :class:`~crowd_env.walking.navigation.NavigationField`,
     ``clearance_m``); 0 gives the paper's literal point field.
     """
 

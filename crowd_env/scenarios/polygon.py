@@ -28,7 +28,7 @@ from shapely.geometry import LineString, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from ..core.geometry import Geometry, GeometryError, as_polygon, ring_coordinates
-from ..core.navigation import NavigationField
+from ..walking.navigation import NavigationField
 from .base import (Scenario, ScenarioError, check_clearance, check_count, check_positive, door_exit,
                    place_pedestrians, register_scenario)
 

@@ -1,43 +1,11 @@
-"""Eikonal navigation: travel time T to the nearest exit and the desired direction (Eq. 11-13).
+"""Eikonal navigation (Kabalan et al. 2016, Eq. 11-13): travel time T to the exits and the desired direction.
 
-‖∇T‖ = 1/V in the walkable area (Eq. 11), T = 0 on the exits (Eq. 12), V = 0 in walls and obstacles
-(masked grid nodes), solved once per geometry with scikit-fmm's fast marching; the desired direction
-is e_d = -∇T / ‖∇T‖ (Eq. 13), sampled at arbitrary points by bilinear interpolation in a compiled kernel.
-
-Grid conventions and how the field is completed outside the walkable area:
-
-- nodes on the boundary of the walkable area are walkable; the exit boundary is located with sub-cell
-  accuracy (φ is the signed distance to the exit boundary in the nodes next to it);
-- node directions use central differences of T where both axis neighbours are walkable, one-sided
-  differences next to a masked neighbour (so they never mix in wall values) and the steeper
-  descending side at a ridge where T is a local maximum along an axis; at a node next to a masked
-  neighbour the component pointing into it is dropped (a geodesic never crosses a wall), so that
-  directions sampled within a cell of a wall run along it instead of into it;
-- inside an exit T = 0 and the direction is that of the nearest walkable node outside the exit (the
-  direction the pedestrian entered with: "keep walking through");
-- masked nodes (walls, obstacles, padding) take the direction of the nearest walkable node and
-  T_nearest + distance / V, so interpolation within one cell of a wall is sensible and never
-  mixes in undefined values;
-- walkable nodes that no exit can reach have T = inf; points sampled there get T = inf and a NaN
-  direction (:meth:`NavigationField.check_reachable` raises for them);
-- points outside the grid (the geometry's bounds plus two cells) raise :class:`GeometryError`.
-
-Destinations (``exits``): by default T is the travel time to the nearest of all exits (Eq. 12 with the
-union of the exits). ``exits=(k, ...)`` solves Eq. 11-13 with T = 0 on those exits only; the other
-exits are then ordinary floor. :class:`DestinationNavigation` combines such fields, one per
-destination, and answers for each pedestrian with the field of its own destination.
-
-Configuration space (``clearance_m``): pedestrians are disks, so their centres can only reach points
-at least their radius r from every wall. Computed for points (``clearance_m = 0``, the paper's literal
-Eq. 11-13), the geodesics hug the walls and pass through reflex corners, and near the entrance of a
-bottleneck e_d points at the corner vertex, which a disk centre can never reach: a disk beside the
-entrance is steered into the corner instead of into the opening. With ``clearance_m = r`` the field is
-solved on the walkable area eroded by r (the free configuration space of a disk centre, V = 0 within r
-of a wall, the standard treatment of finite-size agents in floor-field and eikonal navigation, e.g.
-Kretz 2009, JuPedSim's "distance to wall" floor fields): geodesics then wrap the corners at distance r
-and e_d beside an opening points into the part of it a centre can use. Exits are not eroded from
-their open sides (only wall distance counts). Nodes in the eroded band are masked and completed as
-above (nearest free node's direction), so sampling a centre touching a wall stays well defined.
+‖∇T‖ = 1/V in the walkable area (Eq. 11), T = 0 on the exits (Eq. 12), solved once per geometry with
+scikit-fmm's fast marching; e_d = -∇T / ‖∇T‖ (Eq. 13), sampled at any point by bilinear interpolation
+in a compiled kernel. :class:`NavigationField` is one field (T to the nearest exit, or to chosen exits)
+and states its grid conventions; :class:`DestinationNavigation` gives each pedestrian the field of its
+own destination. ``clearance_m`` solves Eq. 11 on the free configuration space of a disk centre (the
+walkable area eroded by the radius) instead of for points (the paper's literal field, ``clearance_m = 0``).
 """
 from __future__ import annotations
 
@@ -48,8 +16,8 @@ import numpy as np
 import shapely
 from scipy import ndimage
 
-from .geometry import Geometry
-from .segments import GeometryError
+from ..core.geometry import Geometry
+from ..core.segments import GeometryError
 
 __all__ = ["NavigationField", "DestinationNavigation", "GeometryError"]
 
@@ -170,6 +138,41 @@ class NavigationField:
     distance of a wall (configuration space of disk centres; use the pedestrians' radius; 0 = points,
     the paper's literal Eq. 11-13). ``exits``: indices into ``geometry.exits`` of the exits where T = 0
     (default None: all of them, i.e. T to the nearest exit). Built once per geometry; see :meth:`cached`.
+
+    Grid conventions and how the field is completed outside the walkable area:
+
+    - nodes on the boundary of the walkable area are walkable; the exit boundary is located with sub-cell
+      accuracy (φ is the signed distance to the exit boundary in the nodes next to it);
+    - node directions use central differences of T where both axis neighbours are walkable, one-sided
+      differences next to a masked neighbour (so they never mix in wall values) and the steeper
+      descending side at a ridge where T is a local maximum along an axis; at a node next to a masked
+      neighbour the component pointing into it is dropped (a geodesic never crosses a wall), so that
+      directions sampled within a cell of a wall run along it instead of into it;
+    - inside an exit T = 0 and the direction is that of the nearest walkable node outside the exit (the
+      direction the pedestrian entered with: "keep walking through");
+    - masked nodes (walls, obstacles, padding) take the direction of the nearest walkable node and
+      T_nearest + distance / V, so interpolation within one cell of a wall is sensible and never
+      mixes in undefined values;
+    - walkable nodes that no exit can reach have T = inf; points sampled there get T = inf and a NaN
+      direction (:meth:`NavigationField.check_reachable` raises for them);
+    - points outside the grid (the geometry's bounds plus two cells) raise :class:`GeometryError`.
+
+    Destinations (``exits``): by default T is the travel time to the nearest of all exits (Eq. 12 with the
+    union of the exits). ``exits=(k, ...)`` solves Eq. 11-13 with T = 0 on those exits only; the other
+    exits are then ordinary floor. :class:`DestinationNavigation` combines such fields, one per
+    destination, and answers for each pedestrian with the field of its own destination.
+
+    Configuration space (``clearance_m``): pedestrians are disks, so their centres can only reach points
+    at least their radius r from every wall. Computed for points (``clearance_m = 0``, the paper's literal
+    Eq. 11-13), the geodesics hug the walls and pass through reflex corners, and near the entrance of a
+    bottleneck e_d points at the corner vertex, which a disk centre can never reach: a disk beside the
+    entrance is steered into the corner instead of into the opening. With ``clearance_m = r`` the field is
+    solved on the walkable area eroded by r (the free configuration space of a disk centre, V = 0 within r
+    of a wall, the standard treatment of finite-size agents in floor-field and eikonal navigation, e.g.
+    Kretz 2009, JuPedSim's "distance to wall" floor fields): geodesics then wrap the corners at distance r
+    and e_d beside an opening points into the part of it a centre can use. Exits are not eroded from
+    their open sides (only wall distance counts). Nodes in the eroded band are masked and completed as
+    above (nearest free node's direction), so sampling a centre touching a wall stays well defined.
     """
 
     per_pedestrian = False  # one field serves every pedestrian (see DestinationNavigation)

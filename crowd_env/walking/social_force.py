@@ -1,35 +1,31 @@
-"""Social repulsion between pedestrians and from walls (Kabalan et al. 2016, Eq. 16).
+"""Helbing's social repulsion with anisotropy (Kabalan et al. 2016, Eq. 16), between pedestrians and from walls.
 
 After Helbing, Farkas & Vicsek (2000), the force on pedestrian i from pedestrian j is
 
     f_ij = A exp((R_ij - d_ij) / B) · w_i(φ_ij) · n_ji,   w_i(φ) = λ + (1 - λ)(1 + cos φ) / 2,
 
 with R_ij = r_i + r_j, d_ij the centre distance, n_ji the unit vector from j to i and φ_ij the angle
-between i's desired direction e_d,i and the direction from i to j: a neighbour straight ahead counts
-fully, one straight behind with weight λ (λ = 1 is isotropic). The force on j from i uses j's own
-weight, so Newton's third law holds only for λ = 1. A wall acts the same way with R = r_i, d the
-distance to the wall's closest point and n the wall's normal into the pedestrian; its weight uses the
-direction from i to that point. Forces act at the centre (no torque).
+between i's desired direction e_d,i (Eq. 13) and the direction from i to j: a neighbour straight ahead
+counts fully, one straight behind with weight λ (λ = 1 is isotropic). The force on j uses j's own
+weight, so Newton's third law holds only for λ = 1. Forces act at the centre (no torque).
 
-Walls and the paper: Kabalan et al. define Eq. 16 between pedestrians only (R_ij = r_i + r_j; Section
-4.1.2 calibrates "the pedestrian-pedestrian repulsive force"; Table 2 has no wall parameters); in the
-paper walls act through the Frémond collisions alone (infinite-mass obstacles). The wall term here is
-Helbing, Farkas & Vicsek's (2000), with its own strength and range (``wall_social_strength_n``,
-``wall_social_range_m`` of :class:`~crowd_env.core.params.ModelParams`); ``wall_social_strength_n = 0``
-is the paper-literal model. With A = 790 N, B = 0.08 m it is a large force (a pedestrian 0.1 m from a
-wall feels 226 N, the driving force of an average walker m v_d / τ is 222 N); it is what slows
-pedestrians beside the bottleneck entrance.
+Walls: the paper defines Eq. 16 between pedestrians only (its walls act through the Frémond collisions
+alone); the wall term here is Helbing, Farkas & Vicsek's (2000), with R = r_i, d the distance to the
+wall's closest point, n the wall's normal into the pedestrian, and its own strength and range
+(``wall_social_strength_n``, ``wall_social_range_m`` of :class:`~crowd_env.core.params.ModelParams`;
+``wall_social_strength_n = 0`` is the paper-literal model).
 
-Neighbour pairs come from the simulator (the cell grid of :mod:`crowd_env.core.neighbors`); pedestrian/wall
-pairs from :func:`crowd_env.core.segments.wall_proximity`. Pairs whose surface gap exceeds
-``cutoff_m`` contribute nothing.
+Neighbour pairs come from the simulator's cell grid (:mod:`crowd_env.core.neighbors`), pedestrian/wall
+pairs from :func:`crowd_env.core.segments.wall_proximity`; pairs whose surface gap exceeds ``cutoff_m``
+contribute nothing. The simulator itself never calls this module: the calibrated agent
+(:mod:`crowd_env.walking.agent`) adds these forces to its velocity intent.
 """
 from __future__ import annotations
 
 import numba as nb
 import numpy as np
 
-from .segments import as_segments, closest_point_on_segment, wall_proximity
+from ..core.segments import as_segments, closest_point_on_segment, wall_proximity
 
 _TINY_M = 1e-12  # centre distances below this have no defined direction: the pair is skipped
 
