@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Wall time of one calibration point: the 15 bottleneck runs (5 widths × N = 20, 40, 60, one seed).
 
-Runs exactly what a point of ``scripts/calibrate.py grid`` or ``scripts/reproduce_bottleneck.py
+Runs exactly what a point of ``crowd-calibrate grid`` or ``crowd-bottleneck
 --seeds 1`` runs (the reproduction's ``run_one`` in a process pool of ``--jobs`` workers, default 2),
 into a fresh temporary folder, twice: the first pass also pays the worker processes' loading of the
 compiled kernels (warm numba cache), the second is the steady figure. Prints the elapsed wall time of

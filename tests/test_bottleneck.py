@@ -10,7 +10,7 @@ from crowd_env.analysis.density import force_balance_jam_density_per_m2
 from crowd_env.analysis.experiment import INSIDE_SPEED_RANGE_M_S, seyfried_2009
 from crowd_env.cli.reproduce_bottleneck import main as reproduce
 from crowd_env.core import ModelParams, Simulator
-from crowd_env.runner import run_scenario
+from crowd_env.experiments.runner import run_scenario
 from crowd_env.scenarios import make_scenario
 
 
@@ -145,7 +145,7 @@ def test_lone_pedestrian_is_not_steered_into_the_entrance_corner():
 
 
 def test_density_windows():
-    from crowd_env.runner import RunResult
+    from crowd_env.experiments.runner import RunResult
 
     times = np.linspace(10.0, 20.0, 11)  # passages every second
     series = np.concatenate([np.full(1500, 4.0), np.full(1500, 1.0)])  # dense until t = 15 s, then thin
@@ -162,7 +162,7 @@ def test_density_windows():
 
 
 def test_speed_and_stationary_flow_windows():
-    from crowd_env.runner import RunResult
+    from crowd_env.experiments.runner import RunResult
 
     # passages every 0.5 s for the first 8, then every 2 s (a draining tail); b = 0.8 m
     times = np.concatenate([np.arange(8) * 0.5 + 10.0, 13.5 + 2.0 * np.arange(1, 4)])

@@ -14,10 +14,13 @@ from crowd_env.analysis.calibration import (PAPER_VALLEY_FIT, CalibrationError, 
                                             check_grid_values,
                                             fit_exponential_valley, grid_axis, point_error, valley_of_minima)
 from crowd_env.analysis.experiment import ExperimentTable, seyfried_2009
-from crowd_env.calibrate import (RayBackend, RunStore, SerialBackend, analyse_surface, base_config, check_reachable,
-                                 evaluate_grid, make_backend, make_task, optimise, run_task, write_grid_outputs)
 from crowd_env.cli import calibrate as cli
-from crowd_env.cli.reproduce_bottleneck import GEOMETRY_OPTIONS, run_one
+from crowd_env.experiments.backends import RayBackend, SerialBackend, check_reachable, make_backend
+from crowd_env.experiments.bottleneck import GEOMETRY_OPTIONS, run_one
+from crowd_env.experiments.bottleneck import run_one as run_task
+from crowd_env.experiments.calibration import (analyse_surface, base_config, evaluate_grid, make_task, optimise,
+                                               write_grid_outputs)
+from crowd_env.experiments.store import RunStore
 from crowd_env.core.params import ModelParams
 
 GEOMETRY = {**{opt: d for _, (opt, d) in GEOMETRY_OPTIONS.items()}, "navigation_clearance_m": 0.0}
@@ -349,7 +352,7 @@ def test_cli_grid_end_to_end_and_errors(tmp_path, capsys):
 
 
 def test_process_backend_and_powell_give_the_serial_numbers(tmp_path):
-    from crowd_env.calibrate import ProcessBackend
+    from crowd_env.experiments.backends import ProcessBackend
 
     serial = evaluate_grid(tmp_path / "s", config(), [200.0, 400.0], [0.05], WIDTHS, [60], [0], SerialBackend(),
                            run_fn=FakeRun())
@@ -365,8 +368,8 @@ def test_process_backend_and_powell_give_the_serial_numbers(tmp_path):
 # --- landscape along one parameter -------------------------------------------------------------------------
 
 def test_landscape_is_the_optimisers_objective_along_a_line_and_shares_its_cache(tmp_path):
-    from crowd_env.calibrate.landscape import landscape, write_landscape
-    from crowd_env.calibrate.optimize import PointEvaluator
+    from crowd_env.experiments.calibration.landscape import landscape, write_landscape
+    from crowd_env.experiments.calibration.optimize import PointEvaluator
 
     fake = FakeRun(a0=400.0, b0=0.05)
     cfg = config(social_range_m=0.05)  # B fixed at the fake's optimum: ε_T(A) = mean((1 + 0.5 ln²(A/400))·... - 1)²

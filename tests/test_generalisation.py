@@ -9,6 +9,8 @@ import pytest
 
 from crowd_env.cli import generalisation as gen
 from crowd_env.cli import reproduce_bottleneck as rb
+from crowd_env.experiments.generalisation import geometry_config
+from crowd_env.experiments.store import config_hash
 
 
 def test_default_preset_follows_the_reproduction():
@@ -42,7 +44,7 @@ def test_tiny_grid_end_to_end_and_resumes(tmp_path, capsys):
     folder = out / "corridor5m_channel0.6m"
     config = json.loads((folder / "config.json").read_text())
     args = rb.build_parser().parse_args(["--corridor-width", "5", "--channel-length", "0.6", "--max-time", "60"])
-    assert rb.config_hash(config) == rb.config_hash(rb.config_of(args, rb.model_params_from_args(args)))
+    assert config_hash(config) == config_hash(rb.config_of(args, rb.model_params_from_args(args)))
     record = folder / "runs" / "b0.900_n8_s0.json"
     stamp = record.stat().st_mtime_ns
     assert gen.main(argv + ["--no-figures"]) == 0  # resumed: nothing rerun
@@ -74,7 +76,7 @@ def test_large_crowd_fits_a_narrow_corridor():
     """N = 250 in a 4 m corridor: 13 holding sections of 20, the corridor long enough for them."""
     from crowd_env.scenarios import make_scenario
 
-    config = gen.geometry_config(gen.build_parser().get_default("preset"), 4.0, 5.0, 300.0)
+    config = geometry_config(gen.build_parser().get_default("preset"), 4.0, 5.0, 300.0)
     sc = make_scenario("seyfried_bottleneck", width_m=2.5, n_pedestrians=250, seed=0, **config["geometry"])
     assert sc.n_pedestrians == 250 and len(sc.metadata["holding_sections"]) == 13
     assert sc.metadata["corridor_length_m"] == pytest.approx(2.24 + 13 * 1.515)

@@ -1,6 +1,6 @@
 """Overlaps under pressure (issue 20): the regression of the 1.53 mm overlap in the Seyfried jam, and the
-soak's high-pressure phase reduced to a few seconds (the full one: ``scripts/soak.py``, its pressure
-phase, ``crowd_env.reliability.pressure_soak``).
+soak's high-pressure phase reduced to a few seconds (the full one: ``crowd-soak``, its pressure
+phase, ``crowd_env.experiments.soak.pressure_soak``).
 """
 import importlib.util
 import pathlib
@@ -12,7 +12,7 @@ from scipy.spatial import cKDTree
 
 from baselines.social_force import SocialForceAgent
 from crowd_env.core import ModelParams, Simulator
-from crowd_env.reliability import OVERLAP_TOLERANCE_M, PRESSURE_CASES, InvariantChecker, pressure_soak
+from crowd_env.experiments.soak import OVERLAP_TOLERANCE_M, PRESSURE_CASES, InvariantChecker, pressure_soak
 from crowd_env.scenarios import make_scenario
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]

@@ -30,12 +30,13 @@ from crowd_env.analysis.flow import MeasurementLine, trajectory_crossings  # noq
 from crowd_env.analysis.recorder import TrajectoryRecorder  # noqa: E402
 from crowd_env.analysis.trajectories import (Trajectories, TrajectoryFormatError, export_run,  # noqa: E402
                                              fundamental_diagram_data, pedpy_measurement_area, pedpy_measurement_line,
-                                             pedpy_walkable_area, read_geometry, record_run, steps_per_frame,
+                                             pedpy_walkable_area, read_geometry, steps_per_frame,
                                              trajectory_frame_rate)
 from crowd_env.cli.fundamental_diagram import main as fundamental_diagram  # noqa: E402
 from crowd_env.cli.reproduce_bottleneck import main as reproduce  # noqa: E402
 from crowd_env.core import ModelParams  # noqa: E402
-from crowd_env.runner import run_scenario  # noqa: E402
+from crowd_env.experiments.recording import record_run  # noqa: E402
+from crowd_env.experiments.runner import run_scenario  # noqa: E402
 from crowd_env.scenarios import make_scenario  # noqa: E402
 
 FPS = 25.0

@@ -1,8 +1,8 @@
 """Reliability: a reduced soak, the invariant checker, memory, determinism across processes, resumable
 sweeps and training, and the bad-input catalogue (issue 8).
 
-The full soak (≥ 10⁶ agent-steps) is ``scripts/soak.py``; here a reduced one runs over every
-registered scenario (``crowd_env.reliability.distinct_scenarios``), so new scenarios are covered
+The full soak (≥ 10⁶ agent-steps) is ``crowd-soak``; here a reduced one runs over every
+registered scenario (``crowd_env.experiments.soak.distinct_scenarios``), so new scenarios are covered
 without editing this file.
 """
 import dataclasses
@@ -23,8 +23,9 @@ from shapely.geometry import MultiPolygon, box
 from crowd_env.core import CrowdState, ModelParams, Simulator
 from crowd_env.core.geometry import Geometry
 from crowd_env.envs import crowd_v0
-from crowd_env.reliability import (ACTION_MODES, InvariantChecker, MemoryProbe, distinct_scenarios, max_intent_toward,
-                                   trajectory_hashes)
+from crowd_env.experiments.soak import (ACTION_MODES, InvariantChecker, MemoryProbe, distinct_scenarios,
+                                        max_intent_toward, trajectory_hashes)
+from crowd_env.experiments.soak import soak as run_soak
 from crowd_env.scenarios import Scenario, make_scenario
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -48,11 +49,10 @@ def room_scenario(positions=((1.0, 2.0),), **kw):
 def test_reduced_soak_over_every_registered_scenario():
     """60k agent-steps (a few thousand per scenario and mode) with random and adversarial actions: no overlap,
     no energy created at impacts, everybody inside the walkable area; every registered scenario is covered."""
-    soak = _load_script("soak")
     t0 = time.perf_counter()
-    r = soak.soak(60_000, max_steps=150, memory_tolerance_mib=float("inf"), progress=lambda s: None)
+    r = run_soak(60_000, max_steps=150, memory_tolerance_mib=float("inf"), progress=lambda s: None)
     assert r["agent_steps"] >= 60_000
-    assert r["skipped_scenarios"] == {}, "add example values for these options to reliability.EXAMPLE_OPTIONS"
+    assert r["skipped_scenarios"] == {}, "add example values for these options to experiments.soak.EXAMPLE_OPTIONS"
     assert sorted(r["scenarios"]) == distinct_scenarios() and "seyfried_bottleneck" in r["scenarios"]
     assert set(r["modes"]) == set(ACTION_MODES)
     assert r["violations"] == {}, "\n".join(r["examples"])
@@ -64,7 +64,7 @@ def test_reduced_soak_over_every_registered_scenario():
 def test_soak_reports_violations_and_exit_status(monkeypatch):
     """A negative overlap tolerance flags every step: the soak counts it and the command exits 1."""
     soak = _load_script("soak")
-    r = soak.soak(300, scenarios=["seyfried_bottleneck"], modes=["random"], max_steps=5, overlap_tolerance_m=-1.0,
+    r = run_soak(300, scenarios=["seyfried_bottleneck"], modes=["random"], max_steps=5, overlap_tolerance_m=-1.0,
                   memory_tolerance_mib=float("inf"), progress=lambda s: None)
     assert r["violations"]["pedestrian_overlap"] == r["sim_steps"] > 0 and r["n_violations"] > 0
     assert any("pedestrian_overlap" in e for e in r["examples"])

@@ -13,7 +13,8 @@ from shapely.geometry import box
 
 import crowd_env  # noqa: F401  (registers the gymnasium ids)
 from baselines import SocialForceAgent
-from baselines.evaluate import ScenarioSpec, evaluate, run_episode
+from baselines.reference_policies import as_policy
+from crowd_env.experiments.evaluation import ScenarioSpec, evaluate, run_episode
 from crowd_env.core import ModelParams, Simulator
 from crowd_env.core.contacts import link_geometry
 from crowd_env.core.geometry import Geometry, GeometryError
@@ -339,12 +340,12 @@ def test_parallel_api_on_the_bidirectional_corridor():
 
 
 def test_evaluation_harness_takes_scenario_name_and_options():
-    res = run_episode("baseline", ScenarioSpec("corridor_bidirectional", {"n_per_direction": 3}), seed=0,
+    res = run_episode(as_policy("baseline"), ScenarioSpec("corridor_bidirectional", {"n_per_direction": 3}), seed=0,
                       max_time_s=30.0)
     assert res.scenario == "corridor_bidirectional(n_per_direction=3)"
     assert res.n_evacuated == res.n_pedestrians == 6 and np.isfinite(res.evacuation_time_s)
     assert res.min_gap_m > -1e-3
     assert np.isfinite(res.flow_per_s) and np.isnan(res.specific_flow_per_m_s)  # "middle" line, no width
     (room,) = evaluate(["baseline"], [("room_pillar", {"n_pedestrians": 8})], seeds=[1], max_time_s=30.0,
-                       progress=None)
+                       progress=None, resolve=as_policy)
     assert room.n_evacuated == 8 and room.specific_flow_per_m_s > 0  # J_s at the "door" line, b = door width

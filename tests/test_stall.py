@@ -1,4 +1,4 @@
-"""The stall rule (crowd_env.runner.StallDetector): a constructed clog stops early as stalled and reports no
+"""The stall rule (crowd_env.experiments.runner.StallDetector): a constructed clog stops early as stalled and reports no
 J_s; slow but moving Seyfried runs are never called stalled; incomplete runs reach every consumer (the
 reproduction's records and table, older stored records, the calibration's point errors)."""
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 from baselines import SocialForceAgent
 from crowd_env.core import ModelParams
 from crowd_env.core.presets import DEFAULT_PRESET, get_preset
-from crowd_env.runner import STALL_SPEED_M_S, STALL_WINDOW_S, RunResult, StallDetector, run_scenario
+from crowd_env.experiments.runner import STALL_SPEED_M_S, STALL_WINDOW_S, RunResult, StallDetector, run_scenario
 from crowd_env.scenarios import make_scenario
 from crowd_env.scenarios.bottleneck import BottleneckScenario, bottleneck_geometry
 
@@ -129,7 +129,8 @@ def _record(b, n, seed, js, complete=True, stalled=False, n_passages=None):
 
 
 def test_summary_means_over_complete_runs_and_counts_stalls(capsys):
-    from crowd_env.cli.reproduce_bottleneck import print_summary, summarise
+    from crowd_env.cli.reproduce_bottleneck import print_summary
+    from crowd_env.experiments.bottleneck import summarise
 
     records = [_record(1.0, 60, 0, 1.8), _record(1.0, 60, 1, 2.0), _record(1.0, 60, 2, 9.9, False, True, 20),
                _record(1.0, 60, 3, 5.0, False, False, 59), _record(0.8, 60, 0, 1.6), _record(1.2, 60, 0, 2.2)]
@@ -150,7 +151,7 @@ def test_summary_means_over_complete_runs_and_counts_stalls(capsys):
 
 
 def test_records_saved_before_the_stall_rule_load_as_incomplete():
-    from crowd_env.cli.reproduce_bottleneck import normalise_record
+    from crowd_env.experiments.store import normalise_record
 
     old_clogged = {"width_m": 1.0, "n_pedestrians": 60, "seed": 0, "specific_flow_per_m_s": 3.3, "flow_per_s": 3.3,
                    "n_evacuated": 22, "n_passages": 22}
@@ -165,7 +166,7 @@ def test_records_saved_before_the_stall_rule_load_as_incomplete():
 
 
 def test_reproduction_records_and_csv_carry_the_stall_columns(tmp_path):
-    from crowd_env.cli.reproduce_bottleneck import GEOMETRY_OPTIONS, run_one, run_sweep, write_results
+    from crowd_env.experiments.bottleneck import GEOMETRY_OPTIONS, run_one, run_sweep, write_results
 
     geometry = {**{opt: d for _, (opt, d) in GEOMETRY_OPTIONS.items()}, "navigation_clearance_m": 0.0}
     params = {k: v for k, v in vars(ModelParams()).items() if k != "extra"}
@@ -195,9 +196,10 @@ def test_reproduction_records_and_csv_carry_the_stall_columns(tmp_path):
 
 def test_a_stalled_run_fails_its_calibration_point(tmp_path):
     from crowd_env.analysis.experiment import seyfried_2009
-    from crowd_env.calibrate import SerialBackend, analyse_surface, base_config, evaluate_grid, write_grid_outputs
-    from crowd_env.calibrate.grid import STALLED_OBJECTIVE
-    from crowd_env.cli.reproduce_bottleneck import GEOMETRY_OPTIONS
+    from crowd_env.experiments.backends import SerialBackend
+    from crowd_env.experiments.bottleneck import GEOMETRY_OPTIONS
+    from crowd_env.experiments.calibration import analyse_surface, base_config, evaluate_grid, write_grid_outputs
+    from crowd_env.experiments.calibration.grid import STALLED_OBJECTIVE
 
     exp = seyfried_2009()
     geometry = {**{opt: d for _, (opt, d) in GEOMETRY_OPTIONS.items()}, "navigation_clearance_m": 0.0}

@@ -87,7 +87,7 @@ def test_missing_cases_and_figures_are_named():
 def _runs(preset_name, width_m, n, seeds):
     from baselines import SocialForceAgent
     from crowd_env.core.presets import get_preset
-    from crowd_env.runner import run_scenario
+    from crowd_env.experiments.runner import run_scenario
     from crowd_env.scenarios import make_scenario
 
     preset = get_preset(preset_name)

@@ -12,10 +12,12 @@ pytest.importorskip("supersuit")
 
 import supersuit as ss  # noqa: E402
 
-from baselines.evaluate import ScenarioSpec, evaluate, format_table, plot_results, run_episode, summarize  # noqa: E402
 from baselines.reference_policies import (CalibratedPolicy, CallablePolicy, RandomPolicy, SB3Policy,  # noqa: E402
                                           ZeroIntentPolicy, as_policy)
 from crowd_env.envs import crowd_v0  # noqa: E402
+from crowd_env.experiments.evaluation import (ScenarioSpec, evaluate, format_table, plot_results,  # noqa: E402
+                                              run_episode, summarize)
+from crowd_env.experiments.training import train  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TINY = {"scenario": "seyfried_bottleneck", "scenario_options": {"n_pedestrians": 6, "width_m": 1.0},
@@ -49,10 +51,9 @@ def test_supersuit_vector_pipeline_with_agent_deaths():
 
 
 def test_ppo_smoke_training_saves_model_and_curve(tmp_path):
-    train = _load_script("train_ppo")
     out = str(tmp_path / "ppo")
-    summary = train.train(TINY, timesteps=600, out=out, seed=0, copies=1, n_steps=64, batch_size=64, n_epochs=2,
-                          eval_seeds=(5,), progress=lambda *a: None)
+    summary = train(TINY, timesteps=600, out=out, resolve=as_policy, seed=0, copies=1, n_steps=64, batch_size=64,
+                    n_epochs=2, eval_seeds=(5,), progress=lambda *a: None)
     for name in ("model.zip", "env_config.json", "learning_curve.csv", "learning_curve.png", "summary.json"):
         assert os.path.exists(os.path.join(out, name)), name
     assert summary["timesteps"] >= 600
@@ -68,7 +69,7 @@ def test_ppo_smoke_training_saves_model_and_curve(tmp_path):
     results = evaluate({"ppo": model_path, "random": RandomPolicy(0), "zero": "zero",
                         "walk": CallablePolicy(lambda o: 1.2 * o[:, 4:6])},
                        [ScenarioSpec("seyfried_bottleneck", {"n_pedestrians": 6})], seeds=(0,),
-                       env_options=env_options, max_time_s=3.0, progress=None)
+                       env_options=env_options, max_time_s=3.0, progress=None, resolve=as_policy)
     assert [r.policy for r in results] == ["ppo", "random", "zero", "walk"]
     table = format_table(summarize(results))
     assert "ppo" in table and "J_s" in table
@@ -101,7 +102,7 @@ def test_harness_baseline_metrics_match_simulator():
     """The calibrated baseline through the harness evacuates everybody with a plausible specific flow;
     the metrics are the same across repeated runs (deterministic) and random/zero policies are worse."""
     spec = ScenarioSpec("seyfried_bottleneck", {"n_pedestrians": 10, "seed": 0})
-    r1 = run_episode("baseline", spec, 0, max_time_s=40.0)
+    r1 = run_episode(as_policy("baseline"), spec, 0, max_time_s=40.0)
     r2 = run_episode(CalibratedPolicy(), spec, 0, max_time_s=40.0)
     assert r1 == r2.__class__(**{**r2.__dict__, "wall_time_s": r1.wall_time_s})
     assert r1.n_evacuated == 10 and np.isfinite(r1.evacuation_time_s)

@@ -1,6 +1,6 @@
 """Measurements on simulated (or experimental) trajectories: passages and specific flow (Eq. 22),
 density, lanes, calibration errors (Eq. 23-24), the Seyfried et al. (2009) reference, and trajectories in PedPy's
-formats. Knows nothing of RL."""
+formats. Measures only: it runs no simulation (that is :mod:`crowd_env.experiments`) and knows nothing of RL."""
 from .calibration import (CalibrationError, ExponentialFit, PointError, RangeCheck, Valley, best_grid_point, epsilon_j,
                           epsilon_total, fit_exponential_valley, in_range_check, point_error, relative_squared_errors,
                           valley_of_minima)
@@ -12,8 +12,7 @@ from .flow import (FlowError, FlowResult, LinearFit, MeasurementLine, PassageCou
                    linear_fit_residual_norm, specific_flow, trajectory_crossings)
 from .lanes import LaneError, LaneResult, LateralHistogram, detect_lanes, lateral_histogram
 from .recorder import RecorderError, TrajectoryRecorder
-from .trajectories import (Trajectories, TrajectoryFormatError, export_run, read_geometry, record_run,
-                           write_geometry)
+from .trajectories import Trajectories, TrajectoryFormatError, export_run, read_geometry, write_geometry
 
 __all__ = [
     "CalibrationError", "RangeCheck", "epsilon_j", "epsilon_total", "in_range_check", "relative_squared_errors",
@@ -27,5 +26,5 @@ __all__ = [
     "linear_fit_residual_norm", "specific_flow", "trajectory_crossings",
     "LaneError", "LaneResult", "LateralHistogram", "detect_lanes", "lateral_histogram",
     "RecorderError", "TrajectoryRecorder",
-    "Trajectories", "TrajectoryFormatError", "export_run", "read_geometry", "record_run", "write_geometry",
+    "Trajectories", "TrajectoryFormatError", "export_run", "read_geometry", "write_geometry",
 ]

@@ -33,7 +33,7 @@ def save_figure(fig, path):
 def bottleneck_figures(records: list, rows: list, out: Path) -> list:
     """Write Figs. 11-14 analogues into ``out``; returns the paths written.
 
-    ``rows``: :func:`crowd_env.cli.reproduce_bottleneck.summarise`, whose means are over complete runs
+    ``rows``: :func:`crowd_env.experiments.bottleneck.summarise`, whose means are over complete runs
     only; a width with stalled or otherwise incomplete runs is labelled with their count in Fig. 11, and
     the discharge diagnostic uses complete runs only.
     """

@@ -25,7 +25,7 @@ is; the objective is Σ w_k · term_k with every weight 1 by default (:class:`Ta
 is privileged over the paper's ε_T except by being outside its band. The capacity band is the one
 judgement here: experiments through one door at N = 20 ... 60 give rates independent of N within
 their scatter (Seyfried's N = 20, 40 flows lie *above* N = 60), so the stationary rate (20 % to 80 %
-of the passages, :meth:`crowd_env.runner.RunResult.stationary_specific_flow_per_m_s`) of twice the
+of the passages, :meth:`crowd_env.experiments.runner.RunResult.stationary_specific_flow_per_m_s`) of twice the
 crowd may be at most 10 % higher and 5 % lower. A point with any incomplete run (a stall, or people
 still inside at the time limit) is a failed point: its objective is :data:`FAILED_POINT_OBJECTIVE`
 plus the fraction of incomplete runs, above any objective of a complete point, so that an optimiser
@@ -140,7 +140,7 @@ def target_error(records: list, *, weights: TargetWeights | None = None,
                  reference: ExperimentTable | None = None) -> TargetError:
     """Score the runs of one parameter point against every target of the module table.
 
-    ``records``: the reproduction's run records (``crowd_env.cli.reproduce_bottleneck.run_one``) of at
+    ``records``: the reproduction's run records (``crowd_env.experiments.bottleneck.run_one``) of at
     least the cases of :func:`required_cases` at the widths present for N = 60, any number of seeds
     (the same for every case: common random numbers). Raises :class:`CalibrationError` naming a
     missing case or a record without the figures a term needs.

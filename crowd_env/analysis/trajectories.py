@@ -1,10 +1,11 @@
-"""Trajectories in PedPy's formats: record a run, export, read back, and measure with PedPy.
+"""Trajectories in PedPy's formats: hold, export, read back, and measure with PedPy.
 
 Interoperability with PedPy (https://pedpy.readthedocs.io), the Jülich analysis library:
 
 - :class:`Trajectories` holds long-format rows (frame, id, x, y, heading) at a constant frame rate
-  (PedPy's time is ``frame / frame_rate``); :func:`record_run` records one from a run of the runner,
-  every k-th step of h (25 fps = every 4th step of h = 0.01 s);
+  (PedPy's time is ``frame / frame_rate``), e.g. every k-th step of h (25 fps = every 4th step of
+  h = 0.01 s, :func:`steps_per_frame`); :func:`crowd_env.experiments.recording.record_run` records one
+  from a run of the runner;
 - :meth:`Trajectories.write_txt` writes the whitespace text format that
   ``pedpy.load_trajectory_from_txt`` reads (``#framerate: 25.0`` header, columns
   ``id frame x/m y/m z/m`` plus ``heading/rad``, which PedPy ignores); :meth:`Trajectories.read_txt`
@@ -32,7 +33,7 @@ import shapely
 
 from .recorder import TrajectoryRecorder
 
-__all__ = ["TrajectoryFormatError", "Trajectories", "steps_per_frame", "record_run", "write_geometry",
+__all__ = ["TrajectoryFormatError", "Trajectories", "steps_per_frame", "write_geometry",
            "read_geometry", "geometry_paths", "export_run", "trajectory_frame_rate", "pedpy_walkable_area",
            "pedpy_measurement_line", "pedpy_measurement_area", "fundamental_diagram_data"]
 
@@ -141,7 +142,7 @@ class Trajectories:
         ``frame_rate_per_s`` defaults to the inverse of the recorded interval (give it to keep a round value;
         it is checked against the recorded times). Frame numbers are shifted so that ``frame / frame_rate``
         is the recorded time. Raises :class:`TrajectoryFormatError` for fewer than two frames or uneven
-        spacing (PedPy needs a constant frame rate: record every k-th step, see :func:`record_run`).
+        spacing (PedPy needs a constant frame rate: record every k-th step, see :func:`steps_per_frame`).
         """
         times = recorder.frame_time_s
         if times.size < 2:
@@ -285,7 +286,7 @@ def trajectory_frame_rate(path) -> float | None:
     return None
 
 
-# -- recording -------------------------------------------------------------------------------------
+# -- frame rate ------------------------------------------------------------------------------------
 def steps_per_frame(frame_rate_per_s: float, dt_s: float) -> int:
     """Number of simulation steps h per frame: 1 / (fps · h), which must be a positive integer."""
     fps = _check_frame_rate(frame_rate_per_s)
@@ -296,38 +297,6 @@ def steps_per_frame(frame_rate_per_s: float, dt_s: float) -> int:
         raise TrajectoryFormatError(f"frame rate {fps:g}/s is not 1/(k h) for an integer k with the step h = {dt_s:g} s "
                                     f"(e.g. {options})")
     return every
-
-
-def record_run(scenario, policy, params=None, *, frame_rate_per_s: float = DEFAULT_FRAME_RATE_PER_S, **run_kwargs):
-    """:func:`~crowd_env.runner.run_scenario` that also records trajectories every k-th step.
-
-    Frame 0 is the start; frame f is at t = f / ``frame_rate_per_s`` (k = 1/(fps h) steps, see
-    :func:`steps_per_frame`). Only pedestrians still inside are recorded. The run itself is unchanged
-    (recording only reads the state). ``run_kwargs`` go to ``run_scenario`` (``state``, ``rng`` and
-    ``progress`` are honoured). Returns ``(RunResult, Trajectories)``.
-    """
-    from ..core.presets import DEFAULT_PRESET, get_preset
-    from ..runner import run_scenario
-
-    params = get_preset(DEFAULT_PRESET).params() if params is None else params
-    every = steps_per_frame(frame_rate_per_s, params.dt_s)
-    state = run_kwargs.pop("state", None)
-    rng = run_kwargs.pop("rng", None)
-    state = scenario.make_state(rng=rng) if state is None else state
-    user_progress = run_kwargs.pop("progress", None)
-    recorder = TrajectoryRecorder(only_active=True)
-    ids = np.arange(state.n)
-    recorder.record(0.0, state.position_m, state.heading_rad, state.active, ids)
-
-    def progress(sim):
-        if sim.step_count % every == 0:
-            s = sim.state
-            recorder.record(sim.step_count * params.dt_s, s.position_m, s.heading_rad, s.active, ids)
-        if user_progress is not None:
-            user_progress(sim)
-
-    result = run_scenario(scenario, policy, params, state=state, progress=progress, **run_kwargs)
-    return result, Trajectories.from_recorder(recorder, frame_rate_per_s=1.0 / (every * params.dt_s))
 
 
 # -- geometry --------------------------------------------------------------------------------------

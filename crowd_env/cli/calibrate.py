@@ -29,11 +29,20 @@ import csv
 import sys
 from pathlib import Path
 
-from crowd_env.analysis.calibration import PAPER_VALLEY_FIT, CalibrationError, check_grid_values, grid_axis
-from crowd_env.analysis.experiment import ExperimentError, ExperimentTable
-from crowd_env.cli.reproduce_bottleneck import add_geometry_arguments, config_of, model_params_from_args
-from crowd_env.core.presets import DEFAULT_PRESET, PRESETS
-from crowd_env.core.params import ParameterError
+from ..analysis.calibration import PAPER_VALLEY_FIT, CalibrationError, check_grid_values, grid_axis
+from ..analysis.experiment import ExperimentError, ExperimentTable
+from ..analysis.targets import required_cases
+from ..core.params import ParameterError
+from ..core.presets import DEFAULT_PRESET, PRESETS
+from ..experiments.backends import make_backend
+from ..experiments.bottleneck import check_setups
+from ..experiments.calibration import analyse_surface, base_config, evaluate_grid, optimise, write_grid_outputs
+from ..experiments.calibration.grid import check_run_plan
+from ..experiments.calibration.landscape import landscape, write_landscape
+from ..experiments.calibration.optimize import PointEvaluator
+from ..experiments.calibration.targets import preset_targets, write_targets
+from ..experiments.store import RunStore
+from .options import add_geometry_arguments, config_of, model_params_from_args
 
 
 def _name_value(text: str, what: str):
@@ -125,11 +134,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def run_landscape(args) -> int:
-    """``crowd-calibrate landscape``: :func:`crowd_env.calibrate.landscape.landscape` and its outputs."""
-    from crowd_env.calibrate import base_config, make_backend
-    from crowd_env.calibrate.landscape import landscape, write_landscape
-    from crowd_env.calibrate.optimize import PointEvaluator
-
+    """``crowd-calibrate landscape``: :func:`crowd_env.experiments.calibration.landscape.landscape` and its outputs."""
     params = model_params_from_args(args)
     cfg = config_of(args, params)
     config = base_config(cfg["geometry"], params, cfg["max_time_s"])
@@ -151,32 +156,17 @@ def run_landscape(args) -> int:
 
 def run_targets(args) -> int:
     """``crowd-calibrate targets``: the target table of each preset, side by side (crowd_env.analysis.targets)."""
-    import json
-
-    from crowd_env.analysis.targets import required_cases, target_error, target_table
-    from crowd_env.calibrate import RunStore, base_config, execute, make_backend, run_task
-    from crowd_env.calibrate.grid import check_run_plan
-    from crowd_env.calibrate.optimize import target_tasks
-
     seeds = list(range(args.first_seed, args.first_seed + args.seeds)) if args.seeds >= 1 else []
     widths, _, seeds = check_run_plan(args.widths, [60], seeds)
     required_cases(widths)  # capacity widths among --widths, or a clear error
-    tables, scores = {}, {}
+    configs = {}
+    for name in args.presets:
+        args.preset = name
+        params = model_params_from_args(args)
+        cfg = config_of(args, params)
+        configs[name] = base_config(cfg["geometry"], params, cfg["max_time_s"])
     with make_backend(args.backend, address=args.address, jobs=args.jobs, connect_timeout_s=args.connect_timeout) as be:
-        for name in args.presets:
-            args.preset = name
-            params = model_params_from_args(args)
-            cfg = config_of(args, params)
-            config = base_config(cfg["geometry"], params, cfg["max_time_s"])
-            store = RunStore(args.out / name, config)
-            tasks = target_tasks(config, {}, {}, widths, seeds)
-            failed = execute(tasks, store, be, run_task, desc=f"targets: {name}")
-            if failed:
-                raise CalibrationError(f"{failed} run(s) of preset {name} failed (see {args.out / name / 'errors.jsonl'}); "
-                                       f"rerun to retry them")
-            records = [store.load(t) for t in tasks]
-            tables[name] = target_table(records)
-            scores[name] = target_error(records)
+        tables, scores = preset_targets(args.out, configs, widths, seeds, be)
     print(f"every target, {len(seeds)} seed(s) per (b, N); figures are seed means over complete runs")
     width = max(len(r["target"]) for t in tables.values() for r in t)
     print(f"{'target':<{width}}  {'criterion':<22}" + "".join(f"  {n:<34}" for n in tables))
@@ -186,10 +176,7 @@ def run_targets(args) -> int:
     print("objective (crowd_env.analysis.targets, lower is better): "
           + ", ".join(f"{n} {e.objective:.4f}" + (" (failed: incomplete runs)" if e.failed else "")
                       for n, e in scores.items()))
-    out = args.out / "targets.json"
-    out.write_text(json.dumps({"seeds": seeds, "widths_m": widths, "tables": tables,
-                               "objective": {n: e.objective for n, e in scores.items()},
-                               "terms": {n: e.terms for n, e in scores.items()}}, indent=2))
+    out = write_targets(args.out / "targets.json", seeds, widths, tables, scores)
     print(f"wrote {out}")
     return 0
 
@@ -231,11 +218,6 @@ def run(args) -> int:
         return run_targets(args)
     if args.mode == "landscape":
         return run_landscape(args)
-    from crowd_env.calibrate import (RunStore, analyse_surface, base_config, evaluate_grid, make_backend, optimise,
-                                     write_grid_outputs)
-    from crowd_env.calibrate.grid import check_run_plan
-    from crowd_env.scenarios import make_scenario
-
     params = model_params_from_args(args)
     cfg = config_of(args, params)
     config = base_config(cfg["geometry"], params, cfg["max_time_s"])
@@ -254,12 +236,9 @@ def run(args) -> int:
                 raise CalibrationError(f"--bounds expects NAME=LOW:HIGH, got {text!r}")
             bounds[k] = (float(lo), float(hi))
     if args.mode != "grid" and args.objective == "targets":
-        from crowd_env.analysis.targets import required_cases
         sizes = sorted({n for _, n in required_cases(widths)})
-    for bw in widths:  # impossible geometry fails here, before any worker starts
-        for n in sizes:
-            make_scenario("seyfried_bottleneck", width_m=bw, n_pedestrians=n, seed=seeds[0], **config["geometry"])
-    RunStore(args.out, config)  # a folder of another configuration is refused before anything runs
+    check_setups(config["geometry"], widths, sizes, seeds[0])  # impossible geometry fails before any worker starts
+    RunStore(args.out, config, keyed_by="task")  # a folder of another configuration is refused before anything runs
     meta = {"widths_m": widths, "sizes": sizes, "seeds": seeds, "range_weight": args.range_weight,
             "reference": "shipped Seyfried 2009 N = 60" if reference is None else str(args.reference),
             "backend": args.backend, "address": args.address, "incomplete": args.incomplete}

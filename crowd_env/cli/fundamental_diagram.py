@@ -2,14 +2,14 @@
 
 Either runs one Seyfried bottleneck run (``--width``, ``--n``, ``--seed``; its trajectories are exported
 beside the outputs in PedPy's text format) or reads an exported trajectory file (``--trajectory``,
-e.g. from ``reproduce_bottleneck.py --trajectories``) with its geometry JSON. In each measurement area
+e.g. from ``crowd-bottleneck --trajectories``) with its geometry JSON. In each measurement area
 PedPy computes the classic density and the mean individual speed per frame; J_s = ρ v. Writes
 ``OUT/fundamental_diagram.csv`` (one row per area and occupied frame) and ``OUT/fundamental_diagram.png``.
 
 Examples::
 
-    python scripts/fundamental_diagram.py --width 1.0 --n 60 --seed 0 --out out/fd
-    python scripts/fundamental_diagram.py --trajectory out/bottleneck/trajectories/b1.000_n60_s0.txt --out out/fd
+    crowd-fundamental-diagram --width 1.0 --n 60 --seed 0 --out out/fd
+    crowd-fundamental-diagram --trajectory out/bottleneck/trajectories/b1.000_n60_s0.txt --out out/fd
 """
 from __future__ import annotations
 
@@ -20,13 +20,16 @@ from pathlib import Path
 
 import numpy as np
 
-from crowd_env.analysis.trajectories import DEFAULT_FRAME_RATE_PER_S
+from ..analysis.figures import fundamental_diagram_figure
+from ..analysis.trajectories import (DEFAULT_FRAME_RATE_PER_S, Trajectories, TrajectoryFormatError,
+                                     fundamental_diagram_data, pedpy_measurement_area, read_geometry)
+from ..experiments.recording import record_bottleneck_run
 
 CSV_COLUMNS = ["area", "frame", "time_s", "density_per_m2", "speed_m_s", "specific_flow_per_m_s"]
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="fundamental_diagram", description=__doc__,
+    ap = argparse.ArgumentParser(prog="crowd-fundamental-diagram", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--trajectory", type=Path, help="PedPy text trajectory to analyse instead of running a simulation")
     ap.add_argument("--geometry", type=Path,
@@ -44,29 +47,18 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _simulate(args):
-    from baselines.social_force import SocialForceAgent
-    from crowd_env.analysis.trajectories import TrajectoryFormatError, export_run, record_run
-    from crowd_env.scenarios import make_scenario
-
-    scenario = make_scenario("seyfried_bottleneck", width_m=args.width, n_pedestrians=args.n, seed=args.seed)
+    stem = args.out / f"b{args.width:.3f}_n{args.n}_s{args.seed}"
     try:
-        result, traj = record_run(scenario, SocialForceAgent(scenario.navigation()), frame_rate_per_s=args.fps,
-                                  max_time_s=args.max_time)
+        result, traj, geometry, paths = record_bottleneck_run(args.width, args.n, args.seed, stem,
+                                                              frame_rate_per_s=args.fps, max_time_s=args.max_time)
     except TrajectoryFormatError as exc:
         raise SystemExit(f"error: --fps: {exc}")
-    stem = args.out / f"b{args.width:.3f}_n{args.n}_s{args.seed}"
-    paths = export_run(stem, traj, scenario.geometry,
-                       comments=[f"crowd_env seyfried_bottleneck run: b = {args.width:g} m, N = {args.n}, seed {args.seed}"],
-                       metadata={"width_m": args.width, "n_pedestrians": args.n, "seed": args.seed,
-                                 "frame_rate_per_s": traj.frame_rate_per_s, "measurement_line": "bottleneck"})
     print(f"simulated b = {args.width:g} m, N = {args.n}, seed {args.seed}: J_s = {result.specific_flow_per_m_s:.3f} "
           f"1/(m s); trajectory {paths[0]}")
-    return traj, scenario.geometry, f"b = {args.width:g} m, N = {args.n}, seed {args.seed}"
+    return traj, geometry, f"b = {args.width:g} m, N = {args.n}, seed {args.seed}"
 
 
 def _load(args):
-    from crowd_env.analysis.trajectories import Trajectories, TrajectoryFormatError, read_geometry
-
     geometry_path = args.geometry
     if geometry_path is None:
         geometry_path = args.trajectory.with_name(args.trajectory.stem + ".geometry.json")
@@ -81,9 +73,6 @@ def _load(args):
 
 
 def main(argv=None) -> int:
-    from crowd_env.analysis.figures import fundamental_diagram_figure
-    from crowd_env.analysis.trajectories import fundamental_diagram_data, pedpy_measurement_area
-
     args = build_parser().parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     traj, geometry, label = _load(args) if args.trajectory is not None else _simulate(args)

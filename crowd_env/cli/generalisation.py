@@ -2,8 +2,8 @@
 
 Runs a preset (``--preset``, default: the reproduction's default preset) on a grid of corridor widths,
 channel lengths, bottleneck widths b and group sizes N, through the reproduction's own run function
-and run store (``crowd-bottleneck``'s ``run_one``, ``run_sweep``, ``config_of``): nothing is tuned, the
-model parameters are the preset's. The geometry is Seyfried's otherwise (holding sections of
+and run store (:mod:`crowd_env.experiments.generalisation`): nothing is tuned, the model parameters
+are the preset's. The geometry is Seyfried's otherwise (holding sections of
 1.515 m at 3.3 /m², the nearest 2.24 m upstream; the corridor is made as long as the N pedestrians need;
 measurement line in the middle of the channel; a 2 m outflow). Each geometry is one configuration and
 gets its own sub-folder ``OUT/corridor<W>m_channel<L>m/``, which is exactly the output folder of
@@ -29,36 +29,26 @@ Example::
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from crowd_env.cli import reproduce_bottleneck as rb
-
-DEFAULT_CORRIDOR_WIDTHS_M = (4.0, 6.0, 8.0)
-DEFAULT_CHANNEL_LENGTHS_M = (0.4, 2.0, 5.0)
-DEFAULT_WIDTHS_M = (0.8, 1.2, 1.6, 2.0, 2.5)
-DEFAULT_SIZES = (20, 60, 120, 250)
-DEFAULT_SEEDS = 2
-QUICK = {"corridor_widths": [4.0, 8.0], "channel_lengths": [0.4, 5.0], "widths": [0.8, 1.6, 2.5],
-         "sizes": [20, 250], "seeds": 1}
-OVERLAP_TOLERANCE_M = 1e-3  # contact tolerance: a gap below -1 mm is an overlap beyond it
-CSV_COLUMNS = ["corridor_width_m", "channel_length_m"] + rb.RESULT_COLUMNS
-
-
-def default_preset() -> str:
-    """The reproduction's default preset (read from its parser, so it follows when that default changes)."""
-    return rb.build_parser().get_default("preset")
+from ..core.params import ParameterError
+from ..core.presets import DEFAULT_PRESET, PRESETS
+from ..experiments.bottleneck import flow_fit, summarise
+from ..experiments.generalisation import (DEFAULT_CHANNEL_LENGTHS_M, DEFAULT_CORRIDOR_WIDTHS_M, DEFAULT_SEEDS,
+                                          DEFAULT_SIZES, DEFAULT_WIDTHS_M, QUICK, GeneralisationError, figure,
+                                          geometry_folder, run_counts, run_generalisation, write_csv)
+from ..experiments.store import RunStoreError
 
 
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="crowd-generalise", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--preset", choices=sorted(rb.PRESETS), default=default_preset(),
-                    help=f"model configuration (crowd-bottleneck's presets; default: its default, {default_preset()!r})")
+    ap.add_argument("--preset", choices=sorted(PRESETS), default=DEFAULT_PRESET,
+                    help=f"model configuration (crowd-bottleneck's presets; default: its default, {DEFAULT_PRESET!r})")
     ap.add_argument("--corridor-widths", type=float, nargs="+", default=list(DEFAULT_CORRIDOR_WIDTHS_M),
                     metavar="W", help="corridor widths (m)")
     ap.add_argument("--channel-lengths", type=float, nargs="+", default=list(DEFAULT_CHANNEL_LENGTHS_M),
@@ -78,18 +68,6 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
-def geometry_folder(out: Path, corridor_width_m: float, channel_length_m: float) -> Path:
-    return Path(out) / f"corridor{corridor_width_m:g}m_channel{channel_length_m:g}m"
-
-
-def geometry_config(preset: str, corridor_width_m: float, channel_length_m: float, max_time_s: float) -> dict:
-    """The configuration ``crowd-bottleneck`` writes for this preset and geometry (Seyfried's otherwise)."""
-    args = rb.build_parser().parse_args(["--preset", preset, "--corridor-width", repr(float(corridor_width_m)),
-                                         "--channel-length", repr(float(channel_length_m)),
-                                         "--max-time", repr(float(max_time_s))])
-    return rb.config_of(args, rb.model_params_from_args(args))
-
-
 def _check_axes(args) -> None:
     for name in ("corridor_widths", "channel_lengths", "widths"):
         values = getattr(args, name)
@@ -103,23 +81,6 @@ def _check_axes(args) -> None:
         raise SystemExit(f"error: --max-time must be > 0, got {args.max_time}")
 
 
-def check_setups(configs: dict, widths, sizes, seed: int) -> None:
-    """Build every scenario once (seed ``seed``): an impossible set-up raises SystemExit naming it and the
-    reason (a channel wider than the corridor, not wider than a pedestrian, a corridor too narrow to hold
-    anybody at the start density, ...), before any folder is touched or worker started."""
-    from crowd_env.core.segments import GeometryError
-    from crowd_env.scenarios import ScenarioError, make_scenario
-
-    for (cw, cl), config in configs.items():
-        for b in widths:
-            for n in sizes:
-                try:
-                    make_scenario("seyfried_bottleneck", width_m=b, n_pedestrians=n, seed=seed, **config["geometry"])
-                except (GeometryError, ScenarioError) as exc:
-                    raise SystemExit(f"error: impossible set-up: corridor {cw:g} m, channel {cl:g} m, b = {b:g} m, "
-                                     f"N = {n}: {exc}") from None
-
-
 def run_mark(r: dict) -> str:
     """One run in the table: its J_s if complete, else why not."""
     if r["complete"]:
@@ -130,7 +91,7 @@ def run_mark(r: dict) -> str:
 
 
 def print_geometry(cw: float, cl: float, folder: Path, records: list) -> None:
-    rows = rb.summarise(records)
+    rows = summarise(records)
     print(f"\n== corridor {cw:g} m, channel {cl:g} m ({folder})")
     print(f"{'N':>5} {'b (m)':>6}  {'J_s mean':>8}  {'J (1/s)':>7}  J_s per run (1/(m s); STALL@t: stalled at t, "
           f"INC: people left at the time limit; (passed/N))")
@@ -143,7 +104,7 @@ def print_geometry(cw: float, cl: float, folder: Path, records: list) -> None:
         print(f"{row['n_pedestrians']:>5} {row['width_m']:>6.2f}  {row['specific_flow_mean']:>7.3f}{mark}  "
               f"{row['flow_mean']:>7.3f}  " + " ".join(run_mark(r) for r in cell))
     for n in sorted({r["n_pedestrians"] for r in rows}):
-        fit = rb.flow_fit(rows, n)
+        fit = flow_fit(rows, n)
         if fit is None:
             print(f"  N = {n}: J(b) fit needs complete runs at >= 3 widths")
         else:
@@ -154,54 +115,6 @@ def print_geometry(cw: float, cl: float, folder: Path, records: list) -> None:
         print("  * mean over the complete runs only")
 
 
-def write_csv(records: list, path: Path) -> None:
-    with open(path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
-        w.writeheader()
-        for r in sorted(records, key=lambda r: (r["corridor_width_m"], r["channel_length_m"], r["n_pedestrians"],
-                                                r["width_m"], r["seed"])):
-            w.writerow(r)
-
-
-def figure(records: list, geometries: list, path: Path, preset: str) -> Path:
-    """J_s vs b per N (mean over complete runs, single runs as dots), one panel per geometry; stalled
-    runs as red crosses on the b axis, otherwise incomplete runs as orange ones."""
-    from crowd_env.analysis.figures import pyplot, save_figure
-
-    plt = pyplot()
-    cws = sorted({cw for cw, _ in geometries})
-    cls = sorted({cl for _, cl in geometries})
-    sizes = sorted({r["n_pedestrians"] for r in records})
-    fig, axes = plt.subplots(len(cws), len(cls), figsize=(3.8 * len(cls), 3.2 * len(cws)), squeeze=False,
-                             sharex=True, sharey=True)
-    top = max([r["specific_flow_per_m_s"] for r in records if r["complete"]] + [2.5])
-    for i, cw in enumerate(cws):
-        for j, cl in enumerate(cls):
-            ax = axes[i][j]
-            recs = [r for r in records if r["corridor_width_m"] == cw and r["channel_length_m"] == cl]
-            rows = rb.summarise(recs) if recs else []
-            for k, n in enumerate(sizes):
-                sub = [r for r in rows if r["n_pedestrians"] == n]
-                ax.plot([r["width_m"] for r in sub], [r["specific_flow_mean"] for r in sub], "o-", color=f"C{k}",
-                        ms=4, label=f"N = {n}")
-                done = [r for r in recs if r["n_pedestrians"] == n and r["complete"]]
-                ax.plot([r["width_m"] for r in done], [r["specific_flow_per_m_s"] for r in done], ".", color=f"C{k}",
-                        alpha=0.4, ms=3)
-            for kind, color in (("stalled", "red"), ("incomplete", "orange")):
-                bad = [r for r in recs if not r["complete"] and bool(r["stalled"]) == (kind == "stalled")]
-                if bad:
-                    ax.plot([r["width_m"] for r in bad], [0.05 * top] * len(bad), "x", color=color, ms=8, mew=2,
-                            label=f"{kind} ({len(bad)})")
-            ax.set_title(f"corridor {cw:g} m, channel {cl:g} m", fontsize=9)
-            ax.set_ylim(0, 1.1 * top)
-            if i == len(cws) - 1:
-                ax.set_xlabel("b (m)")
-            if j == 0:
-                ax.set_ylabel("J_s (1/(m s))")
-            ax.legend(fontsize=6)
-    fig.suptitle(f"generalisation, preset {preset}: specific flow vs width (means over complete runs)", fontsize=10)
-    return Path(save_figure(fig, path))
-
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
@@ -210,41 +123,26 @@ def main(argv=None) -> int:
             setattr(args, key, list(value) if isinstance(value, list) else value)
     _check_axes(args)
     geometries = [(float(cw), float(cl)) for cw in args.corridor_widths for cl in args.channel_lengths]
-    try:
-        configs = {g: geometry_config(args.preset, *g, args.max_time) for g in geometries}
-    except rb.ParameterError as exc:
-        raise SystemExit(f"error: {exc}") from None
-    check_setups(configs, args.widths, args.sizes, args.first_seed)
-    for g, config in configs.items():
-        rb.check_config(geometry_folder(args.out, *g), config)
     seeds = range(args.first_seed, args.first_seed + args.seeds)
-    tasks = [dict(width_m=float(b), n_pedestrians=int(n), seed=s, **configs[g])
-             for g in geometries for n in args.sizes for b in args.widths for s in seeds]
-
-    def folder_of(task):
-        return geometry_folder(args.out, task["geometry"]["corridor_width_m"], task["geometry"]["channel_length_m"])
-
-    records = rb.run_sweep(tasks, args.out, args.jobs, desc="generalisation runs", folder_of=folder_of)
-    for t, r in zip(tasks, records):
-        r["corridor_width_m"] = t["geometry"]["corridor_width_m"]
-        r["channel_length_m"] = t["geometry"]["channel_length_m"]
+    try:
+        records = run_generalisation(args.out, args.preset, geometries, args.widths, args.sizes, seeds, args.max_time,
+                                     args.jobs)
+    except (ParameterError, GeneralisationError, RunStoreError) as exc:
+        raise SystemExit(f"error: {exc}") from None
     print(f"generalisation of preset {args.preset!r}: {len(geometries)} geometries × {len(args.widths)} widths × "
-          f"{len(args.sizes)} sizes × {args.seeds} seed(s) = {len(tasks)} runs (no parameter tuned)")
+          f"{len(args.sizes)} sizes × {args.seeds} seed(s) = {len(records)} runs (no parameter tuned)")
     for g in geometries:
         print_geometry(*g, geometry_folder(args.out, *g),
                        [r for r in records if (r["corridor_width_m"], r["channel_length_m"]) == g])
     args.out.mkdir(parents=True, exist_ok=True)
     write_csv(records, args.out / "generalisation.csv")
-    n_complete = sum(bool(r["complete"]) for r in records)
-    n_stalled = sum(bool(r["stalled"]) for r in records)
-    gaps = np.array([r["min_gap_m"] for r in records], dtype=float)
-    n_overlap = int(np.count_nonzero(gaps < -OVERLAP_TOLERANCE_M))
+    counts = run_counts(records)
     if not args.no_figures:
         print(f"figure: {figure(records, geometries, args.out / 'generalisation_specific_flow.png', args.preset)}")
     print(f"results: {args.out / 'generalisation.csv'}")
-    print(f"runs: {len(records)}; complete {n_complete}, stalled {n_stalled}, incomplete at the time limit "
-          f"{len(records) - n_complete - n_stalled}; smallest gap below -1 mm (overlap beyond the contact tolerance) "
-          f"in {n_overlap} (worst {1e3 * float(np.min(gaps)):+.2f} mm)")
+    print(f"runs: {counts['runs']}; complete {counts['complete']}, stalled {counts['stalled']}, incomplete at the time "
+          f"limit {counts['incomplete']}; smallest gap below -1 mm (overlap beyond the contact tolerance) "
+          f"in {counts['overlapping']} (worst {1e3 * counts['min_gap_m']:+.2f} mm)")
     return 0
 
 

@@ -1,7 +1,9 @@
-"""Where runs execute: Ray (default; local on all cores or a running cluster), a process pool, or serially.
+"""Where runs execute: Ray (local on all cores or a running cluster), a process pool, or serially.
 
-All backends expose ``imap_unordered(fn, tasks)`` yielding ``(task, ok, result_or_error_text)`` as each
-run finishes, so the caller can save it at once; :func:`execute` does that with a tqdm bar (ETA).
+One executor for every sweep of bottleneck runs (Kabalan et al. 2016, Section 4): the reproduction, the
+calibration and the generalisation. All backends expose ``imap_unordered(fn, tasks)`` yielding
+``(task, ok, result_or_error_text)`` as each run finishes, so the caller can save it at once;
+:func:`execute` does that into a :class:`~crowd_env.experiments.store.RunStore` with a tqdm bar (ETA).
 Ray: ``ray.init()`` starts a local instance on all cores (``num_cpus`` to limit it); with ``address``
 (``host:port`` of a head node, ``ray://host:port`` for Ray Client, or ``auto``) it joins a running
 cluster through the same code path. Cluster nodes need ``crowd_env`` installed (same version). An
@@ -17,7 +19,15 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from ..analysis.calibration import CalibrationError
 
+__all__ = ["BACKENDS", "BackendError", "SerialBackend", "ProcessBackend", "RayBackend", "check_reachable",
+           "make_backend", "execute"]
+
 BACKENDS = ("ray", "process", "serial")
+
+
+class BackendError(CalibrationError):
+    """A backend cannot be made or reached (a :class:`CalibrationError` too, which the calibration's
+    callers catch)."""
 
 
 def _error_text(exc: BaseException) -> str:
@@ -52,7 +62,7 @@ class ProcessBackend(SerialBackend):
     def __init__(self, jobs: int | None = None):
         self.n_workers = int(jobs or os.cpu_count() or 1)
         if self.n_workers < 1:
-            raise CalibrationError(f"jobs must be >= 1, got {jobs!r}")
+            raise BackendError(f"jobs must be >= 1, got {jobs!r}")
         self._pool = ProcessPoolExecutor(max_workers=self.n_workers)
 
     def imap_unordered(self, fn, tasks):
@@ -88,12 +98,12 @@ def check_reachable(address: str, timeout_s: float = 5.0) -> None:
     hostport = address.split("://", 1)[1] if "://" in address else address
     host, sep, port = hostport.rpartition(":")
     if not sep or not host or not port.isdigit():
-        raise CalibrationError(f"Ray address must be 'host:port', 'ray://host:port' or 'auto', got {address!r}")
+        raise BackendError(f"Ray address must be 'host:port', 'ray://host:port' or 'auto', got {address!r}")
     try:
         with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s):
             pass
     except OSError as exc:
-        raise CalibrationError(f"cannot reach the Ray cluster at {address!r} within {timeout_s:g} s ({exc}); "
+        raise BackendError(f"cannot reach the Ray cluster at {address!r} within {timeout_s:g} s ({exc}); "
                                f"is the head node running ('ray start --head') and the port open?") from None
 
 
@@ -108,7 +118,7 @@ class RayBackend(SerialBackend):
         try:
             import ray
         except ImportError:
-            raise CalibrationError("the Ray backend needs ray: pip install 'crowd_env[distributed]' "
+            raise BackendError("the Ray backend needs ray: pip install 'crowd_env[distributed]' "
                                    "(or use --backend process)") from None
         self._ray = ray
         self._started = False
@@ -122,7 +132,7 @@ class RayBackend(SerialBackend):
             try:
                 ray.init(**kwargs)
             except (ConnectionError, RuntimeError, ValueError) as exc:
-                raise CalibrationError(f"cannot start or join Ray (address={address!r}): {exc}") from None
+                raise BackendError(f"cannot start or join Ray (address={address!r}): {exc}") from None
             self._started = True
         self.n_workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
         self._remote = {}
@@ -167,11 +177,11 @@ def make_backend(name: str = "ray", *, address: str | None = None, jobs: int | N
                  connect_timeout_s: float = 5.0):
     """Backend by name: ``ray`` (default), ``process`` or ``serial``."""
     if name not in BACKENDS:
-        raise CalibrationError(f"unknown backend {name!r}; choose one of {BACKENDS}")
+        raise BackendError(f"unknown backend {name!r}; choose one of {BACKENDS}")
     if address is not None and name != "ray":
-        raise CalibrationError(f"--address needs the ray backend, not {name!r}")
+        raise BackendError(f"--address needs the ray backend, not {name!r}")
     if jobs is not None and (isinstance(jobs, bool) or int(jobs) != jobs or jobs < 1):
-        raise CalibrationError(f"jobs must be a positive integer, got {jobs!r}")
+        raise BackendError(f"jobs must be a positive integer, got {jobs!r}")
     if name == "ray":
         return RayBackend(address, jobs, connect_timeout_s)
     if name == "process":
@@ -180,11 +190,16 @@ def make_backend(name: str = "ray", *, address: str | None = None, jobs: int | N
 
 
 def execute(tasks: list, store, backend, run_fn, desc: str = "runs", leave: bool = True) -> int:
-    """Run the tasks of ``tasks`` not yet in ``store``, saving each as it finishes; returns the number of
-    failures (logged to ``OUT/errors.jsonl``; they are retried by the next call)."""
+    """Run the tasks of ``tasks`` not yet in their store, saving each as it finishes; returns the number of
+    failures (logged to ``OUT/errors.jsonl``; they are retried by the next call).
+
+    ``store``: a :class:`~crowd_env.experiments.store.RunStore`, or ``store(task) -> RunStore`` when the
+    tasks go to several folders (one per configuration, e.g. per geometry).
+    """
     from tqdm import tqdm
 
-    todo = [t for t in tasks if not store.done(t)]
+    store_of = store if callable(store) else (lambda task: store)
+    todo = [store_of(t).prepare(t) for t in tasks if not store_of(t).done(t)]
     # Largest groups first, so that the last runs to finish are short ones (load balance).
     todo.sort(key=lambda t: -t["n_pedestrians"])
     failures = 0
@@ -192,10 +207,10 @@ def execute(tasks: list, store, backend, run_fn, desc: str = "runs", leave: bool
               leave=leave, dynamic_ncols=True) as bar:
         for task, ok, value in backend.imap_unordered(run_fn, todo):
             if ok:
-                store.save(task, value)
+                store_of(task).save(task, value)
             else:
                 failures += 1
-                store.log_error(task, value)
+                store_of(task).log_error(task, value)
                 bar.set_postfix(failed=failures)
             bar.update()
     return failures

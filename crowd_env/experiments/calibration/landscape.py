@@ -1,8 +1,8 @@
 """The calibration objective along one parameter, the others fixed: e.g. the ε_T landscape in λ.
 
-Each value is one point of :class:`~crowd_env.calibrate.optimize.PointEvaluator` (the optimiser's own
-evaluation: same runs, same cache, same common random numbers), so a landscape and an optimisation
-in one folder share their runs. ``landscape.csv`` holds the objective, ε_T (Eq. 24), every target
+Each value is one point of :class:`~crowd_env.experiments.calibration.optimize.PointEvaluator` (the
+optimiser's own evaluation: same runs, same cache, same common random numbers), so a landscape and an
+optimisation in one folder share their runs. ``landscape.csv`` holds the objective, ε_T (Eq. 24), every target
 term and, with the target objective, the figures that explain the shape: J_s of N = 20, 40, 60 and
 the capacity ratio (stationary rate of N = 120 over N = 60) per width.
 """
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.calibration import CalibrationError
+from ...analysis.calibration import CalibrationError
 from .optimize import FREE_PARAMETERS, PointEvaluator
 
 
@@ -73,8 +73,8 @@ def write_landscape(name: str, entries: list, out, figure: bool = True) -> list:
 def landscape_figure(name: str, rows: list, path) -> Path:
     """(a) objective and ε_T against the parameter (log scale; failed points marked); (b) J_s at b = 1 m
     for each N; (c) the capacity ratio N = 120 / N = 60 with its band (when the target objective ran)."""
-    from ..analysis.figures import pyplot, save_figure
-    from ..analysis.targets import CAPACITY_RANGE
+    from ...analysis.figures import pyplot, save_figure
+    from ...analysis.targets import CAPACITY_RANGE
 
     plt = pyplot()
     x = np.array([r[name] for r in rows], dtype=float)

@@ -9,7 +9,7 @@ is already a dependency, and a deterministic optimiser on a deterministic object
 path exactly from the cache after a crash. The objective stays rough at the scale of single
 pedestrians' decisions, so use ``xatol`` of a few percent and start from the grid's best point.
 
-Resumable at two levels: every run is stored (:class:`~crowd_env.calibrate.runs.RunStore`) and every
+Resumable at two levels: every run is stored (:class:`~crowd_env.experiments.store.RunStore`) and every
 evaluated point is appended (fsync) to ``OUT/optimise/evaluations.jsonl``, keyed by its parameter
 values and the evaluation set-up (widths, sizes, seeds, reference, range weight).
 """
@@ -26,12 +26,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.calibration import CalibrationError
-from ..analysis.experiment import ExperimentTable, seyfried_2009
-from ..analysis.targets import TargetWeights, required_cases, target_error
-from .backends import execute
+from ...analysis.calibration import CalibrationError
+from ...analysis.experiment import ExperimentTable, seyfried_2009
+from ...analysis.targets import TargetWeights, required_cases, target_error
+from ..backends import execute
+from ..bottleneck import run_one
+from ..store import RunStore
 from .grid import INCOMPLETE_RULES, check_run_plan, n_stalled_runs, point_error_of, point_tasks
-from .runs import RunStore, canonical, make_task, run_task
+from .tasks import canonical, make_task
 
 FAILED_OBJECTIVE = 1.0e6  # objective of a point whose runs failed (not cached: retried next time)
 
@@ -149,7 +151,7 @@ class EvaluationCache:
 
 class PointEvaluator:
     """The objective at one parameter point, from stored runs or new ones: one implementation for the
-    optimiser and the landscape (:mod:`crowd_env.calibrate.landscape`).
+    optimiser and the landscape (:mod:`crowd_env.experiments.calibration.landscape`).
 
     ``values``: names of :data:`FREE_PARAMETERS` → natural values, set on top of ``config``'s model. The
     entry (objective, ε_T, terms or ε_j, stall counts) is cached in ``OUT/optimise/evaluations.jsonl``
@@ -157,7 +159,7 @@ class PointEvaluator:
     """
 
     def __init__(self, out, config: dict, widths_m, sizes, seeds, backend, *, reference: ExperimentTable | None = None,
-                 range_weight: float = 0.0, run_fn=run_task, incomplete: str = "bound", objective: str = "epsilon",
+                 range_weight: float = 0.0, run_fn=run_one, incomplete: str = "bound", objective: str = "epsilon",
                  weights: TargetWeights | None = None):
         if incomplete not in INCOMPLETE_RULES:
             raise CalibrationError(f"incomplete must be one of {INCOMPLETE_RULES}, got {incomplete!r}")
@@ -169,7 +171,7 @@ class PointEvaluator:
         self.sizes, self.config, self.backend, self.run_fn = sizes, config, backend, run_fn
         self.reference, self.range_weight, self.incomplete = reference, range_weight, incomplete
         self.objective, self.weights = objective, weights
-        self.store = RunStore(out, config)
+        self.store = RunStore(out, config, keyed_by="task")
         self.cache = EvaluationCache(Path(out) / "optimise" / "evaluations.jsonl",
                                      _setup_hash(self.widths_m, sizes, self.seeds, reference, range_weight, incomplete,
                                                  objective, weights))
@@ -211,7 +213,7 @@ class PointEvaluator:
 def optimise(out, config: dict, free, widths_m, sizes, seeds, backend, *, x0: dict | None = None,
              bounds: dict | None = None, method: str = "Nelder-Mead", max_evaluations: int = 60,
              xatol: float = 0.02, fatol: float = 1e-4, reference: ExperimentTable | None = None,
-             range_weight: float = 0.0, run_fn=run_task, verbose: bool = True, incomplete: str = "bound",
+             range_weight: float = 0.0, run_fn=run_one, verbose: bool = True, incomplete: str = "bound",
              objective: str = "epsilon", weights: TargetWeights | None = None) -> OptimResult:
     """argmin ε_T (+ range_weight × N = 20/40 range penalty) over the ``free`` parameters (Eq. 25), or, with
     ``objective="targets"``, argmin of :func:`crowd_env.analysis.targets.target_error` (``weights``) on the

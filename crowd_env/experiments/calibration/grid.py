@@ -25,12 +25,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.calibration import (PAPER_VALLEY_FIT, CalibrationError, ExponentialFit, PointError, Valley,
+from ...analysis.calibration import (PAPER_VALLEY_FIT, CalibrationError, ExponentialFit, PointError, Valley,
                                     best_grid_point, censored_specific_flow, check_grid_values, fit_exponential_valley, point_error,
                                     valley_of_minima)
-from ..analysis.experiment import ExperimentTable
-from .backends import execute
-from .runs import RunStore, canonical, make_task, run_task
+from ...analysis.experiment import ExperimentTable
+from ..backends import execute
+from ..bottleneck import run_one
+from ..store import RunStore
+from .tasks import canonical, make_task
 
 
 def check_run_plan(widths_m, sizes, seeds) -> tuple:
@@ -108,7 +110,7 @@ class GridResult:
 
 
 def evaluate_grid(out, config: dict, social_strength_n, social_range_m, widths_m, sizes, seeds, backend, *,
-                  reference: ExperimentTable | None = None, range_weight: float = 0.0, run_fn=run_task,
+                  reference: ExperimentTable | None = None, range_weight: float = 0.0, run_fn=run_one,
                   pedestrian: dict | None = None, model: dict | None = None, incomplete: str = "bound") -> GridResult:
     """Run (or reuse) every (A, B, b, N, seed) run of the grid under ``out`` and compute ε_T per point.
 
@@ -120,7 +122,7 @@ def evaluate_grid(out, config: dict, social_strength_n, social_range_m, widths_m
     if np.unique(a).size != a.size or np.unique(bb).size != bb.size:
         raise CalibrationError("grid values coincide after rounding to 6 significant digits")
     widths_m, sizes, seeds = check_run_plan(widths_m, sizes, seeds)
-    store = RunStore(out, config)
+    store = RunStore(out, config, keyed_by="task")
     fixed = dict(model or {})
     clash = sorted({"social_strength_n", "social_range_m"} & set(fixed))
     if clash:
@@ -235,7 +237,7 @@ def surface_figure(result: GridResult, analysis: dict, path) -> Path:
     """Fig. 10 analogue: ε_T over (B, A) (log colour scale), valley minima, fitted and paper curves."""
     from matplotlib.colors import LogNorm
 
-    from ..analysis.figures import pyplot, save_figure
+    from ...analysis.figures import pyplot, save_figure
 
     plt = pyplot()
 

@@ -1,4 +1,4 @@
-"""Run a scenario to the end with a policy and measure it like the experiment (no RL here).
+"""Run a scenario to the end with a policy and measure it like the experiment (Kabalan et al. 2016, Eq. 22).
 
 One function serves the bottleneck reproduction, the calibration and the benchmarks:
 :func:`run_scenario` steps a :class:`~crowd_env.core.Simulator` until everyone has left (or a time
@@ -23,9 +23,9 @@ import numba as nb
 import numpy as np
 import shapely
 
-from .analysis.flow import MeasurementLine, PassageCounter, specific_flow
-from .core.params import ModelParams
-from .core.presets import DEFAULT_PRESET, get_preset
+from ..analysis.flow import MeasurementLine, PassageCounter, specific_flow
+from ..core.params import ModelParams
+from ..core.presets import DEFAULT_PRESET, get_preset
 
 # Stationary phase for densities: between the passages of these fractions of the pedestrians (the
 # middle 60 %), see RunResult.density_window_s.

@@ -1,6 +1,8 @@
-"""Invariant checks, adversarial policies and memory probes for soak and fault tests.
+"""Soak and fault testing: invariant checks, adversarial policies, memory probes and the soak itself.
 
-Shared by ``scripts/soak.py`` and ``tests/test_reliability.py``. An :class:`InvariantChecker` is an
+The checks are the model's invariants (no overlap beyond the contact tolerance, Kabalan et al. 2016
+Eq. 17-21; no kinetic energy created by the impact law, Eq. 4-8, or by the projection). Shared by
+``crowd-soak`` (:func:`soak`) and ``tests/test_reliability.py``. An :class:`InvariantChecker` is an
 environment sub-step hook (``env.substep_hooks``): after every simulator step it checks, on the
 pedestrians still on the floor,
 
@@ -31,6 +33,7 @@ import gc
 import hashlib
 import os
 import resource
+import time
 import tracemalloc
 from collections import Counter
 from dataclasses import dataclass, field
@@ -39,16 +42,22 @@ import numpy as np
 import shapely
 from scipy.spatial import cKDTree
 
-from .core.state import first_overlap, min_gap_m
-from .scenarios import list_scenarios, scenario_options
+from ..core.geometry import Geometry
+from ..core.params import ModelParams
+from ..core.state import first_overlap, min_gap_m
+from ..envs import crowd_v0
+from ..scenarios import list_scenarios, make_scenario, scenario_options
+from ..scenarios.base import Scenario, _lookup, place_pedestrians
+from ..walking.agent import SocialForceAgent
 
 __all__ = ["OVERLAP_TOLERANCE_M", "VIOLATION_KINDS", "InvariantChecker", "MemoryProbe", "ACTION_MODES",
            "EXAMPLE_OPTIONS", "distinct_scenarios", "required_options", "soak_options", "max_intent_toward",
            "random_actions", "toward_neighbour_actions", "toward_wall_actions", "trajectory_hashes",
            "PressureCase", "PRESSURE_CASES", "pressure_scenario", "run_pressure_episode", "pressure_soak",
-           "largest_contact_group"]
+           "largest_contact_group", "SoakError", "DEFAULT_AGENT_STEPS", "soak"]
 
 OVERLAP_TOLERANCE_M = 1e-3
+DEFAULT_AGENT_STEPS = 1_000_000
 # Energies are compared to round-off: the impact and projection solvers are exact (pivoting) or polished
 # interior-point solutions, so an increase above this is a defect, not noise.
 ENERGY_RELATIVE_TOLERANCE = 1e-9
@@ -63,8 +72,6 @@ def distinct_scenarios() -> list:
     Two names are aliases when :func:`crowd_env.scenarios.base._lookup` returns the same factory; the
     name kept is the factory's own ``__name__`` when it is registered, else the longest one.
     """
-    from .scenarios.base import _lookup
-
     by_factory = {}
     for name in list_scenarios():
         by_factory.setdefault(id(_lookup(name)), []).append(name)
@@ -340,8 +347,6 @@ def trajectory_hashes(seed: int, n_steps: int = 1000, n_pedestrians: int = 8, mo
     actions, which alternate between ``mode`` and random ones so that there are contacts. A module-level
     function so that spawned worker processes can run it.
     """
-    from .envs import crowd_v0
-
     env = crowd_v0.parallel_env(scenario=scenario, scenario_options={"n_pedestrians": n_pedestrians},
                                 controlled="all", max_steps=n_steps)
     env.reset(seed=seed)
@@ -383,8 +388,6 @@ class PressureCase:
     room_density_per_m2: float = 3.0
 
     def model_params(self):
-        from .core.params import ModelParams
-
         return ModelParams().replace(**dict(self.params))
 
 
@@ -400,10 +403,6 @@ def pressure_scenario(case: PressureCase, seed: int):
     """The :class:`~crowd_env.scenarios.Scenario` of ``case`` with start positions (and desired speeds)
     from ``seed``."""
     import math
-
-    from .core.geometry import Geometry
-    from .scenarios import make_scenario
-    from .scenarios.base import Scenario, place_pedestrians
 
     if case.geometry == "bottleneck":
         return make_scenario("seyfried_bottleneck", width_m=case.door_width_m, n_pedestrians=case.n_pedestrians,
@@ -423,8 +422,6 @@ def run_pressure_episode(case: PressureCase, seed: int, checker: InvariantChecke
     """One episode of ``case`` (seed ``seed``) with every step checked by ``checker``; stops at
     ``case.max_time_s``, when everybody has left, or after ``max_agent_steps`` (pedestrians on the floor
     summed over steps). Returns its counts and the simulator's solver counters."""
-    from baselines.social_force import SocialForceAgent
-
     scenario = pressure_scenario(case, seed)
     state = scenario.make_state()
     state.desired_speed_m_s *= case.speed_factor
@@ -451,7 +448,6 @@ def pressure_soak(agent_steps: int, *, cases=None, seed: int = 0, overlap_tolera
     :class:`PressureCase`; default :data:`PRESSURE_CASES`), each running episodes with seeds ``seed``,
     ``seed + 1``, ... until its share is spent. Returns a JSON-able summary with the merged
     :class:`InvariantChecker` under ``"checker"`` (not JSON) and one entry per case."""
-    import time
 
     known = {c.name: c for c in PRESSURE_CASES}
     chosen = []
@@ -501,3 +497,121 @@ def pressure_soak(agent_steps: int, *, cases=None, seed: int = 0, overlap_tolera
             "max_impact_energy_increase_j": total.max_impact_energy_increase_j,
             "max_projection_energy_increase_j": total.max_projection_energy_increase_j,
             "examples": total.examples, "per_case": per_case, "wall_s": time.perf_counter() - t0, "checker": total}
+
+
+# ---------------------------------------------------------------------------------------------- the soak
+class SoakError(ValueError):
+    """A soak that cannot run (unknown action mode, no scenario left)."""
+
+
+def soak(agent_steps: int = DEFAULT_AGENT_STEPS, *, scenarios=None, modes=None, seed: int = 0, max_steps: int = 200,
+         frame_skip: int = 1, fixed_start: bool = False, trace_memory: bool = False,
+         memory_tolerance_mib: float = 16.0, overlap_tolerance_m: float = 1e-3, scenario_options: dict | None = None,
+         pressure_agent_steps: int = 0, pressure_cases=None, progress=print) -> dict:
+    """Run the soak; returns a JSON-able summary (see ``crowd-soak``'s ``format_summary``). ``agent_steps`` = 0 skips
+    the environment phase; ``pressure_agent_steps`` > 0 adds the high-pressure phase
+    (:func:`pressure_soak` over ``pressure_cases``, default all)."""
+    names = list(scenarios) if scenarios else distinct_scenarios()
+    modes = list(modes) if modes else list(ACTION_MODES)
+    unknown = sorted(set(modes) - set(ACTION_MODES))
+    if unknown:
+        raise SoakError(f"unknown mode(s) {unknown}; known: {list(ACTION_MODES)}")
+    given = scenario_options or {}
+    scenario_options, skipped = {}, {}
+    for n in names:  # required options: given ones, else the examples of EXAMPLE_OPTIONS
+        missing = [k for k in required_options(n) if k not in given.get(n, {})]
+        example = soak_options(n)
+        if missing and example is None:
+            skipped[n] = f"needs options {missing}"
+        else:
+            scenario_options[n] = {**(example or {}), **given.get(n, {})}
+    names = [n for n in names if n not in skipped]
+    if not names:
+        raise SoakError("no scenario to soak")
+    pairs = [(n, m) for n in names for m in modes] if agent_steps > 0 else []
+    share = int(np.ceil(agent_steps / max(len(pairs), 1)))
+    total = InvariantChecker()
+    memory = MemoryProbe(trace=trace_memory)
+    memory.start()
+    memory.sample(0)
+    done_agent_steps = env_steps = episodes = 0
+    per_pair = {}
+    rng = np.random.default_rng(seed)
+    t0 = time.perf_counter()
+    for name, mode in pairs:
+        act = ACTION_MODES[mode]
+        options = dict(scenario_options.get(name, {}))
+        if fixed_start:
+            options.setdefault("seed", seed)
+        checker = InvariantChecker(overlap_tolerance_m=overlap_tolerance_m, label=f"{name}/{mode}")
+        envs = {}
+        pair_steps, pair_t0, k, first_sample = 0, time.perf_counter(), 0, len(memory.samples)
+        while pair_steps < share:
+            controlled = "all" if k % 2 == 0 else 0.5
+            if controlled not in envs:  # built when first needed (a short soak may never need the second)
+                envs[controlled] = crowd_v0.parallel_env(scenario=name, scenario_options=options, controlled=controlled,
+                                                         max_steps=max_steps, frame_skip=frame_skip)
+                envs[controlled].substep_hooks.append(checker)
+            env = envs[controlled]
+            env.reset(seed=int(rng.integers(2**31 - 1)))
+            while env.agents and pair_steps < share:
+                n_live = len(env.agents)
+                env.step(act(env, rng))
+                pair_steps += n_live
+                env_steps += 1
+            episodes += 1
+            k += 1
+            memory.sample(done_agent_steps + pair_steps)
+        done_agent_steps += pair_steps
+        per_pair[f"{name}/{mode}"] = {"agent_steps": pair_steps, "sim_steps": checker.n_checked_steps,
+                                      "impact_steps": checker.n_impact_steps, "episodes": k,
+                                      "violations": dict(checker.counts),
+                                      "max_overlap_m": checker.max_overlap_m,
+                                      "rss_first_episode_end_mib": memory.samples[first_sample][1] / 2**20,
+                                      "rss_end_mib": memory.samples[-1][1] / 2**20,
+                                      "wall_s": time.perf_counter() - pair_t0}
+        total.merge(checker)
+        progress(f"{name}/{mode}: {pair_steps} agent-steps, {checker.n_checked_steps} simulator steps "
+                 f"({checker.n_impact_steps} with impacts), {k} episodes, "
+                 f"violations {dict(checker.counts) or 0}, max overlap {checker.max_overlap_m:.3g} m "
+                 f"({time.perf_counter() - pair_t0:.0f} s)")
+    environment_cluster, environment_group = total.max_cluster_size, total.max_contact_group
+    pressure = None
+    if pressure_agent_steps > 0:
+        pressure = pressure_soak(pressure_agent_steps, cases=pressure_cases, seed=seed,
+                                 overlap_tolerance_m=overlap_tolerance_m, progress=progress)
+        total.merge(pressure.pop("checker"))  # memory is judged on the environment phase only
+    memory.stop()
+    mib = 2.0**20
+    window = memory.window()
+    growth = {c: memory.slope_bytes_per(c) * window / mib for c in ("rss", "traced")}
+    judged = "traced" if trace_memory else "rss"
+    memory_ok = not (growth[judged] > memory_tolerance_mib)
+    violations = dict(total.counts)
+    if not memory_ok:
+        violations["memory_growth"] = 1
+    s = memory.samples
+    return {
+        "agent_steps": done_agent_steps, "env_steps": env_steps, "sim_steps": total.n_checked_steps,
+        "impact_steps": total.n_impact_steps, "max_cluster_size": total.max_cluster_size,
+        "max_contact_group": total.max_contact_group, "environment_max_cluster_size": environment_cluster,
+        "environment_max_contact_group": environment_group, "episodes": episodes, "pressure": pressure,
+        "scenarios": names, "skipped_scenarios": skipped, "modes": modes,
+        "violations": violations, "n_violations": int(sum(violations.values())),
+        "overlap_tolerance_m": overlap_tolerance_m, "max_overlap_m": total.max_overlap_m,
+        "max_wall_overlap_m": total.max_wall_overlap_m,
+        "max_impact_energy_increase_j": total.max_impact_energy_increase_j,
+        "max_impact_energy_increase_rel": total.max_impact_energy_increase_rel,
+        "max_projection_energy_increase_j": total.max_projection_energy_increase_j,
+        "examples": total.examples,
+        "memory": {"rss_start_mib": s[0][1] / mib, "rss_end_mib": s[-1][1] / mib,
+                   "traced_start_mib": s[0][2] / mib if trace_memory else None,
+                   "traced_end_mib": s[-1][2] / mib if trace_memory else None,
+                   "rss_slope_kib_per_1000_agent_steps": memory.slope_bytes_per("rss") * 1000 / 1024,
+                   "traced_slope_kib_per_1000_agent_steps": memory.slope_bytes_per("traced") * 1000 / 1024
+                   if trace_memory else None,
+                   "fit_window_agent_steps": window, "growth_over_window_mib": growth, "judged_on": judged,
+                   "tolerance_mib": memory_tolerance_mib, "ok": memory_ok, "n_samples": len(s),
+                   "samples": [(x, rss / mib, traced / mib if trace_memory else None) for x, rss, traced in s]},
+        "per_pair": per_pair, "wall_s": time.perf_counter() - t0,
+    }

@@ -1,8 +1,12 @@
 """Evaluation harness: run any policy through the same scenarios and seeds and report the same metrics.
 
-Policies: anything :func:`baselines.reference_policies.as_policy` accepts (``"baseline"`` — the
-calibrated social-force model —, ``"random"``, ``"zero"``, a saved SB3 model ``.zip``, an SB3 model,
-an :class:`~baselines.reference_policies.EnvPolicy`, or a callable ``fn(obs (n, D)) -> (n, 2)``).
+A policy is an object with ``act(env, observations) -> {agent: (2,) intent}`` and optionally
+``reset(env, seed)``, ``name`` and ``env_overrides`` (environment options it needs); the harness never
+imports one. Specs that are not policy objects are turned into policies by ``resolve(spec, name=...)``
+(e.g. ``baselines.reference_policies.as_policy``, which knows ``"baseline"``, ``"random"``, ``"zero"``,
+saved SB3 models and callables), or, without ``resolve``, from an import path ``"module:attribute"``
+(:func:`import_object`; a class or factory is called without arguments). This is how the shipped
+baselines and users' own policies are plugged in.
 
 Each episode runs the parallel environment (every pedestrian controlled by the policy by default)
 for at most ``max_time_s`` of simulated time, measuring at every simulator step (through the
@@ -16,7 +20,7 @@ environment's ``substep_hooks``):
 - ``complete``: nobody remains at the end (each pedestrian crossed the line or left; without a line:
   left); ``partial_specific_flow_per_m_s`` / ``partial_flow_per_s``: Eq. 22 over the passages that
   happened, for incomplete episodes too;
-- ``stalled`` / ``stall_time_s``: the runner's stall rule (:class:`crowd_env.runner.StallDetector`:
+- ``stalled`` / ``stall_time_s``: the runner's stall rule (:class:`crowd_env.experiments.runner.StallDetector`:
   nobody crossed the line or left for 20 s while those remaining stood still, mean speed below
   0.05 m/s) fired at that time. Unlike ``run_scenario`` the episode is not stopped there, so that every
   policy's return covers the same horizon; ``stall_time_s`` is the first detection;
@@ -32,6 +36,7 @@ environment's ``substep_hooks``):
 from __future__ import annotations
 
 import csv
+import importlib
 import math
 import time
 from dataclasses import asdict, dataclass, field, fields
@@ -39,14 +44,12 @@ from dataclasses import asdict, dataclass, field, fields
 import numpy as np
 from scipy.spatial import cKDTree
 
-from crowd_env.analysis.flow import MeasurementLine, PassageCounter, specific_flow
-from crowd_env.envs.crowd_v0 import CrowdParallelEnv
-from crowd_env.runner import StallDetector
+from ..analysis.flow import MeasurementLine, PassageCounter, specific_flow
+from ..envs.crowd_v0 import CrowdParallelEnv
+from .runner import StallDetector
 
-from .reference_policies import as_policy
-
-__all__ = ["EpisodeMetrics", "ScenarioSpec", "run_episode", "evaluate", "summarize", "format_table", "write_csv",
-           "plot_results", "METRICS"]
+__all__ = ["EpisodeMetrics", "ScenarioSpec", "import_object", "resolve_policy", "run_episode", "evaluate", "summarize",
+           "format_table", "write_csv", "plot_results", "METRICS"]
 
 METRICS = (
     ("specific_flow_per_m_s", "J_s (1/m/s)"),
@@ -104,6 +107,40 @@ class ScenarioSpec:
         if self.scenario_options:
             out["scenario_options"] = dict(self.scenario_options)
         return out
+
+
+def import_object(path: str):
+    """The object an import path ``"package.module:attribute"`` names (``importlib``; nested attributes
+    with dots after the colon)."""
+    module, sep, attr = str(path).partition(":")
+    if not sep or not module or not attr:
+        raise ValueError(f"an import path is 'module:attribute', got {path!r}")
+    obj = importlib.import_module(module)
+    for part in attr.split("."):
+        try:
+            obj = getattr(obj, part)
+        except AttributeError:
+            raise ValueError(f"{path!r}: {obj!r} has no attribute {part!r}") from None
+    return obj
+
+
+def resolve_policy(spec, name: str | None = None, resolve=None):
+    """A policy object from ``spec``: ``resolve(spec, name=name)`` when ``resolve`` is given; otherwise
+    ``spec`` itself when it has ``act``, or the object an import path ``"module:attribute"`` names (called
+    without arguments when it is a class or factory without ``act``). ``name`` relabels the policy."""
+    if resolve is not None:
+        return resolve(spec, name=name)
+    policy = spec
+    if isinstance(spec, str):
+        policy = import_object(spec)
+        if not hasattr(policy, "act") or isinstance(policy, type):
+            policy = policy()
+    if not (hasattr(policy, "act") and callable(policy.act)):
+        raise TypeError(f"not a policy (no act(env, observations)): {spec!r}; pass a policy object, an import path "
+                        "'module:attribute', or resolve= (e.g. baselines.reference_policies.as_policy)")
+    if name:
+        policy.name = name
+    return policy
 
 
 def _line_name(geometry, line: str | None):
@@ -174,8 +211,11 @@ class _Probe:
 
 
 def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", seed: int = 0, *,
-                env_options: dict | None = None, max_time_s: float = 90.0, line: str | None = None) -> EpisodeMetrics:
+                env_options: dict | None = None, max_time_s: float = 90.0, line: str | None = None,
+                resolve=None) -> EpisodeMetrics:
     """Run one episode of ``policy`` on ``scenario`` with ``seed``; see the module docstring for the metrics.
+
+    ``policy``: a policy object, or a spec :func:`resolve_policy` turns into one (with ``resolve``).
 
     ``scenario``: a :class:`ScenarioSpec`, or a registered scenario name (any of
     ``crowd_env.scenarios.list_scenarios()``; options through ``ScenarioSpec(name, options)``).
@@ -183,7 +223,7 @@ def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", se
     ``env_options`` go to :class:`~crowd_env.envs.crowd_v0.CrowdParallelEnv` (``controlled`` defaults to
     ``"all"``); the policy's ``env_overrides`` win over them; ``max_steps`` is set from ``max_time_s``.
     """
-    policy = as_policy(policy)
+    policy = resolve_policy(policy, resolve=resolve)
     spec = scenario if isinstance(scenario, ScenarioSpec) else ScenarioSpec(scenario)
     opts = {"controlled": "all", **(env_options or {}), **spec.env_options(), **getattr(policy, "env_overrides", {})}
     opts.pop("max_steps", None)
@@ -191,7 +231,8 @@ def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", se
     env.max_steps = max(1, int(math.ceil(max_time_s / env.dt_s - 1e-9)))  # frame_skip and dt resolved
     t0 = time.perf_counter()
     obs, _ = env.reset(seed=seed)
-    policy.reset(env, seed)
+    if hasattr(policy, "reset"):
+        policy.reset(env, seed)
     probe = _Probe(env, line)
     env.substep_hooks.append(probe)
     returns = dict.fromkeys(env.possible_agents, 0.0)
@@ -212,7 +253,8 @@ def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", se
         js = fr.specific_flow_per_m_s if width else float("nan")
     complete = not (env.sim.state.active & ~probe.passed).any()
     result = EpisodeMetrics(
-        policy=policy.name, scenario=spec.label, seed=int(seed), n_pedestrians=n, n_evacuated=n_out,
+        policy=getattr(policy, "name", type(policy).__name__), scenario=spec.label, seed=int(seed), n_pedestrians=n,
+        n_evacuated=n_out,
         simulated_time_s=env.sim.time_s,
         evacuation_time_s=probe.last_exit_s if n_out == n else float("nan"),
         specific_flow_per_m_s=js if complete else float("nan"), flow_per_s=j if complete else float("nan"),
@@ -227,15 +269,16 @@ def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", se
 
 
 def evaluate(policies, scenarios=("seyfried_bottleneck",), seeds=(0, 1, 2), *, env_options: dict | None = None,
-             max_time_s: float = 90.0, line: str | None = None, progress=print) -> list:
-    """Every policy x scenario x seed; ``policies``: a list of policy specs or a dict label -> spec;
-    ``scenarios``: :class:`ScenarioSpec` objects, registered names or ``(name, options)`` pairs."""
+             max_time_s: float = 90.0, line: str | None = None, progress=print, resolve=None) -> list:
+    """Every policy x scenario x seed; ``policies``: a list of policies (or specs) or a dict label -> policy
+    (or spec), specs turned into policies by :func:`resolve_policy` (with ``resolve``); ``scenarios``:
+    :class:`ScenarioSpec` objects, registered names or ``(name, options)`` pairs."""
     items = list(policies.items()) if isinstance(policies, dict) else [(None, p) for p in policies]
     specs = [s if isinstance(s, ScenarioSpec) else ScenarioSpec(*s) if isinstance(s, tuple) else ScenarioSpec(s)
              for s in scenarios]
     results = []
     for label, p in items:
-        pol = as_policy(p, name=label)
+        pol = resolve_policy(p, name=label, resolve=resolve)
         for spec in specs:
             for seed in seeds:
                 r = run_episode(pol, spec, seed, env_options=env_options, max_time_s=max_time_s, line=line)

@@ -1,0 +1,63 @@
+"""Command-line options shared by the bottleneck commands (``crowd-bottleneck``, ``crowd-calibrate``):
+the Seyfried geometry and navigation flags, and the model configuration they describe."""
+from __future__ import annotations
+
+import json
+
+from ..core.params import ModelParams, ParameterError
+from ..core.presets import DEFAULT_PRESET, get_preset
+from ..experiments.bottleneck import GEOMETRY_OPTIONS, bottleneck_config, model_params
+
+__all__ = ["add_geometry_arguments", "model_params_from_args", "navigation_clearance_from_args", "config_of"]
+
+
+def add_geometry_arguments(group, clearance_help: str) -> None:
+    """The scenario's geometry and navigation options."""
+    for flag, (_, default) in GEOMETRY_OPTIONS.items():
+        group.add_argument(f"--{flag.replace('_', '-')}", type=float, default=default, dest=flag,
+                           help=f"default {default}")
+    group.add_argument("--navigation-clearance", type=float, default=None, dest="navigation_clearance",
+                       help=clearance_help)
+    group.add_argument("--navigation-wall-slowdown", type=float, nargs=2, default=None, metavar=("DIST", "FACTOR"),
+                       dest="navigation_wall_slowdown",
+                       help="slower wavefront speed near walls, an option the paper describes with Eq. 11 but does not "
+                            "use: V is multiplied by FACTOR in (0, 1] within DIST m of a wall, so that desired "
+                            "directions keep away from walls; default off (V = 1 everywhere, as in the paper)")
+
+
+def model_params_from_args(args) -> ModelParams:
+    """The preset's model (``--preset``) with the explicit flags (``--A``, ``--B``, ..., ``--param``) on top."""
+    changes = {}
+    for name in ("social_strength_n", "social_range_m", "social_anisotropy", "normal_dissipation_kg"):
+        if getattr(args, name) is not None:
+            changes[name] = getattr(args, name)
+    for item in args.param:
+        if "=" not in item:
+            raise ParameterError(f"--param expects NAME=VALUE, got {item!r}")
+        key, value = item.split("=", 1)
+        try:
+            changes[key] = json.loads(value)
+        except json.JSONDecodeError:
+            changes[key] = value
+    if args.no_social:
+        changes["social_forces"] = False
+    if args.no_rotation:
+        changes["rotation"] = False
+    return model_params(getattr(args, "preset", DEFAULT_PRESET), changes)
+
+
+def navigation_clearance_from_args(args) -> float:
+    """--navigation-clearance if given, else the preset's."""
+    value = getattr(args, "navigation_clearance", None)
+    return float(get_preset(getattr(args, "preset", DEFAULT_PRESET)).navigation_clearance_m if value is None else value)
+
+
+def config_of(args, params: ModelParams) -> dict:
+    """The configuration of the runs the flags describe
+    (:func:`~crowd_env.experiments.bottleneck.bottleneck_config`)."""
+    return bottleneck_config(params, navigation_clearance_m=navigation_clearance_from_args(args),
+                             max_time_s=args.max_time,
+                             navigation_wall_slowdown=getattr(args, "navigation_wall_slowdown", None),
+                             stall_window_s=getattr(args, "stall_window", None),
+                             stall_speed_m_s=getattr(args, "stall_speed", None),
+                             **{opt: getattr(args, flag) for flag, (opt, _) in GEOMETRY_OPTIONS.items()})

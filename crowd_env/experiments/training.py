@@ -1,0 +1,253 @@
+"""Training one PPO policy shared by all controlled pedestrians (Stable-Baselines3 + SuperSuit).
+
+The PettingZoo parallel environment of the Kabalan et al. (2016) model is wrapped with
+``supersuit.black_death_v3`` (agents that leave get zero observations and rewards until the episode
+ends), turned into a vector environment with one slot per agent (``pettingzoo_env_to_vec_env_v1``) and
+``copies`` copies of it concatenated (``concat_vec_envs_v1(..., base_class="stable_baselines3")``), so
+every pedestrian's experience trains the same network. :func:`train` writes ``model.zip``,
+``env_config.json``, ``learning_curve.csv`` / ``.png``, ``summary.json`` (mean per-agent episode return
+of a random policy and of the trained one on the same evaluation seeds) and resumable checkpoints
+(``checkpoints/``, indexed last and atomically). Needs the ``train`` extra (torch, SB3, SuperSuit),
+imported inside the functions that use it. Command line: ``crowd-train-ppo``.
+"""
+from __future__ import annotations
+
+import json
+import os
+import time
+import warnings
+
+import numpy as np
+
+from ..core.params import ModelParams
+from ..envs import crowd_v0
+from .evaluation import ScenarioSpec, run_episode
+
+__all__ = ["DEFAULT_SCENARIO_OPTIONS", "TrainingError", "make_vec_env", "mean_return", "read_checkpoints",
+           "save_checkpoint", "check_resume", "train", "write_curve"]
+
+DEFAULT_SCENARIO_OPTIONS = {"width_m": 1.0, "n_pedestrians": 10}
+
+
+class TrainingError(ValueError):
+    """A training run that cannot start or resume (checkpoints without resume, other environment options)."""
+
+
+def make_vec_env(env_config: dict, copies: int = 1, seed: int | None = None):
+    """SB3 VecEnv (with VecMonitor) over all controlled agents of ``copies`` environments."""
+    import supersuit as ss
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    env = crowd_v0.parallel_env(**env_config)
+    env = ss.black_death_v3(env)
+    vec = ss.pettingzoo_env_to_vec_env_v1(env)
+    vec = ss.concat_vec_envs_v1(vec, copies, num_cpus=0, base_class="stable_baselines3")
+    if seed is not None:
+        # Seed every copy (copy i gets seed + i); SB3's later unseeded resets continue these streams.
+        vec.venv.reset(seed=seed)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="The `render_mode` attribute is not defined")
+        return VecMonitor(vec)
+
+
+def mean_return(policy, env_config: dict, seeds) -> dict:
+    """Mean per-agent episode return (and evacuated fraction) of ``policy`` over ``seeds``."""
+    dt = ModelParams.from_dict(env_config["params"]).dt_s if env_config.get("params") else ModelParams().dt_s
+    max_time = env_config["max_steps"] * env_config["frame_skip"] * dt
+    opts = {k: v for k, v in env_config.items() if k not in ("scenario", "scenario_options", "max_steps")}
+    spec = ScenarioSpec(env_config["scenario"], env_config["scenario_options"])
+    runs = [run_episode(policy, spec, s, env_options=opts, max_time_s=max_time) for s in seeds]
+    return {"mean_return": float(np.mean([r.mean_return for r in runs])),
+            "std_return": float(np.std([r.mean_return for r in runs])),
+            "evacuated_fraction": float(np.mean([r.n_evacuated / r.n_pedestrians for r in runs])),
+            "n_percussions": float(np.mean([r.n_percussions for r in runs]))}
+
+
+def _write_json_atomic(path: str, value) -> None:
+    tmp = path + ".tmp"
+    with open(tmp, "w") as fh:
+        json.dump(value, fh, indent=1)
+    os.replace(tmp, path)  # a kill leaves either the old file or the new one, never half of one
+
+
+def read_checkpoints(out: str) -> list:
+    """Checkpoint entries of ``out`` in order (``{"timesteps", "model", "vecnormalize"}``), [] if none."""
+    path = os.path.join(out, "checkpoints", "index.json")
+    if not os.path.exists(path):
+        return []
+    with open(path) as fh:
+        return json.load(fh)["checkpoints"]
+
+
+def save_checkpoint(model, out: str, curve: list) -> dict | None:
+    """Save ``model`` (and VecNormalize statistics if any) and the curve; append to the index last.
+
+    Returns the new entry, or None when the latest checkpoint already has this step count."""
+    entries = read_checkpoints(out)
+    t = int(model.num_timesteps)
+    if entries and entries[-1]["timesteps"] >= t:
+        return None
+    folder = os.path.join(out, "checkpoints")
+    os.makedirs(folder, exist_ok=True)
+    entry = {"timesteps": t, "model": f"ppo_{t}_steps.zip", "vecnormalize": None}
+    model.save(os.path.join(folder, f"ppo_{t}_steps.tmp.zip"))
+    os.replace(os.path.join(folder, f"ppo_{t}_steps.tmp.zip"), os.path.join(folder, entry["model"]))
+    norm = model.get_vec_normalize_env()
+    if norm is not None:
+        entry["vecnormalize"] = f"vecnormalize_{t}_steps.pkl"
+        norm.save(os.path.join(folder, entry["vecnormalize"] + ".tmp"))
+        os.replace(os.path.join(folder, entry["vecnormalize"] + ".tmp"), os.path.join(folder, entry["vecnormalize"]))
+    _write_json_atomic(os.path.join(folder, "curve.json"), curve)
+    _write_json_atomic(os.path.join(folder, "index.json"), {"checkpoints": entries + [entry]})
+    return entry
+
+
+def check_resume(out: str, env_config: dict, resume: bool) -> list:
+    """The checkpoints to resume from; refuses a folder with checkpoints without ``resume`` or of another config."""
+    entries = read_checkpoints(out)
+    if entries and not resume:
+        raise TrainingError(f"{out} holds checkpoints (latest at {entries[-1]['timesteps']} timesteps): pass "
+                            "--resume to continue that run, or choose another --out")
+    path = os.path.join(out, "env_config.json")
+    if resume and entries and os.path.exists(path):
+        with open(path) as fh:
+            old = json.load(fh)
+        if old != json.loads(json.dumps(env_config)):
+            diff = sorted(k for k in set(old) | set(env_config) if old.get(k) != env_config.get(k))
+            raise TrainingError(f"cannot resume: {out} was trained with other environment options "
+                                f"(differs in {diff})")
+    return entries
+
+
+def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0, copies: int = 2, n_steps: int = 256,
+          batch_size: int = 512, n_epochs: int = 10, learning_rate: float = 3e-4, gamma: float = 0.99,
+          eval_seeds=(1000, 1001, 1002), threads: int = 1, verbose: int = 0, checkpoint_every: int = 10_000,
+          resume: bool = False, progress=print) -> dict:
+    """Train, save and evaluate; returns the summary dict (also written to ``out/summary.json``).
+
+    ``resolve(spec, name=None) -> policy`` makes the policies the summary compares
+    (:func:`~crowd_env.experiments.evaluation.resolve_policy`): ``resolve("random")`` before training and
+    ``resolve(model, name="ppo")`` for the trained SB3 model, e.g. ``baselines.reference_policies.as_policy``.
+
+    ``checkpoint_every`` timesteps (0: only at the end) a checkpoint is saved under ``out/checkpoints``;
+    ``resume`` continues from the latest one up to ``timesteps`` in all (see the module docstring).
+    """
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.utils import set_random_seed
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    torch.set_num_threads(max(1, int(threads)))
+    os.makedirs(out, exist_ok=True)
+    entries = check_resume(out, env_config, resume)
+    with open(os.path.join(out, "env_config.json"), "w") as fh:
+        json.dump(env_config, fh, indent=2)
+
+    t0 = time.perf_counter()
+    random_path = os.path.join(out, "random_eval.json")
+    before = None
+    if entries and os.path.exists(random_path):
+        with open(random_path) as fh:
+            saved = json.load(fh)
+        before = saved["result"] if saved["eval_seeds"] == list(eval_seeds) and saved["seed"] == seed else None
+    if before is None:
+        before = mean_return(resolve("random"), env_config, eval_seeds)
+        _write_json_atomic(random_path, {"eval_seeds": list(eval_seeds), "seed": seed, "result": before})
+    progress(f"random policy: mean per-agent episode return {before['mean_return']:.3f} "
+             f"(evacuated {100 * before['evacuated_fraction']:.0f}%)")
+
+    start = entries[-1]["timesteps"] if entries else 0
+    set_random_seed(seed + start)  # python, numpy, torch
+    vec = make_vec_env(env_config, copies, seed + start)
+    curve = []
+
+    class Curve(BaseCallback):
+        def _on_step(self) -> bool:
+            for info in self.locals.get("infos", []):
+                ep = info.get("episode")
+                if ep is not None:
+                    curve.append((self.num_timesteps, float(ep["r"]), int(ep["l"])))
+            return True
+
+    class Checkpoint(BaseCallback):
+        """Saves when ``checkpoint_every`` timesteps have passed, at a rollout start (after the update)."""
+
+        last_t = start
+
+        def _on_rollout_start(self) -> None:
+            if checkpoint_every > 0 and self.model.num_timesteps - self.last_t >= checkpoint_every:
+                save_checkpoint(self.model, out, curve)
+                self.last_t = self.model.num_timesteps
+
+        def _on_step(self) -> bool:
+            return True
+
+        def _on_training_end(self) -> None:
+            save_checkpoint(self.model, out, curve)
+
+    if entries:
+        latest = entries[-1]
+        folder = os.path.join(out, "checkpoints")
+        if latest["vecnormalize"]:
+            vec = VecNormalize.load(os.path.join(folder, latest["vecnormalize"]), vec)
+        model = PPO.load(os.path.join(folder, latest["model"]), env=vec, device="cpu")
+        with open(os.path.join(folder, "curve.json")) as fh:
+            curve.extend(tuple(c) for c in json.load(fh) if c[0] <= latest["timesteps"])
+        progress(f"resuming from the checkpoint at {model.num_timesteps} timesteps")
+    else:
+        # Not PPO(seed=...): SB3 would call vec.seed(), which SuperSuit's concatenated env lacks.
+        model = PPO("MlpPolicy", vec, n_steps=n_steps, batch_size=batch_size, n_epochs=n_epochs,
+                    learning_rate=learning_rate, gamma=gamma, device="cpu", verbose=verbose,
+                    policy_kwargs={"net_arch": [64, 64]})
+    model.action_space.seed(seed + start)
+    t1 = time.perf_counter()
+    remaining = int(timesteps) - int(model.num_timesteps)
+    if remaining > 0:  # with reset_num_timesteps=False SB3 counts total_timesteps on top of num_timesteps
+        model.learn(total_timesteps=remaining, callback=[Curve(), Checkpoint()], reset_num_timesteps=not entries)
+    train_s = time.perf_counter() - t1
+    model.save(os.path.join(out, "model.zip"))
+    vec.close()
+
+    after = mean_return(resolve(model, name="ppo"), env_config, eval_seeds)
+    progress(f"trained policy: mean per-agent episode return {after['mean_return']:.3f} "
+             f"(evacuated {100 * after['evacuated_fraction']:.0f}%)")
+    write_curve(curve, out, before["mean_return"], after["mean_return"])
+    summary = {"timesteps": int(model.num_timesteps), "resumed_from_timesteps": start, "train_wall_s": train_s,
+               "total_wall_s": time.perf_counter() - t0, "random": before, "trained": after,
+               "improvement": after["mean_return"] - before["mean_return"], "env_config": env_config,
+               "eval_seeds": list(eval_seeds), "seed": seed, "copies": copies,
+               "ppo": {"n_steps": n_steps, "batch_size": batch_size, "n_epochs": n_epochs,
+                       "learning_rate": learning_rate, "gamma": gamma}}
+    with open(os.path.join(out, "summary.json"), "w") as fh:
+        json.dump(summary, fh, indent=2)
+    return summary
+
+
+def write_curve(curve, out: str, random_return: float, trained_return: float) -> None:
+    """learning_curve.csv (timestep, episode_return, episode_length) and learning_curve.png."""
+    with open(os.path.join(out, "learning_curve.csv"), "w") as fh:
+        fh.write("timestep,episode_return,episode_length\n")
+        for t, r, n in curve:
+            fh.write(f"{t},{r:.6g},{n}\n")
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6, 4))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    if curve:
+        t = np.array([c[0] for c in curve], float)
+        r = np.array([c[1] for c in curve], float)
+        ax.plot(t, r, ".", ms=2, alpha=0.3, color="tab:blue", label="episode return (one agent)")
+        w = max(1, len(r) // 20)
+        if len(r) >= w:
+            smooth = np.convolve(r, np.ones(w) / w, mode="valid")
+            ax.plot(t[w - 1:], smooth, color="tab:blue", lw=2, label=f"running mean ({w})")
+    ax.axhline(random_return, color="tab:red", ls="--", label="random policy (eval)")
+    ax.axhline(trained_return, color="tab:green", ls="--", label="trained, deterministic (eval)")
+    ax.set_xlabel("timesteps (agent steps)")
+    ax.set_ylabel("per-agent episode return")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, "learning_curve.png"), dpi=100)
