@@ -1,0 +1,120 @@
+"""Evaluate policies on the same scenarios and seeds; print one table of metrics and write a plot.
+
+Policies: names the policy resolver knows (``--policy-resolver``, default the shipped baselines'
+``baselines.reference_policies:as_policy``: ``baseline``, the calibrated social-force model,
+``random``, ``zero``), import paths ``module:attribute`` of your own policy classes or objects, and any
+number of saved SB3 models (``--model runs/ppo/model.zip``; an ``env_config.json`` next to the first
+model sets the observation layout and decision interval for every policy, so all run the same
+environment). Everything is resolved by import path at run time: ``crowd_env`` imports no policy.
+Metrics (:mod:`crowd_env.experiments.evaluation`): specific flow J_s (Kabalan et al. 2016, Eq. 22),
+evacuation time, mean speed, number and mean size of the contact percussions, minimum gap, mean
+per-agent return.
+
+    crowd-evaluate --seeds 0 1 2 --widths 1.0 1.6 --scenario-option n_pedestrians=20
+    crowd-evaluate --model runs/ppo/model.zip --policies baseline random --out runs/eval
+    crowd-evaluate --policies baseline mypackage.policies:MyPolicy
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+
+from ..experiments.evaluation import (ScenarioSpec, evaluate, format_table, import_object, plot_results,
+                                      resolve_policy, summarize, write_csv)
+
+DEFAULT_POLICY_RESOLVER = "baselines.reference_policies:as_policy"
+
+
+def _parse_value(text: str):
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        return text
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="crowd-evaluate", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--policies", nargs="*", default=["baseline", "random", "zero"],
+                    help="policies: names the resolver knows (baseline, random, zero) or import paths module:attribute")
+    ap.add_argument("--model", action="append", default=[], help="saved SB3 PPO model (.zip); repeatable")
+    ap.add_argument("--policy-resolver", default=DEFAULT_POLICY_RESOLVER, metavar="MODULE:FUNCTION",
+                    help=f"resolve(spec, name=None) -> policy for names and models (default {DEFAULT_POLICY_RESOLVER})")
+    ap.add_argument("--scenario", default="seyfried_bottleneck")
+    ap.add_argument("--scenario-option", action="append", default=[], metavar="KEY=VALUE",
+                    help="scenario option (repeatable, JSON values), e.g. n_pedestrians=20")
+    ap.add_argument("--widths", type=float, nargs="*", default=None,
+                    help="bottleneck widths: one scenario per width (sets width_m)")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--max-time", type=float, default=90.0, help="simulated seconds per episode at most")
+    ap.add_argument("--controlled", default="all", help="'all', a count, a fraction or comma-separated ids")
+    ap.add_argument("--frame-skip", type=int, default=None, help="decision interval in simulator steps "
+                    "(default: the model's env_config.json, else 1)")
+    ap.add_argument("--out", default="runs/eval", help="output directory (results.csv, summary.txt, metrics.png)")
+    return ap
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+
+    env_options = {}
+    if args.model:
+        cfg_path = os.path.join(os.path.dirname(os.path.abspath(args.model[0])), "env_config.json")
+        if os.path.exists(cfg_path):
+            with open(cfg_path) as fh:
+                cfg = json.load(fh)
+            for key in ("n_neighbors", "n_rays", "frame_skip", "heading_target", "params"):
+                if key in cfg:
+                    env_options[key] = cfg[key]
+    if args.frame_skip is not None:
+        env_options["frame_skip"] = args.frame_skip
+    controlled = args.controlled
+    if controlled != "all":
+        try:
+            controlled = json.loads(controlled)
+        except json.JSONDecodeError:
+            controlled = controlled.split(",")
+    env_options["controlled"] = controlled
+
+    options = {}
+    for item in args.scenario_option:
+        if "=" not in item:
+            raise SystemExit(f"--scenario-option needs key=value, got {item!r}")
+        k, v = item.split("=", 1)
+        options[k] = _parse_value(v)
+    if args.widths:
+        scenarios = [ScenarioSpec(args.scenario, {**options, "width_m": w}) for w in args.widths]
+    else:
+        scenarios = [ScenarioSpec(args.scenario, options or None)]
+
+    try:
+        resolve = import_object(args.policy_resolver)
+        policies = {}
+        for spec in args.policies:
+            p = resolve_policy(spec) if ":" in spec else resolve(spec)
+            policies[getattr(p, "name", spec)] = p
+        for path in args.model:
+            p = resolve(path)
+            label = p.name if p.name not in policies else os.path.basename(os.path.dirname(os.path.abspath(path)))
+            policies[label] = p
+    except (ImportError, ValueError, TypeError) as exc:
+        raise SystemExit(f"error: {exc}") from None
+
+    print(f"environment options: {env_options}; seeds {args.seeds}; at most {args.max_time:g} s simulated")
+    results = evaluate(policies, scenarios, args.seeds, env_options=env_options, max_time_s=args.max_time)
+    table = format_table(summarize(results))
+    print()
+    print(table)
+    os.makedirs(args.out, exist_ok=True)
+    write_csv(results, os.path.join(args.out, "results.csv"))
+    with open(os.path.join(args.out, "summary.txt"), "w") as fh:
+        fh.write(table + "\n")
+    plot_results(results, os.path.join(args.out, "metrics.png"))
+    print(f"\nwrote {args.out}/results.csv, summary.txt, metrics.png")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
