@@ -5,10 +5,10 @@ full model) for ``--warmup`` steps, then records the projections of the next ``-
 are too large for the dense path (the jam in front of the door) and solves each of them, in one run,
 with:
 
-* ``project_gaps_alm`` from zero within the simulator's Newton budget (``ALM_NEWTON_BUDGET``), the
-  first stage of ``Simulator._project_large`` (misses count as its time spent);
+* ``project_gaps_alm`` from zero within the solver cascade's Newton budget (``ALM_NEWTON_BUDGET``), the
+  first stage of ``SolverCascade._project_large`` (misses count as its time spent);
 * ``project_gaps_interior_point``, the own Mehrotra method with dual regularisation, the second stage;
-* ``project_gaps_working_set``: the same method on the simulator's working set (the previous step's
+* ``project_gaps_working_set``: the same method on the cascade's working set (the previous step's
   active contacts and the nearly closing candidates), grown until nothing is violated, started from
   the previous step's percussions, which is what the second stage runs when the previous step had a
   large projection; and the same with its first solve from the cold start, to show what the warm
@@ -38,14 +38,16 @@ from scaling import dense_room  # noqa: E402
 
 from baselines.social_force import SocialForceAgent  # noqa: E402
 from crowd_env.core import ModelParams, Simulator  # noqa: E402
-from crowd_env.core.collision import STATUS_OK, gap_residuals, project_gaps_ipm  # noqa: E402
-from crowd_env.core.projection import (project_gaps_alm, project_gaps_interior_point,  # noqa: E402
-                                       project_gaps_working_set)
-from crowd_env.core.simulator import ALM_NEWTON_BUDGET  # noqa: E402
+from crowd_env.core.solvers.cascade import ALM_NEWTON_BUDGET, SolverCascade  # noqa: E402
+from crowd_env.core.solvers.external import project_gaps_ipm  # noqa: E402
+from crowd_env.core.solvers.graph import gap_residuals  # noqa: E402
+from crowd_env.core.solvers.large_projection import (project_gaps_alm, project_gaps_interior_point,  # noqa: E402
+                                                     project_gaps_working_set)
+from crowd_env.core.solvers.status import STATUS_OK  # noqa: E402
 
 
-class RecordingSimulator(Simulator):
-    """A Simulator that keeps a copy of every large projection's data (and its working set and start,
+class RecordingCascade(SolverCascade):
+    """A solver cascade that keeps a copy of every large projection's data (and its working set and start,
     None without one) before solving it as usual."""
 
     def __init__(self, *args, **kwargs):
@@ -71,12 +73,13 @@ def main(argv=None) -> None:
 
     scenario = dense_room(args.n, 0)
     agent = SocialForceAgent(scenario.navigation())
-    sim = RecordingSimulator(scenario.make_state(), geometry=scenario.geometry, params=ModelParams())
+    sim = Simulator(scenario.make_state(), geometry=scenario.geometry, params=ModelParams())
+    sim.cascade = cascade = RecordingCascade()
     for k in range(args.warmup + args.steps):
-        sim.recording = k >= args.warmup
+        cascade.recording = k >= args.warmup
         intents, heading = agent(sim)
         sim.step(intents, desired_heading_rad=heading)
-    problems = sim.recorded
+    problems = cascade.recorded
     if not problems:
         print(f"no projection too large for the dense path in {args.steps} steps after {args.warmup}")
         return
@@ -91,7 +94,7 @@ def main(argv=None) -> None:
     times = {"alm": 0.0, "own": 0.0, "piqp": 0.0, "ws": 0.0, "ws_cold": 0.0, "own_ws": 0.0}
     iterations = {"alm": [], "own": [], "ws": [], "ws_cold": []}
     d_piqp, d_exact, d_ws, alm_ok, min_slack = 0.0, 0.0, 0.0, 0, np.inf
-    for (vel, *rest), start in zip(problems, sim.working):
+    for (vel, *rest), start in zip(problems, cascade.working):
         m = rest[1].shape[0]
         v_alm = vel.copy()
         t0 = time.perf_counter()

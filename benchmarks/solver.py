@@ -22,9 +22,10 @@ import time
 
 import numpy as np
 
-from crowd_env.core.collision import MAX_DENSE_BODIES, MAX_DENSE_ROWS, solve_rows, solve_rows_sparse
 from crowd_env.core.contacts import NORMAL
-from crowd_env.core.reference import random_cluster, solve_rows_cvxpy
+from crowd_env.core.solvers.impact import MAX_DENSE_BODIES, MAX_DENSE_ROWS, solve_rows
+from crowd_env.core.solvers.reference import random_cluster, solve_rows_cvxpy
+from crowd_env.core.solvers.sparse_qp import solve_rows_sparse
 
 
 def timed(fn, min_time=0.3, max_reps=2000):

@@ -25,8 +25,7 @@ import time
 import numpy as np
 
 from crowd_env.core import CrowdState, ModelParams, Simulator
-
-PHASES = ("smooth", "neighbors", "contacts", "impacts", "projection", "integrate")
+from crowd_env.core.step import STAGES as PHASES
 
 
 def dense_room(n, seed=0):

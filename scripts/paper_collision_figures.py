@@ -21,7 +21,7 @@ import os
 import numpy as np
 
 from crowd_env.core import CrowdState, ModelParams, Simulator
-from crowd_env.core.collision import solve_rows
+from crowd_env.core.solvers.impact import solve_rows
 from crowd_env.core.contacts import NORMAL, TANGENT
 
 PAPER_CASES = {

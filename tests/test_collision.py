@@ -12,12 +12,16 @@ import pathlib
 import numpy as np
 import pytest
 
-from crowd_env.core.collision import (STATUS_OK, lcp_bpp, project_gaps, project_gaps_large, project_gaps_qp,
-                                      project_gaps_sparse, resolve_impacts, solve_rows, solve_rows_qp,
-                                      solve_rows_sparse)
+from crowd_env.core.solvers.cascade import project_gaps_large
+from crowd_env.core.solvers.dense_projection import project_gaps
+from crowd_env.core.solvers.external import project_gaps_qp, solve_rows_qp
+from crowd_env.core.solvers.impact import resolve_impacts, solve_rows
+from crowd_env.core.solvers.pivoting import lcp_bpp
+from crowd_env.core.solvers.sparse_qp import project_gaps_sparse, solve_rows_sparse
+from crowd_env.core.solvers.status import STATUS_OK
 from crowd_env.core.contacts import LINK, NORMAL, TANGENT, detect_contacts, rows_to_dense
 from crowd_env.walking.social_force import wall_repulsion
-from crowd_env.core.reference import random_cluster, solve_rows_cvxpy
+from crowd_env.core.solvers.reference import random_cluster, solve_rows_cvxpy
 from crowd_env.core.segments import as_segments, endpoint_owners, wall_proximity
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]

@@ -1,8 +1,8 @@
-"""The compiled Cholesky kernels (crowd_env.core.linalg) against numpy's LAPACK on random envelopes."""
+"""The compiled Cholesky kernels (crowd_env.core.solvers.linalg) against numpy's LAPACK on random envelopes."""
 import numpy as np
 import pytest
 
-from crowd_env.core.linalg import cholesky, cholesky_solve, dot_range, envelope_cholesky, envelope_solve, profile_cholesky
+from crowd_env.core.solvers.linalg import cholesky, cholesky_solve, dot_range, envelope_cholesky, envelope_solve, profile_cholesky
 
 
 def random_envelope_spd(n, rng, paired=False):

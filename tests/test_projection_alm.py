@@ -1,10 +1,15 @@
-"""The augmented Lagrangian gap projection (crowd_env.core.projection) on degenerate jammed packings:
+"""The augmented Lagrangian gap projection (crowd_env.core.solvers.large_projection) on degenerate jammed packings:
 feasible, a KKT point, no kinetic energy added, and the same v as the exact solvers."""
 import numpy as np
 import pytest
 
-from crowd_env.core.collision import IPM_TOL_M_S, STATUS_OK, project_gaps, project_gaps_ipm, project_gaps_large, project_gaps_qp
-from crowd_env.core.projection import project_gaps_alm, project_gaps_interior_point, project_gaps_working_set
+from crowd_env.core.solvers import cascade as cascade_module
+from crowd_env.core.solvers.cascade import SolverCascade, project_gaps_large
+from crowd_env.core.solvers.dense_projection import project_gaps
+from crowd_env.core.solvers.external import IPM_TOL_M_S, project_gaps_ipm, project_gaps_qp
+from crowd_env.core.solvers.graph import contact_keys
+from crowd_env.core.solvers.large_projection import project_gaps_alm, project_gaps_interior_point, project_gaps_working_set
+from crowd_env.core.solvers.status import STATUS_OK
 
 H = 0.01
 
@@ -58,7 +63,7 @@ def _percussion(n, lam, a, b, nx, ny):
 def _con(a, b, gap, nx, ny):
     """The simulator's candidate dict for these rows: a pedestrian's wall contacts on segments 0, 1, …
     in turn (one contact per pedestrian and segment, as the detection makes them; at most the four
-    segments of :func:`_jam_simulator`)."""
+    segments of :func:`_project`)."""
     wall = np.full(a.shape[0], -1)
     for k in np.flatnonzero(b < 0):
         wall[k] = np.count_nonzero((b[:k] < 0) & (a[:k] == a[k]))
@@ -66,18 +71,17 @@ def _con(a, b, gap, nx, ny):
     return {"a": a, "b": b, "wall": wall, "gap": gap, "nx": nx, "ny": ny}
 
 
-def _jam_simulator(n):
-    """A Simulator of n pedestrians whose large-projection solvers serve the tests (its own state is
-    not used; four far walls number the jam's wall contacts), with the dense projection limited to 8
-    rows so that every jam takes the large path."""
-    from crowd_env.core import ModelParams, Simulator
-    from crowd_env.core.state import CrowdState
+def _jam_cascade(**kwargs):
+    """The solver cascade of the tests, with the dense projection limited to 8 rows so that every jam
+    takes the large path (other constructor arguments: ``kwargs``)."""
+    return SolverCascade(max_dense_projection_rows=8, **kwargs)
 
-    xy = np.stack(np.meshgrid(np.arange(13.0), np.arange(13.0)), -1).reshape(-1, 2)[:n]
-    far_box = [[-10, -10, 30, -10], [30, -10, 30, 30], [30, 30, -10, 30], [-10, 30, -10, -10]]
-    sim = Simulator(CrowdState.create(xy), walls=far_box, params=ModelParams())
-    sim.max_dense_projection_rows = 8
-    return sim
+
+def _project(cascade, v, mass, con, step=0, lam_warm=None):
+    """The cascade's projection of step ``step`` on the candidates ``con``, keyed as the Simulator keys
+    them (the rows of ``v`` are the pedestrians; four wall segments number the jam's wall contacts)."""
+    keys = contact_keys(con["a"], con["b"], con["wall"], v.shape[0], 4)
+    return cascade.project(v, mass, con, H, step, keys, lam_warm)
 
 
 @pytest.mark.parametrize("seed", range(4))
@@ -159,7 +163,7 @@ def test_alm_without_candidates_and_when_already_feasible():
 
 
 def test_simulator_large_projection_sees_only_the_touched_pedestrians():
-    """Simulator._project hands a too-large projection to the large solvers restricted to the
+    """SolverCascade.project hands a too-large projection to the large solvers restricted to the
     pedestrians some candidate touches: the jam's velocities equal the solver's on the jam alone, and
     the 40 pedestrians no candidate touches (numbered before, between and after the jam's) keep
     their velocities exactly."""
@@ -175,9 +179,9 @@ def test_simulator_large_projection_sees_only_the_touched_pedestrians():
     mass_all[jam_ids] = mass
     mass_all[far_ids] = rng.uniform(50.0, 100.0, n_far)
     con = _con(jam_ids[a], np.where(b >= 0, jam_ids[np.maximum(b, 0)], -1), gap, nx, ny)
-    sim = _jam_simulator(n_jam + n_far)
+    sim = _jam_cascade()
     v_sim = vel_all.copy()
-    lam_sim = sim._project(v_sim, mass_all, con, H, np.arange(n_jam + n_far))
+    lam_sim = _project(sim, v_sim, mass_all, con)
     v_ref = vel.copy()
     lam_ref, _, status = project_gaps_alm(v_ref, mass, a, b, gap, nx, ny, H, np.zeros(a.shape[0]), 40)
     assert status == STATUS_OK and sim.n_sparse_solves == 1
@@ -203,14 +207,14 @@ def _reprojection(later_kind):
     order = np.concatenate([np.setdiff1d(np.arange(a.shape[0]), later), later])
     con = _con(a[order], b[order], gap[order], nx[order], ny[order])
     con_first = {k: v[: order.shape[0] - later.shape[0]] for k, v in con.items()}
-    cold, warm = _jam_simulator(n), _jam_simulator(n)
+    cold, warm = _jam_cascade(), _jam_cascade()
     v_cold = vel.copy()
-    cold._project(v_cold, mass, con, H, np.arange(n))
+    _project(cold, v_cold, mass, con)
     v_first = vel.copy()
-    lam_first = warm._project(v_first, mass, con_first, H, np.arange(n))
+    lam_first = _project(warm, v_first, mass, con_first)
     steps_first = warm.n_alm_newton_steps
     v_warm = vel.copy()
-    warm._project(v_warm, mass, con, H, np.arange(n), np.concatenate([lam_first, np.zeros(later.shape[0])]))
+    _project(warm, v_warm, mass, con, lam_warm=np.concatenate([lam_first, np.zeros(later.shape[0])]))
     return (v_cold, cold.n_alm_newton_steps, v_warm, warm.n_alm_newton_steps - steps_first,
             float(np.abs(v_first - v_cold).max()), warm.n_fallback_solves)
 
@@ -229,7 +233,7 @@ def test_reprojection_after_redetection_starts_from_the_first_multipliers():
 def test_reprojection_whose_new_candidates_bind_stays_exact():
     """New candidates that change the solution (a wall in front) can make the warm start a poor one:
     it gets ALM_WARM_NEWTON_BUDGET steps, then the projection starts from zero; exact either way."""
-    from crowd_env.core.simulator import ALM_NEWTON_BUDGET, ALM_WARM_NEWTON_BUDGET
+    from crowd_env.core.solvers.cascade import ALM_NEWTON_BUDGET, ALM_WARM_NEWTON_BUDGET
 
     v_cold, steps_cold, v_warm, steps_warm, first_off, fallbacks = _reprojection("wall")
     assert first_off > 0.1  # the wall matters
@@ -325,42 +329,34 @@ def test_interior_point_projection_without_candidates():
     assert ok and lam.shape == (0,) and np.all(v == 1.0)
 
 
-def test_simulator_hands_a_slow_augmented_lagrangian_to_the_interior_point_method(monkeypatch):
+def test_simulator_hands_a_slow_augmented_lagrangian_to_the_interior_point_method():
     """A large projection whose augmented Lagrangian misses its Newton budget goes to the interior point
     method (same v to 1e-6 m/s); the next nine large projections skip the augmented Lagrangian."""
-    import crowd_env.core.simulator as simulator_module
-
     rng = np.random.default_rng(5)
     vel, mass, a, b, gap, nx, ny = _hex_jam(9, 10, rng)
     n = vel.shape[0]
     v_exact = vel.copy()
     _, steps_exact, status = project_gaps_alm(v_exact, mass, a, b, gap, nx, ny, H, np.zeros(a.shape[0]), 400)
     assert status == STATUS_OK and steps_exact > 3
-    monkeypatch.setattr(simulator_module, "ALM_NEWTON_BUDGET", 3)
-    sim = _jam_simulator(n)
+    sim = _jam_cascade(alm_newton_budget=3)
     con = _con(a, b, gap, nx, ny)
     for k in range(3):
         v = vel.copy()
-        sim._project(v, mass, con, H, np.arange(n))
+        _project(sim, v, mass, con)
         np.testing.assert_allclose(v, v_exact, atol=1e-6)
         assert sim.n_ipm_projections == k + 1 and sim.n_alm_newton_steps == 3 and sim.n_fallback_solves == 0
         assert sim.n_piqp_projections == 0  # the own interior point method converged
 
 
-def test_misses_in_a_row_back_off_the_augmented_lagrangian(monkeypatch):
+def test_misses_in_a_row_back_off_the_augmented_lagrangian():
     """Each miss in a row doubles the number of large projections that skip the augmented Lagrangian
-    (ALM_SKIP_AFTER_MISS, up to ALM_SKIP_MAX); a success from zero resets it. Every projection is exact."""
-    import crowd_env.core.simulator as simulator_module
-
+    (alm_skip_after_miss, up to alm_skip_max); a success from zero resets it. Every projection is exact."""
     rng = np.random.default_rng(5)
     vel, mass, a, b, gap, nx, ny = _hex_jam(9, 10, rng)
     n = vel.shape[0]
     v_exact = vel.copy()
     project_gaps_alm(v_exact, mass, a, b, gap, nx, ny, H, np.zeros(a.shape[0]), 400)
-    monkeypatch.setattr(simulator_module, "ALM_NEWTON_BUDGET", 3)
-    monkeypatch.setattr(simulator_module, "ALM_SKIP_AFTER_MISS", 2)
-    monkeypatch.setattr(simulator_module, "ALM_SKIP_MAX", 8)
-    sim = _jam_simulator(n)
+    sim = _jam_cascade(alm_newton_budget=3, alm_skip_after_miss=2, alm_skip_max=8)
     con = _con(a, b, gap, nx, ny)
 
     def tries(count):
@@ -368,16 +364,16 @@ def test_misses_in_a_row_back_off_the_augmented_lagrangian(monkeypatch):
         for k in range(count):
             before = sim.n_alm_newton_steps
             v = vel.copy()
-            sim._project(v, mass, con, H, np.arange(n))
+            _project(sim, v, mass, con)
             np.testing.assert_allclose(v, v_exact, atol=1e-6)
             if sim.n_alm_newton_steps > before:
                 out.append(k)
         return out
 
     assert tries(31) == [0, 2, 6, 14, 22, 30]  # skips of 2, 4, 8, then 8 (the cap)
-    monkeypatch.setattr(simulator_module, "ALM_NEWTON_BUDGET", 400)
+    sim.alm_newton_budget = 400
     assert tries(10) == [7, 8, 9]  # the next try, 8 after the last, converges, and so does every one after
-    monkeypatch.setattr(simulator_module, "ALM_NEWTON_BUDGET", 3)
+    sim.alm_newton_budget = 3
     assert tries(7) == [0, 2, 6]  # the success reset the back-off
     assert sim.n_fallback_solves == 0
 
@@ -428,26 +424,22 @@ def test_simulator_starts_the_interior_point_method_from_the_last_active_set(mon
     the working set (last active contacts and nearly closing candidates), started from the last
     projection's percussions (matched by contact), and is still exact; two steps later it no longer
     does."""
-    import crowd_env.core.simulator as simulator_module
-
     vel, mass, a, b, gap, nx, ny, v_exact = _jam_and_exact_projection(1)
     n = vel.shape[0]
-    monkeypatch.setattr(simulator_module, "ALM_NEWTON_BUDGET", 3)  # the augmented Lagrangian misses
     starts = []
 
     def recording(*args, z0=None, **kwargs):
         starts.append(z0)
         return project_gaps_working_set(*args, z0=z0, **kwargs)
 
-    monkeypatch.setattr(simulator_module, "project_gaps_working_set", recording)
-    sim = _jam_simulator(n)
+    monkeypatch.setattr(cascade_module, "project_gaps_working_set", recording)
+    sim = _jam_cascade(alm_newton_budget=3)  # the augmented Lagrangian misses
     con = _con(a, b, gap, nx, ny)
     lam_last = None
     for call, (step, uses_working_set) in enumerate([(0, False), (0, True), (1, True), (3, False)]):
-        sim.step_count = step
         before = sim.n_working_set_solves
         v = vel.copy()
-        lam = sim._project(v, mass, con, H, np.arange(n))
+        lam = _project(sim, v, mass, con, step)
         np.testing.assert_allclose(v, v_exact, atol=1e-7)
         assert (sim.n_working_set_solves > before) == uses_working_set, call
         if uses_working_set:  # the same candidates as last time: the start is the last percussions
@@ -461,7 +453,8 @@ def test_envelope_factor_is_the_cholesky_factor_of_the_newton_matrix():
     """The interior point method's Newton matrix M + Σ_k w_k B_kᵀ B_k, assembled by scattering weights
     into the entries _envelope_entries precomputes and factorised in envelope storage, is L Lᵀ for the
     same matrix assembled densely from the rows B_k (with wall rows and rows left out)."""
-    from crowd_env.core.projection import _envelope_entries, _envelope_factor, _envelope_pattern, _projection_dofs
+    from crowd_env.core.solvers.large_projection import (_envelope_entries, _envelope_factor, _envelope_pattern,
+                                                         _projection_dofs)
 
     rng = np.random.default_rng(3)
     vel, mass, a, b, gap, nx, ny = _hex_jam(6, 7, rng)

@@ -119,11 +119,11 @@ def test_free_cluster_step_conserves_momenta():
     assert res.n_impact_clusters >= 0
 
 
-def _pushing_run(steps, n_side=6, L=3.3, seed=1, check_every=1, **sim_kw):
+def _pushing_run(steps, n_side=6, L=3.3, seed=1, check_every=1, **cascade_kw):
     st = lattice_crowd(n_side, 0.5, seed=seed)
     sim = Simulator(st, walls=box(L), params=ModelParams())
-    for k, v in sim_kw.items():
-        setattr(sim, k, v)
+    for k, v in cascade_kw.items():  # solver limits
+        setattr(sim.cascade, k, v)
     worst = np.inf
     for s in range(steps):
         res = sim.step(towards(st, [L, L / 2], 1.5))
@@ -158,21 +158,21 @@ def test_candidate_keys_are_unique_in_a_walled_jam(monkeypatch):
     """The large projection's contact keys (matched with np.isin(assume_unique=True) against the last
     step's active contacts and re-detected candidates) are unique: every pair and every pedestrian-wall
     segment contact appears once in a candidate list, walls and a corner included."""
-    import crowd_env.core.simulator as simulator_module
+    from crowd_env.core.solvers.cascade import SolverCascade
 
     seen = []
-    project_large = simulator_module.Simulator._project_large
+    project_large = SolverCascade._project_large
 
     def recording(self, vel, mass, c_a, c_b, con, h, lam_warm=None, keys=None):
         seen.append((keys.copy(), int((con["b"] < 0).sum())))
         return project_large(self, vel, mass, c_a, c_b, con, h, lam_warm, keys)
 
-    monkeypatch.setattr(simulator_module.Simulator, "_project_large", recording)
+    monkeypatch.setattr(SolverCascade, "_project_large", recording)
     sim, worst, inside = _pushing_run(150, max_dense_projection_rows=10)
     assert len(seen) > 50 and sum(walls > 0 for _, walls in seen) > 50
     for keys, _ in seen:
         assert np.unique(keys).shape == keys.shape
-    assert sim.n_working_set_solves + sim.n_alm_newton_steps > 0 and worst >= -1e-3 and inside
+    assert sim.cascade.n_working_set_solves + sim.cascade.n_alm_newton_steps > 0 and worst >= -1e-3 and inside
 
 
 def test_dense_and_sparse_paths_give_the_same_steps():
@@ -182,7 +182,7 @@ def test_dense_and_sparse_paths_give_the_same_steps():
     for limits in ((400, 150, 200), (4, 3, 4)):
         st = lattice_crowd(5, 0.47, jitter=0.004, seed=3)
         sim = Simulator(st, walls=box(2.7), params=ModelParams(tangential_dissipation_kg=50.0))
-        sim.max_dense_rows, sim.max_dense_bodies, sim.max_dense_projection_rows = limits
+        sim.cascade.max_dense_rows, sim.cascade.max_dense_bodies, sim.cascade.max_dense_projection_rows = limits
         for _ in range(25):
             sim.step(towards(st, [2.7, 1.35], 1.5))
         runs.append((st.position_m.copy(), st.velocity_m_s.copy(), sim.n_sparse_solves, sim.n_fallback_solves))
@@ -222,8 +222,8 @@ def test_redetection_after_the_projection_projects_again_only_if_a_new_candidate
                            mass_kg=80.0, tau_s=1e12)
     sim = Simulator(st, params=ModelParams(rotation=False))
     projections = []
-    project = sim._project
-    sim._project = lambda *args, **kwargs: projections.append(1) or project(*args, **kwargs)
+    project = sim.cascade.project
+    sim.cascade.project = lambda *args, **kwargs: projections.append(1) or project(*args, **kwargs)
     sim.step(st.velocity_m_s.copy())
     assert sim.n_redetections == 1 and len(projections) == (2 if binds else 1)
     assert (st.velocity_m_s[4, 0] > 0.1) == binds
@@ -438,7 +438,7 @@ def test_grid_k_nearest_matches_brute_force(layout, k):
     assert np.all(grid_k_nearest(pos, index, query, k, 0.0) == -1)
 
 
-def _bottleneck_sims(steps, **sim_kw):
+def _bottleneck_sims(steps, **cascade_kw):
     from baselines.social_force import SocialForceAgent
     from crowd_env.scenarios import make_scenario
 
@@ -447,8 +447,8 @@ def _bottleneck_sims(steps, **sim_kw):
     sims = [Simulator(sc.make_state(rng=np.random.default_rng(4)), geometry=sc.geometry, profile=profile)
             for profile in (False, True)]
     for sim in sims:
-        for k, v in sim_kw.items():
-            setattr(sim, k, v)
+        for k, v in cascade_kw.items():  # solver limits
+            setattr(sim.cascade, k, v)
     for _ in range(steps):
         results = []
         for sim in sims:
@@ -533,7 +533,7 @@ def test_grid_pairs_around_match_the_full_list():
 def test_direction_angles_are_the_compiled_atan2_bitwise():
     """direction_angles_rad (the env's and the baseline's headings) is C's atan2 element by element, bit
     for bit (numpy's vectorised arctan2 need not be), on every quadrant, the axes and the zero vector."""
-    from crowd_env.core.stepper import direction_angles_rad
+    from crowd_env.core.angles import direction_angles_rad
 
     rng = np.random.default_rng(5)
     vectors = np.concatenate([rng.normal(size=(20_000, 2)), [[0.0, 0.0], [1.0, 0.0], [-1.0, 0.0], [0.0, -2.0]]])

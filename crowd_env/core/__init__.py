@@ -2,7 +2,8 @@
 from .params import ModelParams, ParameterError, PedestrianDefaults
 from .state import CrowdState, StateError, min_gap_m, sample_desired_speeds
 from .segments import GeometryError
-from .simulator import SimulationError, Simulator, StepResult
+from .simulator import Simulator, StepResult
+from .solvers.status import SimulationError
 
 __all__ = ["ModelParams", "ParameterError", "PedestrianDefaults", "CrowdState", "StateError", "min_gap_m",
            "sample_desired_speeds", "GeometryError", "SimulationError", "Simulator", "StepResult"]

@@ -1,8 +1,9 @@
 """Contact detection and the contact operator rows (Kabalan Eq. 1, 2 and 8).
 
 Narrow phase: disk-disk and disk-wall candidates whose gap is within a speculative margin
-(``collision-problem.md``: δ = ε + 2 h (|u_i| + |u_j|)). The contact operator B (Δ = B v) is stored
-row by row in a two-body sparse form that both Frémond solvers (compiled and cvxpy) take as input:
+δ = ε + 2 h (|u_i| + |u_j|) (stage 3 of :mod:`crowd_env.core.step`). The contact operator B (Δ = B v)
+is stored row by row in a two-body sparse form that the Frémond solvers of :mod:`crowd_env.core.solvers`
+(compiled, sparse and cvxpy) take as input:
 
 * ``row_a``/``row_b``: local body indices (``row_b = -1`` for a wall, which has infinite mass);
 * ``coef_a``/``coef_b``: the three coefficients (x, y, θ) of each body in the row;

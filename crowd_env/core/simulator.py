@@ -1,64 +1,41 @@
-"""One time step of the Kabalan et al. (2016) model (collision-problem.md, "Recommended time step").
+"""The Simulator: owns the crowd, the walls and the parameters, and advances one time step at a time.
 
-1. smooth update (Eq. 3, 14, 15): u* = u + h/τ (u_intent − u) + h f_ext/m,
-   ω* = ω + h (−k wrap(θ − θ_d) − c ω)/I;
-2. candidate contacts with a speculative margin ε + 2h(|u_i| + |u_j|) (cell-grid broad phase, exact
-   narrow phase);
-3. Frémond impact (Eq. 7) on every cluster of touching, approaching contacts and hand links (dense
-   compiled solver for small clusters, sparse pivoting for large ones);
-4. velocity projection so that no candidate gap closes within the step; where the impact or the
-   projection made someone faster than the margins allow (a push passed along a chain), candidates
-   are detected again around them and the projection repeated, so that no pair left out can
-   close either (overlap stays at round-off, far below the 1e-3 m contact tolerance);
-5. positions advance with the final velocities; pedestrians whose centre enters an exit leave (with
-   per-pedestrian ``destination``: only through their own destination exit).
+The step's stages (Kabalan et al. 2016: the smooth dynamics Eq. 3, 14, 15; the Frémond impacts
+Eq. 4-8; the gap projection; the integration) are listed and compiled in :mod:`crowd_env.core.step`;
+the choice of solver for each impact cluster and projection is the
+:class:`~crowd_env.core.solvers.cascade.SolverCascade`'s (``Simulator.cascade``). Positions advance with
+the final velocities; pedestrians whose centre enters an exit leave (with per-pedestrian
+``destination``: only through their own destination exit).
 
 The velocity intent ``(N, 2)`` in m/s is the only behavioural input; external forces (for example
 Helbing's social repulsion, Eq. 16) can be added per step. The core knows nothing of RL.
 
-By default a step runs as one compiled call (:func:`crowd_env.core.stepper.fused_step`); steps that
-need a fallback solver or a re-detection, and every step of a ``Simulator(profile=True)`` (which
-times each stage into ``StepResult.timings_s``), run the same compiled stages one by one from Python.
+By default a step runs as one compiled call (:func:`crowd_env.core.step.fused_step`); steps that
+need a solver beyond the dense ones or a re-detection, and every step of a ``Simulator(profile=True)``
+(which times each stage into ``StepResult.timings_s``), run the same compiled stages one by one from
+Python (:meth:`Simulator._staged_step`).
 """
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 import shapely
 
-from .projection import project_gaps_alm, project_gaps_interior_point, project_gaps_working_set
-from .collision import (MAX_DENSE_BODIES, MAX_DENSE_PROJECTION_ROWS, MAX_DENSE_ROWS, STATUS_OK, STATUS_TOO_LARGE,
-                        gap_residuals, project_gaps, project_gaps_ipm, project_gaps_large, renumber_rows,
-                        resolve_impacts, solve_clusters, solve_rows_qp, solve_rows_sparse, touched_bodies)
 from .contacts import CONTACT_FIELDS, contact_candidates, link_geometry
 from .neighbors import grid_pairs, grid_pairs_around
 from .params import ModelParams, ParameterError
 from .segments import as_segments, endpoint_owners, wall_proximity
+from .solvers.cascade import SolverCascade
+from .solvers.graph import contact_keys, gap_residuals, renumber_rows
+from .solvers.impact import solve_clusters
 from .state import CrowdState, StateError
-from .stepper import (FUSED_OK, PROJECTION_TOL_M_S, VTOL_M_S, candidate_gaps_min, commit_step, compact_contacts,
-                      first_non_finite, fused_step, grown_margins, kinetic_energy, rows_sweeping_boxes, smooth_update,
-                      speeds)
+from .step import (FUSED_OK, compact_bodies, detection_reach, finish_step, first_non_finite, fused_step, grown_margins,
+                   impact_stage, kinetic_energy, redetection_reach, rows_sweeping_boxes, smooth_update, speeds)
 
-
-ALM_NEWTON_BUDGET = 30  # Newton steps given to project_gaps_alm before the interior point method (break-even: 27-30)
-ALM_WARM_NEWTON_BUDGET = 10  # the same from the multipliers of an earlier projection in the step
-# After the augmented Lagrangian misses from zero, the next ALM_SKIP_AFTER_MISS large projections go to
-# the interior point method directly; each further miss in a row doubles that, up to ALM_SKIP_MAX (a
-# jam that stays too large for it costs a wasted try only every ALM_SKIP_MAX projections).
-ALM_SKIP_AFTER_MISS = 10
-ALM_SKIP_MAX = 160
-# The interior point method's working set after a large projection in the previous step: that step's
-# active contacts and every candidate whose slack at the current velocities is below this (m/s).
-# Measured on door jams of 1250 pedestrians: 0.3 m/s needs a second solve in 7 of 24 steps, 0.5 m/s in
-# 1 of 24, while each solve shrinks to about 70 % of the candidates (benchmarks/projection.py).
-WORKING_SET_SLACK_M_S = 0.5
 MAX_REDETECT = 10  # re-detection rounds per step (speeds are bounded: one or two rounds suffice in practice)
-
-
-class SimulationError(RuntimeError):
-    """The numerical solution failed (should not happen; report it with the seed)."""
 
 
 @dataclass
@@ -114,25 +91,10 @@ class Simulator:
         self.state = state
         self.time_s = 0.0
         self.step_count = 0
-        self.n_fallback_solves = 0
         self.n_redetections = 0  # steps where faster post-impact speeds called for more candidates
-        self.n_sparse_solves = 0  # impact clusters / projections too large for the dense path
-        self.n_staged_steps = 0  # steps run stage by stage (profiling, fallbacks, re-detection)
-        self.n_alm_newton_steps = 0  # Newton steps of the augmented Lagrangian projection (project_gaps_alm)
-        self.n_ipm_projections = 0  # large projections given to the interior point method (project_gaps_interior_point)
-        self.n_working_set_solves = 0  # ... solves on a working set of candidates (project_gaps_working_set)
-        self.n_piqp_projections = 0  # ... of which it missed, handed to PIQP (project_gaps_ipm)
-        # Size limits of the dense (compiled) solvers; larger problems take the sparse path. Exposed so
-        # that tests can force either path; both are exact, so results agree to round-off.
-        self.max_dense_rows = MAX_DENSE_ROWS
-        self.max_dense_bodies = MAX_DENSE_BODIES
-        self.max_dense_projection_rows = MAX_DENSE_PROJECTION_ROWS
-        self._large_step = -2  # step of the last large projection
-        self._skip_alm = 0  # large projections left before the augmented Lagrangian is tried again
-        self._alm_backoff = ALM_SKIP_AFTER_MISS  # what the next miss sets _skip_alm to
-        self._active_keys = np.zeros(0, np.int64)  # contacts active in the last large projection (_contact_keys)
-        self._active_lam = np.zeros(0)  # their percussions
-        self._active_keys_step = -2  # the step they belong to
+        self.n_staged_steps = 0  # steps run stage by stage (profiling, large problems, re-detection)
+        # The choice of solver, its size limits, budgets, warm starts and counters: see SolverCascade.
+        self.cascade = SolverCascade(reference=self.params.solver == "cvxpy")
         self.profile = profile
         self._pairs_key = -1
         self._pairs = None
@@ -182,9 +144,14 @@ class Simulator:
         return ok
 
     @property
-    def _large_projection_last_step(self) -> bool:
-        """The previous step (or this one) needed a projection too large for the dense path."""
-        return self._large_step >= self.step_count - 1
+    def n_sparse_solves(self) -> int:
+        """Impact clusters and projections too large for the dense solvers (``cascade.n_sparse_solves``)."""
+        return self.cascade.n_sparse_solves
+
+    @property
+    def n_fallback_solves(self) -> int:
+        """Solves handed to the last-resort solvers (``cascade.n_fallback_solves``)."""
+        return self.cascade.n_fallback_solves
 
     @property
     def wall_owner(self) -> np.ndarray:
@@ -254,10 +221,10 @@ class Simulator:
         force = _EMPTY_2D if external_force_n is None else \
             self._check_input("external_force_n", external_force_n, (n_all, 2))
         inputs = (intents, theta_d, desired_heading_rad is not None, force, external_force_n is not None)
-        # Right after a large projection the staged step skips the dense projection (see _project); the
-        # fused step would try it, so it waits a step too: fused and staged runs stay bitwise equal.
-        if not self.profile and self.params.solver != "cvxpy" and self.active_index.shape[0] \
-                and not self._large_projection_last_step:
+        # The cascade says when the dense solvers alone may serve (not right after a large projection, whose
+        # staged step skips the dense projection: the fused step waits too, so fused and staged runs stay
+        # bitwise equal).
+        if not self.profile and self.active_index.shape[0] and self.cascade.dense_only(self.step_count):
             result = self._fused_step(inputs)
             if result is not None:
                 return result
@@ -275,8 +242,8 @@ class Simulator:
             st.position_m, st.radius_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad, st.mass_kg,
             st.inertia_kg_m2, st.tau_s, st.heading_stiffness, st.heading_damping, *inputs, idx, self.walls,
             self._wall_owner, *self._cached_pairs(), *links, p.dt_s, p.contact_tolerance_m, p.normal_dissipation_kg,
-            p.tangential_dissipation_kg, p.link_dissipation_kg_per_m2, p.rotation, self.max_dense_rows,
-            self.max_dense_bodies, self.max_dense_projection_rows)
+            p.tangential_dissipation_kg, p.link_dissipation_kg_per_m2, p.rotation, *self.cascade.impact_limits(),
+            self.cascade.max_dense_projection_rows)
         if status != FUSED_OK:
             return None
         exited = self._leave_at_exits(idx, previous)
@@ -284,55 +251,49 @@ class Simulator:
                             {"fused": time.perf_counter() - t0}, min_gap)
 
     def _staged_step(self, inputs) -> StepResult:
-        """Steps 1-5 stage by stage, timed, with every fallback (module docstring)."""
+        """The stages of :mod:`crowd_env.core.step` one by one, in the same order and with the same
+        functions as :func:`~crowd_env.core.step.fused_step`, timed, with the solver cascade for the
+        problems beyond the dense limits and the re-detection loop of stage 5."""
         self.n_staged_steps += 1
         st = self.state
         p = self.params
         h = p.dt_s
+        cascade = self.cascade
         timings = {}
         t0 = time.perf_counter()
         idx = self.active_index
-        n = idx.shape[0]
-        # 1. smooth update (explicit Euler on the velocity, semi-implicit on positions)
+        # 1. smooth
         vel = smooth_update(st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad, st.mass_kg,
                             st.inertia_kg_m2, st.tau_s, st.heading_stiffness, st.heading_damping, *inputs, idx, h,
                             p.rotation)
         t1 = time.perf_counter()
         timings["smooth"] = t1 - t0
-        # 2. contact candidates
-        speed_star = speeds(vel)
-        vmax = float(speed_star.max()) if n else 0.0
-        r_max = float(st.radius_m[idx].max()) if n else 0.0
-        pairs = self.neighbor_pairs(2.0 * r_max + p.contact_tolerance_m + 4.0 * h * vmax)
+        # 2. neighbors
+        speed_star, r_max, reach = detection_reach(vel, st.radius_m, idx, p.contact_tolerance_m, h)
+        pairs = self.neighbor_pairs(reach)
         t2 = time.perf_counter()
         timings["neighbors"] = t2 - t1
+        # 3. contacts
         con = dict(zip(CONTACT_FIELDS, contact_candidates(st.position_m, st.radius_m, speed_star, idx, pairs,
                                                           self.walls, self._wall_owner, p.contact_tolerance_m, h)))
         links_a, links_b, dvec, gi, gj = self._active_links(idx)
+        mass, inertia = compact_bodies(st.mass_kg, st.inertia_kg_m2, idx)
         t3 = time.perf_counter()
         timings["contacts"] = t3 - t2
-        mass = st.mass_kg[idx]
-        inertia = st.inertia_kg_m2[idx]
-        ke0 = kinetic_energy(vel, mass, inertia)
-        # 3. impacts
-        cluster_args = (con["a"], con["b"], con["nx"], con["ny"], con["rho_a"], con["rho_b"], links_a, links_b,
-                        dvec, gi, gj, p.normal_dissipation_kg, p.tangential_dissipation_kg,
-                        p.link_dissipation_kg_per_m2, p.rotation)
-        p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = resolve_impacts(
+        # 4. impacts: the dense ones compiled, the clusters they leave by the cascade
+        ke0, p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = impact_stage(
             vel, mass, inertia, con["a"], con["b"], con["gap"], con["nx"], con["ny"], con["rho_a"], con["rho_b"],
             links_a, links_b, dvec, gi, gj, p.normal_dissipation_kg, p.tangential_dissipation_kg,
-            p.link_dissipation_kg_per_m2, p.contact_tolerance_m, VTOL_M_S, p.rotation,
-            -1 if p.solver == "cvxpy" else self.max_dense_rows, self.max_dense_bodies)
+            p.link_dissipation_kg_per_m2, p.contact_tolerance_m, p.rotation, *cascade.impact_limits())
         if unsolved.shape[0]:
-            if p.solver == "cvxpy":
-                from .reference import solve_rows_cvxpy as solve
-            else:
-                solve = self._solve_large_cluster
-            solve_clusters(unsolved, root, vel, mass, inertia, in_impact, *cluster_args, solve, p_n, p_t)
+            solve_clusters(unsolved, root, vel, mass, inertia, in_impact, con["a"], con["b"], con["nx"], con["ny"],
+                           con["rho_a"], con["rho_b"], links_a, links_b, dvec, gi, gj, p.normal_dissipation_kg,
+                           p.tangential_dissipation_kg, p.link_dissipation_kg_per_m2, p.rotation,
+                           cascade.solve_impact_cluster, p_n, p_t)
         ke1 = kinetic_energy(vel, mass, inertia)
         t4 = time.perf_counter()
         timings["impacts"] = t4 - t3
-        # 4. projection. The candidates were chosen with margins from the pre-impact speeds s_i: a pair
+        # 5. projection. The candidates were chosen with margins from the pre-impact speeds s_i: a pair
         # left out has gap > ε + 2h (s_i + s_j), so it cannot close within the step while every speed
         # satisfies |u_i| ≤ 2 s_i + ε/(2h). Impacts and the projection can speed a pedestrian up beyond
         # that (a push passed along a jammed chain): then detect again with the larger speeds (before
@@ -366,18 +327,18 @@ class Simulator:
                         # on them they are the exact projection over all (its KKT point), nothing to redo
             if lam_p is not None:
                 break
-            lam_p = self._project(vel, mass, con, h, idx, lam_warm)
+            lam_p = cascade.project(vel, mass, con, h, self.step_count,
+                                    functools.partial(self._candidate_keys, idx, con), lam_warm)
         ke2 = kinetic_energy(vel, mass, inertia)
         t5 = time.perf_counter()
         timings["projection"] = t5 - t4
-        # 5. integrate and leave at exits
+        # 6. integrate and leave at exits
         previous = st.position_m[idx]
-        commit_step(st.position_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad, idx, vel, h,
-                    p.rotation)
-        min_gap = candidate_gaps_min(st.position_m, st.radius_m, idx, self.walls, con["a"], con["b"], con["wall"])
+        min_gap, contacts = finish_step(st.position_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad,
+                                        st.radius_m, idx, vel, h, p.rotation, self.walls, con["a"], con["b"],
+                                        con["wall"], p_n, p_t, lam_p, in_impact)
         exited = self._leave_at_exits(idx, previous)
         timings["integrate"] = time.perf_counter() - t5
-        contacts = compact_contacts(idx, con["a"], con["b"], con["wall"], p_n, p_t, lam_p, in_impact)
         return self._result(contacts, ke0, ke1, ke2, n_clusters, max_cluster, exited, timings, min_gap)
 
     def _leave_at_exits(self, idx, previous_m) -> np.ndarray:
@@ -416,127 +377,18 @@ class Simulator:
                           kinetic_energy_after_projection_j=float(ke2), exited=exited, timings_s=timings,
                           min_gap_m=float(min_gap))
 
-    def _solve_large_cluster(self, *rows):
-        """Impact of a cluster too large for the dense path: sparse pivoting, Clarabel if that fails."""
-        self.n_sparse_solves += 1
-        v_plus, lam, status = solve_rows_sparse(*rows)
-        if status != STATUS_OK:
-            self.n_fallback_solves += 1
-            v_plus, lam = solve_rows_qp(*rows)
-        return v_plus, lam
-
-    def _project(self, vel, mass, con, h, idx, lam_warm=None):
-        """Gap projection (step 4) in place on ``vel``; returns the projection percussion per contact.
-
-        Components of active constraints small enough are solved densely (:func:`project_gaps`);
-        otherwise the whole projection goes to :func:`project_gaps_alm` (augmented Lagrangian, exact
-        in degenerate jams) within ``ALM_NEWTON_BUDGET`` Newton steps, and to
-        :func:`project_gaps_interior_point` (Mehrotra, dual-regularised, on the same envelope Cholesky)
-        should that not converge; PIQP (:func:`project_gaps_ipm`) and then :func:`project_gaps_large`
-        (pivoting, Clarabel, polish) serve if even that fails. The augmented Lagrangian's Newton
-        steps grow with the diameter of the jam (10-21 at 400 pedestrians in one jam, 30-75 at 1400),
-        the interior point iterations do not (11-17): after a miss the interior point method is used
-        directly for a while: the augmented Lagrangian is tried again after ``ALM_SKIP_AFTER_MISS`` large
-        projections, after twice as many at each further miss in a row (up to ``ALM_SKIP_MAX``). Right
-        after a large projection, the interior point method starts from a working set
-        (:meth:`_working_set`, :func:`project_gaps_working_set`): the same exact answer from smaller
-        solves (1.2-1.4× faster in the door jams of ``benchmarks/projection.py`` at N = 1000-10 000).
-
-        ``lam_warm`` (one per candidate, or None): multipliers of a projection of the same step from the
-        same velocities on a subset of these candidates (before a re-detection added some). The
-        augmented Lagrangian then starts from them and converges in a few Newton steps (measured in a
-        door jam of 1400 pedestrians: 1-8 steps instead of 40-70 from zero).
-        """
-        # In a persistent jam the dense path fails every step: skip it right after a large projection
-        # (step() then skips the fused step too, so fused and staged runs stay bitwise equal).
-        status = STATUS_TOO_LARGE if self._large_projection_last_step else STATUS_OK
-        if status == STATUS_OK:
-            v_impact = vel[:, :2].copy()
-            lam_p, _, status = project_gaps(vel, mass, con["a"], con["b"], con["gap"], con["nx"], con["ny"], h,
-                                            PROJECTION_TOL_M_S, self.max_dense_projection_rows)
-            if status != STATUS_OK:
-                vel[:, :2] = v_impact
-        if status != STATUS_OK:
-            self.n_sparse_solves += 1
-            self._large_step = self.step_count
-            # The large solvers see only the pedestrians some candidate touches (the others keep their
-            # velocity): their cost then follows the jam, not the size of the crowd.
-            bodies, c_a, c_b = touched_bodies(vel.shape[0], con["a"], con["b"])
-            v_sub = vel[bodies]
-            m_sub = mass[bodies]
-            keys = _contact_keys(idx[con["a"]], np.where(con["b"] >= 0, idx[np.maximum(con["b"], 0)], -1),
-                                 con["wall"], self.state.n, self.walls.shape[0])
-            lam_p = self._project_large(v_sub, m_sub, c_a, c_b, con, h, lam_warm, keys)
-            vel[bodies, :2] = v_sub[:, :2]
-            pushed = lam_p > 0.0  # as compact_contacts counts them
-            order = np.argsort(keys[pushed])
-            self._active_keys = keys[pushed][order]  # sorted, for _working_set's look-up
-            self._active_lam = lam_p[pushed][order]
-            self._active_keys_step = self.step_count
-        return lam_p
-
-    def _project_large(self, vel, mass, c_a, c_b, con, h, lam_warm=None, keys=None):
-        """:meth:`_project` for a projection too large for the dense path, in place on ``vel``. ``keys``
-        (:func:`_contact_keys` of the candidates, or None) let the interior point method start from a
-        working set (:data:`WORKING_SET_SLACK_M_S`) when the previous step had a large projection."""
-        args = (vel, mass, c_a, c_b, con["gap"], con["nx"], con["ny"], h)
-        starts = [] if lam_warm is None else [(lam_warm, ALM_WARM_NEWTON_BUDGET, False)]
-        if self._skip_alm <= 0:
-            starts.append((np.zeros(c_a.shape[0]), ALM_NEWTON_BUDGET, True))
-        for lam0, budget, cold in starts:
-            lam_p, steps, status = project_gaps_alm(*args, lam0, budget)
-            self.n_alm_newton_steps += steps
-            if status == STATUS_OK:
-                if cold:  # converged from zero: it suits this jam again
-                    self._alm_backoff = ALM_SKIP_AFTER_MISS
-                return lam_p
-        if self._skip_alm <= 0:  # the augmented Lagrangian missed from zero: skip it for a while
-            self._skip_alm = self._alm_backoff
-            self._alm_backoff = min(2 * self._alm_backoff, ALM_SKIP_MAX)
-        self._skip_alm -= 1
-        self.n_ipm_projections += 1
-        start = self._working_set(vel, c_a, c_b, con, h, keys)
-        if start is not None:
-            working, z0 = start
-            lam_p, solves, status = project_gaps_working_set(*args, working, z0=z0)
-            self.n_working_set_solves += solves
-            if status == STATUS_OK:
-                return lam_p
-        lam_p, _, status = project_gaps_interior_point(*args)
-        if status == STATUS_OK:
-            return lam_p
-        self.n_piqp_projections += 1  # not seen in practice: PIQP, a proximal interior point method
-        lam_p, ok = project_gaps_ipm(*args)
-        if ok:
-            return lam_p
-        # The interior point method failed (not seen in practice): pivoting, Clarabel and its polish.
-        self.n_fallback_solves += 1
-        lam_p, _ = project_gaps_large(*args)
-        return lam_p
-
-    def _working_set(self, vel, c_a, c_b, con, h, keys):
-        """The interior point method's first working set and start: ``(working, z0)`` for
-        :func:`project_gaps_working_set`, or None without keys or a large projection in the previous
-        step. ``working`` (bool per candidate): the contacts active in that projection and the
-        candidates whose slack at ``vel`` is below :data:`WORKING_SET_SLACK_M_S`; ``z0``: their
-        percussions there (0 for the others), from which the first solve starts (1.02-1.09× faster than
-        from the cold start on the door jams of ``benchmarks/projection.py`` at N = 1000-10 000)."""
-        if keys is None or self._active_keys_step < self.step_count - 1:
-            return None
-        slack = gap_residuals(vel, con["gap"] / h, c_a, c_b, con["nx"], con["ny"])
-        z0 = np.zeros(keys.shape[0])
-        if self._active_keys.shape[0]:
-            at = np.minimum(np.searchsorted(self._active_keys, keys), self._active_keys.shape[0] - 1)
-            was_active = self._active_keys[at] == keys
-            z0[was_active] = self._active_lam[at[was_active]]
-        return (z0 > 0.0) | (slack < WORKING_SET_SLACK_M_S), z0
+    def _candidate_keys(self, idx, con):
+        """:func:`~crowd_env.core.solvers.graph.contact_keys` of the candidates ``con`` (rows into ``idx``):
+        the same key for the same contact in every step, as the cascade's warm starts need."""
+        return contact_keys(idx[con["a"]], np.where(con["b"] >= 0, idx[np.maximum(con["b"], 0)], -1), con["wall"],
+                            self.state.n, self.walls.shape[0])
 
     def _redetect(self, con, speed, grown, idx, r_max, h):
         """Candidates with margins from the speeds ``speed`` (compact, (n,)) appended to ``con``;
         None when there is no new one. Only pairs involving a pedestrian whose margin grew
         (compact rows ``grown``) can be new (positions have not moved yet in this step)."""
         p = self.params
-        reach = 2.0 * r_max + p.contact_tolerance_m + 2.0 * h * (float(speed[grown].max()) + float(speed.max()))
+        reach = redetection_reach(r_max, p.contact_tolerance_m, h, float(speed[grown].max()), float(speed.max()))
         pairs = grid_pairs_around(self.state.position_m, idx, grown, reach)
         # Candidates among the grown pedestrians and their neighbours only (rows ``sub`` of idx).
         sub = np.unique(np.concatenate([grown, pairs.ravel()]))
@@ -549,8 +401,8 @@ class Simulator:
         n = idx.shape[0]
         n_seg = self.walls.shape[0]
         near = row_in_sub[con["a"]] >= 0  # a known candidate matching a new one has its row a in sub
-        new = ~np.isin(_contact_keys(con2["a"], con2["b"], con2["wall"], n, n_seg),
-                       _contact_keys(con["a"][near], con["b"][near], con["wall"][near], n, n_seg),
+        new = ~np.isin(contact_keys(con2["a"], con2["b"], con2["wall"], n, n_seg),
+                       contact_keys(con["a"][near], con["b"][near], con["wall"][near], n, n_seg),
                        assume_unique=True)
         if not new.any():
             return None
@@ -585,16 +437,6 @@ class Simulator:
             if gap.shape[0]:
                 best = min(best, float(gap.min()))
         return best
-
-
-def _contact_keys(a, b, wall, n, n_walls):
-    """One int64 per contact, equal for the same pair (a < b, pedestrian numbers below ``n``) or the
-    same pedestrian and wall segment (b < 0, segment ``wall`` of ``n_walls``) wherever it stands in a
-    candidate list: matches contacts across lists (re-detection, the previous step's projection).
-    A candidate list holds each pair and each pedestrian-segment contact once, so its keys are unique
-    (``np.isin(..., assume_unique=True)``, 5× faster on door jams; ``tests/test_simulator.py``)."""
-    a = np.asarray(a, np.int64)
-    return np.where(b >= 0, a * n + b, n * n + a * max(1, n_walls) + wall)
 
 
 _EMPTY_1D = np.zeros(0)

@@ -1,17 +1,18 @@
-"""Small compiled dense and envelope Cholesky kernels shared by the impact solver and the projection.
+"""Shared linear algebra of the solvers: small compiled dense and envelope Cholesky kernels.
 
-Not LAPACK: the systems are small or banded, and OpenBLAS threads fighting over a loaded machine made
-LAPACK calls 10-100 times slower than these loops. Inner products run over *unsigned* offsets
-(:func:`dot_range`): with signed indices numba keeps its negative-index wraparound test inside the loop
-and LLVM does not vectorise it, which made the factorisations about three times slower.
+Used by the dense impact (:mod:`~crowd_env.core.solvers.impact`, H = M + Bᵀ K B of Kabalan 2016,
+Eq. 7), the pivoting LCP (:mod:`~crowd_env.core.solvers.pivoting`) and the Newton-type projections
+(:mod:`~crowd_env.core.solvers.large_projection`). Not LAPACK: the systems are small or banded, and
+OpenBLAS threads competing on a loaded machine made LAPACK calls far slower than these loops. Inner
+products run over *unsigned* offsets (:func:`dot_range`): with signed indices numba keeps its
+negative-index wraparound test inside the loop and LLVM does not vectorise it.
 The dense kernels use no fast-math flags that change rounding (``SAME_ROUNDING_FASTMATH``); four
 interleaved partial sums vectorise without reassociation. ``test_fused_and_staged_steps_agree_bitwise``
 checks that they round the same wherever they are compiled (the fused step inlines them into one
 function, the staged step calls them one by one). The envelope kernels serve only the large-jam
-projection (:mod:`crowd_env.core.projection`), which runs in the staged step alone: they are compiled
-with full fast-math, which lets LLVM vectorise their short inner products (the projection stage of
-``benchmarks/scaling.py`` at N = 10 000: 19-22 ms per step against 24-25 ms with rounding-preserving
-flags, alternating runs of the two builds; factors equal to about 1e-14 relative).
+projection, which runs in the staged step alone: they are compiled with full fast-math, which lets
+LLVM vectorise their short inner products (``benchmarks/scaling.py`` measures the projection stage;
+the factors agree with rounding-preserving builds to about 1e-14 relative).
 """
 from __future__ import annotations
 
@@ -193,8 +194,8 @@ def envelope_solve(env, off, first, x):
 @nb.njit(cache=True, fastmath=SAME_ROUNDING_FASTMATH)
 def cholesky_solve(L, b):
     """x solving (L Lᵀ) x = b (1-D) with the dense lower factor L: :func:`envelope_solve` on dense
-    rows, kept as its own loop for the same reason as :func:`profile_cholesky` (the wrapper costs
-    about 1.5 µs more per 70×70 solve, in the pivoting loop)."""
+    rows, kept as its own loop for the same reason as :func:`profile_cholesky` (a wrapper would add a
+    call per solve inside the pivoting loop)."""
     n = L.shape[0]
     x = b.copy()
     for i in range(n):

@@ -1,15 +1,17 @@
-"""Reference Frémond impact in cvxpy: the primal of Eq. 7 written literally (for tests and small cases).
+"""Reference Frémond impact in cvxpy: the primal of Kabalan 2016, Eq. 7, written literally.
 
-It takes exactly the inputs of :func:`crowd_env.core.collision.solve_rows` (the two-body row form of
-:mod:`crowd_env.core.contacts`) but builds the dense operator and hands the convex problem to a
-general conic solver, so it shares no solution code with the production solver.
+It takes exactly the inputs of :func:`crowd_env.core.solvers.impact.solve_rows` (the two-body row form
+of :mod:`crowd_env.core.contacts`) but builds the dense operator and hands the convex problem to a
+general conic solver, so it shares no solution code with the production solver. Used by the tests and
+benchmarks as an independent check, and for every impact cluster of a simulation run with
+``ModelParams(solver="cvxpy")`` (slow; small cases only). :func:`random_cluster` makes test clusters.
 """
 from __future__ import annotations
 
 import cvxpy as cp
 import numpy as np
 
-from .contacts import NORMAL, rows_to_dense
+from ..contacts import NORMAL, rows_to_dense
 
 
 def solve_rows_cvxpy(mass_diag, row_a, row_b, coef_a, coef_b, row_k, row_kind, v_minus, p_ext=None,
@@ -58,8 +60,8 @@ def random_cluster(n, rng, *, k_n=1.0e5, k_tg=0.0, k_v=0.0, n_links=0, wall=True
     Returns a dict with ``mass_diag``, the six row arrays, ``v_minus``, ``position``, ``radius``,
     ``contacts`` (the detect_contacts dict) and ``links``.
     """
-    from .contacts import build_rows, detect_contacts, link_geometry
-    from .segments import as_segments, endpoint_owners
+    from ..contacts import build_rows, detect_contacts, link_geometry
+    from ..segments import as_segments, endpoint_owners
 
     spacing = 2.0 * radius_m
     k = int(np.ceil(np.sqrt(n))) + 3

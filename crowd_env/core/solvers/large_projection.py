@@ -1,41 +1,46 @@
-"""Gap projection for large and degenerate contact sets: augmented Lagrangian + semismooth Newton.
+"""The Newton-type projections for large and degenerate contact sets: augmented Lagrangian, interior point, working set.
 
-The projection  min ½ ‖v − v'‖²_M  s.t.  r_k(v) = g_k + (B_n v)_k ≥ 0  (g = gap/h, translational
-velocities only) has a unique v, but in a jam its dual LCP is degenerate (more contacts than degrees
-of freedom) and pivoting cycles. The method of multipliers (a proximal point method on the dual) does
-not care: each subproblem
+The gap projection  min ½ ‖v − v'‖²_M  s.t.  r_k(v) = g_k + (B_n v)_k ≥ 0  (g = gap/h, translational
+velocities only; the problem of :mod:`~crowd_env.core.solvers.dense_projection`, which keeps pedestrians
+from overlapping between the impacts of Kabalan 2016, Eq. 4-8) has a unique v, but in a jam its dual
+LCP is degenerate (more contacts than degrees of freedom) and pivoting cycles. These methods do not
+care; the :class:`~crowd_env.core.solvers.cascade.SolverCascade` uses them for projections too large
+for the dense path, in this order of preference:
 
-    min_v  φ(v) = ½ ‖v − v'‖²_M + 1/(2ρ) Σ_k max(0, μ_k − ρ r_k(v))²
+* :func:`project_gaps_alm`, the method of multipliers (a proximal point method on the dual). Each
+  subproblem
 
-is strictly convex and piecewise quadratic; semismooth Newton solves it exactly in a few steps, each
-one a sparse SPD system M + ρ Σ_{k∈I} B_kᵀ B_k (I: the constraints pushing), factorised by an envelope
-Cholesky in reverse Cuthill-McKee order of the contact graph. Then μ ← max(0, μ − ρ r(v)). A fixed
-point is an exact KKT point; the loop stops when μ moves by less than ρ · 1e-12 m/s (constraint
-violation and complementarity below that). Compiled with numba.
+      min_v  φ(v) = ½ ‖v − v'‖²_M + 1/(2ρ) Σ_k max(0, μ_k − ρ r_k(v))²
 
-The augmented Lagrangian's Newton steps grow with the jam's diameter (each adds the constraints a push
-passes on). :func:`project_gaps_interior_point` does not: a Mehrotra predictor-corrector interior
-point method whose iterations stay at 11-17 at any size, each one factorisation of
-M + Bᵀ W B over all candidates on the same envelope (pattern and ordering computed once). In a jam,
-contacts outnumber degrees of freedom and the plain weights W = Z S⁻¹ reach 1e20 on the dependent
-ones, where the Cholesky factorisation breaks down; a dual regularisation δ (the proximal term of an
-interior point-proximal method of multipliers, centred at the current iterate) bounds them by 1/δ:
-W = Z (S + δ Z)⁻¹. The residuals it drives to zero are those of the unregularised problem, so the
-solution is the same.
+  is strictly convex and piecewise quadratic; semismooth Newton solves it exactly in a few steps, each
+  one a sparse SPD system M + ρ Σ_{k∈I} B_kᵀ B_k (I: the constraints pushing), factorised by an
+  envelope Cholesky in reverse Cuthill-McKee order of the contact graph. Then μ ← max(0, μ − ρ r(v)).
+  A fixed point is an exact KKT point; the loop stops when μ moves by less than ρ · 1e-12 m/s
+  (constraint violation and complementarity below that). Its Newton steps grow with the jam's diameter
+  (each adds the constraints a push passes on).
+* :func:`project_gaps_interior_point`, whose iterations do not: a Mehrotra predictor-corrector
+  interior point method, each iteration one factorisation of M + Bᵀ W B over all candidates on the same
+  envelope (pattern and ordering computed once). In a jam, contacts outnumber degrees of freedom and
+  the plain weights W = Z S⁻¹ grow without bound on the dependent ones, where the Cholesky
+  factorisation breaks down; a dual regularisation δ (the proximal term of an interior point-proximal
+  method of multipliers, centred at the current iterate) bounds them by 1/δ: W = Z (S + δ Z)⁻¹. The
+  residuals it drives to zero are those of the unregularised problem, so the solution is the same.
+* :func:`project_gaps_working_set`: in a door jam only part of the candidates end up active, and the
+  active set changes little from one step to the next. It solves the interior point problem on a
+  working set (the caller's guess: the last step's active contacts and those nearly closing), adds the
+  candidates the answer violates, and solves again until none is: each solve is smaller, and the result
+  is the exact projection on all candidates.
 
-In a door jam only about 40 % of the candidates end up active, and the active set changes little from
-one step to the next. :func:`project_gaps_working_set` solves the interior point problem on a working
-set (the caller's guess: the last step's active contacts and those nearly closing), adds the
-candidates the answer violates, and solves again until none is: each solve is smaller, and the
-result is the exact projection on all candidates.
+Compiled with numba. ``benchmarks/projection.py`` times the three on door jams.
 """
 from __future__ import annotations
 
 import numba as nb
 import numpy as np
 
-from .collision import STATUS_MAX_ITER, STATUS_OK, _normal_velocity, _order_dofs, gap_residuals, touched_bodies
+from .graph import gap_residuals, normal_velocity, order_dofs, touched_bodies
 from .linalg import envelope_cholesky, envelope_solve
+from .status import STATUS_MAX_ITER, STATUS_OK
 
 ALM_RHO_RELATIVE = 1e4  # penalty ρ relative to 1 / mean diag(W): large, so the multipliers converge in a few rounds
 ALM_RHO_GROWTH_MAX = 1e3  # ρ grows tenfold, up to this factor, when the violation stalls
@@ -43,13 +48,13 @@ ALM_MAX_OUTER = 60
 ALM_MAX_NEWTON = 200  # Newton steps over all rounds
 ALM_TOL_M_S = 1e-10  # stationarity residual tolerated at termination (m/s)
 ALM_TOL_KKT_M_S = 1e-10  # constraint violation and multiplier change (÷ρ) tolerated at termination
-IP_MAX_ITER = 60  # interior point iterations (measured: 11-17 on door jams of 460-1400 pedestrians)
+IP_MAX_ITER = 60  # interior point iterations (a few times what door jams of any size need)
 IP_TOL_M_S = 1e-10  # stationarity (÷ mass) and constraint residuals at termination, relative to the largest speed
 IP_GAP_TOL = 1e-16  # mean complementarity sᵀz/m at termination, relative to (largest speed × mean mass)
 IP_DELTA = 1e-10  # dual regularisation δ/m̄ (s/m per kg): the Newton weights z/(s + δz) stay ≤ m̄/1e-10
 IP_COLD_START = 0.1  # cold start: s = max(r(v'), 0) + 0.1 × largest speed, z = 0.1 × largest speed × m̄
 IP_WARM_START = 0.01  # from guessed percussions z0: u = v' + M⁻¹ Bᵀ z0, and this shift instead of 0.1
-WORKING_SET_MAX_ROUNDS = 4  # solves of project_gaps_working_set before it gives up (measured: 1, rarely 2)
+WORKING_SET_MAX_ROUNDS = 4  # solves of project_gaps_working_set before it gives up (one or two suffice in door jams)
 
 
 @nb.njit(cache=True)
@@ -70,7 +75,7 @@ def _normal_velocities(d, c_a, c_b, c_nx, c_ny):
     """B_n d: the normal relative velocity of every contact for velocities ``d`` ((n, ≥2))."""
     out = np.empty(c_a.shape[0])
     for k in range(c_a.shape[0]):
-        out[k] = _normal_velocity(d, c_a[k], c_b[k], c_nx[k], c_ny[k])
+        out[k] = normal_velocity(d, c_a[k], c_b[k], c_nx[k], c_ny[k])
     return out
 
 
@@ -302,7 +307,7 @@ def _newton_solve(grad, mass, pos, dof, first, off, env):
 
 @nb.njit(cache=True)
 def _projection_dofs(n, c_a, c_b, c_nx, c_ny):
-    """``pos`` of :func:`~crowd_env.core.collision._order_dofs` for the projection's rows (translations
+    """``pos`` of :func:`~crowd_env.core.solvers.graph.order_dofs` for the projection's rows (translations
     only): old DOF 3b + axis → envelope index, reverse Cuthill-McKee order of the contact graph."""
     m = c_a.shape[0]
     coef_a = np.zeros((m, 3))
@@ -312,7 +317,7 @@ def _projection_dofs(n, c_a, c_b, c_nx, c_ny):
         coef_a[k, 1] = c_ny[k]
         coef_b[k, 0] = -c_nx[k]
         coef_b[k, 1] = -c_ny[k]
-    _, pos = _order_dofs(n, c_a, c_b, coef_a, coef_b)
+    _, pos = order_dofs(n, c_a, c_b, coef_a, coef_b)
     return pos
 
 
@@ -327,7 +332,7 @@ def _speed_scale(v0):
 
 @nb.njit(cache=True)
 def project_gaps_alm(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, lam0, max_newton=ALM_MAX_NEWTON):
-    """The projection of :func:`~crowd_env.core.collision.project_gaps` on all candidates at once by
+    """The projection of :func:`~crowd_env.core.solvers.dense_projection.project_gaps` on all candidates at once by
     the augmented Lagrangian method (module docstring), from the multipliers ``lam0`` (≥ 0, e.g. the
     previous step's; zeros without a guess). Exact for degenerate jams. Modifies ``vel[:, :2]`` in
     place on success; returns ``(λ per contact, Newton steps, status)`` (STATUS_MAX_ITER: not
@@ -447,14 +452,14 @@ def _ip_direction(rd, s, z, rp, rc, dl, mass, c_a, c_b, c_nx, c_ny, pos, factor,
         rhs[i, 1] = rd[i, 1] - rhs[i, 1]
     _newton_solve_into(rhs, mass, pos, *factor, x, du)
     for k in range(m):
-        bdu = _normal_velocity(du, c_a[k], c_b[k], c_nx[k], c_ny[k])
+        bdu = normal_velocity(du, c_a[k], c_b[k], c_nx[k], c_ny[k])
         dz[k] = (rc[k] - z[k] * rp[k] - z[k] * bdu) / (s[k] + dl * z[k])
         ds[k] = bdu + rp[k] + dl * dz[k]
 
 
 @nb.njit(cache=True)
 def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, max_iter=IP_MAX_ITER, z0=None):
-    """The projection of :func:`~crowd_env.core.collision.project_gaps` on all candidates by a
+    """The projection of :func:`~crowd_env.core.solvers.dense_projection.project_gaps` on all candidates by a
     Mehrotra predictor-corrector interior point method with dual regularisation (module docstring).
 
     Slacks s = r(v) ≥ 0 and percussions z ≥ 0 start at 0.1 × (largest speed) and 0.1 × (largest speed
@@ -465,9 +470,8 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
     mass m̄. Every iteration steps 99.9 % of the way to the boundary, with separate step lengths for the
     primal (v, s) and the dual (z) variables (in the predictor's estimate of the complementarity too).
     Stops when stationarity ‖M (v − v') − Bᵀ z‖/m and ‖r(v) − s‖ are ≤ ``IP_TOL_M_S`` and
-    sᵀz/m ≤ ``IP_GAP_TOL`` (both relative to the largest speed, the latter times the mean mass): on
-    door jams of 460-1400 pedestrians v then agrees with the augmented Lagrangian's exact v to
-    7e-9 m/s and r(v) ≥ −1e-12 m/s (``benchmarks/projection.py``).
+    sᵀz/m ≤ ``IP_GAP_TOL`` (both relative to the largest speed, the latter times the mean mass)
+    (``benchmarks/projection.py`` compares v with the augmented Lagrangian's exact v on door jams).
     The percussion z of a candidate whose slack exceeds z/m̄ at the end (an open gap: the exact z is
     0, the iterate's is about 1e-14 m̄ m/s) is returned as 0, as the other solvers do, so that only
     closed contacts count as pushed. Modifies ``vel[:, :2]`` in place on success; returns ``(z per
@@ -528,7 +532,7 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
         pmax = 0.0
         mu = 0.0
         for k in range(m):
-            rp[k] = g[k] + _normal_velocity(u, c_a[k], c_b[k], c_nx[k], c_ny[k]) - s[k]
+            rp[k] = g[k] + normal_velocity(u, c_a[k], c_b[k], c_nx[k], c_ny[k]) - s[k]
             pmax = max(pmax, abs(rp[k]))
             mu += s[k] * z[k]
         mu /= m
@@ -571,7 +575,7 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
 
 def project_gaps_working_set(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, working,
                              max_rounds=WORKING_SET_MAX_ROUNDS, z0=None):
-    """The projection of :func:`~crowd_env.core.collision.project_gaps` on all candidates by
+    """The projection of :func:`~crowd_env.core.solvers.dense_projection.project_gaps` on all candidates by
     :func:`project_gaps_interior_point` on the candidates ``working`` (bool, one per candidate) only,
     on the pedestrians they touch; the candidates its answer violates (r_k(v) < 0) join the working
     set and it solves again. The answer, with zero percussion on the candidates never in the working

@@ -1,0 +1,309 @@
+"""One time step of the Kabalan et al. (2016) model: its stages, written once, and their compiled kernels.
+
+The stages, in order (the names are the keys of ``StepResult.timings_s`` in a staged step)::
+
+    STAGES = ("smooth", "neighbors", "contacts", "impacts", "projection", "integrate")
+
+1. ``smooth`` (Eq. 3, 14, 15): :func:`smooth_update`, u* = u + h/τ (u_intent − u) + h f_ext/m,
+   ω* = ω + h (−k wrap(θ − θ_d) − c ω)/I;
+2. ``neighbors``: :func:`detection_reach` (the speeds u* and the reach 2 r_max + ε + 4 h max|u*| of the
+   detection margins), then the cell grid's pairs within that reach;
+3. ``contacts``: :func:`~crowd_env.core.contacts.contact_candidates` with the speculative margin
+   ε + 2h(|u_i| + |u_j|) (exact narrow phase), and :func:`compact_bodies`;
+4. ``impacts``: :func:`impact_stage`, the Frémond impact (Eq. 4-8) of every cluster of touching,
+   approaching contacts and hand links (:func:`~crowd_env.core.solvers.impact.resolve_impacts`; the
+   clusters it leaves go to the solver cascade), then :func:`kinetic_energy`;
+5. ``projection``: the gap projection, so that no candidate gap closes within the step; before and
+   after it, :func:`grown_margins` tells whether the impacts or the projection made someone faster
+   than the margins allow (a push passed along a chain): candidates must then be detected again around
+   them, with :func:`redetection_reach`, and the projection repeated if a new one binds;
+   then :func:`kinetic_energy`;
+6. ``integrate``: :func:`finish_step` (positions advance with the final velocities, the smallest
+   candidate gap, the contacts that carried a percussion), then pedestrians whose centre entered an
+   exit leave.
+
+Two paths run these stages with the same functions in this order. By default
+:class:`~crowd_env.core.Simulator` runs :func:`fused_step`: the stages compiled into one call, with the
+dense solvers only. It handles the common case (every cluster within the dense limits, no re-detection
+needed); otherwise it reports which stage needs the general path (``FUSED_*``) and leaves the state
+untouched, and the simulator runs the staged step (``Simulator._staged_step``) from the start: the same
+stage functions called one by one from Python, timed, with the
+:class:`~crowd_env.core.solvers.cascade.SolverCascade` for large or degenerate problems and the
+re-detection loop. Both paths call the same kernels, so they agree to the last bit
+(``test_fused_and_staged_steps_agree_bitwise``).
+"""
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from .angles import wrap_angle_scalar
+from .contacts import contact_candidates
+from .neighbors import grid_pairs
+from .segments import closest_point_on_segment
+from .solvers.dense_projection import PROJECTION_TOL_M_S, project_gaps
+from .solvers.impact import VTOL_M_S, resolve_impacts
+from .solvers.status import STATUS_OK
+
+STAGES = ("smooth", "neighbors", "contacts", "impacts", "projection", "integrate")
+FUSED_OK = 0
+FUSED_LARGE_CLUSTER = 1  # an impact cluster needs the sparse solver
+FUSED_REDETECT = 2  # impacts or the projection made someone faster than the detection margins
+FUSED_PROJECTION = 3  # the projection needs the sparse / interior-point path
+
+
+@nb.njit(cache=True)
+def smooth_update(velocity, angular_velocity, heading, mass, inertia, tau, stiffness, damping, intents,
+                  theta_d, has_theta_d, force, has_force, index, dt_s, rotation):
+    """Stage 1, the smooth dynamics (Eq. 3, 14, 15) of the pedestrians ``index``: compact (n, 3) u*, ω*.
+
+    u* = u + h/τ (u_intent − u) + h f/m (explicit Euler);
+    ω* = ω + h (−k wrap(θ − θ_d) − c ω)/I, with θ_d the intent's direction when not given.
+    """
+    n = index.shape[0]
+    vel = np.empty((n, 3))
+    for k in range(n):
+        i = index[k]
+        ux = velocity[i, 0]
+        uy = velocity[i, 1]
+        ax = (intents[i, 0] - ux) / tau[i]
+        ay = (intents[i, 1] - uy) / tau[i]
+        if has_force:
+            ax += force[i, 0] / mass[i]
+            ay += force[i, 1] / mass[i]
+        vel[k, 0] = ux + dt_s * ax
+        vel[k, 1] = uy + dt_s * ay
+        if rotation:
+            theta = heading[i]
+            if has_theta_d:
+                target = theta_d[i]
+            else:
+                sx = intents[i, 0]
+                sy = intents[i, 1]
+                target = np.arctan2(sy, sx) if np.sqrt(sx * sx + sy * sy) > 1e-12 else theta
+            omega = angular_velocity[i]
+            torque = -stiffness[i] * wrap_angle_scalar(theta - target) - damping[i] * omega
+            vel[k, 2] = omega + dt_s * torque / inertia[i]
+        else:
+            vel[k, 2] = 0.0
+    return vel
+
+
+@nb.njit(cache=True)
+def commit_step(position, velocity, angular_velocity, heading, index, vel, dt_s, rotation):
+    """Stage 6: store the final velocities and advance positions (and headings) by h."""
+    for k in range(index.shape[0]):
+        i = index[k]
+        velocity[i, 0] = vel[k, 0]
+        velocity[i, 1] = vel[k, 1]
+        angular_velocity[i] = vel[k, 2]
+        position[i, 0] += dt_s * vel[k, 0]
+        position[i, 1] += dt_s * vel[k, 1]
+        if rotation:
+            heading[i] = wrap_angle_scalar(heading[i] + dt_s * vel[k, 2])
+
+
+@nb.njit(cache=True)
+def kinetic_energy(vel, mass, inertia):
+    """½ Σ (m |u|² + I ω²) in joules for compact (n, 3) velocities."""
+    e = 0.0
+    for k in range(vel.shape[0]):
+        e += mass[k] * (vel[k, 0] ** 2 + vel[k, 1] ** 2) + inertia[k] * vel[k, 2] ** 2
+    return 0.5 * e
+
+
+@nb.njit(cache=True)
+def speeds(vel):
+    """|u| of compact (n, 3) velocities."""
+    out = np.empty(vel.shape[0])
+    for k in range(vel.shape[0]):
+        out[k] = np.sqrt(vel[k, 0] ** 2 + vel[k, 1] ** 2)
+    return out
+
+
+@nb.njit(cache=True)
+def grown_margins(vel, detection_speed, eps_m, dt_s):
+    """Rows whose speed exceeds 2 s + ε/(2h), s being the speed the margins were built from: a pair
+    left out of the candidates could then close within the step (stage 5)."""
+    out = np.empty(vel.shape[0], np.int64)
+    m = 0
+    for k in range(vel.shape[0]):
+        if np.sqrt(vel[k, 0] ** 2 + vel[k, 1] ** 2) > 2.0 * detection_speed[k] + 0.5 * eps_m / dt_s:
+            out[m] = k
+            m += 1
+    return out[:m]
+
+
+@nb.njit(cache=True)
+def candidate_gaps_min(position, radius, index, walls, c_a, c_b, c_wall):
+    """Smallest current gap (m) over candidate contacts (inf when there is none)."""
+    best = np.inf
+    for c in range(c_a.shape[0]):
+        i = index[c_a[c]]
+        if c_b[c] >= 0:
+            j = index[c_b[c]]
+            g = np.sqrt((position[i, 0] - position[j, 0]) ** 2 + (position[i, 1] - position[j, 1]) ** 2) \
+                - radius[i] - radius[j]
+        else:
+            s = c_wall[c]
+            qx, qy, _ = closest_point_on_segment(position[i, 0], position[i, 1], walls[s, 0], walls[s, 1],
+                                                 walls[s, 2], walls[s, 3])
+            g = np.sqrt((position[i, 0] - qx) ** 2 + (position[i, 1] - qy) ** 2) - radius[i]
+        best = min(best, g)
+    return best
+
+
+@nb.njit(cache=True)
+def rows_sweeping_boxes(previous, position, index, boxes):
+    """Rows k of ``index`` whose straight move from ``previous[k]`` to ``position[index[k]]`` has a
+    bounding box meeting one of the closed boxes (K, 4) (xmin, ymin, xmax, ymax): the cheap prefilter
+    of the exit test."""
+    out = np.empty(index.shape[0], np.int64)
+    m = 0
+    for k in range(index.shape[0]):
+        x0 = previous[k, 0]
+        y0 = previous[k, 1]
+        x1 = position[index[k], 0]
+        y1 = position[index[k], 1]
+        for b in range(boxes.shape[0]):
+            if min(x0, x1) <= boxes[b, 2] and max(x0, x1) >= boxes[b, 0] and \
+                    min(y0, y1) <= boxes[b, 3] and max(y0, y1) >= boxes[b, 1]:
+                out[m] = k
+                m += 1
+                break
+    return out[:m]
+
+
+@nb.njit(cache=True)
+def first_non_finite(arr):
+    """Row of the first non-finite entry of a 1-D or 2-D float array, −1 when all are finite."""
+    flat = arr.reshape(-1)
+    per_row = flat.shape[0] // max(arr.shape[0], 1)
+    for k in range(flat.shape[0]):
+        if not np.isfinite(flat[k]):
+            return k // per_row
+    return -1
+
+
+@nb.njit(cache=True)
+def compact_contacts(index, c_a, c_b, c_wall, p_normal, p_tangent, p_projection, in_impact):
+    """The contacts that carried a percussion (in the impact set, or pushed by the projection), with
+    pedestrian indices (j = −1 for a wall): ``(i, j, wall, normal percussion, tangential percussion)``."""
+    m = 0
+    for c in range(c_a.shape[0]):
+        if in_impact[c] or p_projection[c] > 0.0:
+            m += 1
+    ci = np.empty(m, np.int64)
+    cj = np.empty(m, np.int64)
+    cw = np.empty(m, np.int64)
+    pn = np.empty(m)
+    pt = np.empty(m)
+    m = 0
+    for c in range(c_a.shape[0]):
+        if in_impact[c] or p_projection[c] > 0.0:
+            ci[m] = index[c_a[c]]
+            cj[m] = index[c_b[c]] if c_b[c] >= 0 else -1
+            cw[m] = c_wall[c]
+            pn[m] = p_normal[c] + p_projection[c]
+            pt[m] = p_tangent[c]
+            m += 1
+    return ci, cj, cw, pn, pt
+
+
+@nb.njit(cache=True)
+def detection_reach(vel, radius, index, eps_m, dt_s):
+    """Stage 2: the speeds |u*| of the compact velocities ``vel`` (the detection margins are built from
+    them), the largest radius r_max of the pedestrians ``index``, and the reach
+    2 r_max + ε + 4 h max|u*| within which a pair can be a candidate: ``(speed, r_max, reach)``."""
+    speed = speeds(vel)
+    vmax = 0.0
+    r_max = 0.0
+    for k in range(index.shape[0]):
+        vmax = max(vmax, speed[k])
+        r_max = max(r_max, radius[index[k]])
+    return speed, r_max, 2.0 * r_max + eps_m + 4.0 * dt_s * vmax
+
+
+@nb.njit(cache=True)
+def redetection_reach(r_max, eps_m, dt_s, grown_speed_max, speed_max):
+    """Stage 5's re-detection: the reach 2 r_max + ε + 2h (s_g + s_max) around the pedestrians whose
+    speed grew (the fastest of them s_g, the fastest of all s_max) within which new candidates lie."""
+    return 2.0 * r_max + eps_m + 2.0 * dt_s * (grown_speed_max + speed_max)
+
+
+@nb.njit(cache=True)
+def compact_bodies(mass_all, inertia_all, index):
+    """Stage 3: mass and moment of inertia of the pedestrians ``index``, compact: ``(mass, inertia)``."""
+    n = index.shape[0]
+    mass = np.empty(n)
+    inertia = np.empty(n)
+    for k in range(n):
+        mass[k] = mass_all[index[k]]
+        inertia[k] = inertia_all[index[k]]
+    return mass, inertia
+
+
+@nb.njit(cache=True)
+def impact_stage(vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, l_a, l_b, dvec, gi, gj,
+                 k_n, k_tg, k_v, eps_m, rotation, max_dense_rows, max_dense_bodies):
+    """Stage 4: the kinetic energy before the impacts, then the dense Frémond impacts of every cluster
+    within the limits (:func:`~crowd_env.core.solvers.impact.resolve_impacts`, in place on ``vel``):
+    ``(ke_before, p_normal, p_tangent, in_impact, root, unsolved, n_clusters, max_cluster)``; the
+    clusters in ``unsolved`` are left for the solver cascade."""
+    ke0 = kinetic_energy(vel, mass, inertia)
+    p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = resolve_impacts(
+        vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, l_a, l_b, dvec, gi, gj,
+        k_n, k_tg, k_v, eps_m, VTOL_M_S, rotation, max_dense_rows, max_dense_bodies)
+    return ke0, p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster
+
+
+@nb.njit(cache=True)
+def finish_step(position, velocity, angular_velocity, heading, radius, index, vel, dt_s, rotation, walls,
+                c_a, c_b, c_wall, p_normal, p_tangent, p_projection, in_impact):
+    """Stage 6 (before the exit test): :func:`commit_step`, then the smallest gap after the step among the
+    candidates (pairs not among them cannot have closed) and the contacts that carried a percussion:
+    ``(min_gap, contacts)``, ``contacts`` being :func:`compact_contacts`."""
+    commit_step(position, velocity, angular_velocity, heading, index, vel, dt_s, rotation)
+    min_gap = candidate_gaps_min(position, radius, index, walls, c_a, c_b, c_wall)
+    return min_gap, compact_contacts(index, c_a, c_b, c_wall, p_normal, p_tangent, p_projection, in_impact)
+
+
+@nb.njit(cache=True)
+def fused_step(position, radius, velocity, angular_velocity, heading, mass_all, inertia_all, tau, stiffness,
+               damping, intents, theta_d, has_theta_d, force, has_force, index, walls, wall_owner,
+               cached_pairs, cached_radius_m, l_a, l_b, dvec, gi, gj, dt_s, eps_m, k_n, k_tg, k_v, rotation,
+               max_dense_rows, max_dense_bodies, max_projection_rows):
+    """The stages 1-6 (but the exit test) in one compiled call, with the dense solvers only (module docstring).
+
+    Returns ``(status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap)``, ``contacts`` being
+    :func:`compact_contacts`. With ``status != FUSED_OK`` nothing was written and the caller must run
+    the staged step. ``cached_pairs`` (rows into ``index``, all pairs within ``cached_radius_m``, e.g.
+    from the policy's social forces this step) are reused when they reach far enough, exactly like
+    :meth:`Simulator.neighbor_pairs`.
+    """
+    vel = smooth_update(velocity, angular_velocity, heading, mass_all, inertia_all, tau, stiffness, damping,
+                        intents, theta_d, has_theta_d, force, has_force, index, dt_s, rotation)
+    speed_star, _, reach = detection_reach(vel, radius, index, eps_m, dt_s)
+    pairs = cached_pairs if reach <= cached_radius_m else grid_pairs(position, index, reach)
+    c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall = contact_candidates(
+        position, radius, speed_star, index, pairs, walls, wall_owner, eps_m, dt_s)
+    mass, inertia = compact_bodies(mass_all, inertia_all, index)
+    ke0, p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = impact_stage(
+        vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, l_a, l_b, dvec, gi, gj,
+        k_n, k_tg, k_v, eps_m, rotation, max_dense_rows, max_dense_bodies)
+    none = compact_contacts(index, c_a[:0], c_b[:0], c_wall[:0], p_n[:0], p_t[:0], p_n[:0], in_impact[:0])
+    if unsolved.shape[0]:
+        return FUSED_LARGE_CLUSTER, none, ke0, 0.0, 0.0, 0, 0, np.inf
+    ke1 = kinetic_energy(vel, mass, inertia)
+    if grown_margins(vel, speed_star, eps_m, dt_s).shape[0]:
+        return FUSED_REDETECT, none, ke0, ke1, 0.0, 0, 0, np.inf
+    lam_p, _, st = project_gaps(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, PROJECTION_TOL_M_S,
+                                max_projection_rows)
+    if st != STATUS_OK:
+        return FUSED_PROJECTION, none, ke0, ke1, 0.0, 0, 0, np.inf
+    if grown_margins(vel, speed_star, eps_m, dt_s).shape[0]:
+        return FUSED_REDETECT, none, ke0, ke1, 0.0, 0, 0, np.inf
+    ke2 = kinetic_energy(vel, mass, inertia)
+    min_gap, contacts = finish_step(position, velocity, angular_velocity, heading, radius, index, vel, dt_s,
+                                    rotation, walls, c_a, c_b, c_wall, p_n, p_t, lam_p, in_impact)
+    return FUSED_OK, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap
