@@ -5,13 +5,13 @@ Analytic head-on cases of Section 3.1, the K_n = μ convention, conservation law
 energy, the production solver against an independent cvxpy reference on random dense clusters, hand
 links, and the order independence of shared wall corners.
 """
-import importlib.util
 import math
 import pathlib
 
 import numpy as np
 import pytest
 
+from crowd_env.core.solvers import closed_form
 from crowd_env.core.solvers.cascade import project_gaps_large
 from crowd_env.core.solvers.dense_projection import project_gaps
 from crowd_env.core.solvers.external import project_gaps_qp, solve_rows_qp
@@ -25,9 +25,6 @@ from crowd_env.core.solvers.reference import random_cluster, solve_rows_cvxpy
 from crowd_env.core.segments import as_segments, endpoint_owners, wall_proximity
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-_spec = importlib.util.spec_from_file_location("paper_collision_figures", ROOT / "scripts" / "paper_collision_figures.py")
-pcf = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(pcf)
 
 K_GRID = np.logspace(0.0, 6.0, 25)
 
@@ -59,10 +56,10 @@ def _only_approaching(cl):
 # ---------------------------------------------------------------- Section 3.1: head-on collisions
 @pytest.mark.parametrize("case", ["a", "b"])
 def test_head_on_matches_eq17_to_19_over_kn_grid(case):
-    c = pcf.PAPER_CASES[case]
+    c = closed_form.PAPER_CASES[case]
     for k in K_GRID:
-        u1, u2, _ = pcf.head_on_numeric(c["m1"], c["m2"], c["u1"], c["u2"], k)
-        a1, a2 = pcf.head_on_analytic(c["m1"], c["m2"], c["u1"], c["u2"], k)
+        u1, u2, _ = closed_form.head_on_numeric(c["m1"], c["m2"], c["u1"], c["u2"], k)
+        a1, a2 = closed_form.head_on_analytic(c["m1"], c["m2"], c["u1"], c["u2"], k)
         assert abs(u1 - a1) < 1e-9 and abs(u2 - a2) < 1e-9, (k, u1, a1, u2, a2)
 
 
@@ -70,32 +67,32 @@ def test_head_on_matches_eq17_to_19_over_kn_grid(case):
 def test_head_on_threshold_exactly_at_reduced_mass(case):
     """Plastic (common velocity, reactive percussion active) for K_n ≤ μ = m1 m2/(m1 + m2), separating
     for K_n > μ. The literal reading of Eq. 7 would put the threshold at 2μ: this pins the convention."""
-    c = pcf.PAPER_CASES[case]
+    c = closed_form.PAPER_CASES[case]
     m1, m2, u1, u2 = c["m1"], c["m2"], c["u1"], c["u2"]
     mu = m1 * m2 / (m1 + m2)
     common = (m1 * u1 + m2 * u2) / (m1 + m2)
     for k in (0.1 * mu, 0.5 * mu, 0.999 * mu, mu):
-        p1, p2, lam = pcf.head_on_numeric(m1, m2, u1, u2, k)
+        p1, p2, lam = closed_form.head_on_numeric(m1, m2, u1, u2, k)
         assert abs(p1 - common) < 1e-12 and abs(p2 - common) < 1e-12
     for k in (0.5 * mu, 0.999 * mu):
-        assert pcf.head_on_numeric(m1, m2, u1, u2, k)[2] > 1e-6  # the constraint carries a percussion
+        assert closed_form.head_on_numeric(m1, m2, u1, u2, k)[2] > 1e-6  # the constraint carries a percussion
     for k in (1.001 * mu, 1.5 * mu, 2.0 * mu):
-        p1, p2, lam = pcf.head_on_numeric(m1, m2, u1, u2, k)
+        p1, p2, lam = closed_form.head_on_numeric(m1, m2, u1, u2, k)
         assert p2 - p1 > 1e-6  # separating: the dissipation alone stops the approach
         assert lam == 0.0
-        a1, a2 = pcf.head_on_analytic(m1, m2, u1, u2, k)
+        a1, a2 = closed_form.head_on_analytic(m1, m2, u1, u2, k)
         assert abs(p1 - a1) < 1e-12 and abs(p2 - a2) < 1e-12
     # At K_n = 2μ (the literal-Eq. 7 threshold) the relative velocity is w (μ − 2μ)/(μ + 2μ) = −w/3.
-    p1, p2, _ = pcf.head_on_numeric(m1, m2, u1, u2, 2.0 * mu)
+    p1, p2, _ = closed_form.head_on_numeric(m1, m2, u1, u2, 2.0 * mu)
     assert (p1 - p2) == pytest.approx(-(u1 - u2) / 3.0, abs=1e-12)
 
 
 @pytest.mark.parametrize("case", ["a", "b"])
 def test_head_on_elastic_limit_eq18_19(case):
-    c = pcf.PAPER_CASES[case]
-    e1, e2 = pcf.head_on_elastic(c["m1"], c["m2"], c["u1"], c["u2"])
+    c = closed_form.PAPER_CASES[case]
+    e1, e2 = closed_form.head_on_elastic(c["m1"], c["m2"], c["u1"], c["u2"])
     for k in (1e7, 1e8):  # beyond ~1e9 round-off (cond H ~ K/m) exceeds the physical difference
-        p1, p2, _ = pcf.head_on_numeric(c["m1"], c["m2"], c["u1"], c["u2"], k)
+        p1, p2, _ = closed_form.head_on_numeric(c["m1"], c["m2"], c["u1"], c["u2"], k)
         mu = c["m1"] * c["m2"] / (c["m1"] + c["m2"])
         bound = 2.0 * mu / k * abs(c["u1"] - c["u2"])  # relative velocity error of the finite-K formula
         assert abs(p1 - e1) <= bound and abs(p2 - e2) <= bound
@@ -119,22 +116,22 @@ def test_disk_against_wall(mass):
 
 # ---------------------------------------------------------------- oblique impacts, rotation (Section 3.2)
 def test_oblique_impact_spin_depends_on_ktg_not_kn():
-    assert pcf.oblique_spin(0.0)[0] == 0.0  # without tangential dissipation no spin
-    spins = [pcf.oblique_spin(k)[0] for k in (1.0, 10.0, 100.0, 1e3, 1e4)]
+    assert closed_form.oblique_spin(0.0)[0] == 0.0  # without tangential dissipation no spin
+    spins = [closed_form.oblique_spin(k)[0] for k in (1.0, 10.0, 100.0, 1e3, 1e4)]
     assert all(s > 0 for s in spins) and np.all(np.diff(spins) > 0)
     for k_tg in (10.0, 1e3, 1e5):
-        ref = pcf.oblique_spin(k_tg, k_n=2e3)
+        ref = closed_form.oblique_spin(k_tg, k_n=2e3)
         for k_n in (5e3, 1e4, 1e5, 1e6):
-            got = pcf.oblique_spin(k_tg, k_n=k_n)
+            got = closed_form.oblique_spin(k_tg, k_n=k_n)
             assert got == pytest.approx(ref, rel=1e-9, abs=1e-12)
     # Saturation: both contact points end up rolling without slip (tangential rows are "elastic").
-    s5, s6 = pcf.oblique_spin(1e5)[0], pcf.oblique_spin(1e6)[0]
+    s5, s6 = closed_form.oblique_spin(1e5)[0], closed_form.oblique_spin(1e6)[0]
     assert abs(s6 - s5) < 1e-3 * s6
 
 
 def test_fig7_theta_max_surface_is_eq21():
-    td, kk, surf = pcf.fig7_data(np.linspace(0.0, 2.0, 5), np.array([0.5, 18.5]))
-    inertia = 0.5 * pcf.MASS_KG * pcf.RADIUS_M ** 2
+    td, kk, surf = closed_form.fig7_data(np.linspace(0.0, 2.0, 5), np.array([0.5, 18.5]))
+    inertia = 0.5 * closed_form.MASS_KG * closed_form.RADIUS_M ** 2
     for i, k in enumerate(kk):
         np.testing.assert_allclose(surf[i], td / (math.sqrt(k / inertia) * math.e), rtol=1e-14)
     assert surf[0, -1] > surf[1, -1]  # a stiffer heading turns less

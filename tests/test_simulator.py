@@ -2,20 +2,15 @@
 Simulator step, the heading's response (Eq. 20-21) and its time discretisation, conservation,
 energy, permutation invariance, no overlap in pushing crowds, candidate re-detection, the dense and
 sparse solver paths, the cvxpy path, hand links, exits and bad input."""
-import importlib.util
 import math
-import pathlib
 
 import numpy as np
 import pytest
 
+from crowd_env.cli.paper_collision_figures import simulate_oblique_rotation
 from crowd_env.core import CrowdState, ModelParams, ParameterError, Simulator, StateError
 from crowd_env.core.segments import GeometryError
-
-ROOT = pathlib.Path(__file__).resolve().parents[1]
-_spec = importlib.util.spec_from_file_location("paper_collision_figures", ROOT / "scripts" / "paper_collision_figures.py")
-pcf = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(pcf)
+from crowd_env.core.solvers import closed_form
 
 
 def box(L):
@@ -48,12 +43,12 @@ def total_momenta(st):
 @pytest.mark.parametrize("case", ["a", "b"])
 @pytest.mark.parametrize("k_n", [1.0, 10.0, 30.0, 100.0, 1e3, 1e5])
 def test_head_on_through_a_simulator_step(case, k_n):
-    c = pcf.PAPER_CASES[case]
+    c = closed_form.PAPER_CASES[case]
     st = CrowdState.create([[0.0, 0.0], [0.46, 0.0]], velocity_m_s=[[c["u1"], 0.0], [c["u2"], 0.0]],
                            mass_kg=[c["m1"], c["m2"]], radius_m=0.23, tau_s=1e12)
     sim = Simulator(st, params=ModelParams(normal_dissipation_kg=k_n, rotation=False))
     res = sim.step(st.velocity_m_s.copy())  # intents = velocities: no driving force
-    a1, a2 = pcf.head_on_analytic(c["m1"], c["m2"], c["u1"], c["u2"], k_n)
+    a1, a2 = closed_form.head_on_analytic(c["m1"], c["m2"], c["u1"], c["u2"], k_n)
     np.testing.assert_allclose(st.velocity_m_s, [[a1, 0.0], [a2, 0.0]], atol=1e-9)
     assert res.n_impact_clusters == 1 and res.contact_i.tolist() == [0]
     assert res.kinetic_energy_after_impact_j <= res.kinetic_energy_before_impact_j * (1 + 1e-12)
@@ -72,8 +67,8 @@ def test_disk_bounces_off_a_wall_in_a_step():
 
 # ---------------------------------------------------------------- Section 3.2: heading after an oblique impact
 def _rotation_error(dt, k=5.0, k_tg=1e3, t_end=3.0):
-    t, theta, td0 = pcf.simulate_oblique_rotation(k_tg, k, dt_s=dt, t_end_s=t_end)
-    return float(np.abs(theta - pcf.theta_analytic(t, td0, k)).max()), theta, td0
+    t, theta, td0 = simulate_oblique_rotation(k_tg, k, dt_s=dt, t_end_s=t_end)
+    return float(np.abs(theta - closed_form.theta_analytic(t, td0, k)).max()), theta, td0
 
 
 def test_heading_converges_to_eq20_at_first_order():
@@ -84,18 +79,18 @@ def test_heading_converges_to_eq20_at_first_order():
 
 def test_heading_tight_at_small_step_and_theta_max_eq21():
     for k in (0.5, 18.5):
-        err, theta, td0 = _rotation_error(5e-4, k=k, t_end=2.0 / pcf.natural_frequency(k))
-        tmax = float(pcf.theta_max(td0, k))
+        err, theta, td0 = _rotation_error(5e-4, k=k, t_end=2.0 / closed_form.natural_frequency(k))
+        tmax = float(closed_form.theta_max(td0, k))
         assert td0 > 0.5  # the oblique impact spun the pedestrian
         assert err < 1e-3 * tmax
         assert theta.max() == pytest.approx(tmax, rel=1e-3)
 
 
 def test_spin_after_impact_independent_of_kn_and_of_dt():
-    spins = [pcf.simulate_oblique_rotation(1e3, 5.0, dt_s=dt, t_end_s=0.02, k_n=k_n)[2]
+    spins = [simulate_oblique_rotation(1e3, 5.0, dt_s=dt, t_end_s=0.02, k_n=k_n)[2]
              for dt in (0.01, 0.002) for k_n in (2e3, 1e4, 1e6)]
     np.testing.assert_allclose(spins, spins[0], rtol=1e-9)
-    assert spins[0] == pytest.approx(pcf.oblique_spin(1e3)[0], rel=1e-12)
+    assert spins[0] == pytest.approx(closed_form.oblique_spin(1e3)[0], rel=1e-12)
 
 
 # ---------------------------------------------------------------- conservation and energy in full steps

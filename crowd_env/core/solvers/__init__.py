@@ -10,6 +10,7 @@
 * :mod:`~crowd_env.core.solvers.large_projection`: augmented Lagrangian, interior point, working set;
 * :mod:`~crowd_env.core.solvers.external`: PIQP and Clarabel (optional extra ``solvers``);
 * :mod:`~crowd_env.core.solvers.reference`: the cvxpy reference impact (tests, ``solver="cvxpy"``);
+* :mod:`~crowd_env.core.solvers.closed_form`: the paper's closed-form impacts (Section 3);
 * :mod:`~crowd_env.core.solvers.cascade`: :class:`SolverCascade`, the choice between them.
 
 A solver module imports only the shared modules (``status``, ``linalg``, ``graph``), the public names of
