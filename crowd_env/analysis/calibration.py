@@ -7,15 +7,13 @@ experimental point is an error, never silently dropped.
 """
 from __future__ import annotations
 
+from crowd_env.errors import CalibrationError
+
 from dataclasses import dataclass
 
 import numpy as np
 
 from .experiment import SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, ExperimentError, ExperimentTable, seyfried_2009
-
-
-class CalibrationError(ValueError):
-    """Model runs and reference table do not match."""
 
 
 def _runs(width_m, n_pedestrians, specific_flow_per_m_s, allow_undefined: bool = False):

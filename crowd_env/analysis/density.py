@@ -1,13 +1,11 @@
 """Classical density in a measurement area (Kabalan Fig. 12): centres inside / area, per frame."""
 from __future__ import annotations
 
+from crowd_env.errors import DensityError
+
 import numpy as np
 import shapely
 from shapely.geometry import Polygon
-
-
-class DensityError(ValueError):
-    """Invalid measurement area or series."""
 
 
 def as_polygon(area) -> Polygon:

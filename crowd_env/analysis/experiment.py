@@ -5,6 +5,8 @@ lie in [1.77, 2.31] 1/(m s), and the residual norms of linear fits J(b) (Kabalan
 """
 from __future__ import annotations
 
+from crowd_env.errors import ExperimentError
+
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
@@ -28,10 +30,6 @@ INSIDE_SPEED_RANGE_M_S = (0.94, 1.22)
 PUBLISHED_SPECIFIC_FLOW_N60_PER_M_S = (1.61, 1.86, 1.90, 1.93, 1.97)
 
 _CSV_NAME = "seyfried2009_bottleneck.csv"
-
-
-class ExperimentError(ValueError):
-    """A reference table is malformed or a requested experimental point does not exist."""
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,8 @@
 """Figures of Kabalan et al. (2016) Section 4 from bottleneck run records (matplotlib, Agg)."""
 from __future__ import annotations
 
+from crowd_env.errors import InputError
+
 from pathlib import Path
 
 import numpy as np
@@ -186,9 +188,9 @@ def fundamental_diagram_figure(data_by_area: dict, path: Path, title: str | None
     (``density_per_m2``, ``speed_m_s``, ``specific_flow_per_m_s``). Returns the path written.
     """
     if not data_by_area:
-        raise ValueError("fundamental_diagram_figure needs at least one measurement area's data")
+        raise InputError("fundamental_diagram_figure needs at least one measurement area's data")
     if not (np.isfinite(bin_width_per_m2) and bin_width_per_m2 > 0):
-        raise ValueError(f"bin_width_per_m2 must be > 0, got {bin_width_per_m2!r}")
+        raise InputError(f"bin_width_per_m2 must be > 0, got {bin_width_per_m2!r}")
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(9.0, 3.8))
     for k, (name, d) in enumerate(data_by_area.items()):

@@ -7,14 +7,12 @@ does the same on a recorded long-format trajectory.
 """
 from __future__ import annotations
 
+from crowd_env.errors import FlowError
+
 from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
-
-
-class FlowError(ValueError):
-    """Invalid measurement line or too few passages to define a flow."""
 
 
 @dataclass(frozen=True)

@@ -5,6 +5,8 @@ counts lanes (one lane at b = 0.8 m, two for b ≥ 0.9 m in the experiment).
 """
 from __future__ import annotations
 
+from crowd_env.errors import LaneError
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -12,10 +14,6 @@ import shapely
 from scipy.ndimage import gaussian_filter1d
 
 from .density import as_polygon
-
-
-class LaneError(ValueError):
-    """No detections in the region, or invalid histogram parameters."""
 
 
 @dataclass(frozen=True)

@@ -1,11 +1,9 @@
 """Trajectory recording into preallocated chunks (one row per pedestrian and frame)."""
 from __future__ import annotations
 
+from crowd_env.errors import RecorderError
+
 import numpy as np
-
-
-class RecorderError(ValueError):
-    """Recorded arrays have inconsistent shapes."""
 
 
 class TrajectoryRecorder:

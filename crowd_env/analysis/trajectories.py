@@ -23,6 +23,8 @@ build PedPy objects import it.
 """
 from __future__ import annotations
 
+from crowd_env.errors import InputError, MissingDependencyError, MissingFileError, NotFoundError, TrajectoryFormatError
+
 import json
 import math
 from dataclasses import dataclass
@@ -41,15 +43,11 @@ TXT_COLUMNS = ("id", "frame", "x/m", "y/m", "z/m", "heading/rad")
 DEFAULT_FRAME_RATE_PER_S = 25.0
 
 
-class TrajectoryFormatError(ValueError):
-    """A trajectory or geometry file, or trajectory arrays, are malformed (the message names the problem)."""
-
-
 def _pedpy():
     try:
         import pedpy
     except ImportError as exc:  # optional dependency
-        raise ImportError("PedPy is not installed: pip install 'crowd_env[analysis]' (or pip install pedpy)") from exc
+        raise MissingDependencyError("PedPy is not installed: pip install 'crowd_env[analysis]' (or pip install pedpy)") from exc
     return pedpy
 
 
@@ -219,7 +217,7 @@ class Trajectories:
         """
         path = Path(path)
         if not path.exists():
-            raise FileNotFoundError(f"trajectory file {path} does not exist")
+            raise MissingFileError(f"trajectory file {path} does not exist")
         if not path.is_file():
             raise TrajectoryFormatError(f"trajectory path {path} is not a file")
         try:
@@ -343,7 +341,7 @@ def read_geometry(path):
 
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"geometry file {path} does not exist")
+        raise MissingFileError(f"geometry file {path} does not exist")
     try:
         record = json.loads(path.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
@@ -379,14 +377,14 @@ def pedpy_walkable_area(geometry):
 def pedpy_measurement_line(geometry, name: str = "bottleneck"):
     """``pedpy.MeasurementLine`` of the geometry's measurement line ``name``."""
     if name not in geometry.measurement_lines:
-        raise KeyError(f"geometry has no measurement line {name!r}; it has {sorted(geometry.measurement_lines)}")
+        raise NotFoundError(f"geometry has no measurement line {name!r}; it has {sorted(geometry.measurement_lines)}")
     return _pedpy().MeasurementLine(np.asarray(geometry.measurement_lines[name]).tolist())
 
 
 def pedpy_measurement_area(geometry, name: str):
     """``pedpy.MeasurementArea`` of the geometry's (convex) measurement area ``name``."""
     if name not in geometry.measurement_areas:
-        raise KeyError(f"geometry has no measurement area {name!r}; it has {sorted(geometry.measurement_areas)}")
+        raise NotFoundError(f"geometry has no measurement area {name!r}; it has {sorted(geometry.measurement_areas)}")
     return _pedpy().MeasurementArea(geometry.measurement_areas[name])
 
 
@@ -404,7 +402,7 @@ def fundamental_diagram_data(traj_data, measurement_area, speed_window_s: float 
     if isinstance(traj_data, Trajectories):
         traj_data = traj_data.to_pedpy()
     if not (math.isfinite(speed_window_s) and speed_window_s > 0):
-        raise ValueError(f"speed_window_s must be > 0, got {speed_window_s!r}")
+        raise InputError(f"speed_window_s must be > 0, got {speed_window_s!r}")
     frame_step = max(1, int(round(0.5 * speed_window_s * traj_data.frame_rate)))
     speed = pedpy.compute_individual_speed(traj_data=traj_data, frame_step=frame_step,
                                            speed_calculation=pedpy.SpeedCalculation.BORDER_SINGLE_SIDED)

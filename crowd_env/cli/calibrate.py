@@ -189,7 +189,7 @@ def _reference(path: Path | None):
         lines = [ln for ln in Path(path).read_text().splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
         rows = list(csv.DictReader(lines))
         if not rows:
-            raise ValueError("no data rows")
+            raise CalibrationError("no data rows")
         return ExperimentTable.from_arrays([float(r["b_m"]) for r in rows], [int(r["n_pedestrians"]) for r in rows],
                                            [float(r["specific_flow_per_m_s"]) for r in rows], source=str(path))
     except (OSError, ValueError, KeyError, TypeError, ExperimentError) as exc:

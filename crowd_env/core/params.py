@@ -5,6 +5,8 @@ social repulsion (A = 790 N, B = 0.08 m, Section 4.1.3). Every field carries its
 """
 from __future__ import annotations
 
+from crowd_env.errors import ParameterError
+
 import dataclasses
 import math
 from dataclasses import dataclass, field, fields
@@ -12,10 +14,6 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 SOLVERS = ("dual", "cvxpy")
-
-
-class ParameterError(ValueError):
-    """A model or scenario parameter is out of its admissible range or unknown."""
 
 
 @dataclass(frozen=True)

@@ -5,12 +5,10 @@ detection, wall repulsion and observation rays.
 """
 from __future__ import annotations
 
+from crowd_env.errors import GeometryError
+
 import numba as nb
 import numpy as np
-
-
-class GeometryError(ValueError):
-    """Walls, exits or walkable areas are malformed or impossible."""
 
 
 def as_segments(segments) -> np.ndarray:

@@ -17,6 +17,8 @@ Python (:meth:`Simulator._staged_step`).
 """
 from __future__ import annotations
 
+from crowd_env.errors import InputError
+
 import functools
 import time
 from dataclasses import dataclass, field
@@ -201,10 +203,10 @@ class Simulator:
     def _check_input(self, name, value, shape):
         arr = np.ascontiguousarray(value, dtype=np.float64)
         if arr.shape != shape:
-            raise ValueError(f"{name} must have shape {shape} (one row per pedestrian), got {arr.shape}")
+            raise InputError(f"{name} must have shape {shape} (one row per pedestrian), got {arr.shape}")
         if first_non_finite(arr) >= 0:
             bad = np.flatnonzero(~np.isfinite(arr).reshape(shape[0], -1).all(axis=1))
-            raise ValueError(f"{name} is not finite for pedestrian(s) {bad[:10].tolist()}")
+            raise InputError(f"{name} is not finite for pedestrian(s) {bad[:10].tolist()}")
         return arr
 
     def step(self, intents_m_s, *, desired_heading_rad=None, external_force_n=None) -> StepResult:

@@ -6,16 +6,14 @@ index pairs with the shoulder points given in each pedestrian's body frame.
 """
 from __future__ import annotations
 
+from crowd_env.errors import StateError
+
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .neighbors import grid_pairs
 from .params import ParameterError, PedestrianDefaults
-
-
-class StateError(ValueError):
-    """The pedestrian state is inconsistent (shapes, non-physical values, overlaps)."""
 
 
 def _as_array(name: str, value, shape: tuple, n: int) -> np.ndarray:

@@ -73,6 +73,8 @@ Decision interval
 """
 from __future__ import annotations
 
+from crowd_env.errors import ActionError, EnvStateError, PolicyError, EnvOptionError
+
 import inspect
 import math
 import warnings
@@ -100,10 +102,6 @@ DEFAULT_EPISODE_TIME_S = 60.0
 
 class ResetOptionsWarning(UserWarning):
     """reset() was given options, which it ignores (the environment is configured when made)."""
-
-
-class EnvOptionError(ValueError, TypeError):
-    """An environment option is unknown or has an inadmissible value."""
 
 
 def agent_id(index: int) -> str:
@@ -321,14 +319,14 @@ class CrowdParallelEnv(ParallelEnv):
         try:
             return self._observation_spaces[agent]
         except KeyError:
-            raise ValueError(f"unknown agent {agent!r}; agents are {self._ids_summary()}") from None
+            raise ActionError(f"unknown agent {agent!r}; agents are {self._ids_summary()}") from None
 
     def action_space(self, agent):
         """The (cached) action Box(-a_max, a_max, (2,)) of ``agent``: a velocity intent in m/s."""
         try:
             return self._action_spaces[agent]
         except KeyError:
-            raise ValueError(f"unknown agent {agent!r}; agents are {self._ids_summary()}") from None
+            raise ActionError(f"unknown agent {agent!r}; agents are {self._ids_summary()}") from None
 
     def _ids_summary(self) -> str:
         p = self.possible_agents
@@ -433,10 +431,10 @@ class CrowdParallelEnv(ParallelEnv):
             sub = int(self._rng.integers(0, 2**31 - 1))
             fresh = make_scenario(self._scenario_name, **{**self._scenario_kwargs, "seed": sub})
             if fresh.n_pedestrians != scenario.n_pedestrians:
-                raise RuntimeError("reseeded scenario changed its number of pedestrians")
+                raise EnvStateError("reseeded scenario changed its number of pedestrians")
             new, old = fresh.destination, scenario.destination
             if (new is None) != (old is None) or (new is not None and not np.array_equal(new, old)):
-                raise RuntimeError("reseeded scenario changed its pedestrians' destinations")
+                raise EnvStateError("reseeded scenario changed its pedestrians' destinations")
             scenario = fresh
         state = scenario.make_state(rng=self._rng)
         self._sim = Simulator(state, geometry=self._scenario.geometry, params=self.params,
@@ -460,20 +458,20 @@ class CrowdParallelEnv(ParallelEnv):
     def _actions_array(self, actions) -> np.ndarray:
         """Validate ``actions`` against the live agents; returns (n_live, 2) float64 in ``self.agents`` order."""
         if not isinstance(actions, dict):
-            raise ValueError(f"actions must be a dict agent id -> (2,) velocity intent, got {type(actions).__name__}")
+            raise ActionError(f"actions must be a dict agent id -> (2,) velocity intent, got {type(actions).__name__}")
         live = self.agents
         if len(actions) != len(live) or actions.keys() != set(live):
             known = self._index_of
             unknown = [a for a in actions if a not in known]
             if unknown:
-                raise ValueError(f"unknown agent id(s) {unknown[:10]}; agents are {self._ids_summary()}")
+                raise ActionError(f"unknown agent id(s) {unknown[:10]}; agents are {self._ids_summary()}")
             live_set = set(live)
             dead = [a for a in actions if a not in live_set]
             if dead:
-                raise ValueError(f"agent(s) {dead[:10]} are no longer live (terminated or truncated); "
+                raise ActionError(f"agent(s) {dead[:10]} are no longer live (terminated or truncated); "
                                  "give actions only for env.agents")
             missing = [a for a in live if a not in actions]
-            raise ValueError(f"missing action(s) for live agent(s) {missing[:10]} ({len(missing)} in all): every "
+            raise ActionError(f"missing action(s) for live agent(s) {missing[:10]} ({len(missing)} in all): every "
                              "agent in env.agents needs an action each step")
         try:
             arr = np.array([actions[a] for a in live], dtype=np.float64)
@@ -484,30 +482,30 @@ class CrowdParallelEnv(ParallelEnv):
                 try:
                     v = np.asarray(actions[a], dtype=np.float64)
                 except (TypeError, ValueError):
-                    raise ValueError(f"action of {a} is not numeric: {actions[a]!r}") from None
+                    raise ActionError(f"action of {a} is not numeric: {actions[a]!r}") from None
                 if v.shape != (2,):
-                    raise ValueError(f"action of {a} must have shape (2,) (a velocity intent in m/s), got shape "
+                    raise ActionError(f"action of {a} must have shape (2,) (a velocity intent in m/s), got shape "
                                      f"{v.shape}: {actions[a]!r}")
-            raise ValueError("actions could not be stacked into an (n, 2) array")  # pragma: no cover
+            raise ActionError("actions could not be stacked into an (n, 2) array")  # pragma: no cover
         finite = np.isfinite(arr).all(axis=1)
         if not finite.all():
             bad = [live[i] for i in np.flatnonzero(~finite)[:10]]
-            raise ValueError(f"non-finite action(s) for {bad}: {arr[~finite][:3].tolist()}")
+            raise ActionError(f"non-finite action(s) for {bad}: {arr[~finite][:3].tolist()}")
         out = (np.abs(arr) > self._a_max_check).any(axis=1)
         if out.any():
             i = np.flatnonzero(out)
             bad = [live[k] for k in i[:10]]
-            raise ValueError(f"action(s) of {bad} outside the action space Box(-{self.action_max_m_s:g}, "
+            raise ActionError(f"action(s) of {bad} outside the action space Box(-{self.action_max_m_s:g}, "
                              f"{self.action_max_m_s:g}) m/s: {arr[i[:3]].tolist()}; the environment does not clip")
         return arr
 
     def step(self, actions):
         """Advance ``frame_skip`` simulator steps; returns ``(obs, rewards, terminations, truncations, infos)``."""
         if self._sim is None:
-            raise RuntimeError("call reset() before step()")
+            raise EnvStateError("call reset() before step()")
         if not self.agents:
             if actions:
-                raise ValueError(f"no live agent, but actions were given for {list(actions)[:10]}: the episode is "
+                raise ActionError(f"no live agent, but actions were given for {list(actions)[:10]}: the episode is "
                                  "over, call reset()")
             return {}, {}, {}, {}, {}
         intent_c = self._actions_array(actions)
@@ -588,14 +586,14 @@ class CrowdParallelEnv(ParallelEnv):
             intents, heading = out, None
         intents = np.array(intents, dtype=np.float64)
         if intents.shape != (n, 2):
-            raise ValueError(f"background policy returned intents of shape {intents.shape}, expected ({n}, 2)")
+            raise PolicyError(f"background policy returned intents of shape {intents.shape}, expected ({n}, 2)")
         if heading is None:
             speed = np.hypot(intents[:, 0], intents[:, 1])
             heading = np.where(speed > 1e-12, direction_angles_rad(intents), sim.state.heading_rad)
         else:
             heading = np.array(heading, dtype=np.float64)
             if heading.shape != (n,):
-                raise ValueError(f"background policy returned headings of shape {heading.shape}, expected ({n},)")
+                raise PolicyError(f"background policy returned headings of shape {heading.shape}, expected ({n},)")
         return intents, heading
 
     def _rewards(self, agents, info) -> np.ndarray:
@@ -603,13 +601,13 @@ class CrowdParallelEnv(ParallelEnv):
         if isinstance(out, dict):
             missing = [a for a in agents if a not in out]
             if missing:
-                raise ValueError(f"reward_fn returned no reward for {missing[:10]}")
+                raise PolicyError(f"reward_fn returned no reward for {missing[:10]}")
             out = [out[a] for a in agents]
         r = np.asarray(out, dtype=np.float64)
         if r.shape != (len(agents),):
-            raise ValueError(f"reward_fn must return {len(agents)} rewards (one per agent), got shape {r.shape}")
+            raise PolicyError(f"reward_fn must return {len(agents)} rewards (one per agent), got shape {r.shape}")
         if not np.isfinite(r).all():
-            raise ValueError(f"reward_fn returned non-finite rewards for {[agents[i] for i in np.flatnonzero(~np.isfinite(r))[:10]]}")
+            raise PolicyError(f"reward_fn returned non-finite rewards for {[agents[i] for i in np.flatnonzero(~np.isfinite(r))[:10]]}")
         return r
 
     def render(self):
@@ -619,7 +617,7 @@ class CrowdParallelEnv(ParallelEnv):
                           "render_mode='rgb_array' or 'human'", UserWarning, stacklevel=2)
             return None
         if self._sim is None:
-            raise RuntimeError("call reset() before render()")
+            raise EnvStateError("call reset() before render()")
         if self._renderer is None:
             from .rendering import CrowdRenderer
 

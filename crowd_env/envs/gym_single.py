@@ -8,6 +8,8 @@ options go to :class:`~crowd_env.envs.crowd_v0.CrowdParallelEnv` (``controlled``
 """
 from __future__ import annotations
 
+from crowd_env.errors import EnvStateError
+
 import gymnasium
 
 from .crowd_v0 import ENV_OPTIONS, CrowdParallelEnv, EnvOptionError
@@ -44,7 +46,7 @@ class CrowdSingleAgentEnv(gymnasium.Env):
     def step(self, action):
         a = self.learner
         if a not in self.parallel.agents:
-            raise RuntimeError("the episode is over (the learner left or was truncated): call reset()")
+            raise EnvStateError("the episode is over (the learner left or was truncated): call reset()")
         obs, rewards, terminations, truncations, infos = self.parallel.step({a: action})
         return obs[a], rewards[a], terminations[a], truncations[a], infos[a]
 

@@ -8,6 +8,8 @@ simulator steps).
 """
 from __future__ import annotations
 
+from crowd_env.errors import InputError
+
 import math
 from dataclasses import dataclass
 
@@ -51,7 +53,7 @@ class DefaultReward:
         for name in ("progress_weight", "collision_weight", "time_cost_per_s", "exit_bonus"):
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ValueError(f"DefaultReward.{name} must be a finite number, got {value!r}")
+                raise InputError(f"DefaultReward.{name} must be a finite number, got {value!r}")
 
     def __call__(self, env, agent_ids, info) -> np.ndarray:
         return (self.progress_weight * info["progress_s"]

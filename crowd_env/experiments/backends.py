@@ -11,6 +11,8 @@ unreachable address fails within ``connect_timeout_s`` (Ray's own connect would 
 """
 from __future__ import annotations
 
+from crowd_env.errors import BackendError
+
 import os
 import socket
 import sys
@@ -23,11 +25,6 @@ __all__ = ["BACKENDS", "BackendError", "SerialBackend", "ProcessBackend", "RayBa
            "make_backend", "execute"]
 
 BACKENDS = ("ray", "process", "serial")
-
-
-class BackendError(CalibrationError):
-    """A backend cannot be made or reached (a :class:`CalibrationError` too, which the calibration's
-    callers catch)."""
 
 
 def _error_text(exc: BaseException) -> str:

@@ -12,6 +12,8 @@ per (b, N) beside the experiment, over complete runs only.
 """
 from __future__ import annotations
 
+from crowd_env.errors import SetupError, SweepError
+
 import csv
 import dataclasses
 from pathlib import Path
@@ -52,14 +54,6 @@ RESULT_COLUMNS = ["width_m", "n_pedestrians", "seed", "specific_flow_per_m_s", "
                   "first_passage_s", "last_passage_s", "n_passages", "wall_time_s", "n_steps", "n_fallback_solves"]
 
 
-class SetupError(ValueError):
-    """A bottleneck set-up cannot be built (named by b and N, with the reason)."""
-
-
-class SweepError(RuntimeError):
-    """Runs of a sweep failed (each logged in its folder's ``errors.jsonl``; a rerun retries them)."""
-
-
 def model_params(preset: str = DEFAULT_PRESET, changes: dict | None = None) -> ModelParams:
     """The preset's model (:mod:`crowd_env.core.presets`) with ``changes`` (ModelParams fields) on top."""
     return ModelParams().replace(**{**get_preset(preset).model, **(changes or {})})
@@ -82,7 +76,7 @@ def bottleneck_config(params: ModelParams, *, navigation_clearance_m: float, max
     defaults = {opt: d for opt, d in GEOMETRY_OPTIONS.values()}
     unknown = sorted(set(geometry) - set(defaults))
     if unknown:
-        raise TypeError(f"unknown geometry option(s) {unknown}; known: {sorted(defaults)}")
+        raise SetupError(f"unknown geometry option(s) {unknown}; known: {sorted(defaults)}")
     geom = {opt: float(geometry.get(opt, d)) for opt, d in defaults.items()}
     geom["navigation_clearance_m"] = float(navigation_clearance_m)
     if navigation_wall_slowdown is not None:

@@ -35,6 +35,8 @@ environment's ``substep_hooks``):
 """
 from __future__ import annotations
 
+from crowd_env.errors import PolicyError
+
 import csv
 import importlib
 import math
@@ -114,13 +116,13 @@ def import_object(path: str):
     with dots after the colon)."""
     module, sep, attr = str(path).partition(":")
     if not sep or not module or not attr:
-        raise ValueError(f"an import path is 'module:attribute', got {path!r}")
+        raise PolicyError(f"an import path is 'module:attribute', got {path!r}")
     obj = importlib.import_module(module)
     for part in attr.split("."):
         try:
             obj = getattr(obj, part)
         except AttributeError:
-            raise ValueError(f"{path!r}: {obj!r} has no attribute {part!r}") from None
+            raise PolicyError(f"{path!r}: {obj!r} has no attribute {part!r}") from None
     return obj
 
 
@@ -136,7 +138,7 @@ def resolve_policy(spec, name: str | None = None, resolve=None):
         if not hasattr(policy, "act") or isinstance(policy, type):
             policy = policy()
     if not (hasattr(policy, "act") and callable(policy.act)):
-        raise TypeError(f"not a policy (no act(env, observations)): {spec!r}; pass a policy object, an import path "
+        raise PolicyError(f"not a policy (no act(env, observations)): {spec!r}; pass a policy object, an import path "
                         "'module:attribute', or resolve= (e.g. baselines.reference_policies.as_policy)")
     if name:
         policy.name = name

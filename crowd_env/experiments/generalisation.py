@@ -11,6 +11,8 @@ exactly the output folder of ``crowd-bottleneck --preset P --corridor-width W --
 """
 from __future__ import annotations
 
+from crowd_env.errors import GeneralisationError
+
 import csv
 from pathlib import Path
 
@@ -35,10 +37,6 @@ QUICK = {"corridor_widths": [4.0, 8.0], "channel_lengths": [0.4, 5.0], "widths":
          "sizes": [20, 250], "seeds": 1}  # the extremes of every axis, 24 runs
 OVERLAP_TOLERANCE_M = 1e-3  # contact tolerance: a gap below -1 mm is an overlap beyond it
 CSV_COLUMNS = ["corridor_width_m", "channel_length_m"] + RESULT_COLUMNS
-
-
-class GeneralisationError(ValueError):
-    """An impossible set-up of the grid (named by geometry, b and N, with the reason)."""
 
 
 def geometry_folder(out: Path, corridor_width_m: float, channel_length_m: float) -> Path:

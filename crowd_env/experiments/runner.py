@@ -16,6 +16,8 @@ happened (equal to the flow when complete). An incomplete run either *stalled* (
 """
 from __future__ import annotations
 
+from crowd_env.errors import InputError, NotFoundError
+
 import time
 from dataclasses import dataclass, field
 
@@ -98,7 +100,7 @@ class RunResult:
         if window == "passages":
             return float(times[0]), float(times[-1])
         if window != "stationary":
-            raise ValueError(f"window must be 'stationary' or 'passages', got {window!r}")
+            raise InputError(f"window must be 'stationary' or 'passages', got {window!r}")
         k0, k1 = self._stationary_passages(fractions)
         return float(times[k0]), float(times[k1])
 
@@ -106,7 +108,7 @@ class RunResult:
         """Ranks (k0, k1) in the sorted passage times of the stationary window's ends (≥ 2 passages)."""
         lo, hi = (float(f) for f in fractions)
         if not 0.0 <= lo < hi <= 1.0:
-            raise ValueError(f"fractions must satisfy 0 <= lo < hi <= 1, got {fractions!r}")
+            raise InputError(f"fractions must satisfy 0 <= lo < hi <= 1, got {fractions!r}")
         n = self.crossing_times_s.size
         k0 = int(round(lo * (n - 1)))
         return k0, max(int(round(hi * (n - 1))), k0 + 1)
@@ -193,9 +195,9 @@ class StallDetector:
     def __init__(self, dt_s: float, window_s: float | None = STALL_WINDOW_S, speed_m_s: float = STALL_SPEED_M_S,
                  start_s: float = 0.0):
         if window_s is not None and not (np.isfinite(window_s) and window_s > 0):
-            raise ValueError(f"stall window must be a positive number of seconds or None, got {window_s!r}")
+            raise InputError(f"stall window must be a positive number of seconds or None, got {window_s!r}")
         if not (np.isfinite(speed_m_s) and speed_m_s >= 0):
-            raise ValueError(f"stall speed must be a finite number >= 0, got {speed_m_s!r}")
+            raise InputError(f"stall speed must be a finite number >= 0, got {speed_m_s!r}")
         self.window_s = None if window_s is None else float(window_s)
         self.speed_m_s = float(speed_m_s)
         self.dt_s = float(dt_s)
@@ -250,7 +252,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     counter = None
     if line is not None:
         if line not in geometry.measurement_lines:
-            raise KeyError(f"scenario has no measurement line {line!r}; it has {sorted(geometry.measurement_lines)}")
+            raise NotFoundError(f"scenario has no measurement line {line!r}; it has {sorted(geometry.measurement_lines)}")
         ends = np.asarray(geometry.measurement_lines[line], dtype=float)
         counter = PassageCounter(MeasurementLine(ends[0], ends[1]))
     areas = {name: geometry.measurement_areas[name] for name in density_areas if name in geometry.measurement_areas}

@@ -29,6 +29,8 @@ the large (sparse, interior point) path.
 """
 from __future__ import annotations
 
+from crowd_env.errors import SoakError
+
 import gc
 import hashlib
 import os
@@ -415,7 +417,7 @@ def pressure_scenario(case: PressureCase, seed: int):
                             [[(side, y0), (side + 0.5, y0), (side + 0.5, y1), (side, y1)]], name=f"room_{case.name}")
         position = place_pedestrians(geometry.walkable_area, case.n_pedestrians, 0.23, np.random.default_rng(seed))
         return Scenario(geometry, position, name=case.name, seed=seed, navigation_resolution_m=0.1)
-    raise ValueError(f"unknown pressure geometry {case.geometry!r}; known: 'bottleneck', 'room'")
+    raise SoakError(f"unknown pressure geometry {case.geometry!r}; known: 'bottleneck', 'room'")
 
 
 def run_pressure_episode(case: PressureCase, seed: int, checker: InvariantChecker, max_agent_steps=None) -> dict:
@@ -454,11 +456,11 @@ def pressure_soak(agent_steps: int, *, cases=None, seed: int = 0, overlap_tolera
     for c in (PRESSURE_CASES if cases is None else cases):
         if isinstance(c, str):
             if c not in known:
-                raise ValueError(f"unknown pressure case {c!r}; known: {sorted(known)}")
+                raise SoakError(f"unknown pressure case {c!r}; known: {sorted(known)}")
             c = known[c]
         chosen.append(c)
     if not chosen:
-        raise ValueError("no pressure case to run")
+        raise SoakError("no pressure case to run")
     share = int(np.ceil(agent_steps / len(chosen)))
     total = InvariantChecker(overlap_tolerance_m=overlap_tolerance_m)
     per_case = {}
@@ -500,10 +502,6 @@ def pressure_soak(agent_steps: int, *, cases=None, seed: int = 0, overlap_tolera
 
 
 # ---------------------------------------------------------------------------------------------- the soak
-class SoakError(ValueError):
-    """A soak that cannot run (unknown action mode, no scenario left)."""
-
-
 def soak(agent_steps: int = DEFAULT_AGENT_STEPS, *, scenarios=None, modes=None, seed: int = 0, max_steps: int = 200,
          frame_skip: int = 1, fixed_start: bool = False, trace_memory: bool = False,
          memory_tolerance_mib: float = 16.0, overlap_tolerance_m: float = 1e-3, scenario_options: dict | None = None,

@@ -21,6 +21,8 @@ A task with ``trajectory_fps`` is done only when its trajectory file at that fra
 """
 from __future__ import annotations
 
+from crowd_env.errors import RunStoreError
+
 import hashlib
 import json
 import os
@@ -34,11 +36,6 @@ __all__ = ["RunStoreError", "RunStore", "config_hash", "normalise_record", "run_
 
 CONFIG_NAME = "config.json"
 LAYOUTS = ("run", "task")
-
-
-class RunStoreError(CalibrationError):
-    """A run store refused a folder or a stored record (a :class:`CalibrationError` too, so that the
-    calibration's callers, which catch that, report it the same way)."""
 
 
 def config_hash(config: dict) -> str:
@@ -129,7 +126,7 @@ class RunStore:
 
     def __init__(self, out, config: dict | None = None, *, keyed_by: str = "run"):
         if keyed_by not in LAYOUTS:
-            raise ValueError(f"keyed_by must be one of {LAYOUTS}, got {keyed_by!r}")
+            raise RunStoreError(f"keyed_by must be one of {LAYOUTS}, got {keyed_by!r}")
         self.out = Path(out)
         self.runs_dir = self.out / "runs"
         self.trajectories_dir = self.out / "trajectories"

@@ -12,6 +12,8 @@ imported inside the functions that use it. Command line: ``crowd-train-ppo``.
 """
 from __future__ import annotations
 
+from crowd_env.errors import TrainingError
+
 import json
 import os
 import time
@@ -27,10 +29,6 @@ __all__ = ["DEFAULT_SCENARIO_OPTIONS", "TrainingError", "make_vec_env", "mean_re
            "save_checkpoint", "check_resume", "train", "write_curve"]
 
 DEFAULT_SCENARIO_OPTIONS = {"width_m": 1.0, "n_pedestrians": 10}
-
-
-class TrainingError(ValueError):
-    """A training run that cannot start or resume (checkpoints without resume, other environment options)."""
 
 
 def make_vec_env(env_config: dict, copies: int = 1, seed: int | None = None):

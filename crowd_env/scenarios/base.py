@@ -7,6 +7,8 @@ exit, its own one with per-pedestrian destinations) and builds the
 """
 from __future__ import annotations
 
+from crowd_env.errors import ScenarioError
+
 import inspect
 import math
 from dataclasses import dataclass, field
@@ -28,10 +30,6 @@ __all__ = ["Scenario", "ScenarioError", "place_pedestrians", "form_groups", "reg
 # Per-pedestrian quantities a scenario may set; anything else is passed as a CrowdState default.
 PEDESTRIAN_PARAMS = ("radius_m", "mass_kg", "inertia_kg_m2", "desired_speed_m_s", "tau_s", "heading_stiffness",
                      "heading_damping", "velocity_m_s", "angular_velocity_rad_s")
-
-
-class ScenarioError(ValueError):
-    """A scenario's data are inconsistent, or a scenario name/option is unknown."""
 
 
 def check_positive(**values) -> None:

@@ -22,6 +22,8 @@ contribute nothing. The simulator itself never calls this module: the calibrated
 """
 from __future__ import annotations
 
+from crowd_env.errors import InputError
+
 import numba as nb
 import numpy as np
 
@@ -146,12 +148,12 @@ def social_repulsion(position, radius, desired_direction, pairs, segments, owner
     if out is None:
         out = np.zeros((n, 2))
     elif out.shape != (n, 2):
-        raise ValueError(f"out must have shape {(n, 2)}, got {out.shape}")
+        raise InputError(f"out must have shape {(n, 2)}, got {out.shape}")
     if isinstance(pairs, (set, frozenset)):  # cKDTree.query_pairs' default output
         pairs = sorted(pairs)
     pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
     if pairs.size and (pairs.min() < 0 or pairs.max() >= n):
-        raise ValueError(f"neighbour pairs index pedestrians outside 0..{n - 1}")
+        raise InputError(f"neighbour pairs index pedestrians outside 0..{n - 1}")
     index = np.arange(n, dtype=np.int64) if index is None else np.ascontiguousarray(index, dtype=np.int64)
     return total_social_forces(position, radius, desired_direction, pairs, index, segments, owner,
                                float(params.social_strength_n), float(params.social_range_m),

@@ -14,6 +14,8 @@ the paper's figures from them.
 """
 from __future__ import annotations
 
+from crowd_env.errors import SolverError
+
 import math
 
 import numpy as np
@@ -61,7 +63,7 @@ def head_on_numeric(m1, m2, u1, u2, k_n):
     v_minus = np.array([u1, 0.0, 0.0, u2, 0.0, 0.0])
     v_plus, lam, status = solve_rows(mass_diag, *head_on_rows(k_n), v_minus, np.zeros(6))
     if status != 0:
-        raise RuntimeError(f"solver status {status}")
+        raise SolverError(f"solver status {status}")
     return v_plus[0], v_plus[3], float(lam[0])
 
 
@@ -100,7 +102,7 @@ def oblique_spin(k_tg, k_n=1.0e5, angle_deg=45.0, speed_m_s=1.0, mass_kg=MASS_KG
     v_minus = np.array([speed_m_s, 0.0, 0.0, 0.0, 0.0, 0.0])
     v_plus, _, status = solve_rows(mass_diag, *oblique_rows(k_n, k_tg, math.radians(angle_deg)), v_minus, np.zeros(6))
     if status != 0:
-        raise RuntimeError(f"solver status {status}")
+        raise SolverError(f"solver status {status}")
     return float(v_plus[2]), float(v_plus[5])
 
 

@@ -35,6 +35,8 @@ Compiled with numba. ``benchmarks/projection.py`` times the three on door jams.
 """
 from __future__ import annotations
 
+from crowd_env.errors import InputError
+
 import numba as nb
 import numpy as np
 
@@ -588,11 +590,11 @@ def project_gaps_working_set(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, worki
     m = c_a.shape[0]
     working = np.asarray(working, dtype=bool).copy()
     if working.shape != (m,):
-        raise ValueError(f"working must be one bool per candidate ({m},), got shape {working.shape}")
+        raise InputError(f"working must be one bool per candidate ({m},), got shape {working.shape}")
     if z0 is not None:
         z0 = np.asarray(z0, dtype=float)
         if z0.shape != (m,) or not np.all(np.isfinite(z0)) or np.any(z0 < 0.0):
-            raise ValueError(f"z0 must be one finite percussion ≥ 0 per candidate ({m},), got shape {z0.shape}")
+            raise InputError(f"z0 must be one finite percussion ≥ 0 per candidate ({m},), got shape {z0.shape}")
     g = c_gap / dt_s
     for solves in range(1, max_rounds + 1):
         rows = np.flatnonzero(working)

@@ -16,6 +16,8 @@ the factors agree with rounding-preserving builds to about 1e-14 relative).
 """
 from __future__ import annotations
 
+from crowd_env.errors import NotPositiveDefiniteError
+
 import numba as nb
 import numpy as np
 
@@ -86,7 +88,7 @@ def profile_cholesky(A, first):
             Li[j] = (A[i, j] - dot_range(Li, k0, Lj, k0, j - k0)) / Lj[j]
         s = A[i, i] - dot_range(Li, fi, Li, fi, i - fi)
         if not s > 0.0:
-            raise ValueError("matrix is not positive definite")
+            raise NotPositiveDefiniteError("matrix is not positive definite")
         Li[i] = np.sqrt(s)
     return L
 
@@ -172,7 +174,7 @@ def envelope_cholesky(env, off, first):
                 env[orr + i] = (env[orr + i] - dot_range(env, orr + fi, env, oi + fi, i - fi)) * inv_pivot[i]
             s = env[orr + r] - dot_range(env, orr + fi, env, orr + fi, r - fi)
             if not s > 0.0:
-                raise ValueError("Newton matrix is not positive definite")
+                raise NotPositiveDefiniteError("Newton matrix is not positive definite")
             env[orr + r] = np.sqrt(s)
             inv_pivot[r] = 1.0 / env[orr + r]
         i = last + 1

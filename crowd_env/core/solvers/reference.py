@@ -8,6 +8,8 @@ benchmarks as an independent check, and for every impact cluster of a simulation
 """
 from __future__ import annotations
 
+from crowd_env.errors import SolverError
+
 import cvxpy as cp
 import numpy as np
 
@@ -42,7 +44,7 @@ def solve_rows_cvxpy(mass_diag, row_a, row_b, coef_a, coef_b, row_k, row_kind, v
     problem = cp.Problem(cp.Minimize(objective), constraints)
     problem.solve(solver=solver or cp.CLARABEL)
     if problem.status not in ("optimal", "optimal_inaccurate"):
-        raise RuntimeError(f"cvxpy reference solver failed: status {problem.status}")
+        raise SolverError(f"cvxpy reference solver failed: status {problem.status}")
     v_plus = 2.0 * np.asarray(Y.value) - v_minus
     lam = 4.0 * np.asarray(constraints[0].dual_value) if constraints else np.zeros(0)
     return v_plus, lam

@@ -8,11 +8,10 @@ that would serve is an optional solver that is not installed), the cascade raise
 """
 from __future__ import annotations
 
+from crowd_env.errors import SimulationError
+
 STATUS_OK = 0
 STATUS_MAX_ITER = 1  # no certified solution within the iteration budget (the input is left alone)
 STATUS_TOO_LARGE = 2  # the problem exceeds the size limit of the method (the input is left alone)
 
 
-class SimulationError(RuntimeError):
-    """The numerical solution failed (should not happen; report it with the seed), or the solver it
-    needed is an optional one that is not installed (``pip install "crowd_env[solvers]"``)."""
