@@ -8,17 +8,15 @@ experiment measured more than the N = 60 flows (``shared/data/README.md``; const
 :mod:`crowd_env.analysis.experiment`), and :func:`target_error` scores a parameter point against all
 of it at once:
 
-======================  =====================================================================  ==========
-term                    what it measures (means over seeds per (b, N) first)                   known value
-======================  =====================================================================  ==========
-``epsilon_60``          Eq. 24: mean over b of (J_s / J_s,exp − 1)², N = 60                      Table 2
-``small_groups``        N = 20, 40 at every b: J_s inside the band (squared relative miss)       [1.77, 2.31]
-``ordering``            N = 20, 40 not below N = 60 at the same b: (J_s,60 / J_s,n − 1)² if > 0   "mostly above"
-``speed_inside``        N = 60, every b: stationary speed in the channel inside the band          [0.94, 1.22] m/s
-``density_inside``      N = 60, every b: stationary density in the channel inside the band       [1.42, 1.73] /m²
-``density_front``       N = 60, every b: stationary density 1 m in front, inside the band        [4, 6] /m²
-``capacity``            b = 1.0, 1.2 m: stationary rate of N = 120 / N = 60 inside the band      [0.95, 1.10]
-======================  =====================================================================  ==========
+Terms (means over seeds per (b, N) first):
+
+- ``epsilon_60``: Eq. 24: mean over b of (J_s / J_s,exp − 1)², N = 60 (known value: Table 2)
+- ``small_groups``: N = 20, 40 at every b: J_s inside the band (squared relative miss) (known value: [1.77, 2.31])
+- ``ordering``: N = 20, 40 not below N = 60 at the same b: (J_s,60 / J_s,n − 1)² if > 0 (known value: "mostly above")
+- ``speed_inside``: N = 60, every b: stationary speed in the channel inside the band (known value: [0.94, 1.22] m/s)
+- ``density_inside``: N = 60, every b: stationary density in the channel inside the band (known value: [1.42, 1.73] /m²)
+- ``density_front``: N = 60, every b: stationary density 1 m in front, inside the band (known value: [4, 6] /m²)
+- ``capacity``: b = 1.0, 1.2 m: stationary rate of N = 120 / N = 60 inside the band (known value: [0.95, 1.10])
 
 Each term is a mean squared *relative* miss (0 inside a band), so a 5 % miss costs 0.0025 wherever it
 is; the objective is Σ w_k · term_k with every weight 1 by default (:class:`TargetWeights`): no term

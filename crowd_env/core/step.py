@@ -6,10 +6,10 @@ The stages, in order (the names are the keys of ``StepResult.timings_s`` in a st
 
 1. ``smooth`` (Eq. 3, 14, 15): :func:`smooth_update`, u* = u + h/τ (u_intent − u) + h f_ext/m,
    ω* = ω + h (−k wrap(θ − θ_d) − c ω)/I;
-2. ``neighbors``: :func:`detection_reach` (the speeds u* and the reach 2 r_max + ε + 4 h max|u*| of the
+2. ``neighbors``: :func:`detection_reach` (the speeds u* and the reach 2 r_max + ε + 4 h max ‖u*‖ of the
    detection margins), then the cell grid's pairs within that reach;
 3. ``contacts``: :func:`~crowd_env.core.contacts.contact_candidates` with the speculative margin
-   ε + 2h(|u_i| + |u_j|) (exact narrow phase), and :func:`compact_bodies`;
+   ε + 2h(‖u_i‖ + ‖u_j‖) (exact narrow phase), and :func:`compact_bodies`;
 4. ``impacts``: :func:`impact_stage`, the Frémond impact (Eq. 4-8) of every cluster of touching,
    approaching contacts and hand links (:func:`~crowd_env.core.solvers.impact.resolve_impacts`; the
    clusters it leaves go to the solver cascade), then :func:`kinetic_energy`;
@@ -105,7 +105,7 @@ def commit_step(position, velocity, angular_velocity, heading, index, vel, dt_s,
 
 @nb.njit(cache=True)
 def kinetic_energy(vel, mass, inertia):
-    """½ Σ (m |u|² + I ω²) in joules for compact (n, 3) velocities."""
+    """½ Σ (m ‖u‖² + I ω²) in joules for compact (n, 3) velocities."""
     e = 0.0
     for k in range(vel.shape[0]):
         e += mass[k] * (vel[k, 0] ** 2 + vel[k, 1] ** 2) + inertia[k] * vel[k, 2] ** 2
@@ -114,7 +114,7 @@ def kinetic_energy(vel, mass, inertia):
 
 @nb.njit(cache=True)
 def speeds(vel):
-    """|u| of compact (n, 3) velocities."""
+    """‖u‖ of compact (n, 3) velocities."""
     out = np.empty(vel.shape[0])
     for k in range(vel.shape[0]):
         out[k] = np.sqrt(vel[k, 0] ** 2 + vel[k, 1] ** 2)
@@ -212,7 +212,7 @@ def compact_contacts(index, c_a, c_b, c_wall, p_normal, p_tangent, p_projection,
 
 @nb.njit(cache=True)
 def detection_reach(vel, radius, index, eps_m, dt_s):
-    """Stage 2: the speeds |u*| of the compact velocities ``vel`` (the detection margins are built from
+    """Stage 2: the speeds ‖u*‖ of the compact velocities ``vel`` (the detection margins are built from
     them), the largest radius r_max of the pedestrians ``index``, and the reach
     2 r_max + ε + 4 h max|u*| within which a pair can be a candidate: ``(speed, r_max, reach)``."""
     speed = speeds(vel)

@@ -45,7 +45,7 @@ Rewards
     (:mod:`crowd_env.envs.rewards` lists the info arrays).
 
 Infos
-    Per agent: ``contact_percussion_kg_m_s`` (sum of |normal percussion| over its contacts this step),
+    Per agent: ``contact_percussion_kg_m_s`` (sum of the normal percussions' magnitudes over its contacts this step),
     ``n_contacts``, ``travel_time_s`` (T after the step), ``speed_m_s``.
 
 Episode end

@@ -278,6 +278,7 @@ def project_gaps_large(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, clarabel=Tr
        on the primal, whose v is unique, then a polish: pivoting started from the constraints
        Clarabel leaves tight, which certifies the exact solution in one or two factorisations;
     3. if even that fails, Clarabel's solution as it is (feasible to ~1e-12, v within ~1e-6).
+
     Returns ``(λ per contact, path)`` with path 0, 1 or 2 as above. ``clarabel=False`` (Clarabel not
     available): :class:`~crowd_env.core.solvers.status.SimulationError` where step 2 would be needed
     (``vel`` left alone).
