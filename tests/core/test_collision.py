@@ -1,12 +1,10 @@
-"""The Frémond impact solver (Kabalan Eq. 4-8, 17-21; docs/collision-problem.md), contact rows and
-wall corners.
+"""The Frémond impact solver (Kabalan Eq. 4-8, 17-21; docs/collision-problem.md) and contact rows.
 
 Analytic head-on cases of Section 3.1, the K_n = μ convention, conservation laws, complementarity,
 energy, the production solver against an independent cvxpy reference on random dense clusters, hand
-links, and the order independence of shared wall corners.
+links and the velocity projection. (Shared wall corners: tests/core/test_segments.py.)
 """
 import math
-import pathlib
 
 import numpy as np
 import pytest
@@ -19,12 +17,9 @@ from crowd_env.core.solvers.impact import resolve_impacts, solve_rows
 from crowd_env.core.solvers.pivoting import lcp_bpp
 from crowd_env.core.solvers.sparse_qp import project_gaps_sparse, solve_rows_sparse
 from crowd_env.core.solvers.status import STATUS_OK
-from crowd_env.core.contacts import LINK, NORMAL, TANGENT, detect_contacts, rows_to_dense
-from crowd_env.walking.social_force import wall_repulsion
+from crowd_env.core.contacts import LINK, NORMAL, TANGENT, rows_to_dense
 from crowd_env.core.solvers.reference import random_cluster, solve_rows_cvxpy
-from crowd_env.core.segments import as_segments, endpoint_owners, wall_proximity
-
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+from tests.conftest import DATA
 
 K_GRID = np.logspace(0.0, 6.0, 25)
 
@@ -301,7 +296,7 @@ def test_lcp_bpp_keeps_a_solution_when_the_polish_drifts_on_a_singular_free_set(
     q_F partly outside its range: iterative refinement then moved λ along the null space of W_FF by
     about 6 kg m/s per step, down to −21, and clipping that to 0 left w = −0.153 m/s: 1.53 mm of
     overlap in one step. The polish is now kept only while λ stays a solution."""
-    data = np.load(ROOT / "tests" / "data" / "jam_lcp_singular.npz")
+    data = np.load(DATA / "jam_lcp_singular.npz")
     W, q = data["W"], data["q"]
     assert np.linalg.matrix_rank(W) < W.shape[0]
     lam, st = lcp_bpp(W, q)
@@ -391,84 +386,3 @@ def test_projection_paths_agree_and_close_no_gap(seed):
     ke1 = 0.5 * mass @ (v_dense[:, :2] ** 2).sum(axis=1)
     assert ke1 <= ke0 * (1 + 1e-12)  # a projection onto a convex set containing 0
     assert np.all(lam >= 0)
-
-
-# ---------------------------------------------------------------- wall corners (segments.py)
-CORNER_WALLS = [[0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
-
-
-def _corner_force(walls, pos):
-    seg = as_segments(walls)
-    out = np.zeros((len(pos), 2))
-    return wall_repulsion(np.asarray(pos, float), np.full(len(pos), 0.23), np.zeros((len(pos), 2)), seg,
-                          endpoint_owners(seg), 790.0, 0.08, 1.0, 1.0, out)
-
-
-def _all_orders(walls):
-    walls = np.asarray(walls, float)
-    out = []
-    for perm in ([0, 1], [1, 0]):
-        for flip in ((False, False), (True, False), (False, True), (True, True)):
-            w = walls[perm].copy()
-            for k, f in enumerate(flip):
-                if f:
-                    w[k] = w[k][[2, 3, 0, 1]]
-            out.append(w)
-    return out
-
-
-def test_corner_contacts_do_not_depend_on_segment_order():
-    """The example of the issue: facing segment A at (0.3, −0.2) while B's closest point is the
-    shared vertex. Only A's interior contact counts, whatever the order and orientation."""
-    rng = np.random.default_rng(0)
-    pts = np.concatenate([[[0.3, -0.2], [-0.2, 0.3], [-0.1, -0.15], [0.5, 0.5], [-0.15, -0.15], [1.1, 0.1]],
-                          rng.uniform(-0.5, 1.5, (200, 2))])
-    ref = _corner_force(CORNER_WALLS, pts)
-    a_only = np.zeros((1, 2))
-    seg_a = as_segments(CORNER_WALLS[:1])
-    wall_repulsion(np.array([[0.3, -0.2]]), np.array([0.23]), np.zeros((1, 2)), seg_a, endpoint_owners(seg_a),
-                   790.0, 0.08, 1.0, 1.0, a_only)
-    np.testing.assert_allclose(ref[0], a_only[0], rtol=1e-14)
-    for w in _all_orders(CORNER_WALLS):
-        np.testing.assert_allclose(_corner_force(w, pts), ref, rtol=1e-12, atol=1e-12)
-
-
-def test_corner_vertex_counted_once_outside_convex_corner():
-    seg = as_segments(CORNER_WALLS)
-    pos = np.array([[-0.15, -0.15]])  # both segments' closest point is the corner
-    ped, sid, gap, nx, ny, cx, cy = wall_proximity(pos, np.array([0.23]), np.array([0]), seg, endpoint_owners(seg),
-                                                   np.array([1.0]))
-    assert ped.size == 1 and cx[0] == 0.0 and cy[0] == 0.0
-    assert gap[0] == pytest.approx(math.hypot(0.15, 0.15) - 0.23)
-
-
-def test_closed_polygon_and_contact_detection_order_independent():
-    """A square pillar (four shared corners) in every cyclic order and orientation: identical
-    contact sets (gap, normal) for the detector used by the simulator."""
-    sq = np.array([[0, 0, 1, 0], [1, 0, 1, 1], [1, 1, 0, 1], [0, 1, 0, 0]], float)
-    rng = np.random.default_rng(1)
-    pts = rng.uniform(-0.6, 1.6, (400, 2))
-    pts = pts[~((pts > 0).all(axis=1) & (pts < 1).all(axis=1))]
-    radius = np.full(len(pts), 0.23)
-    idx = np.arange(len(pts))
-
-    def contacts(walls):
-        walls = as_segments(walls)
-        con = detect_contacts(pts, radius, np.zeros((len(pts), 2)), idx, np.zeros((0, 2), np.int64), walls,
-                              endpoint_owners(walls), 0.3, 0.01)
-        key = np.lexsort((con["ny"].round(12), con["nx"].round(12), con["a"]))
-        return np.stack([con["a"][key], con["gap"][key], con["nx"][key], con["ny"][key]], axis=1)
-
-    ref = contacts(sq)
-    assert ref.shape[0] > 50
-    for perm in ([1, 2, 3, 0], [3, 2, 1, 0], [2, 0, 3, 1]):
-        for flip in (False, True):
-            w = sq[perm]
-            if flip:
-                w = w[:, [2, 3, 0, 1]]
-            np.testing.assert_allclose(contacts(w), ref, atol=1e-12)
-    # no pedestrian gets two contacts at the same point (a corner counted twice)
-    pts_a = ref[:, 0]
-    for a in np.unique(pts_a):
-        normals = ref[pts_a == a, 2:]
-        assert len(np.unique(normals.round(9), axis=0)) == len(normals)

@@ -8,16 +8,16 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test, render_test, seed_test
-from shapely.geometry import Polygon, box
+from shapely.geometry import Polygon
 
 import crowd_env  # noqa: F401  (registers the gymnasium ids)
 from crowd_env.core import Simulator
-from crowd_env.core.geometry import Geometry
 from crowd_env.envs import OBSERVATION_FIELDS, crowd_v0
 from crowd_env.envs.crowd_v0 import EnvOptionError
 from crowd_env.envs.gym_single import CrowdSingleAgentEnv
 from crowd_env.envs.observations import observation_layout, observation_size
 from crowd_env.scenarios import Scenario, make_scenario
+from tests.conftest import room_geometry
 
 SMALL = {"scenario_options": {"n_pedestrians": 12}, "frame_skip": 5, "max_steps": 40}
 
@@ -34,7 +34,7 @@ def walk_actions(env, obs, speed=1.3):
 
 def room_scenario(n=1, positions=None, heading=0.0):
     """A 6 m x 4 m room with an exit at the right end of the floor (x in [5.5, 6])."""
-    geom = Geometry(box(0, 0, 6, 4), exits=[box(5.5, 0, 6, 4)], name="room")
+    geom = room_geometry()
     pos = np.array(positions if positions is not None else [[1.0 + 1.0 * i, 2.0] for i in range(n)])
     return Scenario(geometry=geom, position_m=pos, heading_rad=np.full(len(pos), heading), name="room")
 

@@ -1,5 +1,7 @@
-"""Calibration (Kabalan Section 4.1.2): ε_T per point (Eq. 22-24), the Fig. 10 surface and its valley fit,
-resumable grid/optimiser runs, Ray and serial backends, bad input."""
+"""Calibration runs (crowd_env.experiments.calibration, Kabalan Section 4.1.2): resumable grids of ε_T over
+(A, B) and their outputs, clogged, interrupted and failed runs, the optimiser and the landscape along one
+parameter, Ray, process and serial backends, the command line, bad input. (The error measures themselves:
+tests/analysis/test_calibration.py.)"""
 from __future__ import annotations
 
 import json
@@ -10,30 +12,18 @@ import time
 import numpy as np
 import pytest
 
-from crowd_env.analysis.calibration import (PAPER_VALLEY_FIT, CalibrationError, best_grid_point, censored_specific_flow,
-                                            check_grid_values,
-                                            fit_exponential_valley, grid_axis, point_error, valley_of_minima)
-from crowd_env.analysis.experiment import ExperimentTable, seyfried_2009
+from crowd_env.analysis.calibration import CalibrationError, censored_specific_flow
+from crowd_env.analysis.experiment import ExperimentTable
 from crowd_env.cli import calibrate as cli
 from crowd_env.experiments.backends import RayBackend, SerialBackend, check_reachable, make_backend
-from crowd_env.experiments.bottleneck import GEOMETRY_OPTIONS, run_one
+from crowd_env.experiments.bottleneck import run_one
 from crowd_env.experiments.bottleneck import run_one as run_task
-from crowd_env.experiments.calibration import (analyse_surface, base_config, evaluate_grid, make_task, optimise,
-                                               write_grid_outputs)
+from crowd_env.experiments.calibration import analyse_surface, evaluate_grid, make_task, optimise, write_grid_outputs
 from crowd_env.experiments.store import RunStore
-from crowd_env.core.params import ModelParams
+from tests.conftest import exp_js
+from tests.experiments.conftest import config
 
-GEOMETRY = {**{opt: d for _, (opt, d) in GEOMETRY_OPTIONS.items()}, "navigation_clearance_m": 0.0}
-EXP = seyfried_2009()
 WIDTHS = [0.8, 1.0, 1.2]
-
-
-def config(**changes):
-    return base_config(GEOMETRY, ModelParams().replace(**changes), 300.0)
-
-
-def exp_js(b):
-    return float(EXP.specific_flow_per_m_s[EXP.lookup(b, 60)[0]])
 
 
 class FakeRun:
@@ -58,84 +48,6 @@ class FakeRun:
         n_passed = self.passed(task) if self.passed else task["n_pedestrians"]
         return {"width_m": task["width_m"], "n_pedestrians": task["n_pedestrians"], "seed": task["seed"],
                 "specific_flow_per_m_s": self.js(task), "n_passages": n_passed, "first_passage_s": 5.0}
-
-
-# --- ε_T of one point ----------------------------------------------------------------------------------
-
-def test_point_error_equals_hand_computation_from_per_run_flows():
-    b = np.array([0.8, 0.8, 1.0, 1.0, 1.2, 1.2, 0.8, 1.0, 1.2, 0.8])
-    n = np.array([60, 60, 60, 60, 60, 60, 20, 20, 20, 40])
-    js = np.array([1.5, 1.7, 2.0, np.nan, 1.9, 2.1, 2.5, 2.0, 1.5, 1.8])
-    e = point_error(b, n, js, range_weight=2.0)
-    # hand: mean over seeds per (b, N) (undefined J_s counts 0), then Eq. 23-24 over the N = 60 rows
-    terms = [(1.6 / exp_js(0.8) - 1) ** 2, (1.0 / exp_js(1.0) - 1) ** 2, (2.0 / exp_js(1.2) - 1) ** 2]
-    assert e.epsilon_total == pytest.approx(np.mean(terms), rel=1e-12)
-    assert e.epsilon_by_group == {60: pytest.approx(np.mean(terms), rel=1e-12)}
-    # N = 20 / 40: 2.5 above 2.31, 1.5 below 1.77, 2.0 and 1.8 inside
-    penalty = np.mean([(2.5 / 2.31 - 1) ** 2, 0.0, (1.5 / 1.77 - 1) ** 2, 0.0])
-    assert e.range_penalty == pytest.approx(penalty, rel=1e-12)
-    assert not e.range_all_inside
-    assert e.objective == pytest.approx(np.mean(terms) + 2.0 * penalty, rel=1e-12)
-    assert (e.n_runs, e.n_undefined) == (10, 1)
-
-
-def test_point_error_bad_input():
-    with pytest.raises(CalibrationError, match="no model run has an experimental counterpart"):
-        point_error([1.0], [20], [2.0])
-    with pytest.raises(CalibrationError, match="equal lengths"):
-        point_error([1.0, 0.8], [60], [2.0])
-    with pytest.raises(CalibrationError, match="range_weight"):
-        point_error([1.0], [60], [2.0], range_weight=-1)
-    for b, n in [([1.0, 0.85], [60, 60]), ([1.0, 1.0], [60, 30])]:  # neither a reference value nor a known range
-        with pytest.raises(CalibrationError, match="without experimental counterpart or known range"):
-            point_error(b, n, [2.0, 2.0])
-
-
-# --- grid axes, valley of minima, exponential fit ----------------------------------------------------------
-
-def test_grid_axes_like_the_paper_and_bad_grids():
-    a = grid_axis(10, 1000, 20, "A")
-    assert a.size == 20 and a[0] == 10 and a[-1] == 1000 and np.allclose(np.diff(a), 990 / 19)
-    assert np.allclose(grid_axis(10, 1000, 3, "A", "log"), [10, 100, 1000])
-    for args, msg in [((10, 1000, 0, "A"), "positive integer"), ((0, 1000, 4, "A"), "> 0"),
-                      ((0.2, 0.01, 4, "B"), "low < high"), ((0.01, 0.2, 1, "B"), "size 1"),
-                      ((-0.1, 0.2, 4, "B"), "> 0"), ((10, 100, 4, "A", "cubic"), "spacing")]:
-        with pytest.raises(CalibrationError, match=msg):
-            grid_axis(*args)
-    for values, msg in [([], "empty"), ([10, -5], "> 0"), ([0.1, 0.05], "increasing"), ([1, 1], "increasing"),
-                        ([1, np.nan], "finite")]:
-        with pytest.raises(CalibrationError, match=msg):
-            check_grid_values(values, "A")
-
-
-def synthetic_surface(a, b, coef=1501.0, rate=-7.98):
-    """ε quadratic in ln A around the paper's valley A = 1501 exp(-7.98 B), rising with B."""
-    return (np.log(a)[:, None] - np.log(coef * np.exp(rate * b))[None, :]) ** 2 + 0.1 * b[None, :]
-
-
-def test_valley_fit_recovers_known_coefficients_from_a_synthetic_surface():
-    a = np.geomspace(20, 3000, 9)
-    b = np.linspace(0.03, 0.3, 7)
-    eps = synthetic_surface(a, b)
-    valley = valley_of_minima(a, b, eps)
-    assert not valley.at_edge.any()
-    fit = fit_exponential_valley(valley.social_range_m, valley.social_strength_n)
-    assert fit.coefficient_n == pytest.approx(1501.0, rel=1e-9)
-    assert fit.rate_per_m == pytest.approx(-7.98, rel=1e-9)
-    assert fit.residual_norm_log < 1e-9 and fit.n_points == 7
-    assert np.allclose(fit(b), PAPER_VALLEY_FIT(b))
-    # without sub-grid refinement the minima are grid values: the fit is only approximate
-    coarse = valley_of_minima(a, b, eps, refine=False)
-    assert set(coarse.social_strength_n) <= set(a)
-    assert fit_exponential_valley(coarse.social_range_m, coarse.social_strength_n).rate_per_m != pytest.approx(-7.98, rel=1e-6)
-    # missing points (nan) are skipped; the best point is the grid argmin
-    eps[3, 2] = np.nan
-    i, j = np.unravel_index(np.nanargmin(eps), eps.shape)
-    assert best_grid_point(a, b, eps) == (a[i], b[j], eps[i, j])
-    with pytest.raises(CalibrationError, match="shape"):
-        valley_of_minima(a, b, eps.T)
-    with pytest.raises(CalibrationError, match="2 distinct B"):
-        fit_exponential_valley([0.1, 0.1], [100, 200])
 
 
 # --- resumable grid ---------------------------------------------------------------------------------------

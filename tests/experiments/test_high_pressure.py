@@ -2,8 +2,6 @@
 soak's high-pressure phase reduced to a few seconds (the full one: ``crowd-soak``, its pressure
 phase, ``crowd_env.experiments.soak.pressure_soak``).
 """
-import importlib.util
-import pathlib
 import time
 
 import numpy as np
@@ -14,16 +12,7 @@ from baselines.social_force import SocialForceAgent
 from crowd_env.core import ModelParams, Simulator
 from crowd_env.experiments.soak import OVERLAP_TOLERANCE_M, PRESSURE_CASES, InvariantChecker, pressure_soak
 from crowd_env.scenarios import make_scenario
-
-ROOT = pathlib.Path(__file__).resolve().parents[1]
-DATA = ROOT / "tests" / "data"
-
-
-def _load_script(name):
-    spec = importlib.util.spec_from_file_location(f"_script_{name}", ROOT / "scripts" / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+from tests.conftest import DATA, load_script
 
 
 def _all_pairs_overlap_m(position_m, radius_m):
@@ -40,7 +29,7 @@ def test_seyfried_jam_seed2_overlap_stays_within_contact_tolerance():
     run's state after 620 steps (t = 6.20 s; 175 pedestrians left, a jam at the entrance), replayed for
     15 steps with the baseline agent. Step 627 (t = 6.27 s) overlapped two pedestrians by 1.53 mm: the
     dense projection LCP kept a polish that had drifted along the null space of a singular free set
-    (tests/test_collision.py). Every step's largest overlap (all pairs and all walls) must stay within
+    (tests/core/test_collision.py). Every step's largest overlap (all pairs and all walls) must stay within
     the contact tolerance; measured after the fix: 2.5e-11 m."""
     params = ModelParams()  # the paper preset
     scenario = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=180, seed=2, corridor_width_m=7.0,
@@ -117,7 +106,7 @@ def test_pressure_soak_fails_on_an_overlap(monkeypatch):
     assert r["violations"].get("pedestrian_overlap", 0) >= 1, r
     assert r["max_overlap_m"] == pytest.approx(1.5e-3, rel=1e-3)
     assert any("pedestrian_overlap" in e and "pressure/room_paper" in e for e in r["examples"])
-    soak = _load_script("soak")
+    soak = load_script("soak")
     assert soak.main(["--agent-steps", "0", "--pressure-agent-steps", "30000", "--pressure-cases", "room_paper"]) == 1
     monkeypatch.setattr(Simulator, "step", real_step)
     assert soak.main(["--agent-steps", "0", "--pressure-agent-steps", "2000", "--pressure-cases", "room_paper"]) == 0

@@ -6,7 +6,6 @@ registered scenario (``crowd_env.experiments.soak.distinct_scenarios``), so new 
 without editing this file.
 """
 import dataclasses
-import importlib.util
 import json
 import os
 import signal
@@ -27,21 +26,14 @@ from crowd_env.experiments.soak import (ACTION_MODES, InvariantChecker, MemoryPr
                                         max_intent_toward, trajectory_hashes)
 from crowd_env.experiments.soak import soak as run_soak
 from crowd_env.scenarios import Scenario, make_scenario
+from tests.conftest import ROOT, load_script, room_geometry
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PYTHON = sys.executable
-
-
-def _load_script(name):
-    spec = importlib.util.spec_from_file_location(f"_script_{name}", os.path.join(ROOT, "scripts", f"{name}.py"))
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def room_scenario(positions=((1.0, 2.0),), **kw):
     """A 6 m x 4 m room with an exit strip x in [5.5, 6]."""
-    geom = Geometry(box(0, 0, 6, 4), exits=[box(5.5, 0, 6, 4)], name="room")
+    geom = room_geometry()
     return Scenario(geometry=geom, position_m=np.array(positions, dtype=float), name="room", **kw)
 
 
@@ -63,7 +55,7 @@ def test_reduced_soak_over_every_registered_scenario():
 
 def test_soak_reports_violations_and_exit_status(monkeypatch):
     """A negative overlap tolerance flags every step: the soak counts it and the command exits 1."""
-    soak = _load_script("soak")
+    soak = load_script("soak")
     r = run_soak(300, scenarios=["seyfried_bottleneck"], modes=["random"], max_steps=5, overlap_tolerance_m=-1.0,
                   memory_tolerance_mib=float("inf"), progress=lambda s: None)
     assert r["violations"]["pedestrian_overlap"] == r["sim_steps"] > 0 and r["n_violations"] > 0
@@ -263,7 +255,7 @@ def test_training_killed_midway_resumes_to_the_target(tmp_path):
     before = [e["timesteps"] for e in json.loads(index.read_text())["checkpoints"]]
     assert before and before[-1] < target, "the training must be killed midway for this test to mean anything"
     assert not (out / "summary.json").exists()
-    train = _load_script("train_ppo")
+    train = load_script("train_ppo")
     with pytest.raises(SystemExit, match="--resume"):  # a folder with checkpoints is not silently restarted
         train.main(["--timesteps", str(target), "--out", str(out), *TRAIN_ARGS])
     assert train.main(["--timesteps", str(target), "--out", str(out), *TRAIN_ARGS, "--resume"]) == 0

@@ -14,6 +14,7 @@ from crowd_env.core.presets import DEFAULT_PRESET, get_preset
 from crowd_env.experiments.runner import STALL_SPEED_M_S, STALL_WINDOW_S, RunResult, StallDetector, run_scenario
 from crowd_env.scenarios import make_scenario
 from crowd_env.scenarios.bottleneck import BottleneckScenario, bottleneck_geometry
+from tests.experiments.conftest import point_field_geometry
 
 
 def _clog(n_rows: int = 2):
@@ -166,9 +167,9 @@ def test_records_saved_before_the_stall_rule_load_as_incomplete():
 
 
 def test_reproduction_records_and_csv_carry_the_stall_columns(tmp_path):
-    from crowd_env.experiments.bottleneck import GEOMETRY_OPTIONS, run_one, run_sweep, write_results
+    from crowd_env.experiments.bottleneck import run_one, run_sweep, write_results
 
-    geometry = {**{opt: d for _, (opt, d) in GEOMETRY_OPTIONS.items()}, "navigation_clearance_m": 0.0}
+    geometry = point_field_geometry()
     params = {k: v for k, v in vars(ModelParams()).items() if k != "extra"}
     task = {"width_m": 1.0, "n_pedestrians": 10, "seed": 0, "geometry": geometry, "params": params, "max_time_s": 60.0}
     rec = run_one(task)
@@ -197,12 +198,11 @@ def test_reproduction_records_and_csv_carry_the_stall_columns(tmp_path):
 def test_a_stalled_run_fails_its_calibration_point(tmp_path):
     from crowd_env.analysis.experiment import seyfried_2009
     from crowd_env.experiments.backends import SerialBackend
-    from crowd_env.experiments.bottleneck import GEOMETRY_OPTIONS
     from crowd_env.experiments.calibration import analyse_surface, base_config, evaluate_grid, write_grid_outputs
     from crowd_env.experiments.calibration.grid import STALLED_OBJECTIVE
 
     exp = seyfried_2009()
-    geometry = {**{opt: d for _, (opt, d) in GEOMETRY_OPTIONS.items()}, "navigation_clearance_m": 0.0}
+    geometry = point_field_geometry()
     config = base_config(geometry, ModelParams(), 300.0)
 
     def fake(task):

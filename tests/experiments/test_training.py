@@ -1,5 +1,6 @@
-"""Training pipeline (SuperSuit + SB3 PPO) and the evaluation harness."""
-import importlib.util
+"""Training pipeline (SuperSuit + SB3 PPO): agent deaths in the vector pipeline, a smoke training whose model
+runs through the evaluation harness and command, and SB3Policy's check of the observations. (The harness
+alone: tests/experiments/test_evaluation.py.)"""
 import json
 import os
 import warnings
@@ -12,24 +13,15 @@ pytest.importorskip("supersuit")
 
 import supersuit as ss  # noqa: E402
 
-from baselines.reference_policies import (CalibratedPolicy, CallablePolicy, RandomPolicy, SB3Policy,  # noqa: E402
-                                          ZeroIntentPolicy, as_policy)
+from baselines.reference_policies import CallablePolicy, RandomPolicy, SB3Policy, as_policy  # noqa: E402
 from crowd_env.envs import crowd_v0  # noqa: E402
 from crowd_env.experiments.evaluation import (ScenarioSpec, evaluate, format_table, plot_results,  # noqa: E402
                                               run_episode, summarize)
 from crowd_env.experiments.training import train  # noqa: E402
+from tests.conftest import load_script  # noqa: E402
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TINY = {"scenario": "seyfried_bottleneck", "scenario_options": {"n_pedestrians": 6, "width_m": 1.0},
         "controlled": "all", "frame_skip": 10, "max_steps": 30, "n_neighbors": 6, "n_rays": 8}
-
-
-def _load_script(name):
-    spec = importlib.util.spec_from_file_location(f"_script_{name}", os.path.join(ROOT, "scripts", f"{name}.py"))
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
 
 def test_supersuit_vector_pipeline_with_agent_deaths():
     """black_death_v3 + pettingzoo_env_to_vec_env_v1 survive agents leaving mid-episode and the
@@ -78,7 +70,7 @@ def test_ppo_smoke_training_saves_model_and_curve(tmp_path):
     assert png.stat().st_size > 1000
 
     # and through the command-line evaluation script
-    ev = _load_script("evaluate")
+    ev = load_script("evaluate")
     rc = ev.main(["--model", model_path, "--policies", "zero", "--seeds", "0", "--max-time", "1.0",
                   "--scenario-option", "n_pedestrians=6", "--out", str(tmp_path / "eval")])
     assert rc == 0 and (tmp_path / "eval" / "results.csv").exists()
@@ -96,27 +88,3 @@ def test_sb3_policy_rejects_mismatched_observations(tmp_path):
     with pytest.raises(ValueError, match="expects observations of shape"):
         run_episode(SB3Policy(model), ScenarioSpec("seyfried_bottleneck", {"n_pedestrians": 6}), 0,
                     env_options={"n_neighbors": 6}, max_time_s=0.5)
-
-
-def test_harness_baseline_metrics_match_simulator():
-    """The calibrated baseline through the harness evacuates everybody with a plausible specific flow;
-    the metrics are the same across repeated runs (deterministic) and random/zero policies are worse."""
-    spec = ScenarioSpec("seyfried_bottleneck", {"n_pedestrians": 10, "seed": 0})
-    r1 = run_episode(as_policy("baseline"), spec, 0, max_time_s=40.0)
-    r2 = run_episode(CalibratedPolicy(), spec, 0, max_time_s=40.0)
-    assert r1 == r2.__class__(**{**r2.__dict__, "wall_time_s": r1.wall_time_s})
-    assert r1.n_evacuated == 10 and np.isfinite(r1.evacuation_time_s)
-    assert 0.5 < r1.specific_flow_per_m_s < 3.0
-    assert r1.min_gap_m > -1e-3 and r1.mean_speed_m_s > 0.3
-    z = run_episode(ZeroIntentPolicy(), spec, 0, max_time_s=2.0)
-    assert z.n_evacuated == 0 and np.isnan(z.evacuation_time_s) and z.mean_return < r1.mean_return
-
-
-def test_as_policy_specs():
-    assert isinstance(as_policy("baseline"), CalibratedPolicy)
-    assert isinstance(as_policy("random"), RandomPolicy)
-    assert isinstance(as_policy(lambda o: o[:, :2]), CallablePolicy)
-    with pytest.raises(ValueError, match="unknown policy"):
-        as_policy("genius")
-    with pytest.raises(TypeError):
-        as_policy(42)
