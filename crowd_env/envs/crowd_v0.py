@@ -65,7 +65,7 @@ Determinism
 Equivalence
     With every pedestrian controlled and fed the calibrated agent's intents (``action_max_m_s`` large
     enough, e.g. 50, and ``heading_target="desired_direction"``), the trajectories are bitwise those of
-    the plain simulator with everyone on the baseline (tests/test_env.py).
+    the plain simulator with everyone on the baseline (tests/envs/test_env.py).
 
 Decision interval
     ``frame_skip × params.dt_s``: 0.01 s by default (``frame_skip=1``); the registered Gymnasium ids and

@@ -2,7 +2,7 @@
 
 The checks are the model's invariants (no overlap beyond the contact tolerance, Kabalan et al. 2016
 Eq. 17-21; no kinetic energy created by the impact law, Eq. 4-8, or by the projection). Shared by
-``crowd-soak`` (:func:`soak`) and ``tests/test_reliability.py``. An :class:`InvariantChecker` is an
+``crowd-soak`` (:func:`soak`) and ``tests/experiments/test_soak.py``. An :class:`InvariantChecker` is an
 environment sub-step hook (``env.substep_hooks``): after every simulator step it checks, on the
 pedestrians still on the floor,
 

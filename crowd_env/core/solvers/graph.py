@@ -207,6 +207,6 @@ def contact_keys(a, b, wall, n, n_walls):
     same pedestrian and wall segment (b < 0, segment ``wall`` of ``n_walls``) wherever it stands in a
     candidate list: matches contacts across lists (re-detection, the previous step's projection).
     A candidate list holds each pair and each pedestrian-segment contact once, so its keys are unique
-    (``np.isin(..., assume_unique=True)`` may be used; ``tests/test_simulator.py`` checks it)."""
+    (``np.isin(..., assume_unique=True)`` may be used; ``tests/core/test_simulator.py`` checks it)."""
     a = np.asarray(a, np.int64)
     return np.where(b >= 0, a * n + b, n * n + a * max(1, n_walls) + wall)
