@@ -38,7 +38,7 @@ from ..experiments.backends import make_backend
 from ..experiments.bottleneck import check_setups
 from ..experiments.calibration import analyse_surface, base_config, evaluate_grid, optimise, write_grid_outputs
 from ..experiments.calibration.grid import check_run_plan
-from ..experiments.calibration.landscape import landscape, write_landscape
+from ..experiments.calibration.landscape import entry_failed, landscape, write_landscape
 from ..experiments.calibration.optimize import PointEvaluator
 from ..experiments.calibration.targets import preset_targets, write_targets
 from ..experiments.store import RunStore
@@ -133,12 +133,17 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+def _seeds(args) -> list:
+    """Seeds first..first+S-1 of ``--first-seed``/``--seeds`` (empty for S < 1: check_run_plan names it)."""
+    return list(range(args.first_seed, args.first_seed + args.seeds)) if args.seeds >= 1 else []
+
+
 def run_landscape(args) -> int:
     """``crowd-calibrate landscape``: :func:`crowd_env.experiments.calibration.landscape.landscape` and its outputs."""
     params = model_params_from_args(args)
     cfg = config_of(args, params)
     config = base_config(cfg["geometry"], params, cfg["max_time_s"])
-    seeds = list(range(args.first_seed, args.first_seed + args.seeds)) if args.seeds >= 1 else []
+    seeds = _seeds(args)
     with make_backend(args.backend, address=args.address, jobs=args.jobs, connect_timeout_s=args.connect_timeout) as be:
         evaluator = PointEvaluator(args.out, config, args.widths, args.sizes, seeds, be,
                                    reference=_reference(args.reference), range_weight=args.range_weight,
@@ -146,9 +151,8 @@ def run_landscape(args) -> int:
         entries = landscape(evaluator, args.vary, args.values)
     print(f"{args.vary:>10}  {'objective':>10}  {'ε_T':>10}  failed")
     for e in entries:
-        failed = bool(e.get("failed_point") or e.get("n_stalled") or e.get("failed_runs"))
         print(f"{e['values'][args.vary]:>10.4g}  {e['objective']:>10.4g}  {e['epsilon_total']:>10.4g}  "
-              f"{'yes' if failed else 'no'}")
+              f"{'yes' if entry_failed(e) else 'no'}")
     for p in write_landscape(args.vary, entries, args.out, figure=not args.no_figures):
         print(f"wrote {p}")
     return 0
@@ -156,7 +160,7 @@ def run_landscape(args) -> int:
 
 def run_targets(args) -> int:
     """``crowd-calibrate targets``: the target table of each preset, side by side (crowd_env.analysis.targets)."""
-    seeds = list(range(args.first_seed, args.first_seed + args.seeds)) if args.seeds >= 1 else []
+    seeds = _seeds(args)
     widths, _, seeds = check_run_plan(args.widths, [60], seeds)
     required_cases(widths)  # capacity widths among --widths, or a clear error
     configs = {}
@@ -221,7 +225,7 @@ def run(args) -> int:
     params = model_params_from_args(args)
     cfg = config_of(args, params)
     config = base_config(cfg["geometry"], params, cfg["max_time_s"])
-    seeds = list(range(args.first_seed, args.first_seed + args.seeds)) if args.seeds >= 1 else []
+    seeds = _seeds(args)
     widths, sizes, seeds = check_run_plan(args.widths, args.sizes, seeds)
     reference = _reference(args.reference)
     if args.mode == "grid":

@@ -23,16 +23,8 @@ import sys
 
 from ..experiments.evaluation import (ScenarioSpec, evaluate, format_table, import_object, plot_results,
                                       resolve_policy, summarize, write_csv)
-
-DEFAULT_POLICY_RESOLVER = "baselines.reference_policies:as_policy"
-
-
-def _parse_value(text: str):
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError:
-        return text
-
+from ..errors import OptionError
+from .options import DEFAULT_POLICY_RESOLVER, key_values
 
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="crowd-evaluate", description=__doc__,
@@ -78,12 +70,10 @@ def main(argv=None) -> int:
             controlled = controlled.split(",")
     env_options["controlled"] = controlled
 
-    options = {}
-    for item in args.scenario_option:
-        if "=" not in item:
-            raise SystemExit(f"--scenario-option needs key=value, got {item!r}")
-        k, v = item.split("=", 1)
-        options[k] = _parse_value(v)
+    try:
+        options = key_values(args.scenario_option, "--scenario-option needs key=value")
+    except OptionError as exc:
+        raise SystemExit(str(exc)) from None
     if args.widths:
         scenarios = [ScenarioSpec(args.scenario, {**options, "width_m": w}) for w in args.widths]
     else:

@@ -1,14 +1,36 @@
-"""Command-line options shared by the bottleneck commands (``crowd-bottleneck``, ``crowd-calibrate``):
-the Seyfried geometry and navigation flags, and the model configuration they describe."""
+"""Command-line options shared by the commands: the Seyfried geometry and navigation flags and the model
+configuration they describe (``crowd-bottleneck``, ``crowd-calibrate``), ``KEY=VALUE`` lists (``--param``,
+``--scenario-option``) and the default policy resolver (``crowd-evaluate``, ``crowd-train-ppo``)."""
 from __future__ import annotations
 
 import json
 
-from ..core.params import ModelParams, ParameterError
+from ..core.params import ModelParams
+from ..errors import OptionError
 from ..core.presets import DEFAULT_PRESET, get_preset
 from ..experiments.bottleneck import GEOMETRY_OPTIONS, bottleneck_config, model_params
 
-__all__ = ["add_geometry_arguments", "model_params_from_args", "navigation_clearance_from_args", "config_of"]
+__all__ = ["add_geometry_arguments", "model_params_from_args", "navigation_clearance_from_args", "config_of",
+           "DEFAULT_POLICY_RESOLVER", "key_values"]
+
+# Names and saved models are turned into policies by the shipped baselines, reached by import path so that
+# crowd_env never imports baselines.
+DEFAULT_POLICY_RESOLVER = "baselines.reference_policies:as_policy"
+
+
+def key_values(items, usage: str) -> dict:
+    """``["k=v", ...]`` → ``{k: v}``, each v read as JSON when it is JSON, else kept as text; an item
+    without ``=`` raises :class:`~crowd_env.errors.OptionError` ``f"{usage}, got {item!r}"``."""
+    out = {}
+    for item in items or []:
+        if "=" not in item:
+            raise OptionError(f"{usage}, got {item!r}")
+        key, value = item.split("=", 1)
+        try:
+            out[key] = json.loads(value)
+        except json.JSONDecodeError:
+            out[key] = value
+    return out
 
 
 def add_geometry_arguments(group, clearance_help: str) -> None:
@@ -31,14 +53,7 @@ def model_params_from_args(args) -> ModelParams:
     for name in ("social_strength_n", "social_range_m", "social_anisotropy", "normal_dissipation_kg"):
         if getattr(args, name) is not None:
             changes[name] = getattr(args, name)
-    for item in args.param:
-        if "=" not in item:
-            raise ParameterError(f"--param expects NAME=VALUE, got {item!r}")
-        key, value = item.split("=", 1)
-        try:
-            changes[key] = json.loads(value)
-        except json.JSONDecodeError:
-            changes[key] = value
+    changes.update(key_values(args.param, "--param expects NAME=VALUE"))
     if args.no_social:
         changes["social_forces"] = False
     if args.no_rotation:

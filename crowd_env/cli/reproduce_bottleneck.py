@@ -34,6 +34,7 @@ from ..analysis.experiment import (FRONT_DENSITY_RANGE_PER_M2, INSIDE_DENSITY_RA
 from ..analysis.figures import bottleneck_figures
 from ..analysis.trajectories import DEFAULT_FRAME_RATE_PER_S, TrajectoryFormatError, steps_per_frame
 from ..core.params import ParameterError, PedestrianDefaults
+from ..errors import OptionError
 from ..core.presets import DEFAULT_PRESET, PRESETS
 from ..experiments.bottleneck import (SetupError, check_setups, flow_fit, run_sweep, summarise, write_results,
                                       write_summary)
@@ -151,7 +152,7 @@ def main(argv=None) -> int:
         args.sizes, args.seeds = [60], 2
     try:
         params = model_params_from_args(args)
-    except ParameterError as exc:
+    except (ParameterError, OptionError) as exc:
         raise SystemExit(f"error: {exc}")
     for b in args.widths:
         if not 0 < b < args.corridor_width:

@@ -32,30 +32,19 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
-import json
 import sys
 
 from ..experiments.evaluation import import_object
 from ..experiments.training import DEFAULT_SCENARIO_OPTIONS, TrainingError, train
-
-DEFAULT_POLICY_RESOLVER = "baselines.reference_policies:as_policy"
-
-
-def _parse_value(text: str):
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError:
-        return text
-
+from ..errors import OptionError
+from .options import DEFAULT_POLICY_RESOLVER, key_values
 
 def make_env_config(args) -> dict:
     """Environment options (JSON-serialisable) from the command line."""
-    options = dict(DEFAULT_SCENARIO_OPTIONS)
-    for item in args.scenario_option or []:
-        if "=" not in item:
-            raise SystemExit(f"--scenario-option needs key=value, got {item!r}")
-        key, value = item.split("=", 1)
-        options[key] = _parse_value(value)
+    try:
+        options = {**DEFAULT_SCENARIO_OPTIONS, **key_values(args.scenario_option, "--scenario-option needs key=value")}
+    except OptionError as exc:
+        raise SystemExit(str(exc)) from None
     if args.n_pedestrians is not None:
         options["n_pedestrians"] = args.n_pedestrians
     if args.width is not None:

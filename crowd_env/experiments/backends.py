@@ -19,7 +19,6 @@ import sys
 import traceback
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
-from ..analysis.calibration import CalibrationError
 
 __all__ = ["BACKENDS", "BackendError", "SerialBackend", "ProcessBackend", "RayBackend", "check_reachable",
            "make_backend", "execute"]

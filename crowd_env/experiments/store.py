@@ -28,7 +28,6 @@ import json
 import os
 from pathlib import Path
 
-from ..analysis.calibration import CalibrationError
 from ..analysis.trajectories import trajectory_frame_rate
 
 __all__ = ["RunStoreError", "RunStore", "config_hash", "normalise_record", "run_key", "task_key", "write_atomic",

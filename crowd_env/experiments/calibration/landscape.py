@@ -42,10 +42,15 @@ def landscape(evaluator: PointEvaluator, name: str, values, verbose: bool = True
     return entries
 
 
+def entry_failed(entry: dict) -> bool:
+    """Whether an evaluation entry is a failed point: a run raised, stalled or did not complete."""
+    return bool(entry.get("failed_point") or entry.get("n_stalled") or entry.get("failed_runs"))
+
+
 def _row(name: str, entry: dict) -> dict:
     row = {name: entry["values"][name], "objective": entry["objective"], "epsilon_total": entry["epsilon_total"],
            "n_stalled": entry.get("n_stalled", 0), "n_incomplete": entry.get("n_incomplete", 0),
-           "failed": bool(entry.get("failed_point") or entry.get("n_stalled") or entry.get("failed_runs"))}
+           "failed": entry_failed(entry)}
     row.update({f"term_{k}": v for k, v in (entry.get("terms") or {}).items()})
     row.update({f"capacity_ratio_b{k}": v for k, v in (entry.get("capacity_ratio") or {}).items()})
     row.update({k.replace("specific_flow_per_m_s ", "js_").replace(" ", "_"): v
