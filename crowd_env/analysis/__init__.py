@@ -1,7 +1,7 @@
 """Measurements on simulated (or experimental) trajectories: passages and specific flow (Eq. 22),
 density, lanes, calibration errors (Eq. 23-24), the Seyfried et al. (2009) reference, and trajectories in PedPy's
 formats. Measures only: it runs no simulation (that is :mod:`crowd_env.experiments`) and knows nothing of RL."""
-from .calibration import (CalibrationError, ExponentialFit, PointError, RangeCheck, Valley, best_grid_point, epsilon_j,
+from .calibration import (CalibrationError, ExponentialFit, PointScore, RangeCheck, Valley, best_grid_point, epsilon_j,
                           epsilon_total, fit_exponential_valley, in_range_check, point_error, relative_squared_errors,
                           valley_of_minima)
 from .density import (DensityError, as_polygon, density_in_area, density_time_series, force_balance_jam_density_per_m2,
@@ -16,7 +16,7 @@ from .trajectories import Trajectories, TrajectoryFormatError, export_run, read_
 
 __all__ = [
     "CalibrationError", "RangeCheck", "epsilon_j", "epsilon_total", "in_range_check", "relative_squared_errors",
-    "ExponentialFit", "PointError", "Valley", "best_grid_point", "fit_exponential_valley", "point_error",
+    "ExponentialFit", "PointScore", "Valley", "best_grid_point", "fit_exponential_valley", "point_error",
     "valley_of_minima",
     "DensityError", "as_polygon", "density_in_area", "density_time_series", "force_balance_jam_density_per_m2",
     "hexagonal_density_per_m2", "stationary_mean",

@@ -94,7 +94,7 @@ def in_range_check(specific_flow_per_m_s, bounds=SPECIFIC_FLOW_RANGE_N20_N40_PER
 # --- ε_T of one parameter point from its runs (Eq. 22-24 with replicates) ---------------------------
 
 @dataclass(frozen=True)
-class PointError:
+class PointScore:
     """Calibration error of one parameter point, from all its (b, N, seed) runs.
 
     J_s is first averaged over seeds per (b, N) (the model's J_s(A, B, b, N) of Eq. 23); runs with fewer
@@ -143,7 +143,7 @@ def reference_mask(ref: ExperimentTable, width_m, n_pedestrians, atol_m: float =
 
 def point_error(width_m, n_pedestrians, specific_flow_per_m_s, reference: ExperimentTable | None = None,
                 range_weight: float = 0.0, bounds=SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S,
-                range_sizes=(20, 40)) -> PointError:
+                range_sizes=(20, 40)) -> PointScore:
     """ε_T (Eq. 24), ε_j (Eq. 23) and the range penalty of one point from its runs.
 
     A (b, N) without experimental value must have N in ``range_sizes`` (the group sizes the range
@@ -180,7 +180,7 @@ def point_error(width_m, n_pedestrians, specific_flow_per_m_s, reference: Experi
         penalty, inside = float(np.mean(rel ** 2)), check.all_inside
     else:
         penalty, inside = 0.0, True
-    return PointError(eps_t, eps_j, penalty, inside, eps_t + float(range_weight) * penalty, kb, kn, mean_js, has,
+    return PointScore(eps_t, eps_j, penalty, inside, eps_t + float(range_weight) * penalty, kb, kn, mean_js, has,
                       int(b.size), int(undefined.sum()))
 
 

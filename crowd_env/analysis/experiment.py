@@ -21,7 +21,7 @@ SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S = (1.77, 2.31)
 DIP_N20_WIDTH_M = 1.1
 # Norms of residuals of least-squares lines J = a b + c through the experimental flows (Kabalan Table 3).
 RESIDUAL_NORM_BY_GROUP = {20: 0.436, 40: 0.237, 60: 0.098}
-# Other N = 60 observations (Seyfried et al. 2009; shared data README): density in the jam 1 m in front of
+# Other N = 60 observations (Seyfried et al. 2009; docs/validation/bottleneck.md): density in the jam 1 m in front of
 # the entrance, stationary density and speed inside the bottleneck, over all widths.
 FRONT_DENSITY_RANGE_PER_M2 = (4.0, 6.0)
 INSIDE_DENSITY_RANGE_PER_M2 = (1.42, 1.73)

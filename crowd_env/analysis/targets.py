@@ -4,7 +4,7 @@ Kabalan et al. (2016) calibrate A, B against one figure, the N = 60 specific flo
 A model fitted to that alone can reach it by the wrong mechanism: a discharge driven by the pressure
 of the crowd behind (the rate then grows with N, a real bottleneck's does not), pedestrians pushed
 through the channel faster than they walk, a jam held apart at half the observed density. The
-experiment measured more than the N = 60 flows (``shared/data/README.md``; constants in
+experiment measured more than the N = 60 flows (``docs/validation/bottleneck.md``, "The experiment"; constants in
 :mod:`crowd_env.analysis.experiment`), and :func:`target_error` scores a parameter point against all
 of it at once:
 
@@ -39,7 +39,7 @@ from .calibration import CalibrationError, relative_squared_errors
 from .experiment import (FRONT_DENSITY_RANGE_PER_M2, INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RANGE_M_S,
                          SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, WIDTHS_M, ExperimentTable, seyfried_2009)
 
-__all__ = ["CAPACITY_RANGE", "CAPACITY_SIZES", "CAPACITY_WIDTHS_M", "FAILED_POINT_OBJECTIVE", "TargetError",
+__all__ = ["CAPACITY_RANGE", "CAPACITY_SIZES", "CAPACITY_WIDTHS_M", "FAILED_POINT_OBJECTIVE", "TargetScore",
            "TargetWeights", "band_miss", "required_cases", "target_error"]
 
 # Stationary discharge rate of the larger crowd over the smaller one, at these widths.
@@ -74,7 +74,7 @@ class TargetWeights:
 
 
 @dataclass(frozen=True)
-class TargetError:
+class TargetScore:
     """Score of one parameter point: ``objective`` = Σ weight · term over :attr:`terms`, or
     :data:`FAILED_POINT_OBJECTIVE` + the incomplete fraction when a run did not complete.
 
@@ -135,7 +135,7 @@ def _complete(record: dict) -> bool:
 
 
 def target_error(records: list, *, weights: TargetWeights | None = None,
-                 reference: ExperimentTable | None = None) -> TargetError:
+                 reference: ExperimentTable | None = None) -> TargetScore:
     """Score the runs of one parameter point against every target of the module table.
 
     ``records``: the reproduction's run records (``crowd_env.experiments.bottleneck.run_one``) of at
@@ -158,7 +158,7 @@ def target_error(records: list, *, weights: TargetWeights | None = None,
         if (round(b, 6), n) not in groups:
             raise CalibrationError(f"the objective needs runs at b = {b:g} m, N = {n}; none given")
     if n_incomplete:
-        return TargetError(FAILED_POINT_OBJECTIVE + n_incomplete / len(records), {}, len(records), n_incomplete,
+        return TargetScore(FAILED_POINT_OBJECTIVE + n_incomplete / len(records), {}, len(records), n_incomplete,
                            n_stalled, True, {}, {})
 
     def mean(b, n, key):
@@ -190,7 +190,7 @@ def target_error(records: list, *, weights: TargetWeights | None = None,
                                f"window or an empty measurement area)")
     wd = w.as_dict()
     objective = float(sum(wd[k] * v for k, v in terms.items()))
-    return TargetError(objective, terms, len(records), 0, n_stalled, False, figures, ratios)
+    return TargetScore(objective, terms, len(records), 0, n_stalled, False, figures, ratios)
 
 
 # --- the issue's acceptance table: every target with its figure and verdict ------------------------

@@ -3,7 +3,7 @@ from .params import ModelParams, ParameterError, PedestrianDefaults
 from .state import CrowdState, StateError, min_gap_m, sample_desired_speeds
 from .segments import GeometryError
 from .simulator import Simulator, StepResult
-from .solvers.status import SimulationError
+from crowd_env.errors import SimulationError
 
 __all__ = ["ModelParams", "ParameterError", "PedestrianDefaults", "CrowdState", "StateError", "min_gap_m",
            "sample_desired_speeds", "GeometryError", "SimulationError", "Simulator", "StepResult"]

@@ -1,7 +1,7 @@
 """Contact detection and the contact operator rows (Kabalan Eq. 1, 2 and 8).
 
 Narrow phase: disk-disk and disk-wall candidates whose gap is within a speculative margin
-δ = ε + 2 h (|u_i| + |u_j|) (stage 3 of :mod:`crowd_env.core.step`). The contact operator B (Δ = B v)
+δ = ε + 2 h (‖u_i‖ + ‖u_j‖) (stage 3 of :mod:`crowd_env.core.step`). The contact operator B (Δ = B v)
 is stored row by row in a two-body sparse form that the Frémond solvers of :mod:`crowd_env.core.solvers`
 (compiled, sparse and cvxpy) take as input:
 
@@ -26,11 +26,11 @@ NORMAL, TANGENT, LINK = 0, 1, 2
 
 @nb.njit(cache=True)
 def pair_candidates(position, radius, speed, pairs, index, eps_m, dt_s, margin_out):
-    """Disk-disk candidates among ``pairs`` (rows into ``index``) with gap ≤ ε + 2h(|u_i|+|u_j|).
+    """Disk-disk candidates among ``pairs`` (rows into ``index``) with gap ≤ ε + 2h(‖u_i‖+‖u_j‖).
 
-    ``speed`` (n,): |u| of each pedestrian of ``index`` (compact rows). Returns
+    ``speed`` (n,): ‖u‖ of each pedestrian of ``index`` (compact rows). Returns
     ``(a, b, gap, nx, ny, d)`` with a, b rows into ``index``; also writes each pedestrian's own
-    margin ε + 2h|u_i| into ``margin_out`` (used for walls).
+    margin ε + 2h‖u_i‖ into ``margin_out`` (used for walls).
     """
     n = index.shape[0]
     for k in range(n):
@@ -72,7 +72,7 @@ CONTACT_FIELDS = ("a", "b", "gap", "nx", "ny", "rho_a", "rho_b", "wall")
 def contact_candidates(position, radius, speed, index, pairs, walls, wall_owner, eps_m, dt_s):
     """Candidate contacts (pedestrian pairs, then walls) among the pedestrians ``index``.
 
-    ``speed`` (n,) compact |u|; ``pairs`` rows into ``index`` (any superset of the pairs within
+    ``speed`` (n,) compact ‖u‖; ``pairs`` rows into ``index`` (any superset of the pairs within
     2 r_max + margins). Returns the arrays of :data:`CONTACT_FIELDS`, one entry per contact: ``a``/``b``
     rows into ``index`` (b = -1 for a wall), ``gap`` (m), ``nx``/``ny`` (unit normal from b to a),
     ``rho_a``/``rho_b`` (distances of the contact point from the centres, ρ_i = d r_i/(r_i + r_j),

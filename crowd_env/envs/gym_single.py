@@ -44,6 +44,8 @@ class CrowdSingleAgentEnv(gymnasium.Env):
         return obs[self.learner], infos[self.learner]
 
     def step(self, action):
+        """One step of the learner (the other pedestrians act by their policy): ``(observation, reward,
+        terminated, truncated, info)`` of the learner, as in :meth:`gymnasium.Env.step`."""
         a = self.learner
         if a not in self.parallel.agents:
             raise EnvStateError("the episode is over (the learner left or was truncated): call reset()")

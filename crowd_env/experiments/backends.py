@@ -21,7 +21,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 
 __all__ = ["BACKENDS", "BackendError", "SerialBackend", "ProcessBackend", "RayBackend", "check_reachable",
-           "make_backend", "execute"]
+           "make_backend", "execute", "run_all"]
 
 BACKENDS = ("ray", "process", "serial")
 
@@ -210,3 +210,23 @@ def execute(tasks: list, store, backend, run_fn, desc: str = "runs", leave: bool
                 bar.set_postfix(failed=failures)
             bar.update()
     return failures
+
+
+def run_all(tasks: list, backend, run_fn) -> list:
+    """``run_fn`` of every task on ``backend``, the results in the order of ``tasks`` (for studies whose
+    runs are not stored one by one). A failed run raises :class:`BackendError` naming every failed task
+    and its error, after the others have finished."""
+    tasks = list(tasks)
+    slot = {id(t): i for i, t in enumerate(tasks)}
+    if len(slot) != len(tasks):
+        raise BackendError("run_all needs distinct task objects (the same object was passed twice)")
+    results = [None] * len(tasks)
+    failed = []
+    for task, ok, value in backend.imap_unordered(run_fn, tasks):
+        if ok:
+            results[slot[id(task)]] = value
+        else:
+            failed.append(f"{task!r}: {value}")
+    if failed:
+        raise BackendError(f"{len(failed)} of {len(tasks)} runs failed:\n" + "\n".join(failed))
+    return results

@@ -10,7 +10,7 @@ pedestrians still on the floor,
 - ``pedestrian_overlap`` / ``wall_overlap``: no pair of pedestrians and no pedestrian and wall overlap
   by more than ``overlap_tolerance_m`` (1e-3 m, the contact tolerance);
 - ``outside_walkable``: every centre lies in the (closed) walkable area;
-- ``impact_energy_increase``: the kinetic energy ½ Σ (m |u|² + I ω²) does not grow across the impact
+- ``impact_energy_increase``: the kinetic energy ½ Σ (m ‖u‖² + I ω²) does not grow across the impact
   stage (``StepResult.kinetic_energy_before_impact_j`` → ``..._after_impact_j``);
 - ``projection_energy_increase``: nor across the gap projection (``..._after_impact_j`` →
   ``..._after_projection_j``);

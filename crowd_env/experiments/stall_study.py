@@ -8,7 +8,6 @@ The mechanism it shows is told in ``crowd-stall-study --help``.
 """
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +15,7 @@ import numpy as np
 from ..core.presets import get_preset
 from ..scenarios import make_scenario
 from ..walking.agent import SocialForceAgent
+from .backends import make_backend, run_all
 from .runner import run_scenario
 
 __all__ = ["stall_run", "stall_jobs", "run_jobs", "figure"]
@@ -63,9 +63,10 @@ def stall_jobs(presets, width_m: float, n: int, corridor_width_m: float, seeds: 
 
 
 def run_jobs(jobs: list, workers: int) -> list:
-    """:func:`stall_run` of every job on ``workers`` processes; the rows in the order of ``jobs``."""
-    with ProcessPoolExecutor(workers) as pool:
-        return list(pool.map(stall_run, jobs))
+    """:func:`stall_run` of every job on ``workers`` processes (the project's one executor,
+    :mod:`crowd_env.experiments.backends`; serial for one worker); the rows in the order of ``jobs``."""
+    with make_backend("process" if workers > 1 else "serial", jobs=workers) as backend:
+        return run_all(jobs, backend, stall_run)
 
 
 def figure(paper: dict, calibrated: dict, path: Path) -> Path:

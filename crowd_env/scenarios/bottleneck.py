@@ -1,7 +1,8 @@
 """The Seyfried et al. (2009) bottleneck experiment as simulated by Kabalan et al. (2016), Section 4.
 
 Coordinates (metres): x along the flow with the bottleneck entrance at x = 0; y across, the corridor
-axis at y = 0. Geometry and protocol follow ``shared/data/README.md`` (confidence in brackets):
+axis at y = 0. Geometry and protocol follow the documentation page
+``docs/validation/bottleneck.md`` (section "The experiment"; confidence in brackets):
 
 - holding corridor 4 m wide (y in [-2, 2]) ending in a wall perpendicular to the flow at x = 0
   [medium]; it reaches back to the rear of the last holding section;

@@ -10,7 +10,8 @@ from crowd_env.core.solvers.dense_projection import PROJECTION_TOL_M_S, project_
 from crowd_env.core.solvers.graph import contact_keys, gap_residuals
 from crowd_env.core.solvers.impact import solve_rows
 from crowd_env.core.solvers.reference import random_cluster
-from crowd_env.core.solvers.status import STATUS_MAX_ITER, STATUS_OK, SimulationError
+from crowd_env.core.solvers.status import STATUS_MAX_ITER, STATUS_OK
+from crowd_env.errors import SimulationError
 
 H = 0.01
 

@@ -72,7 +72,6 @@ def _reprojection(later_kind):
     steps of both, and how far the first solution is from the full one."""
     rng = np.random.default_rng(11)
     vel, mass, a, b, gap, nx, ny = hex_jam(8, 10, rng)
-    n = vel.shape[0]
     if later_kind == "slack":
         lam_full, _, status = project_gaps_alm(vel.copy(), mass, a, b, gap, nx, ny, H, np.zeros(a.shape[0]), 400)
         assert status == STATUS_OK
@@ -122,7 +121,6 @@ def test_simulator_hands_a_slow_augmented_lagrangian_to_the_interior_point_metho
     method (same v to 1e-6 m/s); the next nine large projections skip the augmented Lagrangian."""
     rng = np.random.default_rng(5)
     vel, mass, a, b, gap, nx, ny = hex_jam(9, 10, rng)
-    n = vel.shape[0]
     v_exact = vel.copy()
     _, steps_exact, status = project_gaps_alm(v_exact, mass, a, b, gap, nx, ny, H, np.zeros(a.shape[0]), 400)
     assert status == STATUS_OK and steps_exact > 3
@@ -141,7 +139,6 @@ def test_misses_in_a_row_back_off_the_augmented_lagrangian():
     (alm_skip_after_miss, up to alm_skip_max); a success from zero resets it. Every projection is exact."""
     rng = np.random.default_rng(5)
     vel, mass, a, b, gap, nx, ny = hex_jam(9, 10, rng)
-    n = vel.shape[0]
     v_exact = vel.copy()
     project_gaps_alm(v_exact, mass, a, b, gap, nx, ny, H, np.zeros(a.shape[0]), 400)
     sim = _jam_cascade(alm_newton_budget=3, alm_skip_after_miss=2, alm_skip_max=8)
@@ -172,7 +169,6 @@ def test_simulator_starts_the_interior_point_method_from_the_last_active_set(mon
     projection's percussions (matched by contact), and is still exact; two steps later it no longer
     does."""
     vel, mass, a, b, gap, nx, ny, v_exact = jam_and_exact_projection(1)
-    n = vel.shape[0]
     starts = []
 
     def recording(*args, z0=None, **kwargs):

@@ -313,7 +313,6 @@ def _linked_pair(k_v, u_apart=1.0, spin=0.0):
     frame of each, pulled apart along x."""
     r = 0.23
     pos = np.array([[0.0, 0.0], [0.8, 0.0]])
-    heading = np.zeros(2)
     mass = np.array([70.0, 80.0])
     inertia = 0.5 * mass * r ** 2
     gi = np.array([0.25, 0.0])

@@ -62,3 +62,51 @@ def test_every_cited_test_file_and_script_exists():
     assert cited
     missing = [f"{page}: {path}" for page, path in sorted(cited) if not (ROOT / path).exists()]
     assert not missing, "\n".join(missing)
+
+
+SOURCES = ("crowd_env", "baselines", "scripts", "benchmarks", "docs")
+
+
+def _source_files():
+    for top in SOURCES:
+        yield from (p for p in (ROOT / top).rglob("*") if p.suffix in (".py", ".md", ".rst") and "_build" not in p.parts)
+    yield ROOT / "README.md"
+
+
+def test_no_reference_to_files_outside_the_repository():
+    outside = re.compile(r"(?:\.\./shared|\bshared/(?:data|docs|papers)\b|design notes?\b)")
+    hits = [f"{p.relative_to(ROOT)}:{i}: {line.strip()}" for p in _source_files()
+            for i, line in enumerate(p.read_text().splitlines(), 1) if outside.search(line)]
+    assert not hits, "\n".join(hits)
+
+
+def test_every_docs_page_cited_from_the_code_exists():
+    cited = {(p.relative_to(ROOT), m) for p in _source_files() if p.suffix == ".py"
+             for m in re.findall(r"\bdocs/[\w/.-]+\.md", p.read_text())}
+    assert cited  # docstrings send readers to the docs pages
+    missing = [f"{src}: {path}" for src, path in sorted(cited) if not (ROOT / path).exists()]
+    assert not missing, "\n".join(missing)
+
+
+def test_every_console_script_is_documented_and_has_an_entry_point():
+    import tomllib
+
+    scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
+    table = (DOCS / "getting_started.md").read_text()
+    undocumented = [name for name in scripts if f"| `{name}` |" not in table]
+    assert not undocumented, f"getting_started.md lists no {undocumented}"
+    for name, target in scripts.items():
+        module = target.split(":")[0]
+        shim = ROOT / "scripts" / f"{module.rsplit('.', 1)[1]}.py"
+        assert shim.exists(), f"{name}: no scripts/{shim.name}"
+        assert f"from {module} import main" in shim.read_text(), shim
+
+
+def test_api_reference_covers_every_module():
+    modules = set()
+    for path in (ROOT / "crowd_env").rglob("*.py"):
+        parts = path.relative_to(ROOT).with_suffix("").parts
+        modules.add(".".join(parts[:-1] if parts[-1] == "__init__" else parts))
+    listed = set(re.findall(r"^\.\. automodule:: ([\w.]+)", (DOCS / "api.md").read_text(), flags=re.M))
+    assert not modules - listed, f"api.md leaves out {sorted(modules - listed)}"
+    assert not listed - modules, f"api.md names modules that do not exist: {sorted(listed - modules)}"

@@ -1,6 +1,6 @@
 """The contact solvers of the Kabalan et al. (2016) model: one module per method, one object choosing.
 
-* :mod:`~crowd_env.core.solvers.status`: status codes and :class:`SimulationError`;
+* :mod:`~crowd_env.core.solvers.status`: the status codes every solver returns (when none serves, the cascade raises :class:`~crowd_env.errors.SimulationError`);
 * :mod:`~crowd_env.core.solvers.linalg`: the compiled Cholesky kernels every dense solver uses;
 * :mod:`~crowd_env.core.solvers.graph`: the contact graph (clusters, orderings, keys) and its operators;
 * :mod:`~crowd_env.core.solvers.pivoting`: the dense pivoting LCP;
@@ -17,6 +17,6 @@ A solver module imports only the shared modules (``status``, ``linalg``, ``graph
 sibling solvers it builds on, and :mod:`crowd_env.core.contacts`; only ``cascade`` chooses between methods.
 """
 from .cascade import SolverCascade
-from .status import SimulationError
+from crowd_env.errors import SimulationError
 
 __all__ = ["SolverCascade", "SimulationError"]

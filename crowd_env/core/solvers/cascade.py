@@ -49,12 +49,14 @@ dependency for the reference solver, brings Clarabel along in any case). The cas
 present (``external_solvers``: by default those importable) and never lets a missing one pass
 silently: a missing PIQP is skipped, counted in ``n_skipped_solvers``, and the projection goes on to
 the next exact method; where Clarabel is the only method left (sparse pivoting failed on an impact
-cluster or on a projection), the cascade raises :class:`~crowd_env.core.solvers.status.SimulationError`
+cluster or on a projection), the cascade raises :class:`~crowd_env.errors.SimulationError`
 naming it, rather than go on with an unchecked state.
 """
 from __future__ import annotations
 
 import numpy as np
+
+from crowd_env.errors import SimulationError
 
 from .dense_projection import MAX_DENSE_PROJECTION_ROWS, PROJECTION_TOL_M_S, project_gaps
 from .external import installed_solvers, project_gaps_ipm, project_gaps_qp, solve_rows_qp
@@ -62,7 +64,7 @@ from .graph import gap_residuals, touched_bodies
 from .impact import MAX_DENSE_BODIES, MAX_DENSE_ROWS
 from .large_projection import project_gaps_alm, project_gaps_interior_point, project_gaps_working_set
 from .sparse_qp import project_gaps_sparse, solve_rows_sparse
-from .status import STATUS_OK, STATUS_TOO_LARGE, SimulationError
+from .status import STATUS_OK, STATUS_TOO_LARGE
 
 ALM_NEWTON_BUDGET = 30  # Newton steps given to project_gaps_alm before the interior point method (their break-even)
 ALM_WARM_NEWTON_BUDGET = 10  # the same from the multipliers of an earlier projection in the step
@@ -280,7 +282,7 @@ def project_gaps_large(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, clarabel=Tr
     3. if even that fails, Clarabel's solution as it is (feasible to ~1e-12, v within ~1e-6).
 
     Returns ``(λ per contact, path)`` with path 0, 1 or 2 as above. ``clarabel=False`` (Clarabel not
-    available): :class:`~crowd_env.core.solvers.status.SimulationError` where step 2 would be needed
+    available): :class:`~crowd_env.errors.SimulationError` where step 2 would be needed
     (``vel`` left alone).
     """
     v_in = vel[:, :2].copy()

@@ -11,7 +11,7 @@ miss, and skips a missing one as its docstring describes. Here:
 * :func:`solve_rows_qp`: the Frémond impact of a cluster (Kabalan 2016, Eq. 7) by Clarabel, when sparse
   pivoting fails on it.
 
-An import of a missing solver raises :class:`~crowd_env.core.solvers.status.SimulationError` naming it;
+An import of a missing solver raises :class:`~crowd_env.errors.SimulationError` naming it;
 :func:`installed_solvers` says which are present.
 """
 from __future__ import annotations
@@ -24,7 +24,7 @@ import numpy as np
 
 from ..contacts import NORMAL
 from .graph import normal_rows_sparse, sparse_rows, touched_projection_rows
-from .status import SimulationError
+from crowd_env.errors import SimulationError
 
 OPTIONAL_SOLVERS = ("piqp", "clarabel")
 IPM_TOL_M_S = 1e-9  # absolute KKT tolerance (m/s) of the interior point projection (project_gaps_ipm)

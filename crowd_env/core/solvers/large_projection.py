@@ -468,7 +468,7 @@ def project_gaps_interior_point(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, ma
     × mean mass); with guessed percussions ``z0`` (one per contact, e.g. the last step's; negative
     entries count as 0), at the velocities u = v' + M⁻¹ Bᵀ z0 they imply, with s = max(r(u), 0) and
     z = z0 shifted by 0.01 × the same scales (``IP_WARM_START``). A candidate violated at the start
-    (r_k(u) < 0) also starts with the percussion m̄ |r_k(u)| that would close it on a body of mean
+    (r_k(u) < 0) also starts with the percussion m̄ ‖r_k(u)‖ that would close it on a body of mean
     mass m̄. Every iteration steps 99.9 % of the way to the boundary, with separate step lengths for the
     primal (v, s) and the dual (z) variables (in the predictor's estimate of the complementarity too).
     Stops when stationarity ‖M (v − v') − Bᵀ z‖/m and ‖r(v) − s‖ are ≤ ``IP_TOL_M_S`` and

@@ -4,11 +4,9 @@ A solver never returns an answer it has not checked: it returns ``STATUS_OK`` wi
 another status (and leaves its input alone), and the :class:`~crowd_env.core.solvers.cascade.SolverCascade`
 hands the problem to the next method in line. When no method is left (every one failed, or the one
 that would serve is an optional solver that is not installed), the cascade raises
-:class:`SimulationError` rather than continue with a wrong or unchecked state.
+:class:`~crowd_env.errors.SimulationError` rather than continue with a wrong or unchecked state.
 """
 from __future__ import annotations
-
-from crowd_env.errors import SimulationError
 
 STATUS_OK = 0
 STATUS_MAX_ITER = 1  # no certified solution within the iteration budget (the input is left alone)

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...analysis.calibration import (PAPER_VALLEY_FIT, CalibrationError, ExponentialFit, PointError, Valley,
+from ...analysis.calibration import (PAPER_VALLEY_FIT, CalibrationError, ExponentialFit, PointScore, Valley,
                                     best_grid_point, censored_specific_flow, check_grid_values, fit_exponential_valley, point_error,
                                     valley_of_minima)
 from ...analysis.experiment import ExperimentTable
@@ -66,7 +66,7 @@ def n_stalled_runs(records: list) -> int:
 
 
 def point_error_of(tasks: list, records: list, reference: ExperimentTable | None, range_weight: float,
-                   incomplete: str = "bound") -> PointError:
+                   incomplete: str = "bound") -> PointScore:
     """Eq. 23-24 of one point from its tasks and run records.
 
     ``incomplete``: how a run in which not all N passed (stalled, or people left at the time limit)
@@ -103,7 +103,7 @@ class GridResult:
     social_range_m: np.ndarray
     epsilon_total: np.ndarray
     objective: np.ndarray
-    errors: dict = field(default_factory=dict)  # (i, j) -> PointError
+    errors: dict = field(default_factory=dict)  # (i, j) -> PointScore
     n_failed_runs: int = 0
     n_clogged: np.ndarray | None = None  # (n_A, n_B) runs where not all N passed (stalled ones included)
     n_stalled: np.ndarray | None = None  # (n_A, n_B) runs stopped by the stall rule

@@ -273,7 +273,7 @@ def target_tasks(config: dict, model: dict, pedestrian: dict, widths_m, seeds) -
 
 
 def target_entry(values: dict, e) -> dict:
-    """An evaluation record of the target objective (``e``: a :class:`~crowd_env.analysis.targets.TargetError`)."""
+    """An evaluation record of the target objective (``e``: a :class:`~crowd_env.analysis.targets.TargetScore`)."""
     return {"values": values, "objective": e.objective, "epsilon_total": e.terms.get("epsilon_60", float("nan")),
             "terms": e.terms, "n_incomplete": e.n_incomplete, "n_stalled": e.n_stalled, "failed_point": e.failed,
             "capacity_ratio": {f"{b:g}": v for b, v in e.capacity_ratio.items()}, "figures": e.figures}

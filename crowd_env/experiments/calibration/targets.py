@@ -23,7 +23,7 @@ __all__ = ["preset_targets", "write_targets"]
 def preset_targets(out, configs: dict, widths_m, seeds, backend) -> tuple:
     """``configs``: preset name -> calibration configuration (:func:`~.tasks.base_config`). Runs what is
     missing under ``out/<name>`` and returns ``(tables, scores)``: per name the target table and the
-    :class:`~crowd_env.analysis.targets.TargetError`. A failed run raises (rerun to retry it)."""
+    :class:`~crowd_env.analysis.targets.TargetScore`. A failed run raises (rerun to retry it)."""
     tables, scores = {}, {}
     for name, config in configs.items():
         store = RunStore(Path(out) / name, config, keyed_by="task")
