@@ -19,7 +19,10 @@ Agents
     eikonal + social-force agent, :class:`crowd_env.walking.agent.SocialForceAgent`).
 
 Actions
-    A velocity intent ``(2,)`` in m/s (world frame) in ``Box(-a_max, a_max)``, ``a_max =
+    A velocity intent ``(2,)`` in m/s in ``Box(-a_max, a_max)`` (world frame, or the body frame with
+    ``observation_frame="egocentric"``: forward and left of the heading at the start of the
+    environment step, turned into the world frame once and held there for the ``frame_skip``
+    sub-steps), ``a_max =
     action_max_m_s`` (default 2.5 m/s, a brisk run; note that the calibrated baseline's intents include
     the social force and can exceed it in dense crowds, up to about 6.5 m/s at the Seyfried bottleneck).
     The intent drives the pedestrian through m (u_int − u)/τ; the desired heading θ_d of the heading
@@ -32,11 +35,34 @@ Actions
     as float64 without rounding.
 
 Observations
-    A float32 vector of ``7 + 5 k + R`` entries per agent (``k = n_neighbors``, ``R = n_rays``):
-    own velocity (2), heading (cos, sin) (2), e_d (2), remaining travel time T (1), the k nearest
-    neighbours' relative positions and velocities (4k, zero padded), their mask (k), wall distances
-    along R rays relative to the heading (R). Field by field: :mod:`crowd_env.envs.observations`
-    (``OBSERVATION_FIELDS``, :attr:`CrowdParallelEnv.observation_layout`).
+    A float32 vector per agent (``k = n_neighbors``, ``R = n_rays``), in the frame chosen by
+    ``observation_frame``:
+
+    ===========================  =======================================  =====================================
+    field                        ``"world"`` (default), 7 + 5k + R        ``"egocentric"``, 5 + 5k + R
+    ===========================  =======================================  =====================================
+    ``velocity`` (2)             (u_x, u_y), m/s                          (forward, left) of the heading, m/s
+    ``heading`` (2)              (cos θ, sin θ)                           left out (it is the frame)
+    ``desired_direction`` (2)    e_d (Eq. 13), unit vector                e_d in the body frame
+    ``travel_time`` (1)          T, s (the geodesic distance at 1 m/s)    same
+    ``neighbors`` (4k)           k nearest: Δx, Δy (m), Δu (m/s)          same, body frame
+    ``neighbor_mask`` (k)        1 real, 0 padding                        same
+    ``wall_rays`` (R)            wall distance along θ + 2πr/R, m         same
+    ===========================  =======================================  =====================================
+
+    Field by field: :mod:`crowd_env.envs.observations` (``OBSERVATION_FIELDS``,
+    ``EGOCENTRIC_OBSERVATION_FIELDS``, :attr:`CrowdParallelEnv.observation_layout`). In the egocentric
+    frame a rotated or shifted copy of the scenario gives the same observations, and the same actions
+    give the same (rotated) trajectories (``tests/envs/test_frames.py``).
+
+State
+    :meth:`CrowdParallelEnv.state` (PettingZoo's global state, for centralised critics): a float32
+    vector of ``11 N + 1 + 2 E`` entries (N pedestrians, E exits) in :attr:`CrowdParallelEnv.state_space`:
+    per pedestrian, controlled or not, present, controlled, position, velocity, heading (cos, sin),
+    e_d and T (zeros once it has left, so the size never changes); the episode fraction; the exits'
+    centres. World frame, or with ``observation_frame="egocentric"`` the scenario frame (origin at
+    the walkable area's centroid, x towards the first exit), which rotations and shifts of the
+    scenario carry along. Block by block: :mod:`crowd_env.envs.state`.
 
 Rewards
     Default :class:`~crowd_env.envs.rewards.DefaultReward`: progress along the travel-time field
@@ -90,8 +116,9 @@ from ..core.simulator import Simulator
 from ..core.angles import direction_angles_rad
 from ..scenarios import Scenario, make_scenario, scenario_options as _scenario_option_defaults
 from ..walking.agent import SocialForceAgent
-from .observations import OBSERVATION_FIELDS, ObservationBuilder
+from .observations import OBSERVATION_FIELDS, ObservationBuilder, check_frame, to_world_frame
 from .rewards import DefaultReward
+from .state import GlobalStateBuilder
 
 __all__ = ["CrowdParallelEnv", "parallel_env", "env", "EnvOptionError", "ResetOptionsWarning", "ENV_OPTIONS",
            "OBSERVATION_FIELDS", "DEFAULT_ACTION_MAX_M_S", "default_background_policy", "agent_id"]
@@ -198,6 +225,8 @@ class CrowdParallelEnv(ParallelEnv):
     - ``render_mode``: None, ``"human"`` or ``"rgb_array"``.
     - ``frame_skip``: simulator steps per environment step (decision interval frame_skip × dt; default 1).
     - ``heading_target``: ``"intent"`` (θ_d = angle of the action) or ``"desired_direction"`` (angle of e_d).
+    - ``observation_frame``: ``"world"`` (default) or ``"egocentric"`` (observations, actions and the
+      state in the body frame, resp. the scenario frame; see the module docstring).
     - ``reseed_scenario``: rebuild a named scenario with a seed drawn from the env's RNG at each reset,
       so that start positions vary with the seed (a few tens of ms per reset). Default None = auto: on
       for a named scenario whose factory takes a ``seed``, unless ``scenario_options`` pins ``seed``;
@@ -211,7 +240,7 @@ class CrowdParallelEnv(ParallelEnv):
     def __init__(self, *, scenario="seyfried_bottleneck", scenario_options=None, controlled="all",
                  background_policy=None, preset=None, params=None, max_steps=None, action_max_m_s=DEFAULT_ACTION_MAX_M_S,
                  n_neighbors=6, n_rays=8, neighbor_radius_m=4.0, ray_range_m=5.0, reward_fn=None, render_mode=None,
-                 frame_skip=1, heading_target="intent", reseed_scenario=None):
+                 frame_skip=1, heading_target="intent", observation_frame="world", reseed_scenario=None):
         # -- scenario
         if isinstance(scenario, Scenario):
             if scenario_options:
@@ -268,6 +297,7 @@ class CrowdParallelEnv(ParallelEnv):
         if heading_target not in ("intent", "desired_direction"):
             raise EnvOptionError(f"heading_target must be 'intent' or 'desired_direction', got {heading_target!r}")
         self.heading_target = heading_target
+        self.observation_frame = check_frame(observation_frame)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise EnvOptionError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         self.render_mode = render_mode
@@ -295,8 +325,13 @@ class CrowdParallelEnv(ParallelEnv):
         self._observer = ObservationBuilder(self.navigation, scenario.geometry.walls, n_neighbors=self.n_neighbors,
                                             n_rays=self.n_rays, neighbor_radius_m=neighbor_radius_m,
                                             ray_range_m=ray_range_m, velocity_bound_m_s=self.velocity_bound_m_s,
-                                            travel_time_bound_s=t_bound)
+                                            travel_time_bound_s=t_bound, frame=self.observation_frame)
         self.observation_layout = dict(self._observer.layout)
+        self._state_builder = GlobalStateBuilder(self.navigation, scenario.geometry, self._controlled_mask,
+                                                 frame=self.observation_frame,
+                                                 velocity_bound_m_s=self.velocity_bound_m_s, travel_time_bound_s=t_bound)
+        self.state_space = self._state_builder.space
+        self.state_layout = dict(self._state_builder.layout)
         a = np.float32(self.action_max_m_s)
         self._observation_spaces = {ag: spaces.Box(self._observer.low, self._observer.high, dtype=np.float32)
                                     for ag in self.possible_agents}
@@ -327,6 +362,13 @@ class CrowdParallelEnv(ParallelEnv):
             return self._action_spaces[agent]
         except KeyError:
             raise ActionError(f"unknown agent {agent!r}; agents are {self._ids_summary()}") from None
+
+    def state(self) -> np.ndarray:
+        """The global state (float32, :attr:`state_space`; see the module docstring and
+        :mod:`crowd_env.envs.state`). Raises :class:`~crowd_env.errors.EnvStateError` before :meth:`reset`."""
+        if self._sim is None:
+            raise EnvStateError("call reset() before state()")
+        return self._state_builder.build(self._sim.state, self._steps / self.max_steps)
 
     def _ids_summary(self) -> str:
         p = self.possible_agents
@@ -509,11 +551,34 @@ class CrowdParallelEnv(ParallelEnv):
                                  "over, call reset()")
             return {}, {}, {}, {}, {}
         intent_c = self._actions_array(actions)
+        agents = self.agents
+        obs, rewards, exited, truncated, info = self._advance(intent_c)
+        obs_d = dict(zip(agents, obs))
+        rew_d = dict(zip(agents, rewards.tolist()))
+        term_d = dict(zip(agents, exited.tolist()))
+        trunc_d = dict(zip(agents, truncated.tolist()))
+        info_d = {a: {"contact_percussion_kg_m_s": p, "n_contacts": c, "travel_time_s": t, "speed_m_s": v}
+                  for a, p, c, t, v in zip(agents, info["contact_percussion_kg_m_s"].tolist(),
+                                           info["n_contacts"].tolist(), info["travel_time_s"].tolist(),
+                                           info["speed_m_s"].tolist())}
+        if self.render_mode == "human":
+            self.render()
+        return obs_d, rew_d, term_d, trunc_d, info_d
+
+    def _advance(self, intent_c: np.ndarray):
+        """One environment step of the live agents with validated intents ``intent_c`` (n_live, 2) float64 in
+        ``self.agents`` order (in the action frame). Returns arrays in that order: ``(observations (n, D)
+        float32, rewards (n,), terminated (n,) bool, truncated (n,) bool, info)`` (``info``: the arrays of
+        :data:`~crowd_env.envs.rewards.REWARD_INFO_KEYS`); agents that ended leave ``self.agents``. The
+        dict API (:meth:`step`) and the vector environment both call it."""
         sim = self._sim
         st = sim.state
         n = st.n
         idx_c = self._agent_index
         agents = self.agents
+        if self.observation_frame == "egocentric":  # body frame at the decision -> world, held for the sub-steps
+            theta0 = st.heading_rad[idx_c]
+            intent_c = to_world_frame(intent_c, np.cos(theta0), np.sin(theta0))
         t_before = self._travel_time[idx_c]
         percussion = np.zeros(n)
         contacts = np.zeros(n, np.int64)
@@ -561,21 +626,12 @@ class CrowdParallelEnv(ParallelEnv):
                 "n_contacts": contacts[idx_c], "speed_m_s": speed, "exited": exited, "dt_s": self.dt_s}
         rewards = self._rewards(agents, info)
         truncated = (~exited) & (self._steps >= self.max_steps)
-        obs_d = dict(zip(agents, obs))
-        rew_d = dict(zip(agents, rewards.tolist()))
-        term_d = dict(zip(agents, exited.tolist()))
-        trunc_d = dict(zip(agents, truncated.tolist()))
-        info_d = {a: {"contact_percussion_kg_m_s": p, "n_contacts": c, "travel_time_s": t, "speed_m_s": s}
-                  for a, p, c, t, s in zip(agents, percussion[idx_c].tolist(), contacts[idx_c].tolist(),
-                                           t_after.tolist(), speed.tolist())}
         done = exited | truncated
         if done.any():
             keep = ~done
             self._agent_index = idx_c[keep]
             self.agents = [a for a, k in zip(agents, keep.tolist()) if k]
-        if self.render_mode == "human":
-            self.render()
-        return obs_d, rew_d, term_d, trunc_d, info_d
+        return obs, rewards, exited, truncated, info
 
     def _background(self, sim):
         out = self._background_policy(sim)

@@ -11,15 +11,16 @@ from crowd_env.errors import ScenarioError
 
 import inspect
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
 import shapely
+import shapely.affinity
 from scipy.spatial import cKDTree
 
 from ..core.geometry import Geometry, as_polygon
-from ..walking.navigation import DestinationNavigation, NavigationField
+from ..walking.navigation import DestinationNavigation, NavigationField, RigidlyMovedNavigation
 from ..core.params import ModelParams, PedestrianDefaults
 from ..core.simulator import Simulator
 from ..core.state import CrowdState, first_overlap
@@ -108,7 +109,9 @@ class Scenario:
     inside the walkable area without removing any wall), or pedestrians could walk out through it.
     ``navigation_clearance_m``: the eikonal field is solved on the walkable area minus this band
     along the walls (0: the paper's point field; the radius: the disk centres' configuration space;
-    see :class:`~crowd_env.walking.navigation.NavigationField`). Validated on construction.
+    see :class:`~crowd_env.walking.navigation.NavigationField`). ``navigation_field``: a prebuilt
+    navigation to use instead of solving Eq. 11-13 on the geometry (:meth:`moved` sets it). Validated
+    on construction.
     """
 
     geometry: Geometry
@@ -126,6 +129,7 @@ class Scenario:
     navigation_clearance_m: float = 0.0
     destination: object = None
     exit_names: tuple | None = None
+    navigation_field: object = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.geometry, Geometry):
@@ -241,7 +245,10 @@ class Scenario:
 
     def navigation(self):
         """The eikonal field (Eq. 11-13): a :class:`NavigationField` to the nearest exit without destinations,
-        else a :class:`DestinationNavigation` (one field per destination). Fields are cached per geometry."""
+        else a :class:`DestinationNavigation` (one field per destination). Fields are cached per geometry.
+        ``navigation_field``, when given, is returned as it is."""
+        if self.navigation_field is not None:
+            return self.navigation_field
         if self.destination is None:
             return self._field(None)
         if self._navigation is None:
@@ -252,6 +259,38 @@ class Scenario:
     def _field(self, exits) -> NavigationField:
         return NavigationField.cached(self.geometry, self.navigation_resolution_m, self.wall_slowdown,
                                       clearance_m=self.navigation_clearance_m, exits=exits)
+
+    def moved(self, rotation_rad: float, translation_m=(0.0, 0.0)) -> "Scenario":
+        """This scenario carried by the rigid motion p ↦ R(φ) p + t (φ = ``rotation_rad``, about the origin):
+        geometry, measurement lines and areas, start positions, headings (+ φ) and spawn area move; body-frame
+        quantities (link shoulders), pedestrian parameters and destinations stay. Its navigation is this
+        one's field moved along (:class:`~crowd_env.walking.navigation.RigidlyMovedNavigation`), not solved
+        anew, so the two are the same task to rounding: e.g. a corridor running north from one running east."""
+        phi = float(rotation_rad)
+        t = np.asarray(translation_m, dtype=np.float64).reshape(-1)
+        if not math.isfinite(phi) or t.shape != (2,) or not np.isfinite(t).all():
+            raise ScenarioError(f"moved() needs a finite rotation_rad and a finite (2,) translation_m, got {rotation_rad!r} "
+                                f"and {translation_m!r}")
+
+        def move(geom):
+            turned = shapely.affinity.rotate(geom, phi, origin=(0.0, 0.0), use_radians=True)
+            return shapely.affinity.translate(turned, float(t[0]), float(t[1]))
+
+        c, s_ = math.cos(phi), math.sin(phi)
+
+        def move_points(p):
+            p = np.asarray(p, dtype=np.float64).reshape(-1, 2)
+            return np.stack((c * p[:, 0] - s_ * p[:, 1] + t[0], s_ * p[:, 0] + c * p[:, 1] + t[1]), axis=1)
+
+        g = self.geometry
+        geometry = Geometry(move(g.walkable_area), [move(e) for e in g.exits],
+                            measurement_lines={k: move_points(v) for k, v in g.measurement_lines.items()},
+                            measurement_areas={k: move(v) for k, v in g.measurement_areas.items()}, name=g.name)
+        return replace(self, geometry=geometry, position_m=move_points(self.position_m),
+                       heading_rad=np.asarray(self.heading_rad, dtype=np.float64) + phi,
+                       spawn_area=None if self.spawn_area is None else move(self.spawn_area),
+                       destination=None if self.destination is None else np.array(self.destination),
+                       navigation_field=RigidlyMovedNavigation(self.navigation(), phi, t))
 
     def make_simulator(self, state: CrowdState | None = None, params: ModelParams | None = None,
                        rng: np.random.Generator | None = None) -> Simulator:

@@ -19,7 +19,7 @@ from scipy import ndimage
 from ..core.geometry import Geometry
 from ..core.segments import GeometryError
 
-__all__ = ["NavigationField", "DestinationNavigation", "GeometryError"]
+__all__ = ["NavigationField", "DestinationNavigation", "RigidlyMovedNavigation", "GeometryError"]
 
 
 @nb.njit(cache=True)
@@ -465,3 +465,57 @@ class DestinationNavigation:
             target = "any exit" if d < 0 else f"its destination exit {d}"
             raise GeometryError(f"{what} {i} at {pts[bad[0]].tolist()} cannot reach {target} "
                                 f"({bad.size} such point(s); the travel time is infinite there)")
+
+
+class RigidlyMovedNavigation:
+    """A navigation field carried along by a rigid motion p ↦ R(φ) p + t of its geometry.
+
+    Eq. 11-12 are invariant under rigid motions, so the moved field is the original one read at the
+    moved-back point, its e_d turned by φ: e_d'(p) = R(φ) e_d(R(−φ)(p − t)), T'(p) = T(R(−φ)(p − t)).
+    Unlike a field solved anew on the moved geometry, it keeps the original grid, so a moved scenario
+    is the same task to rounding (:meth:`crowd_env.scenarios.Scenario.moved`). ``base``: a
+    :class:`NavigationField` or :class:`DestinationNavigation`; queries take ``index`` as the base does.
+    """
+
+    def __init__(self, base, rotation_rad: float, translation_m=(0.0, 0.0)):
+        t = np.asarray(translation_m, dtype=np.float64).reshape(-1)
+        if t.shape != (2,) or not np.isfinite(t).all() or not np.isfinite(rotation_rad):
+            raise GeometryError(f"a rigid motion needs a finite angle and a finite (2,) translation, got "
+                                f"{rotation_rad!r} and {translation_m!r}")
+        self.base = base
+        self.rotation_rad = float(rotation_rad)
+        self.translation_m = t
+        self.cos, self.sin = float(np.cos(rotation_rad)), float(np.sin(rotation_rad))
+        self.per_pedestrian = bool(getattr(base, "per_pedestrian", False))
+
+    def _back(self, points) -> np.ndarray:
+        p = np.asarray(points, dtype=np.float64) - self.translation_m
+        return np.ascontiguousarray(np.stack((self.cos * p[:, 0] + self.sin * p[:, 1],
+                                              -self.sin * p[:, 0] + self.cos * p[:, 1]), axis=1))
+
+    def sample(self, points, index=None):
+        """e_d (n, 2) and T (n,) at ``points`` of the moved geometry."""
+        pts = np.asarray(points, dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 2:
+            raise GeometryError(f"points must have shape (N, 2), got {pts.shape}")
+        q = self._back(pts)
+        e, t = self.base.sample(q, index) if self.per_pedestrian else self.base.sample(q)
+        return np.stack((self.cos * e[:, 0] - self.sin * e[:, 1], self.sin * e[:, 0] + self.cos * e[:, 1]), axis=1), t
+
+    def direction(self, points, index=None) -> np.ndarray:
+        return self.sample(points, index)[0]
+
+    def travel_time(self, points, index=None) -> np.ndarray:
+        return self.sample(points, index)[1]
+
+    @property
+    def max_travel_time_s(self) -> float:
+        return self.base.max_travel_time_s
+
+    def check_reachable(self, points, index=None, what: str = "point") -> None:
+        """As the base field's, at the moved-back points."""
+        q = self._back(np.asarray(points, dtype=np.float64).reshape(-1, 2))
+        if self.per_pedestrian:
+            self.base.check_reachable(q, index, what=what)
+        else:
+            self.base.check_reachable(q, what=what)
