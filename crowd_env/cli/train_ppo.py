@@ -1,10 +1,10 @@
-"""Train one PPO policy shared by all controlled pedestrians (Stable-Baselines3 + SuperSuit).
+"""Train one PPO policy shared by all controlled pedestrians (Stable-Baselines3).
 
-The PettingZoo parallel environment is wrapped with ``supersuit.black_death_v3`` (agents that leave
-get zero observations and rewards until the episode ends), turned into a vector environment with one
-slot per agent (``pettingzoo_env_to_vec_env_v1``) and ``--copies`` copies of it concatenated
-(``concat_vec_envs_v1(..., base_class="stable_baselines3")``), so every pedestrian's experience trains
-the same network (:mod:`crowd_env.experiments.training`).
+Every controlled pedestrian of ``--copies`` environment copies is one slot of the native vector
+environment (``--vectoriser native``, default: :mod:`crowd_env.envs.vector`; agents that leave are
+padding until their copy resets), so every pedestrian's experience trains the same network
+(:mod:`crowd_env.experiments.training`). ``--vectoriser supersuit`` uses SuperSuit's
+``black_death_v3`` → ``pettingzoo_env_to_vec_env_v1`` → ``concat_vec_envs_v1`` chain instead.
 
 Outputs in ``--out``: ``model.zip`` (load with ``stable_baselines3.PPO.load`` or evaluate with
 ``crowd-evaluate --model``), ``env_config.json`` (the environment options, so that evaluation uses
@@ -23,6 +23,7 @@ complete files). A run killed midway continues with ``--resume`` from the latest
 streams restart from ``seed + t``). Without ``--resume`` a folder holding checkpoints is refused.
 
 Needs the ``train`` extra (``pip install 'crowd_env[train]'``: torch, Stable-Baselines3, SuperSuit).
+``--observation-frame egocentric`` trains in the pedestrians' body frames (:mod:`crowd_env.envs.crowd_v0`).
 The default problem is small: 10 pedestrians at the 1 m Seyfried bottleneck, decisions every 0.1 s,
 10 s episodes::
 
@@ -35,7 +36,7 @@ import importlib.util
 import sys
 
 from ..experiments.evaluation import import_object
-from ..experiments.training import DEFAULT_SCENARIO_OPTIONS, TrainingError, train
+from ..experiments.training import DEFAULT_SCENARIO_OPTIONS, VECTORISERS, TrainingError, train
 from ..errors import OptionError
 from .options import DEFAULT_POLICY_RESOLVER, key_values
 
@@ -51,7 +52,8 @@ def make_env_config(args) -> dict:
         options["width_m"] = args.width
     return {"scenario": args.scenario, "scenario_options": options, "controlled": "all",
             "frame_skip": args.frame_skip, "max_steps": args.max_steps, "n_neighbors": args.n_neighbors,
-            "n_rays": args.n_rays, "reseed_scenario": False if args.fixed_start else None}
+            "n_rays": args.n_rays, "reseed_scenario": False if args.fixed_start else None,
+            "observation_frame": args.observation_frame}
 
 
 def main(argv=None) -> int:
@@ -70,7 +72,11 @@ def main(argv=None) -> int:
     ap.add_argument("--fixed-start", action="store_true",
                     help="keep the scenario's start positions in every episode (default: new positions drawn "
                          "from the episode seed, see reseed_scenario)")
+    ap.add_argument("--observation-frame", choices=("world", "egocentric"), default="world",
+                    help="frame of observations and actions (default world)")
     ap.add_argument("--copies", type=int, default=2, help="environment copies concatenated")
+    ap.add_argument("--vectoriser", choices=VECTORISERS, default="native",
+                    help="native (crowd_env.envs.vector, default) or supersuit")
     ap.add_argument("--n-steps", type=int, default=256, help="PPO rollout length per agent slot")
     ap.add_argument("--batch-size", type=int, default=512)
     ap.add_argument("--n-epochs", type=int, default=10)
@@ -90,7 +96,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.checkpoint_every < 0:
         raise SystemExit("error: --checkpoint-every must be >= 0")
-    missing = [name for name in ("torch", "stable_baselines3", "supersuit") if importlib.util.find_spec(name) is None]
+    needed = ("torch", "stable_baselines3") + (("supersuit",) if args.vectoriser == "supersuit" else ())
+    missing = [name for name in needed if importlib.util.find_spec(name) is None]
     if missing:
         raise SystemExit(f"error: crowd-train-ppo needs the 'train' extra (missing: {', '.join(missing)}); "
                          "pip install 'crowd_env[train]'")
@@ -104,7 +111,7 @@ def main(argv=None) -> int:
                         n_steps=args.n_steps, batch_size=args.batch_size, n_epochs=args.n_epochs,
                         learning_rate=args.learning_rate, gamma=args.gamma, eval_seeds=args.eval_seeds,
                         threads=args.threads, verbose=args.verbose, checkpoint_every=args.checkpoint_every,
-                        resume=args.resume)
+                        resume=args.resume, vectoriser=args.vectoriser)
     except TrainingError as exc:
         raise SystemExit(f"error: {exc}") from None
     print(f"mean per-agent episode return: random {summary['random']['mean_return']:.3f} -> trained "

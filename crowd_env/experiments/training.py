@@ -1,13 +1,16 @@
-"""Training one PPO policy shared by all controlled pedestrians (Stable-Baselines3 + SuperSuit).
+"""Training one PPO policy shared by all controlled pedestrians (Stable-Baselines3).
 
-The PettingZoo parallel environment of the Kabalan et al. (2016) model is wrapped with
-``supersuit.black_death_v3`` (agents that leave get zero observations and rewards until the episode
-ends), turned into a vector environment with one slot per agent (``pettingzoo_env_to_vec_env_v1``) and
-``copies`` copies of it concatenated (``concat_vec_envs_v1(..., base_class="stable_baselines3")``), so
-every pedestrian's experience trains the same network. :func:`train` writes ``model.zip``,
+Every controlled pedestrian of ``copies`` copies of the PettingZoo environment of the Kabalan et al.
+(2016) model is one slot of a vector environment, so every pedestrian's experience trains the same
+network. ``vectoriser="native"`` (default) uses the project's own
+:class:`~crowd_env.envs.sb3.CrowdSB3VecEnv` (arrays, agents that leave become padding slots until their
+copy resets, see :mod:`crowd_env.envs.vector`); ``"supersuit"`` the SuperSuit chain
+``black_death_v3`` → ``pettingzoo_env_to_vec_env_v1`` → ``concat_vec_envs_v1(..., base_class=
+"stable_baselines3")`` with a ``VecMonitor``, kept for comparison (``tests/experiments/test_training.py``
+trains both). :func:`train` writes ``model.zip``,
 ``env_config.json``, ``learning_curve.csv`` / ``.png``, ``summary.json`` (mean per-agent episode return
 of a random policy and of the trained one on the same evaluation seeds) and resumable checkpoints
-(``checkpoints/``, indexed last and atomically). Needs the ``train`` extra (torch, SB3, SuperSuit),
+(``checkpoints/``, indexed last and atomically). Needs the ``train`` extra (torch, SB3; SuperSuit for its vectoriser),
 imported inside the functions that use it. Command line: ``crowd-train-ppo``.
 """
 from __future__ import annotations
@@ -29,10 +32,17 @@ __all__ = ["DEFAULT_SCENARIO_OPTIONS", "TrainingError", "make_vec_env", "mean_re
            "save_checkpoint", "check_resume", "train", "write_curve"]
 
 DEFAULT_SCENARIO_OPTIONS = {"width_m": 1.0, "n_pedestrians": 10}
+VECTORISERS = ("native", "supersuit")
 
 
-def make_vec_env(env_config: dict, copies: int = 1, seed: int | None = None):
-    """SB3 VecEnv (with VecMonitor) over all controlled agents of ``copies`` environments."""
+def make_vec_env(env_config: dict, copies: int = 1, seed: int | None = None, vectoriser: str = "native"):
+    """SB3 VecEnv over all controlled agents of ``copies`` environments (copy i seeded ``seed + i``)."""
+    if vectoriser not in VECTORISERS:
+        raise TrainingError(f"unknown vectoriser {vectoriser!r}; choose one of {VECTORISERS}")
+    if vectoriser == "native":
+        from ..envs.sb3 import sb3_vec_env
+
+        return sb3_vec_env(copies, seed=seed, **env_config)
     import supersuit as ss
     from stable_baselines3.common.vec_env import VecMonitor
 
@@ -120,7 +130,7 @@ def check_resume(out: str, env_config: dict, resume: bool) -> list:
 def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0, copies: int = 2, n_steps: int = 256,
           batch_size: int = 512, n_epochs: int = 10, learning_rate: float = 3e-4, gamma: float = 0.99,
           eval_seeds=(1000, 1001, 1002), threads: int = 1, verbose: int = 0, checkpoint_every: int = 10_000,
-          resume: bool = False, progress=print) -> dict:
+          resume: bool = False, vectoriser: str = "native", progress=print) -> dict:
     """Train, save and evaluate; returns the summary dict (also written to ``out/summary.json``).
 
     ``resolve(spec, name=None) -> policy`` makes the policies the summary compares
@@ -129,6 +139,7 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
 
     ``checkpoint_every`` timesteps (0: only at the end) a checkpoint is saved under ``out/checkpoints``;
     ``resume`` continues from the latest one up to ``timesteps`` in all (see the module docstring).
+    ``vectoriser``: ``"native"`` or ``"supersuit"`` (see the module docstring).
     """
     import torch
     from stable_baselines3 import PPO
@@ -157,7 +168,7 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
 
     start = entries[-1]["timesteps"] if entries else 0
     set_random_seed(seed + start)  # python, numpy, torch
-    vec = make_vec_env(env_config, copies, seed + start)
+    vec = make_vec_env(env_config, copies, seed + start, vectoriser)
     curve = []
 
     class Curve(BaseCallback):
@@ -214,7 +225,7 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
     summary = {"timesteps": int(model.num_timesteps), "resumed_from_timesteps": start, "train_wall_s": train_s,
                "total_wall_s": time.perf_counter() - t0, "random": before, "trained": after,
                "improvement": after["mean_return"] - before["mean_return"], "env_config": env_config,
-               "eval_seeds": list(eval_seeds), "seed": seed, "copies": copies,
+               "eval_seeds": list(eval_seeds), "seed": seed, "copies": copies, "vectoriser": vectoriser,
                "ppo": {"n_steps": n_steps, "batch_size": batch_size, "n_epochs": n_epochs,
                        "learning_rate": learning_rate, "gamma": gamma}}
     with open(os.path.join(out, "summary.json"), "w") as fh:

@@ -1,4 +1,5 @@
-"""Training pipeline (SuperSuit + SB3 PPO): agent deaths in the vector pipeline, a smoke training whose model
+"""Training pipeline (SB3 PPO on the native vector env or SuperSuit): agent deaths in the SuperSuit pipeline, the two
+vectorisers training to comparable returns, a smoke training whose model
 runs through the evaluation harness and command, and SB3Policy's check of the observations. (The harness
 alone: tests/experiments/test_evaluation.py.)"""
 import json
@@ -88,3 +89,19 @@ def test_sb3_policy_rejects_mismatched_observations(tmp_path):
     with pytest.raises(ValueError, match="expects observations of shape"):
         run_episode(SB3Policy(model), ScenarioSpec("seyfried_bottleneck", {"n_pedestrians": 6}), 0,
                     env_options={"n_neighbors": 6}, max_time_s=0.5)
+
+
+def test_native_and_supersuit_vectorisers_train_to_comparable_returns(tmp_path):
+    """The same PPO on the same problem through either vectoriser: both learn (seed-mean evaluation return far
+    above the random policy's) and end within 1.5 of each other (measured: native 2.9, SuperSuit 3.6, random
+    -4.6 over seeds 0-2 at 60k timesteps, about 6 s per run)."""
+    cfg = {**TINY, "scenario_options": {"n_pedestrians": 10, "width_m": 1.0}, "max_steps": 100}
+    means = {}
+    for vectoriser in ("native", "supersuit"):
+        runs = [train(cfg, timesteps=60_000, out=str(tmp_path / f"{vectoriser}_{seed}"), resolve=as_policy, seed=seed,
+                      copies=2, n_steps=128, batch_size=256, n_epochs=5, eval_seeds=(1000, 1001, 1002),
+                      vectoriser=vectoriser, progress=lambda *a: None) for seed in (0, 1, 2)]
+        random_return = runs[0]["random"]["mean_return"]
+        means[vectoriser] = float(np.mean([r["trained"]["mean_return"] for r in runs]))
+        assert means[vectoriser] > random_return + 5.0, (vectoriser, means[vectoriser], random_return)
+    assert abs(means["native"] - means["supersuit"]) < 1.5, means

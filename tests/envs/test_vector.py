@@ -1,0 +1,145 @@
+"""The native vector environment against the PettingZoo environment it batches.
+
+Copy c of ``vector_env(K, **options)`` reset with seed s must give exactly what
+``crowd_v0.parallel_env(**options)`` reset with seed s + c gives for the same actions (observations,
+rewards, terminations, truncations), through agents leaving, padding slots and automatic resets; plus
+the SB3 and TorchRL views, and the errors for bad input.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from crowd_env.envs import crowd_v0
+from crowd_env.envs.vector import CrowdVectorEnv, vector_env
+from crowd_env.errors import ActionError, EnvOptionError, EnvStateError
+
+OPTIONS = {"scenario": "seyfried_bottleneck", "scenario_options": {"width_m": 1.0, "n_pedestrians": 5},
+           "frame_skip": 10, "max_steps": 100, "controlled": 4}
+
+
+def _walk(obs_rows, layout, rng, scale=1.6):
+    """Walk along e_d with some noise (so some agents leave early, others are truncated)."""
+    e_d = obs_rows[:, layout["desired_direction"]].astype(np.float64)
+    return np.clip(scale * e_d + rng.normal(0.0, 0.5, e_d.shape), -2.5, 2.5)
+
+
+def test_each_copy_matches_the_pettingzoo_env_on_its_seed_through_deaths_and_resets():
+    K, seed = 3, 11
+    vec = vector_env(K, **OPTIONS)
+    refs = [crowd_v0.parallel_env(**OPTIONS) for _ in range(K)]
+    A = vec.n_agents
+    obs, infos = vec.reset(seed=seed)
+    ref_obs = [r.reset(seed=seed + c)[0] for c, r in enumerate(refs)]
+    layout = refs[0].observation_layout
+    rng = np.random.default_rng(0)
+    episodes_done = np.zeros(K, int)
+    returns = np.zeros((K, A))
+    saw_padding = False
+    for _ in range(260):
+        for c, r in enumerate(refs):  # the vector's observations are the reference's (zeros for padding)
+            for a_pos, agent in enumerate(r.possible_agents):
+                row = obs[c * A + a_pos]
+                if agent in ref_obs[c] and infos["alive"][c * A + a_pos]:
+                    np.testing.assert_array_equal(row, ref_obs[c][agent])
+                else:
+                    assert not row.any()
+        actions = _walk(obs, layout, rng)
+        actions[~infos["alive"]] = np.nan  # padding slots' actions are ignored, whatever they are
+        obs, rew, term, trunc, infos = vec.step(actions)
+        saw_padding |= bool((~infos["alive"]).any() and not (term | trunc)[~infos["alive"]].all())
+        for c, r in enumerate(refs):
+            live = list(r.agents)
+            acts = {a: actions[c * A + r.possible_agents.index(a)] for a in live}
+            o, rr, te, tr, _ = r.step(acts)
+            for a in live:
+                i = c * A + r.possible_agents.index(a)
+                assert rew[i] == rr[a] and term[i] == te[a] and trunc[i] == tr[a]
+                returns[c, r.possible_agents.index(a)] += rr[a]
+                if te[a] or tr[a]:
+                    np.testing.assert_array_equal(infos["final_obs"][i], o[a])
+                    assert infos["_final_obs"][i] and infos["episode_ended"][i]
+                    assert infos["episode_return"][i] == pytest.approx(returns[c, r.possible_agents.index(a)])
+                    returns[c, r.possible_agents.index(a)] = 0.0
+            slots = np.arange(c * A, (c + 1) * A)
+            padding = slots[~infos["acted"][slots]]
+            assert not rew[padding].any()
+            if not r.agents:  # the copy reset in the same step; so does the reference
+                episodes_done[c] += 1
+                assert term[padding].all() and not infos["episode_ended"][padding].any()
+                assert infos["alive"][slots].all()
+                ref_obs[c] = r.reset()[0]
+            else:
+                assert not (term | trunc)[padding].any()
+                ref_obs[c] = o
+    assert (episodes_done >= 2).all() and saw_padding
+
+
+def test_vector_state_and_spaces():
+    vec = vector_env(2, **OPTIONS)
+    with pytest.raises(EnvStateError, match="reset\\(\\) before step\\(\\)"):
+        vec.step(np.zeros((vec.num_envs, 2)))
+    obs, _ = vec.reset(seed=0)
+    assert vec.num_envs == 2 * 4 and obs.shape == vec.observation_space.shape and obs.dtype == np.float32
+    st = vec.state()
+    assert st.shape == (2,) + vec.single_state_space.shape
+    np.testing.assert_array_equal(st[vec.slot_copy][4], st[1])
+
+
+def test_bad_actions_and_mismatched_copies_are_refused_by_name():
+    vec = vector_env(2, **OPTIONS)
+    vec.reset(seed=0)
+    with pytest.raises(ActionError, match=r"shape \(8, 2\)"):
+        vec.step(np.zeros((7, 2)))
+    bad = np.zeros((8, 2))
+    bad[3, 0] = np.nan
+    with pytest.raises(ActionError, match=r"non-finite action\(s\) in live slot\(s\) \[3\]"):
+        vec.step(bad)
+    bad[3, 0] = 9.0
+    with pytest.raises(ActionError, match=r"slot\(s\) \[3\] outside the action space"):
+        vec.step(bad)
+    with pytest.raises(EnvOptionError, match="copy 1 does not match copy 0: its observation space"):
+        CrowdVectorEnv([crowd_v0.parallel_env(**OPTIONS), crowd_v0.parallel_env(**OPTIONS, n_neighbors=2)])
+    with pytest.raises(EnvOptionError, match="copy 1 does not match copy 0: its number of agents"):
+        CrowdVectorEnv([crowd_v0.parallel_env(**OPTIONS), crowd_v0.parallel_env(**{**OPTIONS, "controlled": 2})])
+    with pytest.raises(EnvOptionError, match="copies must be an integer >= 1"):
+        vector_env(0, **OPTIONS)
+    with pytest.raises(EnvOptionError, match="one seed per copy"):
+        vec.reset(seed=[1, 2, 3])
+
+
+def test_sb3_view_reports_agent_episodes_and_trains():
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+
+    from crowd_env.envs.sb3 import sb3_vec_env
+
+    vec = sb3_vec_env(2, seed=3, **{**OPTIONS, "max_steps": 15})
+    obs = vec.reset()
+    assert obs.shape == (8, vec.observation_space.shape[0])
+    n_agent_episodes = n_done = 0
+    for _ in range(40):
+        vec.step_async(np.tile([1.0, 0.0], (8, 1)))
+        obs, rew, dones, infos = vec.step_wait()
+        n_done += int(dones.sum())
+        n_agent_episodes += sum("episode" in i for i in infos)
+        for i in np.flatnonzero(dones):
+            assert "terminal_observation" in infos[i] and "TimeLimit.truncated" in infos[i]
+    # nobody reaches the exit in 1.5 s: every agent is truncated at steps 15 and 30, copies reset, no padding
+    assert n_agent_episodes == n_done == 2 * 4 * 2
+    model = PPO("MlpPolicy", vec, n_steps=32, batch_size=64, n_epochs=1, device="cpu")
+    model.learn(256)
+    assert model.num_timesteps >= 256 and len(model.ep_info_buffer) > 0
+
+
+def test_torchrl_wraps_the_vector_env():
+    pytest.importorskip("torchrl")
+    from torchrl.envs import GymWrapper
+
+    vec = vector_env(2, **{**OPTIONS, "max_steps": 10})
+    env = GymWrapper(vec, device="cpu")
+    assert tuple(env.batch_size) == (8,)
+    td = env.rollout(25, break_when_any_done=False)
+    assert tuple(td.shape) == (8, 25)
+    assert td["next", "done"].sum().item() >= 8  # every slot ended at least one episode (max_steps 10)
+    assert td["next", "alive"].dtype.is_floating_point is False
