@@ -13,18 +13,25 @@ per-agent return.
     crowd-evaluate --seeds 0 1 2 --widths 1.0 1.6 --scenario-option n_pedestrians=20
     crowd-evaluate --model runs/ppo/model.zip --policies baseline random --out runs/eval
     crowd-evaluate --policies baseline mypackage.policies:MyPolicy
+    crowd-evaluate --policies baseline random --seeds 0 --video runs/eval/episode.mp4
+
+--video PATH (.mp4 or .gif) records the first episode of each policy (the first scenario, e.g. the first
+--widths value, with the first of --seeds) into PATH with the policy's label added to the name
+(runs/eval/episode-baseline.mp4, ...), as crowd-video rollout draws it: learned pedestrians blue,
+background grey, headings, contact percussions. It plays in real time unless --video-fps and
+--video-every say otherwise (see crowd-video --help).
 """
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 
 from ..experiments.evaluation import (ScenarioSpec, evaluate, format_table, import_object, plot_results,
                                       resolve_policy, summarize, write_csv)
-from ..errors import OptionError
-from .options import DEFAULT_POLICY_RESOLVER, key_values
+from ..experiments.video import per_policy
+from ..errors import CrowdEnvError, InputError, OptionError, PolicyError, ScenarioError
+from .options import DEFAULT_POLICY_RESOLVER, key_values, policy_env_options
 
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="crowd-evaluate", description=__doc__,
@@ -45,30 +52,20 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--frame-skip", type=int, default=None, help="decision interval in simulator steps "
                     "(default: the model's env_config.json, else 1)")
     ap.add_argument("--out", default="runs/eval", help="output directory (results.csv, summary.txt, metrics.png)")
+    ap.add_argument("--video", default=None, metavar="PATH",
+                    help="record the first episode (first scenario, first seed) of each policy to PATH (.mp4 or "
+                         ".gif) with the policy's label added to the name: runs/v.mp4 -> runs/v-baseline.mp4, ...")
+    ap.add_argument("--video-fps", type=float, default=None, metavar="FPS",
+                    help="frames per second of the videos (default: real time, at most 25; see crowd-video --help)")
+    ap.add_argument("--video-every", type=int, default=None, metavar="K",
+                    help="a video frame every K environment steps (default: from --video-fps, real time)")
     return ap
 
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
 
-    env_options = {}
-    if args.model:
-        cfg_path = os.path.join(os.path.dirname(os.path.abspath(args.model[0])), "env_config.json")
-        if os.path.exists(cfg_path):
-            with open(cfg_path) as fh:
-                cfg = json.load(fh)
-            for key in ("n_neighbors", "n_rays", "frame_skip", "heading_target", "params"):
-                if key in cfg:
-                    env_options[key] = cfg[key]
-    if args.frame_skip is not None:
-        env_options["frame_skip"] = args.frame_skip
-    controlled = args.controlled
-    if controlled != "all":
-        try:
-            controlled = json.loads(controlled)
-        except json.JSONDecodeError:
-            controlled = controlled.split(",")
-    env_options["controlled"] = controlled
+    env_options = policy_env_options(args.model[0] if args.model else None, args.frame_skip, args.controlled)
 
     try:
         options = key_values(args.scenario_option, "--scenario-option needs key=value")
@@ -91,9 +88,21 @@ def main(argv=None) -> int:
             policies[label] = p
     except (ImportError, ValueError, TypeError) as exc:
         raise SystemExit(f"error: {exc}") from None
+    videos = []
+    video = None
+    if args.video:
+        os.makedirs(os.path.dirname(os.path.abspath(args.video)), exist_ok=True)
+        try:
+            video = per_policy(args.video, fps=args.video_fps, every=args.video_every, written=videos)
+        except CrowdEnvError as exc:
+            raise SystemExit(f"error: --video: {exc}") from None
 
     print(f"environment options: {env_options}; seeds {args.seeds}; at most {args.max_time:g} s simulated")
-    results = evaluate(policies, scenarios, args.seeds, env_options=env_options, max_time_s=args.max_time)
+    try:
+        results = evaluate(policies, scenarios, args.seeds, env_options=env_options, max_time_s=args.max_time,
+                           video=video)
+    except (InputError, OptionError, PolicyError, ScenarioError) as exc:  # bad input met at run time
+        raise SystemExit(f"error: {exc}") from None
     table = format_table(summarize(results))
     print()
     print(table)
@@ -103,6 +112,10 @@ def main(argv=None) -> int:
         fh.write(table + "\n")
     plot_results(results, os.path.join(args.out, "metrics.png"))
     print(f"\nwrote {args.out}/results.csv, summary.txt, metrics.png")
+    for rec in videos:
+        i = rec.info
+        print(f"wrote {i.path}: {i.n_frames} frames at {i.fps:g} fps, one per {i.frame_interval_s:g} s simulated "
+              f"(x{i.speed:g} real time)")
     return 0
 
 

@@ -1,9 +1,12 @@
 """Command-line options shared by the commands: the Seyfried geometry and navigation flags and the model
 configuration they describe (``crowd-bottleneck``, ``crowd-calibrate``), ``KEY=VALUE`` lists (``--param``,
-``--scenario-option``) and the default policy resolver (``crowd-evaluate``, ``crowd-train-ppo``)."""
+``--scenario-option``), the default policy resolver (``crowd-evaluate``, ``crowd-train-ppo``, ``crowd-video``)
+and the environment options of a policy run (``--controlled``, ``--frame-skip``, a saved model's
+``env_config.json``: ``crowd-evaluate``, ``crowd-video``)."""
 from __future__ import annotations
 
 import json
+import os
 
 from ..core.params import ModelParams
 from ..errors import OptionError
@@ -11,7 +14,7 @@ from ..core.presets import DEFAULT_PRESET, get_preset
 from ..experiments.bottleneck import GEOMETRY_OPTIONS, bottleneck_config, model_params
 
 __all__ = ["add_geometry_arguments", "model_params_from_args", "navigation_clearance_from_args", "config_of",
-           "DEFAULT_POLICY_RESOLVER", "key_values"]
+           "DEFAULT_POLICY_RESOLVER", "key_values", "policy_env_options", "MODEL_ENV_KEYS"]
 
 # Names and saved models are turned into policies by the shipped baselines, reached by import path so that
 # crowd_env never imports baselines.
@@ -30,6 +33,32 @@ def key_values(items, usage: str) -> dict:
             out[key] = json.loads(value)
         except json.JSONDecodeError:
             out[key] = value
+    return out
+
+
+MODEL_ENV_KEYS = ("n_neighbors", "n_rays", "frame_skip", "heading_target", "params")
+
+
+def policy_env_options(model_path=None, frame_skip=None, controlled="all") -> dict:
+    """Environment options of a policy run: the :data:`MODEL_ENV_KEYS` of the ``env_config.json`` beside the
+    saved model ``model_path`` (when there is one; the observation layout and decision interval it was
+    trained with), ``frame_skip`` when given (wins), and ``controlled`` ("all", or JSON such as a count, a
+    fraction or a list of ids, or comma-separated ids)."""
+    out = {}
+    if model_path:
+        cfg_path = os.path.join(os.path.dirname(os.path.abspath(model_path)), "env_config.json")
+        if os.path.exists(cfg_path):
+            with open(cfg_path) as fh:
+                cfg = json.load(fh)
+            out.update({key: cfg[key] for key in MODEL_ENV_KEYS if key in cfg})
+    if frame_skip is not None:
+        out["frame_skip"] = frame_skip
+    if controlled != "all":
+        try:
+            controlled = json.loads(controlled)
+        except json.JSONDecodeError:
+            controlled = controlled.split(",")
+    out["controlled"] = controlled
     return out
 
 

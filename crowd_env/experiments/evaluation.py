@@ -214,7 +214,7 @@ class _Probe:
 
 def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", seed: int = 0, *,
                 env_options: dict | None = None, max_time_s: float = 90.0, line: str | None = None,
-                resolve=None) -> EpisodeMetrics:
+                resolve=None, video=None) -> EpisodeMetrics:
     """Run one episode of ``policy`` on ``scenario`` with ``seed``; see the module docstring for the metrics.
 
     ``policy``: a policy object, or a spec :func:`resolve_policy` turns into one (with ``resolve``).
@@ -224,6 +224,11 @@ def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", se
 
     ``env_options`` go to :class:`~crowd_env.envs.crowd_v0.CrowdParallelEnv` (``controlled`` defaults to
     ``"all"``); the policy's ``env_overrides`` win over them; ``max_steps`` is set from ``max_time_s``.
+
+    ``video``: None, or a recorder (e.g. :class:`crowd_env.experiments.video.RolloutVideo`) whose
+    ``begin(env)`` is called after the reset, ``after_step(env)`` after every environment step and
+    ``end(env, completed)`` at the end (``completed`` False when the episode raised); it only reads the
+    environment, so the metrics are the same with or without it.
     """
     policy = resolve_policy(policy, resolve=resolve)
     spec = scenario if isinstance(scenario, ScenarioSpec) else ScenarioSpec(scenario)
@@ -238,11 +243,21 @@ def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", se
     probe = _Probe(env, line)
     env.substep_hooks.append(probe)
     returns = dict.fromkeys(env.possible_agents, 0.0)
-    while env.agents:
-        actions = policy.act(env, obs)
-        obs, rewards, _, _, _ = env.step(actions)
-        for a, r in rewards.items():
-            returns[a] += r
+    if video is not None:
+        video.begin(env)
+    completed = False
+    try:
+        while env.agents:
+            actions = policy.act(env, obs)
+            obs, rewards, _, _, _ = env.step(actions)
+            for a, r in rewards.items():
+                returns[a] += r
+            if video is not None:
+                video.after_step(env)
+        completed = True
+    finally:
+        if video is not None:
+            video.end(env, completed)
     env.substep_hooks.remove(probe)
     n = env.n_pedestrians
     n_out = int(np.count_nonzero(~env.sim.state.active))
@@ -271,19 +286,26 @@ def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", se
 
 
 def evaluate(policies, scenarios=("seyfried_bottleneck",), seeds=(0, 1, 2), *, env_options: dict | None = None,
-             max_time_s: float = 90.0, line: str | None = None, progress=print, resolve=None) -> list:
+             max_time_s: float = 90.0, line: str | None = None, progress=print, resolve=None, video=None) -> list:
     """Every policy x scenario x seed; ``policies``: a list of policies (or specs) or a dict label -> policy
     (or spec), specs turned into policies by :func:`resolve_policy` (with ``resolve``); ``scenarios``:
-    :class:`ScenarioSpec` objects, registered names or ``(name, options)`` pairs."""
+    :class:`ScenarioSpec` objects, registered names or ``(name, options)`` pairs.
+
+    ``video``: None, or a callable ``video(policy_label) -> recorder`` (e.g.
+    :func:`crowd_env.experiments.video.per_policy`) giving the recorder (see :func:`run_episode`) of the
+    first episode of each policy: its first scenario with its first seed."""
     items = list(policies.items()) if isinstance(policies, dict) else [(None, p) for p in policies]
     specs = [s if isinstance(s, ScenarioSpec) else ScenarioSpec(*s) if isinstance(s, tuple) else ScenarioSpec(s)
              for s in scenarios]
     results = []
     for label, p in items:
         pol = resolve_policy(p, name=label, resolve=resolve)
+        recorder = None if video is None else video(getattr(pol, "name", type(pol).__name__))
         for spec in specs:
             for seed in seeds:
-                r = run_episode(pol, spec, seed, env_options=env_options, max_time_s=max_time_s, line=line)
+                r = run_episode(pol, spec, seed, env_options=env_options, max_time_s=max_time_s, line=line,
+                                video=recorder)
+                recorder = None  # only the first episode of each policy
                 results.append(r)
                 if progress is not None:
                     progress(f"  {r.policy:>12s} | {r.scenario} | seed {seed}: J_s {r.specific_flow_per_m_s:.3f}, "
