@@ -347,6 +347,12 @@ class CrowdParallelEnv(ParallelEnv):
         self._travel_time = np.full(n, np.nan)
         self._renderer = None
         self.substep_hooks = []
+        self._percussions = None
+        if render_mode is not None:  # frames show the contact percussions of the steps since the last frame
+            from .rendering import ContactPercussions
+
+            self._percussions = ContactPercussions()
+            self.substep_hooks.append(self._percussions)
 
     # ------------------------------------------------------------------ spaces
     def observation_space(self, agent):
@@ -484,6 +490,8 @@ class CrowdParallelEnv(ParallelEnv):
         if self._background_policy is None and not self._controlled_mask.all():
             self._background_policy = default_background_policy(self._scenario)
         self._steps = 0
+        if self._percussions is not None:
+            self._percussions.take()  # nothing of the last episode on the first frame
         self.agents = self.possible_agents[:]
         self._agent_index = self._controlled_index.copy()
         obs, travel = self._observer.build(state, self._agent_index)
@@ -679,7 +687,7 @@ class CrowdParallelEnv(ParallelEnv):
 
             self._renderer = CrowdRenderer(self._scenario.geometry, self._controlled_mask, self.render_mode,
                                            fps=self.metadata["render_fps"])
-        return self._renderer.draw(self._sim.state, self._sim.time_s, len(self.agents))
+        return self._renderer.draw(self._sim.state, self._sim.time_s, len(self.agents), contacts=self._percussions.take())
 
     def close(self):
         if self._renderer is not None:

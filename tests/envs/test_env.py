@@ -482,3 +482,23 @@ def test_registration_is_lazy_and_complete():
     code = ("import sys, crowd_env; assert 'gymnasium' not in sys.modules; import gymnasium; "
             "assert 'crowd_env/Bottleneck-v0' in gymnasium.registry")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_render_shows_the_contact_percussions_of_the_last_step():
+    """env.render() draws the percussions of the sub-steps since the previous frame (crowd_env.envs.rendering)."""
+    env = crowd_v0.parallel_env(scenario="seyfried_bottleneck", scenario_options={"width_m": 0.8, "n_pedestrians": 20},
+                                frame_skip=5, render_mode="rgb_array")
+    obs, _ = env.reset(seed=0)
+    ed = env.observation_layout["desired_direction"]
+    env.render()
+    for _ in range(200):
+        obs, _, _, _, infos = env.step({a: np.clip(2.4 * obs[a][ed], -2.5, 2.5) for a in env.agents})
+        if sum(i["contact_percussion_kg_m_s"] for i in infos.values()) > 5.0:
+            break
+    else:
+        pytest.fail("no contact in 200 steps of a crowd pushing into a 0.8 m bottleneck")
+    with_contacts = env.render()
+    without = env._renderer.draw(env.sim.state, env.sim.time_s, len(env.agents))  # same state, no percussions
+    assert with_contacts.shape == without.shape
+    assert (np.abs(with_contacts.astype(int) - without.astype(int)).sum(axis=2) > 60).sum() > 20
+    np.testing.assert_array_equal(env.render(), without)  # taken: the next frame has none until the next step
