@@ -400,7 +400,19 @@ class NavigationField:
                                 f"({bad.size} such point(s); the travel time is infinite there)")
 
 
-class DestinationNavigation:
+class _IndexedQueries:
+    """``direction`` and ``travel_time`` of a field whose queries take the pedestrians' ``index``."""
+
+    def direction(self, points, index=None) -> np.ndarray:
+        """Desired directions e_d (n, 2) only."""
+        return self.sample(points, index)[0]
+
+    def travel_time(self, points, index=None) -> np.ndarray:
+        """Travel times T (n,) in s only."""
+        return self.sample(points, index)[1]
+
+
+class DestinationNavigation(_IndexedQueries):
     """Per-pedestrian destinations: pedestrian i follows the field of exit ``destination[i]`` (Eq. 11-13
     with T = 0 on that exit only), or of all exits where ``destination[i] = -1``.
 
@@ -444,12 +456,6 @@ class DestinationNavigation:
             out_dir[sel], out_time[sel] = self.fields[int(d)].sample(pts[sel])
         return out_dir, out_time
 
-    def direction(self, points, index=None) -> np.ndarray:
-        return self.sample(points, index)[0]
-
-    def travel_time(self, points, index=None) -> np.ndarray:
-        return self.sample(points, index)[1]
-
     @property
     def max_travel_time_s(self) -> float:
         return max(f.max_travel_time_s for f in self.fields.values())
@@ -467,7 +473,7 @@ class DestinationNavigation:
                                 f"({bad.size} such point(s); the travel time is infinite there)")
 
 
-class RigidlyMovedNavigation:
+class RigidlyMovedNavigation(_IndexedQueries):
     """A navigation field carried along by a rigid motion p ↦ R(φ) p + t of its geometry.
 
     Eq. 11-12 are invariant under rigid motions, so the moved field is the original one read at the
@@ -501,12 +507,6 @@ class RigidlyMovedNavigation:
         q = self._back(pts)
         e, t = self.base.sample(q, index) if self.per_pedestrian else self.base.sample(q)
         return np.stack((self.cos * e[:, 0] - self.sin * e[:, 1], self.sin * e[:, 0] + self.cos * e[:, 1]), axis=1), t
-
-    def direction(self, points, index=None) -> np.ndarray:
-        return self.sample(points, index)[0]
-
-    def travel_time(self, points, index=None) -> np.ndarray:
-        return self.sample(points, index)[1]
 
     @property
     def max_travel_time_s(self) -> float:
