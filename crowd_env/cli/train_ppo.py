@@ -36,44 +36,16 @@ import importlib.util
 import sys
 
 from ..experiments.evaluation import import_object
-from ..experiments.training import DEFAULT_SCENARIO_OPTIONS, VECTORISERS, TrainingError, train
+from ..experiments.training import VECTORISERS, TrainingError, train
 from ..errors import OptionError
-from .options import DEFAULT_POLICY_RESOLVER, key_values
-
-def make_env_config(args) -> dict:
-    """Environment options (JSON-serialisable) from the command line."""
-    try:
-        options = {**DEFAULT_SCENARIO_OPTIONS, **key_values(args.scenario_option, "--scenario-option needs key=value")}
-    except OptionError as exc:
-        raise SystemExit(str(exc)) from None
-    if args.n_pedestrians is not None:
-        options["n_pedestrians"] = args.n_pedestrians
-    if args.width is not None:
-        options["width_m"] = args.width
-    return {"scenario": args.scenario, "scenario_options": options, "controlled": "all",
-            "frame_skip": args.frame_skip, "max_steps": args.max_steps, "n_neighbors": args.n_neighbors,
-            "n_rays": args.n_rays, "reseed_scenario": False if args.fixed_start else None,
-            "observation_frame": args.observation_frame}
+from .train_options import add_env_arguments, add_evaluation_arguments, env_config_from_args
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="crowd-train-ppo", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--timesteps", type=int, default=100_000, help="PPO timesteps (agent steps)")
     ap.add_argument("--out", default="runs/ppo", help="output directory")
-    ap.add_argument("--scenario", default="seyfried_bottleneck")
-    ap.add_argument("--scenario-option", action="append", metavar="KEY=VALUE",
-                    help=f"scenario option (repeatable; JSON values); defaults {DEFAULT_SCENARIO_OPTIONS}")
-    ap.add_argument("--n-pedestrians", type=int, default=None, help="shortcut for --scenario-option n_pedestrians=N")
-    ap.add_argument("--width", type=float, default=None, help="shortcut for --scenario-option width_m=B")
-    ap.add_argument("--frame-skip", type=int, default=10, help="simulator steps (0.01 s) per decision")
-    ap.add_argument("--max-steps", type=int, default=100, help="decisions per episode")
-    ap.add_argument("--n-neighbors", type=int, default=6)
-    ap.add_argument("--n-rays", type=int, default=8)
-    ap.add_argument("--fixed-start", action="store_true",
-                    help="keep the scenario's start positions in every episode (default: new positions drawn "
-                         "from the episode seed, see reseed_scenario)")
-    ap.add_argument("--observation-frame", choices=("world", "egocentric"), default="world",
-                    help="frame of observations and actions (default world)")
+    add_env_arguments(ap)
     ap.add_argument("--copies", type=int, default=2, help="environment copies concatenated")
     ap.add_argument("--vectoriser", choices=VECTORISERS, default="native",
                     help="native (crowd_env.envs.vector, default) or supersuit")
@@ -83,16 +55,13 @@ def main(argv=None) -> int:
     ap.add_argument("--learning-rate", type=float, default=3e-4)
     ap.add_argument("--gamma", type=float, default=0.99)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--eval-seeds", type=int, nargs="+", default=[1000, 1001, 1002])
     ap.add_argument("--threads", type=int, default=1, help="torch threads")
     ap.add_argument("--verbose", type=int, default=0)
     ap.add_argument("--checkpoint-every", type=int, default=10_000,
                     help="save a checkpoint every this many timesteps (0: only at the end)")
     ap.add_argument("--resume", action="store_true",
                     help="continue from the latest checkpoint in --out up to --timesteps in all")
-    ap.add_argument("--policy-resolver", default=DEFAULT_POLICY_RESOLVER, metavar="MODULE:FUNCTION",
-                    help="resolve(spec, name=None) -> policy, for the random policy and the trained model of the "
-                         f"summary (default {DEFAULT_POLICY_RESOLVER})")
+    add_evaluation_arguments(ap)
     args = ap.parse_args(argv)
     if args.checkpoint_every < 0:
         raise SystemExit("error: --checkpoint-every must be >= 0")
@@ -101,7 +70,10 @@ def main(argv=None) -> int:
     if missing:
         raise SystemExit(f"error: crowd-train-ppo needs the 'train' extra (missing: {', '.join(missing)}); "
                          "pip install 'crowd_env[train]'")
-    env_config = make_env_config(args)
+    try:
+        env_config = env_config_from_args(args)
+    except OptionError as exc:
+        raise SystemExit(f"error: {exc}") from None
     try:
         resolve = import_object(args.policy_resolver)
     except (ImportError, ValueError) as exc:
