@@ -172,7 +172,8 @@ _NAMED = {"baseline": CalibratedPolicy, "calibrated": CalibratedPolicy, "social_
 
 
 def as_policy(spec, name: str | None = None) -> EnvPolicy:
-    """An :class:`EnvPolicy` from a name, a ``.zip`` SB3 model path, an SB3 model, a policy or a callable."""
+    """An :class:`EnvPolicy` from a name, a saved model (SB3 ``.zip``; ``crowd-train-mappo``'s ``policy.pt`` or its
+    run folder; ``crowd-train-rllib``'s run folder), an SB3 model, a policy or a callable."""
     if isinstance(spec, EnvPolicy):
         if name:
             spec.name = name
@@ -184,9 +185,18 @@ def as_policy(spec, name: str | None = None) -> EnvPolicy:
             if name:
                 p.name = name
             return p
+        if s.endswith(".pt") or os.path.exists(os.path.join(s, "policy.pt")):
+            from crowd_env.experiments.marl import load_policy  # crowd-train-mappo (MAPPO / IPPO)
+
+            return load_policy(s, name=name)
+        if os.path.exists(os.path.join(s, "policy.json")):
+            from crowd_env.experiments.rllib import load_policy as load_rllib  # crowd-train-rllib
+
+            return load_rllib(s, name=name)
         if s.endswith(".zip") or os.path.exists(s) or os.path.exists(s + ".zip"):
             return SB3Policy(s, name=name)
-        raise ValueError(f"unknown policy {s!r}: give one of {sorted(_NAMED)}, a saved SB3 model (.zip) or a callable")
+        raise ValueError(f"unknown policy {s!r}: give one of {sorted(_NAMED)}, a saved model (SB3 .zip, a "
+                         "crowd-train-mappo policy.pt or run folder, a crowd-train-rllib run folder) or a callable")
     if hasattr(spec, "predict") and hasattr(spec, "observation_space"):
         return SB3Policy(spec, name=name)
     if hasattr(spec, "act") and callable(spec.act):

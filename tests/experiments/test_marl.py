@@ -144,6 +144,11 @@ def test_mappo_smoke_training_reload_and_resume(tmp_path):
     assert set(acts) == set(env.agents) and all(env.action_space(a).contains(v) for a, v in acts.items())
     with pytest.raises(TrainingError, match="expects observations of 45 entries"):
         policy.reset(crowd_v0.parallel_env(**{**TINY, "n_neighbors": 2}), 0)
+    # the evaluation's resolver (crowd-evaluate --policies DIR) loads the run folder and the file alike
+    for spec in (out, os.path.join(out, "policy.pt")):
+        resolved = as_policy(spec, name="mappo_run")
+        assert resolved.name == "mappo_run"
+        np.testing.assert_allclose(resolved.actions(obs), policy.actions(obs), atol=0)
 
     # refused: checkpoints without --resume, other environment options, the other algorithm
     with pytest.raises(TrainingError, match="--resume"):

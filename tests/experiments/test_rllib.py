@@ -74,6 +74,9 @@ def test_rllib_smoke_training_reload_and_resume(tmp_path, local_ray):
     final = rllib.RLlibPolicy(module, policy.obs_dim, policy.low, policy.high)
     obs = np.random.default_rng(0).uniform(-1, 1, (N, policy.obs_dim)).astype(np.float32)
     np.testing.assert_allclose(policy.actions(obs), final.actions(obs), atol=1e-6)
+    resolved = as_policy(out, name="rllib_run")  # crowd-evaluate --policies DIR
+    assert resolved.name == "rllib_run"
+    np.testing.assert_allclose(resolved.actions(obs), policy.actions(obs), atol=0)
     env = crowd_v0.parallel_env(**TINY)
     o, _ = env.reset(seed=0)
     acts = policy.act(env, o)
