@@ -50,7 +50,7 @@ import numpy as np
 
 from ..envs import crowd_v0
 from ..errors import MissingDependencyError, TrainingError
-from .training import _write_json_atomic, check_resume, mean_return, read_checkpoints
+from .training import SharedPolicy, _write_json_atomic, check_resume, mean_return, read_checkpoints
 
 __all__ = ["ALGORITHMS", "GROUP", "CSV_COLUMNS", "DEFAULT_PPO", "TorchRLPolicy", "check_algorithm", "make_env",
            "build_networks", "make_loss", "valid_transitions", "load_policy", "train"]
@@ -199,7 +199,7 @@ def make_loss(actor, critic, *, gamma: float = DEFAULT_PPO["gamma"], lmbda: floa
     return loss, gae
 
 
-class TorchRLPolicy:
+class TorchRLPolicy(SharedPolicy):
     """A trained shared policy as a policy of the evaluation harness (``act(env, observations)``):
     the deterministic action tanh(loc) scaled to the action Box, for every live agent in one batch."""
 
@@ -222,18 +222,6 @@ class TorchRLPolicy:
             loc, scale = self.net(torch.as_tensor(np.asarray(observations, dtype=np.float32)))
             action = TanhNormal(loc, scale, low=self.low, high=self.high).deterministic_sample
         return np.clip(action.numpy(), self.low.numpy(), self.high.numpy())
-
-    def reset(self, env, seed=None) -> None:
-        have = env.observation_space(env.possible_agents[0]).shape[0]
-        if have != self.obs_dim:
-            raise TrainingError(f"policy {self.name!r} expects observations of {self.obs_dim} entries, the environment "
-                                f"gives {have} (use the environment options it was trained with: env_config.json)")
-
-    def act(self, env, observations) -> dict:
-        if not env.agents:
-            return {}
-        obs = np.stack([observations[a] for a in env.agents])
-        return dict(zip(env.agents, self.actions(obs)))
 
 
 def _policy_payload(actor, algorithm: str, hidden, obs_dim: int, low, high) -> dict:

@@ -42,7 +42,7 @@ import numpy as np
 from ..envs import crowd_v0
 from ..errors import MissingDependencyError, TrainingError
 from .backends import RayBackend, check_reachable
-from .training import _write_json_atomic, check_resume, mean_return, read_checkpoints
+from .training import SharedPolicy, _write_json_atomic, check_resume, mean_return, read_checkpoints
 
 __all__ = ["ENV_NAME", "MODULE_ID", "CSV_COLUMNS", "DEFAULT_PPO", "RLlibPolicy", "env_creator", "ppo_config",
            "load_policy", "train"]
@@ -96,7 +96,7 @@ def ppo_config(env_config: dict, *, seed: int = 0, num_env_runners: int = 0,
             .debugging(seed=int(seed)))
 
 
-class RLlibPolicy:
+class RLlibPolicy(SharedPolicy):
     """A trained RLlib module as a policy of the evaluation harness (``act(env, observations)``): the
     deterministic action (the Gaussian's mean) scaled to the action Box as RLlib's EnvRunner does
     (``normalize_actions``: [-1, 1] -> [low, high], then clipped), for every live agent in one batch."""
@@ -120,18 +120,6 @@ class RLlibPolicy:
         if self.normalize_actions:
             a = self.low + (np.clip(a, -1.0, 1.0) + 1.0) * (self.high - self.low) / 2.0
         return np.clip(a, self.low, self.high)
-
-    def reset(self, env, seed=None) -> None:
-        have = env.observation_space(env.possible_agents[0]).shape[0]
-        if have != self.obs_dim:
-            raise TrainingError(f"policy {self.name!r} expects observations of {self.obs_dim} entries, the environment "
-                                f"gives {have} (use the environment options it was trained with: env_config.json)")
-
-    def act(self, env, observations) -> dict:
-        if not env.agents:
-            return {}
-        obs = np.stack([observations[a] for a in env.agents])
-        return dict(zip(env.agents, self.actions(obs)))
 
 
 def load_policy(path: str, name: str | None = None) -> RLlibPolicy:

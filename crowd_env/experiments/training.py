@@ -28,7 +28,7 @@ from ..core.params import ModelParams
 from ..envs import crowd_v0
 from .evaluation import ScenarioSpec, run_episode
 
-__all__ = ["DEFAULT_SCENARIO_OPTIONS", "TrainingError", "make_vec_env", "mean_return", "read_checkpoints",
+__all__ = ["DEFAULT_SCENARIO_OPTIONS", "SharedPolicy", "TrainingError", "make_vec_env", "mean_return", "read_checkpoints",
            "save_checkpoint", "check_resume", "train", "write_curve"]
 
 DEFAULT_SCENARIO_OPTIONS = {"width_m": 1.0, "n_pedestrians": 10}
@@ -56,6 +56,30 @@ def make_vec_env(env_config: dict, copies: int = 1, seed: int | None = None, vec
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="The `render_mode` attribute is not defined")
         return VecMonitor(vec)
+
+
+class SharedPolicy:
+    """A trained policy shared by all agents, as a policy of the evaluation harness: subclasses give
+    ``obs_dim``, ``name`` and ``actions(observations (n, obs_dim)) -> (n, 2)``; :meth:`act` runs it on every
+    live agent in one batch, :meth:`reset` refuses an environment whose observations have another size."""
+
+    obs_dim: int
+    name: str
+
+    def actions(self, observations: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def reset(self, env, seed=None) -> None:
+        have = env.observation_space(env.possible_agents[0]).shape[0]
+        if have != self.obs_dim:
+            raise TrainingError(f"policy {self.name!r} expects observations of {self.obs_dim} entries, the environment "
+                                f"gives {have} (use the environment options it was trained with: env_config.json)")
+
+    def act(self, env, observations) -> dict:
+        if not env.agents:
+            return {}
+        obs = np.stack([observations[a] for a in env.agents])
+        return dict(zip(env.agents, self.actions(obs)))
 
 
 def mean_return(policy, env_config: dict, seeds) -> dict:
