@@ -203,14 +203,13 @@ class ObservationBuilder:
             obs[:, L["velocity"]] = to_body_frame(vel, c, s)
             obs[:, L["desired_direction"]] = to_body_frame(e_d, c, s)
         obs[:, L["travel_time"].start] = travel
-        if self.n_neighbors:
+        if self.n_neighbors and self.frame == "world":
+            self._neighbors(state, index, obs, L["neighbors"].start, L["neighbor_mask"].start)
+        elif self.n_neighbors:  # float64 first, turned into the body frame, then stored as float32 once
             k = self.n_neighbors
-            # float64 first, rotated (egocentric), then stored as float32 once
             near = np.zeros((m, 5 * k))
-            self._neighbors(state, index, near)
-            if self.frame == "egocentric":
-                near[:, :4 * k] = to_body_frame(near[:, :4 * k].reshape(m, 2 * k, 2), c, s).reshape(m, 4 * k)
-            obs[:, L["neighbors"]] = near[:, :4 * k]
+            self._neighbors(state, index, near, 0, 4 * k)
+            obs[:, L["neighbors"]] = to_body_frame(near[:, :4 * k].reshape(m, 2 * k, 2), c, s).reshape(m, 4 * k)
             obs[:, L["neighbor_mask"]] = near[:, 4 * k:]
         if self.n_rays:
             if self.walls.shape[0]:
@@ -220,14 +219,14 @@ class ObservationBuilder:
                 obs[:, L["wall_rays"]] = self.ray_range_m
         return obs, travel
 
-    def _neighbors(self, state, index, out: np.ndarray) -> None:
-        """Write the k nearest other active pedestrians' relative positions/velocities (world frame, columns
-        0 … 4k−1) and the mask (columns 4k … 5k−1) into ``out`` (m, 5k) float64."""
+    def _neighbors(self, state, index, out: np.ndarray, col_rel: int, col_mask: int) -> None:
+        """Write the k nearest other active pedestrians' relative positions/velocities (world frame, from
+        column ``col_rel``) and the mask (from column ``col_mask``) into the rows of ``out``."""
         active = np.flatnonzero(state.active)
         if active.size == 0:
             return
         j = grid_k_nearest(state.position_m, active, index, self.n_neighbors, self.neighbor_radius_m)
-        _fill_neighbors(out, 0, 4 * self.n_neighbors, index, j, active, state.position_m, state.velocity_m_s)
+        _fill_neighbors(out, col_rel, col_mask, index, j, active, state.position_m, state.velocity_m_s)
 
 
 @nb.njit(cache=True)
