@@ -33,10 +33,9 @@ import argparse
 import importlib.util
 import sys
 
-from ..errors import MissingDependencyError, OptionError, PolicyError, TrainingError
-from ..experiments.evaluation import import_object
+from ..errors import MissingDependencyError, TrainingError
 from ..experiments.marl import ALGORITHMS, DEFAULT_PPO, train
-from .train_options import add_env_arguments, add_evaluation_arguments, env_config_from_args
+from .train_options import add_env_arguments, add_evaluation_arguments, env_config_and_resolver
 
 
 def main(argv=None) -> int:
@@ -74,11 +73,7 @@ def main(argv=None) -> int:
     if missing:
         raise SystemExit(f"error: crowd-train-mappo needs the 'marl' extra (missing: {', '.join(missing)}); "
                          "pip install 'crowd_env[marl]'")
-    try:
-        env_config = env_config_from_args(args)
-        resolve = import_object(args.policy_resolver)
-    except (OptionError, PolicyError, ImportError) as exc:
-        raise SystemExit(f"error: {exc}") from None
+    env_config, resolve = env_config_and_resolver(args)
     try:
         summary = train(env_config, args.frames, args.out, algorithm=args.algorithm, resolve=resolve, seed=args.seed,
                         frames_per_batch=args.frames_per_batch, num_epochs=args.num_epochs,

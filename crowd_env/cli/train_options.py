@@ -1,12 +1,14 @@
-"""Command-line options shared by the multi-agent training commands (``crowd-train-mappo``,
+"""Command-line options shared by the training commands (``crowd-train-ppo``, ``crowd-train-mappo``,
 ``crowd-train-rllib``): the environment a policy is trained on, as a JSON-serialisable ``env_config``
 (the options of :func:`crowd_env.envs.crowd_v0.parallel_env`), and the evaluation against the random policy."""
 from __future__ import annotations
 
+from ..errors import OptionError
+from ..experiments.evaluation import import_object
 from ..experiments.training import DEFAULT_SCENARIO_OPTIONS
 from .options import DEFAULT_POLICY_RESOLVER, key_values
 
-__all__ = ["add_env_arguments", "add_evaluation_arguments", "env_config_from_args"]
+__all__ = ["add_env_arguments", "add_evaluation_arguments", "env_config_from_args", "env_config_and_resolver"]
 
 
 def add_env_arguments(ap) -> None:
@@ -53,3 +55,17 @@ def env_config_from_args(args) -> dict:
               "n_rays": args.n_rays, "reseed_scenario": False if args.fixed_start else None,
               "observation_frame": args.observation_frame}
     return config
+
+
+def env_config_and_resolver(args) -> tuple:
+    """``(env_config, resolve)`` from the parsed flags; a malformed option or resolver path exits with the
+    message (``error: ...``)."""
+    try:
+        env_config = env_config_from_args(args)
+    except OptionError as exc:
+        raise SystemExit(f"error: {exc}") from None
+    try:
+        resolve = import_object(args.policy_resolver)
+    except (ImportError, ValueError) as exc:
+        raise SystemExit(f"error: --policy-resolver: {exc}") from None
+    return env_config, resolve

@@ -35,10 +35,8 @@ import argparse
 import importlib.util
 import sys
 
-from ..experiments.evaluation import import_object
 from ..experiments.training import VECTORISERS, TrainingError, train
-from ..errors import OptionError
-from .train_options import add_env_arguments, add_evaluation_arguments, env_config_from_args
+from .train_options import add_env_arguments, add_evaluation_arguments, env_config_and_resolver
 
 
 def main(argv=None) -> int:
@@ -70,14 +68,7 @@ def main(argv=None) -> int:
     if missing:
         raise SystemExit(f"error: crowd-train-ppo needs the 'train' extra (missing: {', '.join(missing)}); "
                          "pip install 'crowd_env[train]'")
-    try:
-        env_config = env_config_from_args(args)
-    except OptionError as exc:
-        raise SystemExit(f"error: {exc}") from None
-    try:
-        resolve = import_object(args.policy_resolver)
-    except (ImportError, ValueError) as exc:
-        raise SystemExit(f"error: --policy-resolver: {exc}") from None
+    env_config, resolve = env_config_and_resolver(args)
     try:
         summary = train(env_config, args.timesteps, args.out, resolve=resolve, seed=args.seed, copies=args.copies,
                         n_steps=args.n_steps, batch_size=args.batch_size, n_epochs=args.n_epochs,

@@ -31,10 +31,9 @@ import argparse
 import importlib.util
 import sys
 
-from ..errors import BackendError, MissingDependencyError, OptionError, PolicyError, TrainingError
-from ..experiments.evaluation import import_object
+from ..errors import BackendError, MissingDependencyError, TrainingError
 from ..experiments.rllib import DEFAULT_PPO, train
-from .train_options import add_env_arguments, add_evaluation_arguments, env_config_from_args
+from .train_options import add_env_arguments, add_evaluation_arguments, env_config_and_resolver
 
 
 def main(argv=None) -> int:
@@ -70,11 +69,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if importlib.util.find_spec("ray") is None or importlib.util.find_spec("ray.rllib") is None:
         raise SystemExit("error: crowd-train-rllib needs the 'marl' extra (ray[rllib]); pip install 'crowd_env[marl]'")
-    try:
-        env_config = env_config_from_args(args)
-        resolve = import_object(args.policy_resolver)
-    except (OptionError, PolicyError, ImportError) as exc:
-        raise SystemExit(f"error: {exc}") from None
+    env_config, resolve = env_config_and_resolver(args)
     try:
         summary = train(env_config, args.timesteps, args.out, resolve=resolve, address=args.address,
                         num_cpus=args.num_cpus, num_env_runners=args.num_env_runners, seed=args.seed,

@@ -50,7 +50,7 @@ import numpy as np
 
 from ..envs import crowd_v0
 from ..errors import MissingDependencyError, TrainingError
-from .training import SharedPolicy, _write_json_atomic, check_resume, mean_return, read_checkpoints
+from .training import SharedPolicy, _write_json_atomic, begin_run, evaluate_trained, read_checkpoints
 
 __all__ = ["ALGORITHMS", "GROUP", "CSV_COLUMNS", "DEFAULT_PPO", "TorchRLPolicy", "check_algorithm", "make_env",
            "build_networks", "make_loss", "valid_transitions", "load_policy", "train"]
@@ -324,17 +324,12 @@ def train(env_config: dict, frames: int, out: str, *, algorithm: str = "mappo", 
     from torchrl.collectors import Collector
 
     torch.set_num_threads(max(1, int(threads)))
-    os.makedirs(out, exist_ok=True)
-    entries = check_resume(out, env_config, resume)
-    if entries and entries[-1].get("algorithm", algorithm) != algorithm:
-        raise TrainingError(f"cannot resume: {out} holds {entries[-1].get('algorithm')} checkpoints, not {algorithm}")
-    with open(os.path.join(out, "env_config.json"), "w") as fh:
-        json.dump(env_config, fh, indent=2)
-
+    previous = read_checkpoints(out)
+    if resume and previous and previous[-1].get("algorithm", algorithm) != algorithm:
+        raise TrainingError(f"cannot resume: {out} holds {previous[-1].get('algorithm')} checkpoints, not {algorithm}")
     t0 = time.perf_counter()
-    before = mean_return(resolve("random"), env_config, eval_seeds)
-    progress(f"random policy: mean per-agent episode return {before['mean_return']:.3f} "
-             f"(evacuated {100 * before['evacuated_fraction']:.0f}%)")
+    entries, before = begin_run(out, env_config, resume=resume, resolve=resolve, eval_seeds=eval_seeds, seed=seed,
+                                progress=progress)
 
     state = algorithm == "mappo"
     start = int(entries[-1]["timesteps"]) if entries else 0
@@ -408,9 +403,7 @@ def train(env_config: dict, frames: int, out: str, *, algorithm: str = "mappo", 
                os.path.join(out, "policy.pt"))
     env.close()
     trained = load_policy(out, name=algorithm)
-    after = mean_return(trained, env_config, eval_seeds)
-    progress(f"trained policy: mean per-agent episode return {after['mean_return']:.3f} "
-             f"(evacuated {100 * after['evacuated_fraction']:.0f}%)")
+    after = evaluate_trained(trained, env_config, eval_seeds, progress)
     summary = {"algorithm": algorithm, "frames": frames_done, "resumed_from_frames": start,
                "agent_steps": int(sum(r["agent_steps"] for r in rows)), "iterations": iteration,
                "train_wall_s": train_s, "total_wall_s": time.perf_counter() - t0, "random": before, "trained": after,

@@ -42,7 +42,7 @@ import numpy as np
 from ..envs import crowd_v0
 from ..errors import MissingDependencyError, TrainingError
 from .backends import RayBackend, check_reachable
-from .training import SharedPolicy, _write_json_atomic, check_resume, mean_return, read_checkpoints
+from .training import SharedPolicy, _write_json_atomic, begin_run, evaluate_trained, read_checkpoints
 
 __all__ = ["ENV_NAME", "MODULE_ID", "CSV_COLUMNS", "DEFAULT_PPO", "RLlibPolicy", "env_creator", "ppo_config",
            "load_policy", "train"]
@@ -207,19 +207,13 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, address: str |
     if address is not None:
         check_reachable(address, connect_timeout_s)  # before anything else: fail in seconds
     _require()
-    os.makedirs(out, exist_ok=True)
-    entries = check_resume(out, env_config, resume)
     probe = crowd_v0.parallel_env(**env_config)  # bad environment options fail here, not inside a Ray actor
     agent = probe.possible_agents[0]
     policy_meta = {"format": POLICY_FORMAT, "obs_dim": int(probe.observation_space(agent).shape[0]),
                    "low": probe.action_space(agent).low.tolist(), "high": probe.action_space(agent).high.tolist()}
-    with open(os.path.join(out, "env_config.json"), "w") as fh:
-        json.dump(env_config, fh, indent=2)
-
     t0 = time.perf_counter()
-    before = mean_return(resolve("random"), env_config, eval_seeds)
-    progress(f"random policy: mean per-agent episode return {before['mean_return']:.3f} "
-             f"(evacuated {100 * before['evacuated_fraction']:.0f}%)")
+    entries, before = begin_run(out, env_config, resume=resume, resolve=resolve, eval_seeds=eval_seeds, seed=seed,
+                                progress=progress)
 
     config = ppo_config(env_config, seed=seed, num_env_runners=num_env_runners, train_batch_size=train_batch_size,
                         minibatch_size=minibatch_size, num_epochs=num_epochs, learning_rate=learning_rate, gamma=gamma,
@@ -266,9 +260,7 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, address: str |
         algo.stop()
 
     trained = load_policy(out, name="rllib_ppo")
-    after = mean_return(trained, env_config, eval_seeds)
-    progress(f"trained policy: mean per-agent episode return {after['mean_return']:.3f} "
-             f"(evacuated {100 * after['evacuated_fraction']:.0f}%)")
+    after = evaluate_trained(trained, env_config, eval_seeds, progress)
     summary = {"algorithm": "rllib_ppo", "env_steps": env_steps, "resumed_from_env_steps": start,
                "agent_steps": int(sum(r["agent_steps"] for r in rows)), "iterations": iteration,
                "train_wall_s": train_s, "total_wall_s": time.perf_counter() - t0, "random": before, "trained": after,

@@ -29,7 +29,7 @@ from ..envs import crowd_v0
 from .evaluation import ScenarioSpec, run_episode
 
 __all__ = ["DEFAULT_SCENARIO_OPTIONS", "SharedPolicy", "TrainingError", "make_vec_env", "mean_return", "read_checkpoints",
-           "save_checkpoint", "check_resume", "train", "write_curve"]
+           "save_checkpoint", "check_resume", "begin_run", "evaluate_trained", "train", "write_curve"]
 
 DEFAULT_SCENARIO_OPTIONS = {"width_m": 1.0, "n_pedestrians": 10}
 VECTORISERS = ("native", "supersuit")
@@ -151,6 +151,39 @@ def check_resume(out: str, env_config: dict, resume: bool) -> list:
     return entries
 
 
+def begin_run(out: str, env_config: dict, *, resume: bool, resolve, eval_seeds, seed: int, progress=print):
+    """What every training command does first: refuse or accept ``out`` (:func:`check_resume`), write
+    ``env_config.json`` and score the random policy on ``eval_seeds`` (kept in ``random_eval.json`` and reused
+    when a run resumes with the same seeds). Returns ``(checkpoint entries, random policy's mean_return dict)``."""
+    os.makedirs(out, exist_ok=True)
+    entries = check_resume(out, env_config, resume)
+    with open(os.path.join(out, "env_config.json"), "w") as fh:
+        json.dump(env_config, fh, indent=2)
+    random_path = os.path.join(out, "random_eval.json")
+    before = None
+    if entries and os.path.exists(random_path):
+        with open(random_path) as fh:
+            saved = json.load(fh)
+        before = saved["result"] if saved["eval_seeds"] == list(eval_seeds) and saved["seed"] == seed else None
+    if before is None:
+        before = mean_return(resolve("random"), env_config, eval_seeds)
+        _write_json_atomic(random_path, {"eval_seeds": list(eval_seeds), "seed": seed, "result": before})
+    _report("random", before, progress)
+    return entries, before
+
+
+def evaluate_trained(policy, env_config: dict, eval_seeds, progress=print) -> dict:
+    """The trained ``policy``'s :func:`mean_return` on ``eval_seeds``, reported like the random policy's."""
+    after = mean_return(policy, env_config, eval_seeds)
+    _report("trained", after, progress)
+    return after
+
+
+def _report(what: str, result: dict, progress) -> None:
+    progress(f"{what} policy: mean per-agent episode return {result['mean_return']:.3f} "
+             f"(evacuated {100 * result['evacuated_fraction']:.0f}%)")
+
+
 def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0, copies: int = 2, n_steps: int = 256,
           batch_size: int = 512, n_epochs: int = 10, learning_rate: float = 3e-4, gamma: float = 0.99,
           eval_seeds=(1000, 1001, 1002), threads: int = 1, verbose: int = 0, checkpoint_every: int = 10_000,
@@ -172,23 +205,9 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
     from stable_baselines3.common.vec_env import VecNormalize
 
     torch.set_num_threads(max(1, int(threads)))
-    os.makedirs(out, exist_ok=True)
-    entries = check_resume(out, env_config, resume)
-    with open(os.path.join(out, "env_config.json"), "w") as fh:
-        json.dump(env_config, fh, indent=2)
-
     t0 = time.perf_counter()
-    random_path = os.path.join(out, "random_eval.json")
-    before = None
-    if entries and os.path.exists(random_path):
-        with open(random_path) as fh:
-            saved = json.load(fh)
-        before = saved["result"] if saved["eval_seeds"] == list(eval_seeds) and saved["seed"] == seed else None
-    if before is None:
-        before = mean_return(resolve("random"), env_config, eval_seeds)
-        _write_json_atomic(random_path, {"eval_seeds": list(eval_seeds), "seed": seed, "result": before})
-    progress(f"random policy: mean per-agent episode return {before['mean_return']:.3f} "
-             f"(evacuated {100 * before['evacuated_fraction']:.0f}%)")
+    entries, before = begin_run(out, env_config, resume=resume, resolve=resolve, eval_seeds=eval_seeds, seed=seed,
+                                progress=progress)
 
     start = entries[-1]["timesteps"] if entries else 0
     set_random_seed(seed + start)  # python, numpy, torch
@@ -242,9 +261,7 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
     model.save(os.path.join(out, "model.zip"))
     vec.close()
 
-    after = mean_return(resolve(model, name="ppo"), env_config, eval_seeds)
-    progress(f"trained policy: mean per-agent episode return {after['mean_return']:.3f} "
-             f"(evacuated {100 * after['evacuated_fraction']:.0f}%)")
+    after = evaluate_trained(resolve(model, name="ppo"), env_config, eval_seeds, progress)
     write_curve(curve, out, before["mean_return"], after["mean_return"])
     summary = {"timesteps": int(model.num_timesteps), "resumed_from_timesteps": start, "train_wall_s": train_s,
                "total_wall_s": time.perf_counter() - t0, "random": before, "trained": after,
