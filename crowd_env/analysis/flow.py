@@ -55,6 +55,16 @@ class MeasurementLine:
         return self._normal.copy()
 
     @property
+    def start_m(self) -> np.ndarray:
+        """The segment's start point (2,)."""
+        return self._a.copy()
+
+    @property
+    def segment_m(self) -> np.ndarray:
+        """The vector from start to end (2,)."""
+        return self._t.copy()
+
+    @property
     def length_m(self) -> float:
         return float(np.hypot(*self._t))
 

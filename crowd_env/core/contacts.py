@@ -160,6 +160,34 @@ def link_geometry(position, heading, links, offsets):
 
 
 @nb.njit(cache=True)
+def active_links(position, heading, active, index, links, offsets):
+    """The hand links whose two pedestrians are active, with pedestrians as rows into ``index`` (the
+    active ones, ascending), and their :func:`link_geometry`: ``(l_a, l_b, d, g_i, g_j)``."""
+    rank = np.full(active.shape[0], -1, np.int64)
+    for k in range(index.shape[0]):
+        rank[index[k]] = k
+    keep = np.empty(links.shape[0], np.int64)
+    m = 0
+    for l in range(links.shape[0]):
+        if active[links[l, 0]] and active[links[l, 1]]:
+            keep[m] = l
+            m += 1
+    kept = np.empty((m, 2), np.int64)
+    kept_offsets = np.empty((m, 4))
+    l_a = np.empty(m, np.int64)
+    l_b = np.empty(m, np.int64)
+    for q in range(m):
+        kept[q, 0] = links[keep[q], 0]
+        kept[q, 1] = links[keep[q], 1]
+        for c in range(4):
+            kept_offsets[q, c] = offsets[keep[q], c]
+        l_a[q] = rank[kept[q, 0]]
+        l_b[q] = rank[kept[q, 1]]
+    dvec, gi, gj = link_geometry(position, heading, kept, kept_offsets)
+    return l_a, l_b, dvec, gi, gj
+
+
+@nb.njit(cache=True)
 def build_rows(contact_ids, c_a, c_b, c_nx, c_ny, c_rho_a, c_rho_b, link_ids, l_a, l_b, dvec, gi, gj,
                local, k_n, k_tg, k_v, rotation):
     """Rows of B for the given contacts and links, with bodies renumbered by ``local``.

@@ -24,18 +24,18 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-import shapely
 
-from .contacts import CONTACT_FIELDS, contact_candidates, link_geometry
+from .contacts import CONTACT_FIELDS, active_links, contact_candidates
 from .neighbors import grid_pairs, grid_pairs_around
 from .params import ModelParams, ParameterError
+from .polygons import PackedPolygons, pack_polygons
 from .segments import as_segments, endpoint_owners, wall_proximity
 from .solvers.cascade import SolverCascade
 from .solvers.graph import contact_keys, gap_residuals, renumber_rows
 from .solvers.impact import solve_clusters
 from .state import CrowdState, StateError
 from .step import (FUSED_OK, compact_bodies, detection_reach, finish_step, first_non_finite, fused_step, grown_margins,
-                   impact_stage, kinetic_energy, redetection_reach, rows_sweeping_boxes, smooth_update, speeds)
+                   impact_stage, kinetic_energy, leave_at_exits, redetection_reach, smooth_update, speeds)
 
 MAX_REDETECT = 10  # re-detection rounds per step (speeds are bounded: one or two rounds suffice in practice)
 
@@ -83,11 +83,13 @@ class Simulator:
         self.walls = as_segments(geometry.walls if geometry is not None else ([] if walls is None else walls))
         self._wall_owner = endpoint_owners(self.walls)
         self._exit_test = geometry.in_exit if geometry is not None else exit_test
-        # Bounding boxes of the exits: only pedestrians inside one need the exact (shapely) test.
-        self._exit_boxes = None
+        # The exits as packed polygons for the compiled exit test (a duck-typed geometry without
+        # ``exits`` and a bare ``exit_test`` use the callable on the end points instead).
+        self._exits = None
         if geometry is not None and getattr(geometry, "exits", None):
-            self._exit_boxes = np.ascontiguousarray([shapely.bounds(e) for e in geometry.exits], dtype=np.float64)
+            self._exits = pack_polygons(geometry.exits)
         self.destination = self._check_destination(destination, state.n)
+        self._exit_destination = np.full(state.n, -1, np.int64) if self.destination is None else self.destination
         state.validate()
         self._check_walls(state)
         self.state = state
@@ -136,15 +138,6 @@ class Simulator:
         dest.setflags(write=False)
         return dest
 
-    def _at_destination(self, paths, destination) -> np.ndarray:
-        """(n,) bool: each step's path (shapely linestrings) touches exit ``destination`` (any exit for -1;
-        the caller checked that)."""
-        ok = destination < 0
-        for d in np.unique(destination[~ok]):
-            sel = destination == d
-            ok[sel] = shapely.intersects(self.geometry.exits[int(d)], paths[sel])
-        return ok
-
     @property
     def n_sparse_solves(self) -> int:
         """Impact clusters and projections too large for the dense solvers (``cascade.n_sparse_solves``)."""
@@ -160,6 +153,29 @@ class Simulator:
         """Shared wall vertices, :func:`~crowd_env.core.segments.endpoint_owners` of :attr:`walls`: what
         wall contacts and wall repulsion need so that a vertex shared by segments counts once."""
         return self._wall_owner
+
+    # ------------------------------------------------------------------ compiled rollouts
+    @property
+    def exit_polygons(self) -> PackedPolygons | None:
+        """The exits packed for the compiled exit test (None without a geometry with exits)."""
+        return self._exits
+
+    @property
+    def exit_destination(self) -> np.ndarray:
+        """(N,) int64: each pedestrian's exit (−1: any), as the compiled exit test reads it."""
+        return self._exit_destination
+
+    def fused_ready(self) -> bool:
+        """Whether the next step may be tried as one compiled call (:func:`~crowd_env.core.step.fused_step`):
+        not when profiling, nor when the cascade wants its general path (:meth:`SolverCascade.dense_only`).
+        A compiled rollout runs fused steps only while this holds, and it holds on after a fused step."""
+        return not self.profile and self.cascade.dense_only(self.step_count)
+
+    def advanced(self, n_steps: int, time_s: float) -> None:
+        """Account for ``n_steps`` fused steps that a compiled rollout ran on :attr:`state` (the same
+        kernels as :meth:`step`), reaching the clock ``time_s`` (accumulated as :meth:`step` does)."""
+        self.step_count += int(n_steps)
+        self.time_s = float(time_s)
 
     # ------------------------------------------------------------------ neighbours
     @property
@@ -344,27 +360,18 @@ class Simulator:
         return self._result(contacts, ke0, ke1, ke2, n_clusters, max_cluster, exited, timings, min_gap)
 
     def _leave_at_exits(self, idx, previous_m) -> np.ndarray:
-        """Deactivate pedestrians whose centre entered an exit during the step (their straight path from
-        ``previous_m``, (n, 2) compact, touches one: an exit thinner than a step cannot be stepped over);
-        advance the clock. Returns their indices. With a bare ``exit_test`` callable (no geometry) only
-        the end points are tested."""
+        """Deactivate pedestrians whose centre's straight path of the step, from ``previous_m`` ((n, 2)
+        compact), met their exit (:func:`~crowd_env.core.step.leave_at_exits`); advance the clock. Returns
+        their indices. With a bare ``exit_test`` callable (no geometry) only the end points are tested."""
         st = self.state
-        exited = np.zeros(0, np.int64)
-        if self._exit_test is not None and idx.shape[0]:
-            if self._exit_boxes is None:
-                near = idx
-                out = np.asarray(self._exit_test(st.position_m[near]), dtype=bool)
-            else:
-                rows = rows_sweeping_boxes(previous_m, st.position_m, idx, self._exit_boxes)
-                near = idx[rows]
-                out = np.zeros(0, bool)
-                if near.shape[0]:
-                    paths = shapely.linestrings(np.stack([previous_m[rows], st.position_m[near]], axis=1))
-                    out = shapely.intersects(self.geometry.exit_area, paths)
-                    if self.destination is not None and out.any():  # in an exit: is it the pedestrian's own?
-                        out[out] = self._at_destination(paths[out], self.destination[near[out]])
-            if out.any():
-                exited = near[out]
+        exited = _NO_INDEX
+        if idx.shape[0]:
+            if self._exits is not None:
+                exited = leave_at_exits(st.position_m, st.active, idx, previous_m, self._exit_destination,
+                                        *self._exits.arrays)
+            elif self._exit_test is not None:
+                out = np.asarray(self._exit_test(st.position_m[idx]), dtype=bool)
+                exited = idx[out]
                 st.active[exited] = False
         self.time_s += self.params.dt_s
         self.step_count += 1
@@ -411,18 +418,12 @@ class Simulator:
         return {k: np.concatenate([con[k], con2[k][new]]) for k in con}
 
     def _active_links(self, idx):
+        """Hand links between active pedestrians, rows into ``idx``, with their shoulder geometry
+        (:func:`~crowd_env.core.contacts.active_links`)."""
         st = self.state
         if st.links.shape[0] == 0:
-            z = np.zeros(0, np.int64)
-            e = np.zeros((0, 2))
-            return z, z, e, e, e
-        keep = st.active[st.links[:, 0]] & st.active[st.links[:, 1]]
-        links = st.links[keep]
-        offsets = st.link_offsets_m[keep]
-        dvec, gi, gj = link_geometry(st.position_m, st.heading_rad, links, offsets)
-        rank = np.full(st.n, -1, np.int64)
-        rank[idx] = np.arange(idx.shape[0])
-        return rank[links[:, 0]], rank[links[:, 1]], dvec, gi, gj
+            return _NO_LINKS
+        return active_links(st.position_m, st.heading_rad, st.active, idx, st.links, st.link_offsets_m)
 
     def min_gap_m(self) -> float:
         """Smallest gap between two active pedestrians or a pedestrian and a wall (negative = overlap)."""
@@ -442,5 +443,7 @@ class Simulator:
 
 
 _EMPTY_1D = np.zeros(0)
+_NO_INDEX = np.zeros(0, np.int64)
+_NO_LINKS = (_NO_INDEX, _NO_INDEX, np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 2)))
 _EMPTY_2D = np.zeros((0, 2))
 _NO_PAIRS = np.zeros((0, 2), np.int64)

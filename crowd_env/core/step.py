@@ -19,8 +19,8 @@ The stages, in order (the names are the keys of ``StepResult.timings_s`` in a st
    them, with :func:`redetection_reach`, and the projection repeated if a new one binds;
    then :func:`kinetic_energy`;
 6. ``integrate``: :func:`finish_step` (positions advance with the final velocities, the smallest
-   candidate gap, the contacts that carried a percussion), then pedestrians whose centre entered an
-   exit leave.
+   candidate gap, the contacts that carried a percussion), then pedestrians whose centre's path of the
+   step met an exit leave (:func:`leave_at_exits`).
 
 Two paths run these stages with the same functions in this order. By default
 :class:`~crowd_env.core.Simulator` runs :func:`fused_step`: the stages compiled into one call, with the
@@ -40,6 +40,7 @@ import numpy as np
 from .angles import wrap_angle_scalar
 from .contacts import contact_candidates
 from .neighbors import grid_pairs
+from .polygons import path_meets_polygon
 from .segments import closest_point_on_segment
 from .solvers.dense_projection import PROJECTION_TOL_M_S, project_gaps
 from .solvers.impact import VTOL_M_S, resolve_impacts
@@ -154,23 +155,33 @@ def candidate_gaps_min(position, radius, index, walls, c_a, c_b, c_wall):
 
 
 @nb.njit(cache=True)
-def rows_sweeping_boxes(previous, position, index, boxes):
-    """Rows k of ``index`` whose straight move from ``previous[k]`` to ``position[index[k]]`` has a
-    bounding box meeting one of the closed boxes (K, 4) (xmin, ymin, xmax, ymax): the cheap prefilter
-    of the exit test."""
+def leave_at_exits(position, active, index, previous, destination, vertices, ring_start, ring_owner, boxes):
+    """Stage 6's exit test: the pedestrians ``index`` whose centre's straight move of the step, from
+    ``previous[k]`` to ``position[index[k]]``, meets an exit (closed polygons, packed by
+    :func:`~crowd_env.core.polygons.pack_polygons`): their own exit ``destination[i]``, or any exit where
+    it is −1 (an exit thinner than a step cannot be stepped over). They become inactive; returns their
+    indices."""
     out = np.empty(index.shape[0], np.int64)
     m = 0
     for k in range(index.shape[0]):
+        i = index[k]
         x0 = previous[k, 0]
         y0 = previous[k, 1]
-        x1 = position[index[k], 0]
-        y1 = position[index[k], 1]
-        for b in range(boxes.shape[0]):
-            if min(x0, x1) <= boxes[b, 2] and max(x0, x1) >= boxes[b, 0] and \
-                    min(y0, y1) <= boxes[b, 3] and max(y0, y1) >= boxes[b, 1]:
-                out[m] = k
-                m += 1
-                break
+        x1 = position[i, 0]
+        y1 = position[i, 1]
+        d = destination[i]
+        hit = False
+        if d >= 0:
+            hit = path_meets_polygon(x0, y0, x1, y1, d, vertices, ring_start, ring_owner, boxes)
+        else:
+            for e in range(boxes.shape[0]):
+                if path_meets_polygon(x0, y0, x1, y1, e, vertices, ring_start, ring_owner, boxes):
+                    hit = True
+                    break
+        if hit:
+            active[i] = False
+            out[m] = i
+            m += 1
     return out[:m]
 
 

@@ -32,19 +32,9 @@ def record_run(scenario, policy, params=None, *, frame_rate_per_s: float = DEFAU
     state = run_kwargs.pop("state", None)
     rng = run_kwargs.pop("rng", None)
     state = scenario.make_state(rng=rng) if state is None else state
-    user_progress = run_kwargs.pop("progress", None)
     recorder = TrajectoryRecorder(only_active=True)
-    ids = np.arange(state.n)
-    recorder.record(0.0, state.position_m, state.heading_rad, state.active, ids)
-
-    def progress(sim):
-        if sim.step_count % every == 0:
-            s = sim.state
-            recorder.record(sim.step_count * params.dt_s, s.position_m, s.heading_rad, s.active, ids)
-        if user_progress is not None:
-            user_progress(sim)
-
-    result = run_scenario(scenario, policy, params, state=state, progress=progress, **run_kwargs)
+    recorder.record(0.0, state.position_m, state.heading_rad, state.active, np.arange(state.n))
+    result = run_scenario(scenario, policy, params, state=state, recorder=recorder, record_every=every, **run_kwargs)
     return result, Trajectories.from_recorder(recorder, frame_rate_per_s=1.0 / (every * params.dt_s))
 
 

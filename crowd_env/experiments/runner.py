@@ -21,13 +21,15 @@ from crowd_env.errors import InputError, NotFoundError
 import time
 from dataclasses import dataclass, field
 
-import numba as nb
 import numpy as np
-import shapely
 
-from ..analysis.flow import MeasurementLine, PassageCounter, specific_flow
+from ..analysis.flow import MeasurementLine, specific_flow
 from ..core.params import ModelParams
+from ..core.polygons import pack_polygons
 from ..core.presets import DEFAULT_PRESET, get_preset
+from .rollout import (COUNT_FRAMES, COUNT_LATERAL, COUNT_PASSED, COUNT_STEPS, ROLLOUT_CHUNK_STEPS, ROLLOUT_PYTHON_STEP,
+                      SCALAR_LAST_EXIT_S, SCALAR_MIN_GAP_M, STALL_LAST_PROGRESS_S, STALL_STALLED, STALL_TIME_S,
+                      measure_step, rollout_steps, stall_update)
 
 # Stationary phase for densities: between the passages of these fractions of the pedestrians (the
 # middle 60 %), see RunResult.density_window_s.
@@ -147,34 +149,6 @@ class RunResult:
         return float(values.mean()) if values.size else float("nan")
 
 
-@nb.njit(cache=True)
-def _mean_speed(velocity, active, inside):
-    """Mean ‖u‖ of the active pedestrians flagged by ``inside`` (one flag per active pedestrian, in
-    index order); nan when none is."""
-    total = 0.0
-    count = 0
-    k = 0
-    for i in range(active.shape[0]):
-        if active[i]:
-            if inside[k]:
-                total += np.sqrt(velocity[i, 0] ** 2 + velocity[i, 1] ** 2)
-                count += 1
-            k += 1
-    return total / count if count else np.nan
-
-
-@nb.njit(cache=True)
-def _mean_speed_of(velocity, mask):
-    """Mean ‖u‖ over the pedestrians flagged in ``mask`` (N,); nan when none is."""
-    total = 0.0
-    count = 0
-    for i in range(mask.shape[0]):
-        if mask[i]:
-            total += np.sqrt(velocity[i, 0] ** 2 + velocity[i, 1] ** 2)
-            count += 1
-    return total / count if count else np.nan
-
-
 class StallDetector:
     """The stall rule: a crowd that no longer passes and stands still.
 
@@ -201,103 +175,215 @@ class StallDetector:
         self.window_s = None if window_s is None else float(window_s)
         self.speed_m_s = float(speed_m_s)
         self.dt_s = float(dt_s)
-        self._k = 0 if window_s is None else max(1, int(round(self.window_s / self.dt_s)))
-        self._speeds = np.zeros(self._k)
-        self._n = 0  # steps recorded since the last progress (capped by the window)
-        self._sum = 0.0
-        self.last_progress_s = float(start_s)
-        self.stalled = False
-        self.stall_time_s = float("nan")
+        self.window_steps = 0 if window_s is None else max(1, int(round(self.window_s / self.dt_s)))
+        self.ring = np.zeros(max(self.window_steps, 1))  # per-step mean speeds of the window
+        self.state = np.zeros(5)  # the STALL_* slots of crowd_env.experiments.rollout
+        self.state[STALL_LAST_PROGRESS_S] = float(start_s)
+        self.state[STALL_TIME_S] = np.nan
+
+    @property
+    def stalled(self) -> bool:
+        return bool(self.state[STALL_STALLED])
+
+    @property
+    def stall_time_s(self) -> float:
+        """When the stall was detected (nan: not stalled)."""
+        return float(self.state[STALL_TIME_S])
+
+    @property
+    def last_progress_s(self) -> float:
+        """The time of the last passage or exit (or the start)."""
+        return float(self.state[STALL_LAST_PROGRESS_S])
+
+    @property
+    def kernel_arguments(self) -> tuple:
+        """``(ring, state, window_steps, window_s, speed_m_s)`` for :func:`~crowd_env.experiments.rollout.stall_update`."""
+        return self.ring, self.state, self.window_steps, (np.inf if self.window_s is None else self.window_s), \
+            self.speed_m_s
 
     def update(self, time_s: float, velocity, remaining, progressed: bool) -> bool:
         """Record one step: ``remaining`` (N,) bool flags the pedestrians left, ``progressed`` says whether
         someone crossed the line or left during it. Returns True when the run is stalled (from then on)."""
-        if self.stalled or self.window_s is None:
-            return self.stalled
-        if progressed or not remaining.any():
-            self.last_progress_s = float(time_s)
-            self._n, self._sum = 0, 0.0
-            return False
-        v = _mean_speed_of(velocity, remaining)
-        slot = self._n % self._k
-        if self._n >= self._k:
-            self._sum -= self._speeds[slot]
-        self._speeds[slot] = v
-        self._sum += v
-        self._n += 1
-        if self._n >= self._k and time_s - self.last_progress_s >= self.window_s - 0.5 * self.dt_s \
-                and self._sum / self._k < self.speed_m_s:
-            self.stalled = True
-            self.stall_time_s = float(time_s)
-        return self.stalled
+        return stall_update(*self.kernel_arguments, self.dt_s, float(time_s),
+                            np.ascontiguousarray(velocity, dtype=np.float64), np.asarray(remaining, dtype=bool),
+                            bool(progressed))
+
+
+class _RunMeasures:
+    """The arrays :func:`~crowd_env.experiments.rollout.measure_step` fills during one run (both paths)."""
+
+    def __init__(self, scenario, n: int, n_steps_max: int, line, density_areas, lane_area, min_gap_m: float,
+                 record_every: int):
+        geometry = scenario.geometry
+        self.has_line = line is not None
+        self.line = (np.zeros(2), np.zeros(2), np.zeros(2))
+        if line is not None:
+            if line not in geometry.measurement_lines:
+                raise NotFoundError(f"scenario has no measurement line {line!r}; it has "
+                                    f"{sorted(geometry.measurement_lines)}")
+            ends = np.asarray(geometry.measurement_lines[line], dtype=float)
+            m = MeasurementLine(ends[0], ends[1])
+            self.line = (m.start_m, m.segment_m, m.normal)
+        self.area_names = [name for name in density_areas if name in geometry.measurement_areas]
+        polys = [geometry.measurement_areas[name] for name in self.area_names]
+        self.lane_area = -1
+        lane_poly = geometry.measurement_areas.get(lane_area) if lane_area else None
+        if lane_poly is not None:
+            if lane_area in self.area_names:
+                self.lane_area = self.area_names.index(lane_area)
+            else:
+                self.lane_area = len(polys)
+                polys.append(lane_poly)
+        self.areas = pack_polygons(polys).arrays
+        self.area_size_m2 = np.array([float(geometry.measurement_areas[name].area) for name in self.area_names])
+        self.passed = np.zeros(n, dtype=bool)
+        self.cross_ids = np.zeros(n, np.int64)
+        self.cross_times = np.zeros(n)
+        self.density = np.zeros((n_steps_max, len(self.area_names)))
+        self.speed = np.zeros((n_steps_max, len(self.area_names)))
+        self.n = n
+        self.lateral_chunks = []
+        self.lateral = np.zeros(0)
+        self.record_every = int(record_every)
+        self.counts = np.zeros(4, np.int64)
+        self.scalars = np.array([min_gap_m, 0.0])
+        self.frames_for(0)
+
+    def room_for(self, steps: int) -> None:
+        """Room in the lateral and frame buffers for ``steps`` more steps (keeps what they hold)."""
+        need = self.counts[COUNT_LATERAL] + steps * self.n
+        if need > self.lateral.shape[0]:
+            self.lateral_chunks.append(self.lateral[:self.counts[COUNT_LATERAL]].copy())
+            self.lateral = np.zeros(max(need - self.counts[COUNT_LATERAL], 1024))
+            self.counts[COUNT_LATERAL] = 0
+        self.frames_for(steps)
+
+    def frames_for(self, steps: int) -> None:
+        """Empty frame buffers for ``steps`` steps (the caller has passed the previous ones on)."""
+        f = steps // self.record_every + 1 if self.record_every > 0 else 0
+        self.frame_time_s = np.zeros(f)
+        self.frame_position = np.zeros((f, self.n if f else 0, 2))
+        self.frame_heading = np.zeros((f, self.n if f else 0))
+        self.frame_active = np.zeros((f, self.n if f else 0), dtype=bool)
+        self.counts[COUNT_FRAMES] = 0
+
+    def pass_frames(self, recorder) -> None:
+        """Hand the frames recorded since :meth:`frames_for` to ``recorder``."""
+        if recorder is None:
+            return
+        ids = np.arange(self.n)
+        for f in range(self.counts[COUNT_FRAMES]):
+            recorder.record(float(self.frame_time_s[f]), self.frame_position[f], self.frame_heading[f],
+                            self.frame_active[f], ids)
+        self.counts[COUNT_FRAMES] = 0
+
+    def measure_arguments(self) -> tuple:
+        """The measurement arguments of :func:`~crowd_env.experiments.rollout.measure_step` after ``step_min_gap``."""
+        return (self.line, self.has_line, self.passed, self.cross_ids, self.cross_times, self.areas,
+                self.area_size_m2, self.lane_area, self.density, self.speed, self.lateral, self.record_every,
+                self.frame_time_s, self.frame_position, self.frame_heading, self.frame_active)
+
+    def lateral_positions(self) -> np.ndarray:
+        return np.concatenate([*self.lateral_chunks, self.lateral[:self.counts[COUNT_LATERAL]]])
+
+
+def _compiled_tuples(sim, agent_nav) -> tuple:
+    """``(bodies, world, model, agent)`` of :func:`~crowd_env.experiments.rollout.rollout_steps` (arrays shared
+    with the simulator's state, written in place)."""
+    st = sim.state
+    p = sim.params
+    bodies = (st.position_m, st.radius_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad, st.mass_kg,
+              st.inertia_kg_m2, st.tau_s, st.heading_stiffness, st.heading_damping, st.desired_speed_m_s, st.active,
+              st.links, st.link_offsets_m)
+    world = (sim.walls, sim.wall_owner, sim.exit_polygons.arrays, sim.exit_destination)
+    max_rows, max_bodies = sim.cascade.impact_limits()
+    model = (p.dt_s, p.contact_tolerance_m, p.normal_dissipation_kg, p.tangential_dissipation_kg,
+             p.link_dissipation_kg_per_m2, p.rotation, max_rows, max_bodies, sim.cascade.max_dense_projection_rows)
+    agent = (agent_nav.origin_m, agent_nav.resolution_m, agent_nav.travel_time_s, agent_nav.direction,
+             agent_nav.field_of, bool(p.social_forces), float(p.social_strength_n), float(p.social_range_m),
+             float(p.social_anisotropy), float(p.social_cutoff_m), float(p.wall_strength_n), float(p.wall_range_m))
+    return bodies, world, model, agent
+
+
+def _rollout_navigation(policy, sim, compiled: bool):
+    """The policy's compiled navigation when the run may be rolled out in compiled code, else None."""
+    if not compiled or sim.exit_polygons is None or not hasattr(policy, "compiled"):
+        return None
+    from ..walking.agent import SocialForceAgent
+    if not isinstance(policy, SocialForceAgent):
+        return None
+    return policy.compiled(sim.state.n)
 
 
 def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_time_s: float = 300.0,
                  line: str = "bottleneck", density_areas=("front", "inside"), lane_area: str | None = "inside",
                  width_m: float | None = None, state=None, rng=None, progress=None,
-                 stall_window_s: float | None = STALL_WINDOW_S, stall_speed_m_s: float = STALL_SPEED_M_S) -> RunResult:
+                 stall_window_s: float | None = STALL_WINDOW_S, stall_speed_m_s: float = STALL_SPEED_M_S,
+                 compiled: bool = True, recorder=None, record_every: int = 1,
+                 chunk_steps: int = ROLLOUT_CHUNK_STEPS) -> RunResult:
     """Simulate ``scenario`` driven by ``policy(sim) -> (intents, desired_heading)`` until all leave, the
     time limit ``max_time_s``, or a stall.
 
     ``width_m``: the bottleneck width used in J_s = N/(Δt b) (Eq. 22); defaults to the scenario's
     ``metadata['width_m']``. ``stall_window_s`` / ``stall_speed_m_s``: the stall rule of
     :class:`StallDetector` (None switches it off); a stalled run stops at once with ``stalled`` set.
-    Returns a :class:`RunResult`; its flows are nan unless the run is complete (module docstring).
+    ``compiled``: when ``policy`` is the calibrated agent (:class:`~crowd_env.walking.agent.SocialForceAgent`
+    with a compiled navigation), run the steps in compiled chunks of up to ``chunk_steps``
+    (:mod:`crowd_env.experiments.rollout`; the same result to the last bit as ``compiled=False``, which
+    runs every step from Python). ``recorder``: a
+    :class:`~crowd_env.analysis.recorder.TrajectoryRecorder` that gets the state every ``record_every``-th
+    step (at t = step · h). ``progress(sim)`` is called after every step run from Python and after every
+    compiled chunk. Returns a :class:`RunResult`; its flows are nan unless the run is complete (module
+    docstring).
     """
     params = get_preset(DEFAULT_PRESET).params() if params is None else params
+    if int(record_every) < 1:
+        raise InputError(f"record_every must be a whole number of steps >= 1, got {record_every!r}")
+    if int(chunk_steps) < 1:
+        raise InputError(f"chunk_steps must be >= 1, got {chunk_steps!r}")
     state = scenario.make_state(rng=rng) if state is None else state
     sim = scenario.make_simulator(state, params)  # with the scenario's destinations, if any
-    geometry = scenario.geometry
     width_m = scenario.metadata.get("width_m") if width_m is None else width_m
-    counter = None
-    if line is not None:
-        if line not in geometry.measurement_lines:
-            raise NotFoundError(f"scenario has no measurement line {line!r}; it has {sorted(geometry.measurement_lines)}")
-        ends = np.asarray(geometry.measurement_lines[line], dtype=float)
-        counter = PassageCounter(MeasurementLine(ends[0], ends[1]))
-    areas = {name: geometry.measurement_areas[name] for name in density_areas if name in geometry.measurement_areas}
-    area_size = {name: float(poly.area) for name, poly in areas.items()}
-    density = {name: [] for name in areas}
-    speed = {name: [] for name in areas}
-    lane_poly = geometry.measurement_areas.get(lane_area) if lane_area else None
-    lateral = []
     n_steps_max = int(round(max_time_s / params.dt_s))
-    min_gap = sim.min_gap_m()
-    t_wall = time.perf_counter()
-    last_exit_time = 0.0
-    ids = np.arange(state.n)
+    measures = _RunMeasures(scenario, state.n, n_steps_max, line, density_areas, lane_area, sim.min_gap_m(),
+                            record_every if recorder is not None else 0)
     stall = StallDetector(params.dt_s, stall_window_s, stall_speed_m_s, start_s=sim.time_s)
-    passed = np.zeros(state.n, dtype=bool)
-    for _ in range(n_steps_max):
-        if not state.active.any():
-            break
+    nav = _rollout_navigation(policy, sim, compiled)
+    kernel_tuples = _compiled_tuples(sim, nav) if nav is not None else None
+    t_wall = time.perf_counter()
+    done = 0
+    while done < n_steps_max and state.active.any() and not stall.stalled:
+        python_step = True
+        if kernel_tuples is not None and sim.fused_ready():
+            steps = min(int(chunk_steps), n_steps_max - done)
+            measures.room_for(steps)
+            status, k, clock = rollout_steps(steps, sim.time_s, sim.step_count, *kernel_tuples, *measures.measure_arguments(),
+                                             *stall.kernel_arguments, measures.counts, measures.scalars)
+            sim.advanced(k, clock)
+            done += k
+            measures.pass_frames(recorder)
+            if progress is not None and k:
+                progress(sim)
+            python_step = status == ROLLOUT_PYTHON_STEP
+        if not python_step:
+            continue
+        measures.room_for(1)
+        idx = sim.active_index
+        previous = state.position_m[idx]
         intents, heading = policy(sim)
-        prev = state.position_m.copy()
         t_prev = sim.time_s
         result = sim.step(intents, desired_heading_rad=heading)
-        progressed = result.exited.size > 0
-        if progressed:
-            last_exit_time = sim.time_s
-        if counter is not None:
-            new = counter.update(prev, state.position_m, t_prev, sim.time_s, ids)
-            if new:
-                passed[counter.ids[-new:]] = True
-                progressed = True
-        pos = state.position_m[state.active]
-        masks = {}
-        for name, poly in areas.items():
-            masks[name] = shapely.contains_xy(poly, pos[:, 0], pos[:, 1])
-            density[name].append(np.count_nonzero(masks[name]) / area_size[name])
-            speed[name].append(_mean_speed(state.velocity_m_s, state.active, masks[name]))
-        if lane_poly is not None:
-            inside = masks[lane_area] if lane_area in masks else shapely.contains_xy(lane_poly, pos[:, 0], pos[:, 1])
-            lateral.append(pos[inside, 1])
-        min_gap = min(min_gap, result.min_gap_m)  # pairs farther apart than the candidates cannot overlap
+        measure_step(state.position_m, state.velocity_m_s, state.heading_rad, state.active, idx, previous,
+                     result.exited.shape[0], t_prev, sim.time_s, sim.step_count, result.min_gap_m,
+                     *measures.measure_arguments(), *stall.kernel_arguments, params.dt_s, measures.counts,
+                     measures.scalars)
+        done += 1
+        measures.pass_frames(recorder)
         if progress is not None:
             progress(sim)
-        if stall.update(sim.time_s, state.velocity_m_s, state.active & ~passed, progressed):
-            break
-    times = np.sort(np.asarray(counter.times_s if counter is not None else [], dtype=float))
+    n_cross = int(measures.counts[COUNT_PASSED])
+    times = np.sort(measures.cross_times[:n_cross])
+    passed = measures.passed
     n_passed = times.size
     if n_passed >= 2 and width_m:
         flow = specific_flow(times, width_m)
@@ -306,15 +392,16 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
         j = js = float("nan")
     n_left = int(np.count_nonzero(~state.active))
     complete = not (state.active & ~passed).any()  # nobody left who has not passed
+    n_measured = int(measures.counts[COUNT_STEPS])
     return RunResult(
         n_pedestrians=state.n, width_m=width_m, seed=scenario.seed, n_steps=sim.step_count,
         simulated_time_s=sim.time_s, wall_time_s=time.perf_counter() - t_wall, n_evacuated=n_left,
-        evacuation_time_s=last_exit_time if n_left == state.n else float("nan"),
+        evacuation_time_s=float(measures.scalars[SCALAR_LAST_EXIT_S]) if n_left == state.n else float("nan"),
         crossing_times_s=times, flow_per_s=j if complete else float("nan"),
-        specific_flow_per_m_s=js if complete else float("nan"), min_gap_m=float(min_gap),
-        density_per_m2={k: np.asarray(v) for k, v in density.items()},
-        speed_m_s={k: np.asarray(v, dtype=float) for k, v in speed.items()},
-        lateral_positions_m=np.concatenate(lateral) if lateral else np.zeros(0),
+        specific_flow_per_m_s=js if complete else float("nan"), min_gap_m=float(measures.scalars[SCALAR_MIN_GAP_M]),
+        density_per_m2={k: measures.density[:n_measured, a].copy() for a, k in enumerate(measures.area_names)},
+        speed_m_s={k: measures.speed[:n_measured, a].copy() for a, k in enumerate(measures.area_names)},
+        lateral_positions_m=measures.lateral_positions(),
         n_fallback_solves=sim.n_fallback_solves, complete=bool(complete), stalled=stall.stalled,
         stall_time_s=stall.stall_time_s, partial_flow_per_s=j, partial_specific_flow_per_m_s=js,
     )

@@ -41,7 +41,10 @@ def stall_run(job: dict) -> dict:
                         force_n=agent.social_force(sim, e_d), speed_m_s=np.linalg.norm(sim.state.velocity_m_s[idx], axis=1))
         snap["last"] = sim
 
-    r = run_scenario(scenario, agent, preset.params(), max_time_s=job["max_time_s"], progress=capture)
+    # The snapshot reads the state after every step: the run goes step by step then (compiled chunks
+    # would pass the snapshot time).
+    r = run_scenario(scenario, agent, preset.params(), max_time_s=job["max_time_s"], progress=capture,
+                     compiled=t_snap is None)
     if t_snap is not None and "position_m" not in snap:  # the run ended first: its last state
         sim = snap["last"]
         idx = sim.active_index

@@ -12,11 +12,20 @@ default background policy and the experiments use it; ``baselines.social_force``
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba as nb
 import numpy as np
 
 from ..core.angles import direction_angles_rad
+from ..core.neighbors import grid_pairs
+from .navigation import DestinationNavigation, NavigationField, _bilinear_sample
 from .social_force import social_repulsion, total_social_forces
+
+# agent_step's status: the intents are ready, or a pedestrian's e_d is undefined (outside the grid, not
+# finite, or unreachable): the caller must take the Python path, which raises naming it.
+AGENT_OK = 0
+AGENT_BAD_DIRECTION = 1
 
 
 @nb.njit(cache=True)
@@ -52,6 +61,106 @@ def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, hea
     return intents, theta_d
 
 
+class CompiledNavigation(NamedTuple):
+    """A navigation as arrays for compiled code: F fields on one grid (``origin_m`` (2,), ``resolution_m``,
+    ``travel_time_s`` (F, nx, ny), ``direction`` (F, nx, ny, 2)) and the field of each pedestrian
+    ``field_of`` (N,)."""
+
+    origin_m: np.ndarray
+    resolution_m: float
+    travel_time_s: np.ndarray
+    direction: np.ndarray
+    field_of: np.ndarray
+
+
+def compile_navigation(navigation, n_pedestrians: int) -> CompiledNavigation | None:
+    """``navigation`` as a :class:`CompiledNavigation`, or None when compiled code cannot sample it the
+    way its ``direction`` does (a rigidly moved field, a user's own object, destination fields on
+    different grids): callers then keep the Python path."""
+    if type(navigation) is NavigationField:
+        fields, field_of = [navigation], np.zeros(n_pedestrians, np.int64)
+    elif type(navigation) is DestinationNavigation and navigation.destination.shape[0] == n_pedestrians:
+        keys = sorted(navigation.fields)
+        fields = [navigation.fields[k] for k in keys]
+        field_of = np.searchsorted(np.asarray(keys), navigation.destination).astype(np.int64)
+    else:
+        return None
+    first = fields[0]
+    if any(f.shape != first.shape or f.resolution_m != first.resolution_m
+           or not np.array_equal(f.origin_m, first.origin_m) for f in fields):
+        return None
+    return CompiledNavigation(np.array([float(first.origin_m[0]), float(first.origin_m[1])]), float(first.resolution_m),
+                              np.ascontiguousarray(np.stack([f.travel_time_s_grid for f in fields])),
+                              np.ascontiguousarray(np.stack([f.direction_grid for f in fields])), field_of)
+
+
+@nb.njit(cache=True)
+def sample_directions(position, index, origin_m, resolution_m, travel_time, direction, field_of):
+    """e_d (Eq. 13) of the pedestrians ``index``, each from its own field, by the same bilinear kernel as
+    :meth:`NavigationField.sample` (point by point: the same bits). Returns ``(e_d (n, 2), ok)``; ``ok``
+    is False when a point is outside the grid or not finite, or has no direction (unreachable)."""
+    n = index.shape[0]
+    e_d = np.empty((n, 2))
+    t = np.empty(n)
+    ok = True
+    for f in range(travel_time.shape[0]):
+        count = 0
+        for k in range(n):
+            if field_of[index[k]] == f:
+                count += 1
+        if count == 0:
+            continue
+        rows = np.empty(count, np.int64)
+        pts = np.empty((count, 2))
+        count = 0
+        for k in range(n):
+            if field_of[index[k]] == f:
+                rows[count] = k
+                pts[count, 0] = position[index[k], 0]
+                pts[count, 1] = position[index[k], 1]
+                count += 1
+        out_dir = np.empty((count, 2))
+        out_time = np.empty(count)
+        if _bilinear_sample(pts, origin_m[0], origin_m[1], resolution_m, travel_time[f], direction[f], out_dir,
+                            out_time) >= 0:
+            ok = False
+        for q in range(count):
+            e_d[rows[q], 0] = out_dir[q, 0]
+            e_d[rows[q], 1] = out_dir[q, 1]
+            t[rows[q]] = out_time[q]
+    for k in range(n):
+        if not (np.isfinite(e_d[k, 0]) and np.isfinite(e_d[k, 1])):
+            ok = False
+    return e_d, ok
+
+
+@nb.njit(cache=True)
+def agent_step(position, radius, index, origin_m, resolution_m, travel_time, direction, field_of, desired_speed, tau,
+               mass, heading, walls, wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n,
+               wall_range_m):
+    """One decision of :class:`SocialForceAgent` in compiled code, exactly as its ``__call__``: e_d from the
+    fields (:func:`sample_directions`), the neighbour pairs within 2 r_max + cut-off (the ones
+    ``Simulator.neighbor_pairs`` would build, which the step may reuse) and :func:`baseline_intents`.
+    Returns ``(status, intents, θ_d, pairs, pair_radius_m)``, ``pair_radius_m`` −1 when no pairs were built."""
+    n = index.shape[0]
+    no_pairs = np.zeros((0, 2), np.int64)
+    e_d, ok = sample_directions(position, index, origin_m, resolution_m, travel_time, direction, field_of)
+    if not ok:
+        return AGENT_BAD_DIRECTION, np.zeros((position.shape[0], 2)), heading.copy(), no_pairs, -1.0
+    pairs = no_pairs
+    pair_radius = -1.0
+    if social:
+        r_max = 0.0
+        for k in range(n):
+            r_max = max(r_max, radius[index[k]])
+        pair_radius = 2.0 * r_max + cutoff_m
+        pairs = grid_pairs(position, index, pair_radius)
+    intents, theta_d = baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, heading, pairs, walls,
+                                        wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n,
+                                        wall_range_m)
+    return AGENT_OK, intents, theta_d, pairs, pair_radius
+
+
 class SocialForceAgent:
     """Policy object: ``agent(sim) -> (intents (N, 2), desired_heading (N,))`` for a :class:`Simulator`.
 
@@ -81,6 +190,14 @@ class SocialForceAgent:
         radius = st.radius_m[idx]
         pairs = sim.neighbor_pairs(2.0 * float(radius.max()) + p.social_cutoff_m) if idx.size else np.zeros((0, 2), np.int64)
         return social_repulsion(pos, radius, e_d, pairs, sim.walls, sim.wall_owner, p)
+
+    def compiled(self, n_pedestrians: int) -> CompiledNavigation | None:
+        """The agent's navigation for :func:`agent_step` (None: this agent has no compiled form, e.g. a
+        subclass that changes how it decides, or a navigation compiled code cannot sample)."""
+        cls = type(self)
+        if cls.__call__ is not SocialForceAgent.__call__ or cls.desired_direction is not SocialForceAgent.desired_direction:
+            return None
+        return compile_navigation(self.navigation, n_pedestrians)
 
     def __call__(self, sim):
         st = sim.state
