@@ -105,6 +105,7 @@ import inspect
 import math
 import warnings
 
+import numba as nb
 import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
@@ -316,6 +317,8 @@ class CrowdParallelEnv(ParallelEnv):
         self._index_of = {a: int(i) for a, i in zip(self.possible_agents, self._controlled_index)}
         self._controlled_mask = np.zeros(n, dtype=bool)
         self._controlled_mask[self._controlled_index] = True
+        self._background_mask = ~self._controlled_mask
+        self._has_background = bool(self._background_mask.any())
         self.agents = []
         # -- navigation, observations and spaces
         self.navigation = scenario.navigation()
@@ -510,21 +513,13 @@ class CrowdParallelEnv(ParallelEnv):
         if not isinstance(actions, dict):
             raise ActionError(f"actions must be a dict agent id -> (2,) velocity intent, got {type(actions).__name__}")
         live = self.agents
-        if len(actions) != len(live) or actions.keys() != set(live):
-            known = self._index_of
-            unknown = [a for a in actions if a not in known]
-            if unknown:
-                raise ActionError(f"unknown agent id(s) {unknown[:10]}; agents are {self._ids_summary()}")
-            live_set = set(live)
-            dead = [a for a in actions if a not in live_set]
-            if dead:
-                raise ActionError(f"agent(s) {dead[:10]} are no longer live (terminated or truncated); "
-                                 "give actions only for env.agents")
-            missing = [a for a in live if a not in actions]
-            raise ActionError(f"missing action(s) for live agent(s) {missing[:10]} ({len(missing)} in all): every "
-                             "agent in env.agents needs an action each step")
+        if len(actions) == len(live) and list(actions) == live:  # the usual dict(zip(env.agents, ...)): in order
+            values = list(actions.values())
+        else:
+            self._check_action_keys(actions)
+            values = [actions[a] for a in live]
         try:
-            arr = np.array([actions[a] for a in live], dtype=np.float64)
+            arr = np.array(values, dtype=np.float64)
         except (TypeError, ValueError):
             arr = None
         if arr is None or arr.shape != (len(live), 2):
@@ -537,17 +532,34 @@ class CrowdParallelEnv(ParallelEnv):
                     raise ActionError(f"action of {a} must have shape (2,) (a velocity intent in m/s), got shape "
                                      f"{v.shape}: {actions[a]!r}")
             raise ActionError("actions could not be stacked into an (n, 2) array")  # pragma: no cover
-        finite = np.isfinite(arr).all(axis=1)
-        if not finite.all():
-            bad = [live[i] for i in np.flatnonzero(~finite)[:10]]
-            raise ActionError(f"non-finite action(s) for {bad}: {arr[~finite][:3].tolist()}")
-        out = (np.abs(arr) > self._a_max_check).any(axis=1)
-        if out.any():
-            i = np.flatnonzero(out)
+        if not np.abs(arr).max(initial=0.0) <= self._a_max_check:  # also false for NaN: name the culprits
+            finite = np.isfinite(arr).all(axis=1)
+            if not finite.all():
+                bad = [live[i] for i in np.flatnonzero(~finite)[:10]]
+                raise ActionError(f"non-finite action(s) for {bad}: {arr[~finite][:3].tolist()}")
+            i = np.flatnonzero((np.abs(arr) > self._a_max_check).any(axis=1))
             bad = [live[k] for k in i[:10]]
             raise ActionError(f"action(s) of {bad} outside the action space Box(-{self.action_max_m_s:g}, "
                              f"{self.action_max_m_s:g}) m/s: {arr[i[:3]].tolist()}; the environment does not clip")
         return arr
+
+    def _check_action_keys(self, actions) -> None:
+        """Raise :class:`~crowd_env.errors.ActionError` unless ``actions`` has exactly the live agents' ids."""
+        live = self.agents
+        if len(actions) == len(live) and actions.keys() == set(live):
+            return
+        known = self._index_of
+        unknown = [a for a in actions if a not in known]
+        if unknown:
+            raise ActionError(f"unknown agent id(s) {unknown[:10]}; agents are {self._ids_summary()}")
+        live_set = set(live)
+        dead = [a for a in actions if a not in live_set]
+        if dead:
+            raise ActionError(f"agent(s) {dead[:10]} are no longer live (terminated or truncated); "
+                             "give actions only for env.agents")
+        missing = [a for a in live if a not in actions]
+        raise ActionError(f"missing action(s) for live agent(s) {missing[:10]} ({len(missing)} in all): every "
+                         "agent in env.agents needs an action each step")
 
     def step(self, actions):
         """Advance ``frame_skip`` simulator steps; returns ``(obs, rewards, terminations, truncations, infos)``."""
@@ -563,8 +575,12 @@ class CrowdParallelEnv(ParallelEnv):
         obs, rewards, exited, truncated, info = self._advance(intent_c)
         obs_d = dict(zip(agents, obs))
         rew_d = dict(zip(agents, rewards.tolist()))
-        term_d = dict(zip(agents, exited.tolist()))
-        trunc_d = dict(zip(agents, truncated.tolist()))
+        if len(self.agents) == len(agents):  # nobody ended (the usual step): one dict of False, copied
+            term_d = dict.fromkeys(agents, False)
+            trunc_d = term_d.copy()
+        else:
+            term_d = dict(zip(agents, exited.tolist()))
+            trunc_d = dict(zip(agents, truncated.tolist()))
         info_d = {a: {"contact_percussion_kg_m_s": p, "n_contacts": c, "travel_time_s": t, "speed_m_s": v}
                   for a, p, c, t, v in zip(agents, info["contact_percussion_kg_m_s"].tolist(),
                                            info["n_contacts"].tolist(), info["travel_time_s"].tolist(),
@@ -578,7 +594,8 @@ class CrowdParallelEnv(ParallelEnv):
         ``self.agents`` order (in the action frame). Returns arrays in that order: ``(observations (n, D)
         float32, rewards (n,), terminated (n,) bool, truncated (n,) bool, info)`` (``info``: the arrays of
         :data:`~crowd_env.envs.rewards.REWARD_INFO_KEYS`); agents that ended leave ``self.agents``. The
-        dict API (:meth:`step`) and the vector environment both call it."""
+        dict API (:meth:`step`) and the vector environment both call it; the work per agent is compiled
+        (:func:`_set_agent_inputs`, :func:`_add_contacts`, :func:`_step_arrays`, the observation pass)."""
         sim = self._sim
         st = sim.state
         n = st.n
@@ -590,53 +607,39 @@ class CrowdParallelEnv(ParallelEnv):
         t_before = self._travel_time[idx_c]
         percussion = np.zeros(n)
         contacts = np.zeros(n, np.int64)
-        background = ~self._controlled_mask
-        if self.heading_target == "intent":
-            speed_c = np.hypot(intent_c[:, 0], intent_c[:, 1])
-            zero_c = speed_c <= 1e-12
-            theta_int = direction_angles_rad(intent_c)
+        by_intent = self.heading_target == "intent"
+        theta_c = _NO_ANGLES
         hooks = self.substep_hooks
         for _ in range(self.frame_skip):
-            if not st.active.any():
-                break
-            if (background & st.active).any():
+            if self._has_background and (self._background_mask & st.active).any():
                 intents, heading = self._background(sim)
+            elif not st.active.any():
+                break
             else:
                 intents = np.zeros((n, 2))
                 heading = st.heading_rad.copy()
-            intents[idx_c] = intent_c
-            if self.heading_target == "intent":
-                heading[idx_c] = np.where(zero_c, st.heading_rad[idx_c], theta_int)
-            else:
+            if not by_intent:
                 e_d = (self.navigation.direction(st.position_m[idx_c], idx_c) if self._per_pedestrian_navigation
                        else self.navigation.direction(st.position_m[idx_c]))
-                heading[idx_c] = direction_angles_rad(e_d)
+                theta_c = direction_angles_rad(e_d)
+            _set_agent_inputs(intents, heading, st.heading_rad, idx_c, intent_c, theta_c, by_intent)
             if hooks:
                 prev_pos, prev_t = st.position_m.copy(), sim.time_s
             res = sim.step(intents, desired_heading_rad=heading)
             if res.contact_i.size:
-                pn = np.abs(res.percussion_normal)
-                percussion += np.bincount(res.contact_i, weights=pn, minlength=n)
-                contacts += np.bincount(res.contact_i, minlength=n)
-                wj = res.contact_j >= 0
-                if wj.any():
-                    percussion += np.bincount(res.contact_j[wj], weights=pn[wj], minlength=n)
-                    contacts += np.bincount(res.contact_j[wj], minlength=n)
+                _add_contacts(percussion, contacts, res.contact_i, res.contact_j, res.percussion_normal)
             for hook in hooks:
                 hook(self, res, prev_pos, prev_t)
         self._steps += 1
-        exited = ~st.active[idx_c]
-        obs, t_after = self._observer.build(st, idx_c)
-        self._travel_time[idx_c] = t_after
-        speed = np.hypot(st.velocity_m_s[idx_c, 0], st.velocity_m_s[idx_c, 1])
-        info = {"agent_index": idx_c.copy(), "progress_s": t_before - t_after, "travel_time_before_s": t_before,
-                "travel_time_s": t_after, "contact_percussion_kg_m_s": percussion[idx_c],
-                "n_contacts": contacts[idx_c], "speed_m_s": speed, "exited": exited, "dt_s": self.dt_s}
+        obs, t_after, speed = self._observer.observe(st, idx_c)
+        progress, perc_c, contacts_c, exited, truncated, n_done = _step_arrays(
+            st.active, idx_c, t_before, t_after, self._travel_time, percussion, contacts, self._steps >= self.max_steps)
+        info = {"agent_index": idx_c.copy(), "progress_s": progress, "travel_time_before_s": t_before,
+                "travel_time_s": t_after, "contact_percussion_kg_m_s": perc_c, "n_contacts": contacts_c,
+                "speed_m_s": speed, "exited": exited, "dt_s": self.dt_s}
         rewards = self._rewards(agents, info)
-        truncated = (~exited) & (self._steps >= self.max_steps)
-        done = exited | truncated
-        if done.any():
-            keep = ~done
+        if n_done:
+            keep = ~(exited | truncated)
             self._agent_index = idx_c[keep]
             self.agents = [a for a, k in zip(agents, keep.tolist()) if k]
         return obs, rewards, exited, truncated, info
@@ -662,6 +665,9 @@ class CrowdParallelEnv(ParallelEnv):
 
     def _rewards(self, agents, info) -> np.ndarray:
         out = self.reward_fn(self, agents, info)
+        if type(out) is np.ndarray and out.dtype == np.float64 and out.shape == (len(agents),) \
+                and _all_finite(out):  # DefaultReward's: nothing to convert
+            return out
         if isinstance(out, dict):
             missing = [a for a in agents if a not in out]
             if missing:
@@ -698,6 +704,75 @@ class CrowdParallelEnv(ParallelEnv):
         state = self.__dict__.copy()
         state["_renderer"] = None  # figures do not travel (SuperSuit pickles environments to copy them)
         return state
+
+
+_NO_ANGLES = np.zeros(0)
+
+
+@nb.njit(cache=True)
+def _set_agent_inputs(intents, heading, state_heading, idx_c, intent_c, theta_c, by_intent):
+    """Write the agents' intents and θ_d into the simulator's (N, 2) and (N,) inputs. θ_d: with
+    ``by_intent`` the intent's angle (atan2 as :func:`~crowd_env.core.angles.direction_angles_rad`), or the
+    current heading for an intent of speed <= 1e-12; else ``theta_c``."""
+    for a in range(idx_c.shape[0]):
+        i = idx_c[a]
+        ux = intent_c[a, 0]
+        uy = intent_c[a, 1]
+        intents[i, 0] = ux
+        intents[i, 1] = uy
+        if not by_intent:
+            heading[i] = theta_c[a]
+        elif np.hypot(ux, uy) <= 1e-12:
+            heading[i] = state_heading[i]
+        else:
+            heading[i] = np.arctan2(uy, ux)
+
+
+@nb.njit(cache=True)
+def _add_contacts(percussion, contacts, contact_i, contact_j, percussion_normal):
+    """Add one simulator step's contacts to the per-pedestrian sums: |normal percussion| and a count to
+    each pedestrian of a contact (j < 0: a wall), summed as two bincounts (first i, then j) were."""
+    n = percussion.shape[0]
+    for side in range(2):
+        part = np.zeros(n)
+        for c in range(contact_i.shape[0]):
+            p = contact_i[c] if side == 0 else contact_j[c]
+            if p >= 0:
+                part[p] += abs(percussion_normal[c])
+                contacts[p] += 1
+        for p in range(n):
+            percussion[p] += part[p]
+
+
+@nb.njit(cache=True)
+def _step_arrays(active, idx_c, t_before, t_after, travel_time, percussion, contacts, at_limit):
+    """The agents' step arrays: progress T_before − T_after, their percussions and contact counts,
+    exited, truncated (not exited at the step limit) and how many ended; stores T_after in ``travel_time``."""
+    m = idx_c.shape[0]
+    progress = np.empty(m)
+    perc = np.empty(m)
+    cont = np.empty(m, np.int64)
+    exited = np.empty(m, np.bool_)
+    truncated = np.empty(m, np.bool_)
+    n_done = 0
+    for a in range(m):
+        i = idx_c[a]
+        progress[a] = t_before[a] - t_after[a]
+        travel_time[i] = t_after[a]
+        perc[a] = percussion[i]
+        cont[a] = contacts[i]
+        exited[a] = not active[i]
+        truncated[a] = active[i] and at_limit
+        n_done += exited[a] or truncated[a]
+    return progress, perc, cont, exited, truncated, n_done
+
+
+@nb.njit(cache=True)
+def _all_finite(values):
+    for v in values:
+        if not np.isfinite(v):
+            return False
+    return True
 
 
 ENV_OPTIONS = tuple(p.name for p in inspect.signature(CrowdParallelEnv.__init__).parameters.values()

@@ -35,10 +35,13 @@ are already relative to the heading). Nothing in it depends on the scenario's or
 position: a rotated and shifted copy of a scenario gives the same observations
 (``tests/envs/test_frames.py``).
 
-Neighbours are every other active pedestrian, controlled or background. The builder makes one
-compiled k-nearest search on a cell grid for all agents
-(:func:`crowd_env.core.neighbors.grid_k_nearest`) and one call of the compiled ray kernel
-(:func:`crowd_env.core.segments.ray_distances`); nothing loops over agents in Python.
+Neighbours are every other active pedestrian, controlled or background. The builder fills every row
+in one compiled pass: the field's bilinear sampling (a plain
+:class:`~crowd_env.walking.navigation.NavigationField`; other fields are sampled, vectorised, just
+before), one k-nearest search on a cell grid for all agents
+(:func:`crowd_env.core.neighbors.grid_k_nearest`), the wall rays (the ray–segment test of
+:func:`crowd_env.core.segments.ray_distances`; ray r points along the heading turned by 2πr/R) and
+the turns into the body frame; nothing loops over agents in Python.
 """
 from __future__ import annotations
 
@@ -50,7 +53,7 @@ import numpy as np
 from crowd_env.errors import EnvOptionError
 
 from ..core.neighbors import grid_k_nearest
-from ..core.segments import ray_distances
+from ..walking.navigation import NavigationField, _bilinear_sample
 
 __all__ = ["FRAMES", "OBSERVATION_FIELDS", "EGOCENTRIC_OBSERVATION_FIELDS", "ObservationField", "observation_fields",
            "observation_layout", "observation_size", "check_frame", "ObservationBuilder"]
@@ -161,6 +164,13 @@ class ObservationBuilder:
         self.layout = observation_layout(self.n_neighbors, self.n_rays, self.frame)
         self.size = observation_size(self.n_neighbors, self.n_rays, self.frame)
         self.ray_offsets = 2.0 * np.pi * np.arange(self.n_rays) / max(self.n_rays, 1)
+        # ray r points along R(θ) (cos φ_r, sin φ_r): the heading turned by the fixed offset φ_r = 2πr/R
+        self.ray_cos, self.ray_sin = np.cos(self.ray_offsets), np.sin(self.ray_offsets)
+        self._per_pedestrian = bool(getattr(navigation, "per_pedestrian", False))
+        # a plain field is sampled inside the compiled pass (its grid); any other field from Python first
+        self._grid = _grid_of(navigation) if type(navigation) is NavigationField else None
+        self._walls_d = np.ascontiguousarray(np.column_stack(
+            (self.walls[:, :2], self.walls[:, 2:] - self.walls[:, :2])))  # start (x, y) and direction (ex, ey)
         low = np.empty(self.size, np.float32)
         high = np.empty(self.size, np.float32)
         L = self.layout
@@ -176,73 +186,166 @@ class ObservationBuilder:
         low[L["neighbors"]] = nb_low
         high[L["neighbors"]] = -nb_low
         self.low, self.high = low, high
+        col = {name: (L[name].start if name in L else -1) for name in
+               ("velocity", "heading", "desired_direction", "travel_time", "neighbors", "neighbor_mask", "wall_rays")}
+        self._ints = np.array([self.n_neighbors, self.n_rays, self.frame == "world", self._grid is not None,
+                               *col.values()], np.int64)
+        self._floats = np.array([self.neighbor_radius_m, self.ray_range_m], np.float64)
 
     def build(self, state, index: np.ndarray):
         """Observations ``(m, D)`` float32 of pedestrians ``index`` (global indices, exited ones allowed),
         and their travel times ``(m,)`` float64 (for rewards)."""
+        obs, travel, _ = self.observe(state, index)
+        return obs, travel
+
+    def observe(self, state, index: np.ndarray):
+        """:meth:`build` plus the speeds ``(m,)`` in m/s of pedestrians ``index``, in one compiled pass
+        (navigation sampling, neighbours, wall rays, frame turns)."""
         index = np.asarray(index, dtype=np.int64)
         m = index.shape[0]
         obs = np.zeros((m, self.size), np.float32)
+        travel = np.empty(m)
+        speed = np.empty(m)
         if m == 0:
-            return obs, np.zeros(0)
-        L = self.layout
-        pos = state.position_m[index]
-        vel = state.velocity_m_s[index]
-        theta = state.heading_rad[index]
-        if getattr(self.navigation, "per_pedestrian", False):
-            e_d, travel = self.navigation.sample(pos, index)
-        else:
-            e_d, travel = self.navigation.sample(pos)
-        if self.frame == "world":
-            obs[:, L["velocity"]] = vel
-            obs[:, L["heading"].start] = np.cos(theta)
-            obs[:, L["heading"].start + 1] = np.sin(theta)
-            obs[:, L["desired_direction"]] = e_d
-        else:
-            c, s = np.cos(theta), np.sin(theta)
-            obs[:, L["velocity"]] = to_body_frame(vel, c, s)
-            obs[:, L["desired_direction"]] = to_body_frame(e_d, c, s)
-        obs[:, L["travel_time"].start] = travel
-        if self.n_neighbors and self.frame == "world":
-            self._neighbors(state, index, obs, L["neighbors"].start, L["neighbor_mask"].start)
-        elif self.n_neighbors:  # float64 first, turned into the body frame, then stored as float32 once
-            k = self.n_neighbors
-            near = np.zeros((m, 5 * k))
-            self._neighbors(state, index, near, 0, 4 * k)
-            obs[:, L["neighbors"]] = to_body_frame(near[:, :4 * k].reshape(m, 2 * k, 2), c, s).reshape(m, 4 * k)
-            obs[:, L["neighbor_mask"]] = near[:, 4 * k:]
-        if self.n_rays:
-            if self.walls.shape[0]:
-                angles = theta[:, None] + self.ray_offsets[None, :]
-                obs[:, L["wall_rays"]] = ray_distances(np.ascontiguousarray(pos), angles, self.walls, self.ray_range_m)
+            return obs, travel, speed
+        e_d = np.empty((m, 2))
+        nav = self._grid
+        if nav is None:  # a field the kernel cannot read: sample it first (vectorised), pass e_d and T in
+            pos = state.position_m[index]
+            if self._per_pedestrian:
+                e_d, travel = self.navigation.sample(pos, index)
             else:
-                obs[:, L["wall_rays"]] = self.ray_range_m
-        return obs, travel
+                e_d, travel = self.navigation.sample(pos)
+            nav = _NO_GRID
+        bad = _observe(state.position_m, state.velocity_m_s, state.heading_rad, state.active, index, nav[0],
+                       nav[1], nav[2], self._ints, self._floats, self._walls_d, self.ray_cos, self.ray_sin, obs,
+                       e_d, travel, speed)
+        if bad >= 0:  # outside the navigation grid: the field raises its own error
+            self.navigation.sample(state.position_m[index[bad:bad + 1]])
+        return obs, travel, speed
 
-    def _neighbors(self, state, index, out: np.ndarray, col_rel: int, col_mask: int) -> None:
-        """Write the k nearest other active pedestrians' relative positions/velocities (world frame, from
-        column ``col_rel``) and the mask (from column ``col_mask``) into the rows of ``out``."""
-        active = np.flatnonzero(state.active)
-        if active.size == 0:
-            return
-        j = grid_k_nearest(state.position_m, active, index, self.n_neighbors, self.neighbor_radius_m)
-        _fill_neighbors(out, col_rel, col_mask, index, j, active, state.position_m, state.velocity_m_s)
+
+_NO_GRID = (np.zeros(3), np.zeros((2, 2)), np.zeros((2, 2, 2)))
+
+
+def _grid_of(field: NavigationField) -> tuple:
+    """``((x0, y0, h), T grid, e_d grid)`` of a plain field, for the compiled pass."""
+    return (np.array([field.origin_m[0], field.origin_m[1], field.resolution_m], np.float64),
+            np.ascontiguousarray(field.travel_time_s_grid, dtype=np.float64),
+            np.ascontiguousarray(field.direction_grid, dtype=np.float64))
 
 
 @nb.njit(cache=True)
-def _fill_neighbors(out, col_rel, col_mask, index, j, active, position, velocity):
-    """For each row a: the neighbours j[a] (rows into ``active``, nearest first, −1 when missing) ->
-    relative position/velocity and mask 1."""
-    for a in range(index.shape[0]):
+def _observe(position, velocity, heading, active, index, grid_xyh, grid_t, grid_d, ints, floats, walls, ray_cos,
+             ray_sin, obs, e_d, travel, speed):
+    """Every observation row of pedestrians ``index`` in one pass (see :class:`ObservationBuilder`).
+
+    ``ints``: k, R, world frame?, sample the grid here?, then the first column of velocity, heading,
+    desired_direction, travel_time, neighbors, neighbor_mask, wall_rays (−1: absent); ``floats``: the
+    neighbour radius and the ray range; ``walls`` (S, 4): start and direction of each segment. Writes
+    ``obs`` (zeros on entry), ``e_d`` and ``travel`` (when sampled here; else read) and ``speed``.
+    Returns −1, or the first row whose position lies outside the navigation grid.
+    """
+    m = index.shape[0]
+    k, n_rays, world, sample = ints[0], ints[1], ints[2] != 0, ints[3] != 0
+    c_vel, c_head, c_ed, c_t, c_nb, c_mask, c_ray = ints[4], ints[5], ints[6], ints[7], ints[8], ints[9], ints[10]
+    if sample:
+        pos = np.empty((m, 2))
+        for a in range(m):
+            pos[a, 0] = position[index[a], 0]
+            pos[a, 1] = position[index[a], 1]
+        bad = _bilinear_sample(pos, grid_xyh[0], grid_xyh[1], grid_xyh[2], grid_t, grid_d, e_d, travel)
+        if bad >= 0:
+            return bad
+    act = np.flatnonzero(active)
+    near = grid_k_nearest(position, act, index, k, floats[0])  # (m, 0) at once for k = 0
+    ray_range = floats[1]
+    dxs = np.empty(n_rays)
+    dys = np.empty(n_rays)
+    best = np.empty(n_rays)
+    for a in range(m):
         i = index[a]
-        for slot in range(j.shape[1]):
-            r = j[a, slot]
-            if r < 0:
-                break  # the rest are missing too
-            g = active[r]
-            base = col_rel + 4 * slot
-            out[a, base] = position[g, 0] - position[i, 0]
-            out[a, base + 1] = position[g, 1] - position[i, 1]
-            out[a, base + 2] = velocity[g, 0] - velocity[i, 0]
-            out[a, base + 3] = velocity[g, 1] - velocity[i, 1]
-            out[a, col_mask + slot] = 1.0
+        th = heading[i]
+        c = np.cos(th)
+        s = np.sin(th)
+        ux = velocity[i, 0]
+        uy = velocity[i, 1]
+        speed[a] = np.hypot(ux, uy)
+        ex = e_d[a, 0]
+        ey = e_d[a, 1]
+        if world:
+            obs[a, c_vel] = ux
+            obs[a, c_vel + 1] = uy
+            obs[a, c_head] = c
+            obs[a, c_head + 1] = s
+            obs[a, c_ed] = ex
+            obs[a, c_ed + 1] = ey
+        else:  # R(−θ) v = (c v_x + s v_y, c v_y − s v_x), as to_body_frame
+            obs[a, c_vel] = c * ux + s * uy
+            obs[a, c_vel + 1] = c * uy - s * ux
+            obs[a, c_ed] = c * ex + s * ey
+            obs[a, c_ed + 1] = c * ey - s * ex
+        obs[a, c_t] = travel[a]
+        for slot in range(k):
+            r = near[a, slot]
+            if r < 0 and world:
+                break  # the rest are missing too (zeros)
+            dx = dy = du = dv = 0.0
+            if r >= 0:
+                g = act[r]
+                dx = position[g, 0] - position[i, 0]
+                dy = position[g, 1] - position[i, 1]
+                du = velocity[g, 0] - velocity[i, 0]
+                dv = velocity[g, 1] - velocity[i, 1]
+                obs[a, c_mask + slot] = 1.0
+            base = c_nb + 4 * slot
+            if world:
+                obs[a, base] = dx
+                obs[a, base + 1] = dy
+                obs[a, base + 2] = du
+                obs[a, base + 3] = dv
+            else:  # padding turned too (signed zeros as before)
+                obs[a, base] = c * dx + s * dy
+                obs[a, base + 1] = c * dy - s * dx
+                obs[a, base + 2] = c * du + s * dv
+                obs[a, base + 3] = c * dv - s * du
+        if n_rays > 0:
+            _cast_rays(position[i, 0], position[i, 1], c, s, walls, ray_cos, ray_sin, ray_range, obs[a], c_ray, dxs,
+                       dys, best)
+    return -1
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _cast_rays(ox, oy, c, s, walls, ray_cos, ray_sin, max_range, out, col, dxs, dys, best):
+    """Distance from (ox, oy) to the first wall along each ray R(θ) (cos φ_r, sin φ_r), capped at
+    ``max_range``, written to ``out[col + r]``: the ray–segment test of
+    :func:`crowd_env.core.segments.ray_distances` (the same arithmetic), branch-free over the rays so that
+    it runs in SIMD lanes; ``dxs``, ``dys``, ``best``: (R,) scratch."""
+    n_rays = ray_cos.shape[0]
+    for r in range(n_rays):
+        dxs[r] = c * ray_cos[r] - s * ray_sin[r]
+        dys[r] = s * ray_cos[r] + c * ray_sin[r]
+        best[r] = max_range
+    reach2 = (max_range * (1.0 + 1e-9) + 1e-9) ** 2
+    for w in range(walls.shape[0]):
+        ex = walls[w, 2]
+        ey = walls[w, 3]
+        wx = walls[w, 0] - ox
+        wy = walls[w, 1] - oy
+        # skip a wall farther than the range (no ray reaches it): its point nearest to the origin
+        ee = ex * ex + ey * ey
+        f = -(wx * ex + wy * ey) / ee if ee > 0.0 else 0.0
+        f = min(max(f, 0.0), 1.0)
+        qx = wx + f * ex
+        qy = wy + f * ey
+        if qx * qx + qy * qy > reach2:
+            continue
+        tn = wx * ey - wy * ex
+        for r in range(n_rays):
+            den = dxs[r] * ey - dys[r] * ex
+            t = tn / den  # distance along the ray (inf or nan for a parallel wall, refused below)
+            u = (wx * dys[r] - wy * dxs[r]) / den  # position along the segment
+            hit = (abs(den) >= 1e-14) & (t >= 0.0) & (u >= 0.0) & (u <= 1.0) & (t < best[r])
+            best[r] = t if hit else best[r]
+    for r in range(n_rays):
+        out[col + r] = best[r]
