@@ -26,18 +26,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .contacts import CONTACT_FIELDS, active_links, contact_candidates
-from .neighbors import grid_pairs, grid_pairs_around
+from .neighbors import grid_pairs
 from .params import ModelParams, ParameterError
 from .polygons import PackedPolygons, pack_polygons
 from .segments import as_segments, endpoint_owners, wall_proximity
 from .solvers.cascade import SolverCascade
-from .solvers.graph import contact_keys, gap_residuals, renumber_rows
+from .solvers.graph import contact_keys, gap_residuals
 from .solvers.impact import solve_clusters
 from .state import CrowdState, StateError
-from .step import (FUSED_OK, compact_bodies, detection_reach, finish_step, first_non_finite, fused_step, grown_margins,
-                   impact_stage, kinetic_energy, leave_at_exits, redetection_reach, smooth_update, speeds)
+from .step import (FUSED_OK, MAX_REDETECT, compact_bodies, detection_reach, finish_step, first_non_finite, fused_step, grown_margins,
+                   impact_stage, kinetic_energy, leave_at_exits, redetect_candidates, smooth_update, speeds)
 
-MAX_REDETECT = 10  # re-detection rounds per step (speeds are bounded: one or two rounds suffice in practice)
 
 
 @dataclass
@@ -171,11 +170,13 @@ class Simulator:
         A compiled rollout runs fused steps only while this holds, and it holds on after a fused step."""
         return not self.profile and self.cascade.dense_only(self.step_count)
 
-    def advanced(self, n_steps: int, time_s: float) -> None:
+    def advanced(self, n_steps: int, time_s: float, n_redetections: int = 0) -> None:
         """Account for ``n_steps`` fused steps that a compiled rollout ran on :attr:`state` (the same
-        kernels as :meth:`step`), reaching the clock ``time_s`` (accumulated as :meth:`step` does)."""
+        kernels as :meth:`step`), reaching the clock ``time_s`` (accumulated as :meth:`step` does), with
+        ``n_redetections`` re-detection rounds among them."""
         self.step_count += int(n_steps)
         self.time_s = float(time_s)
+        self.n_redetections += int(n_redetections)
 
     # ------------------------------------------------------------------ neighbours
     @property
@@ -256,7 +257,7 @@ class Simulator:
         links = self._active_links(idx)
         t0 = time.perf_counter()
         previous = st.position_m[idx]
-        status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap = fused_step(
+        status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect = fused_step(
             st.position_m, st.radius_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad, st.mass_kg,
             st.inertia_kg_m2, st.tau_s, st.heading_stiffness, st.heading_damping, *inputs, idx, self.walls,
             self._wall_owner, *self._cached_pairs(), *links, p.dt_s, p.contact_tolerance_m, p.normal_dissipation_kg,
@@ -264,6 +265,7 @@ class Simulator:
             self.cascade.max_dense_projection_rows)
         if status != FUSED_OK:
             return None
+        self.n_redetections += n_redetect
         exited = self._leave_at_exits(idx, previous)
         return self._result(contacts, ke0, ke1, ke2, n_clusters, max_cluster, exited,
                             {"fused": time.perf_counter() - t0}, min_gap)
@@ -393,29 +395,14 @@ class Simulator:
                             self.state.n, self.walls.shape[0])
 
     def _redetect(self, con, speed, grown, idx, r_max, h):
-        """Candidates with margins from the speeds ``speed`` (compact, (n,)) appended to ``con``;
-        None when there is no new one. Only pairs involving a pedestrian whose margin grew
-        (compact rows ``grown``) can be new (positions have not moved yet in this step)."""
+        """Candidates with margins from the speeds ``speed`` (compact, (n,)) appended to ``con``; None when
+        there is no new one (:func:`~crowd_env.core.step.redetect_candidates`)."""
         p = self.params
-        reach = redetection_reach(r_max, p.contact_tolerance_m, h, float(speed[grown].max()), float(speed.max()))
-        pairs = grid_pairs_around(self.state.position_m, idx, grown, reach)
-        # Candidates among the grown pedestrians and their neighbours only (rows ``sub`` of idx).
-        sub = np.unique(np.concatenate([grown, pairs.ravel()]))
-        row_in_sub = np.full(idx.shape[0], -1, np.int64)
-        row_in_sub[sub] = np.arange(sub.shape[0])
-        con2 = dict(zip(CONTACT_FIELDS, contact_candidates(self.state.position_m, self.state.radius_m, speed[sub],
-                                                           idx[sub], row_in_sub[pairs], self.walls, self._wall_owner,
-                                                           p.contact_tolerance_m, h)))
-        con2["a"], con2["b"] = renumber_rows(sub, con2["a"], con2["b"])
-        n = idx.shape[0]
-        n_seg = self.walls.shape[0]
-        near = row_in_sub[con["a"]] >= 0  # a known candidate matching a new one has its row a in sub
-        new = ~np.isin(contact_keys(con2["a"], con2["b"], con2["wall"], n, n_seg),
-                       contact_keys(con["a"][near], con["b"][near], con["wall"][near], n, n_seg),
-                       assume_unique=True)
-        if not new.any():
+        new = redetect_candidates(self.state.position_m, self.state.radius_m, idx, self.walls, self._wall_owner,
+                                  p.contact_tolerance_m, h, r_max, speed, grown, con["a"], con["b"], con["wall"])
+        if not new[0].shape[0]:
             return None
-        return {k: np.concatenate([con[k], con2[k][new]]) for k in con}
+        return {k: np.concatenate([con[k], v]) for k, v in zip(CONTACT_FIELDS, new)}
 
     def _active_links(self, idx):
         """Hand links between active pedestrians, rows into ``idx``, with their shoulder geometry

@@ -24,8 +24,9 @@ The stages, in order (the names are the keys of ``StepResult.timings_s`` in a st
 
 Two paths run these stages with the same functions in this order. By default
 :class:`~crowd_env.core.Simulator` runs :func:`fused_step`: the stages compiled into one call, with the
-dense solvers only. It handles the common case (every cluster within the dense limits, no re-detection
-needed); otherwise it reports which stage needs the general path (``FUSED_*``) and leaves the state
+dense solvers only. It handles the common case (every cluster within the dense limits, every projection
+within the dense one, re-detections included); otherwise it reports which stage needs the general path
+(``FUSED_*``) and leaves the state
 untouched, and the simulator runs the staged step (``Simulator._staged_step``) from the start: the same
 stage functions called one by one from Python, timed, with the
 :class:`~crowd_env.core.solvers.cascade.SolverCascade` for large or degenerate problems and the
@@ -39,18 +40,19 @@ import numpy as np
 
 from .angles import wrap_angle_scalar
 from .contacts import contact_candidates
-from .neighbors import grid_pairs
+from .neighbors import grid_pairs, grid_pairs_around
 from .polygons import path_meets_polygon
 from .segments import closest_point_on_segment
 from .solvers.dense_projection import PROJECTION_TOL_M_S, project_gaps
+from .solvers.graph import contact_keys, gap_residuals
 from .solvers.impact import VTOL_M_S, resolve_impacts
 from .solvers.status import STATUS_OK
 
 STAGES = ("smooth", "neighbors", "contacts", "impacts", "projection", "integrate")
 FUSED_OK = 0
 FUSED_LARGE_CLUSTER = 1  # an impact cluster needs the sparse solver
-FUSED_REDETECT = 2  # impacts or the projection made someone faster than the detection margins
 FUSED_PROJECTION = 3  # the projection needs the sparse / interior-point path
+MAX_REDETECT = 10  # re-detection rounds per step (speeds are bounded: one or two rounds suffice in practice)
 
 
 @nb.njit(cache=True)
@@ -280,21 +282,66 @@ def finish_step(position, velocity, angular_velocity, heading, radius, index, ve
 
 
 @nb.njit(cache=True)
+def redetect_candidates(position, radius, index, walls, wall_owner, eps_m, dt_s, r_max, speed, grown, c_a, c_b, c_wall):
+    """Stage 5's re-detection: the candidates with margins from the speeds ``speed`` (compact (n,)) that
+    the list (``c_a``, ``c_b``, ``c_wall``) lacks, as the arrays of
+    :data:`~crowd_env.core.contacts.CONTACT_FIELDS` (rows into ``index``). Only pairs involving a
+    pedestrian whose margin grew (rows ``grown``) can be new (positions have not moved yet in this
+    step): candidates are built among them and their neighbours within :func:`redetection_reach`."""
+    n = index.shape[0]
+    g_max = 0.0
+    for k in range(grown.shape[0]):
+        g_max = max(g_max, speed[grown[k]])
+    s_max = 0.0
+    for k in range(n):
+        s_max = max(s_max, speed[k])
+    pairs = grid_pairs_around(position, index, grown, redetection_reach(r_max, eps_m, dt_s, g_max, s_max))
+    mark = np.zeros(n, np.bool_)
+    for k in range(grown.shape[0]):
+        mark[grown[k]] = True
+    for p in range(pairs.shape[0]):
+        mark[pairs[p, 0]] = True
+        mark[pairs[p, 1]] = True
+    sub = np.flatnonzero(mark)  # the grown pedestrians and their neighbours, ascending
+    row_in_sub = np.full(n, -1, np.int64)
+    for q in range(sub.shape[0]):
+        row_in_sub[sub[q]] = q
+    sub_pairs = np.empty_like(pairs)
+    for p in range(pairs.shape[0]):
+        sub_pairs[p, 0] = row_in_sub[pairs[p, 0]]
+        sub_pairs[p, 1] = row_in_sub[pairs[p, 1]]
+    a, b, gap, nx, ny, rho_a, rho_b, wall = contact_candidates(position, radius, speed[sub], index[sub], sub_pairs,
+                                                               walls, wall_owner, eps_m, dt_s)
+    for c in range(a.shape[0]):
+        a[c] = sub[a[c]]
+        if b[c] >= 0:
+            b[c] = sub[b[c]]
+    near = np.flatnonzero(row_in_sub[c_a] >= 0)  # a known candidate matching a new one has its row a in sub
+    known = np.sort(contact_keys(c_a[near], c_b[near], c_wall[near], n, walls.shape[0]))
+    keys = contact_keys(a, b, wall, n, walls.shape[0])
+    at = np.searchsorted(known, keys)
+    new = np.empty(a.shape[0], np.bool_)
+    for c in range(a.shape[0]):
+        new[c] = not (at[c] < known.shape[0] and known[at[c]] == keys[c])
+    return a[new], b[new], gap[new], nx[new], ny[new], rho_a[new], rho_b[new], wall[new]
+
+
+@nb.njit(cache=True)
 def fused_step(position, radius, velocity, angular_velocity, heading, mass_all, inertia_all, tau, stiffness,
                damping, intents, theta_d, has_theta_d, force, has_force, index, walls, wall_owner,
                cached_pairs, cached_radius_m, l_a, l_b, dvec, gi, gj, dt_s, eps_m, k_n, k_tg, k_v, rotation,
                max_dense_rows, max_dense_bodies, max_projection_rows):
     """The stages 1-6 (but the exit test) in one compiled call, with the dense solvers only (module docstring).
 
-    Returns ``(status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap)``, ``contacts`` being
-    :func:`compact_contacts`. With ``status != FUSED_OK`` nothing was written and the caller must run
+    Returns ``(status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetections)``,
+    ``contacts`` being :func:`compact_contacts`. With ``status != FUSED_OK`` nothing was written and the caller must run
     the staged step. ``cached_pairs`` (rows into ``index``, all pairs within ``cached_radius_m``, e.g.
     from the policy's social forces this step) are reused when they reach far enough, exactly like
     :meth:`Simulator.neighbor_pairs`.
     """
     vel = smooth_update(velocity, angular_velocity, heading, mass_all, inertia_all, tau, stiffness, damping,
                         intents, theta_d, has_theta_d, force, has_force, index, dt_s, rotation)
-    speed_star, _, reach = detection_reach(vel, radius, index, eps_m, dt_s)
+    speed_star, r_max, reach = detection_reach(vel, radius, index, eps_m, dt_s)
     pairs = cached_pairs if reach <= cached_radius_m else grid_pairs(position, index, reach)
     c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall = contact_candidates(
         position, radius, speed_star, index, pairs, walls, wall_owner, eps_m, dt_s)
@@ -304,17 +351,45 @@ def fused_step(position, radius, velocity, angular_velocity, heading, mass_all, 
         k_n, k_tg, k_v, eps_m, rotation, max_dense_rows, max_dense_bodies)
     none = compact_contacts(index, c_a[:0], c_b[:0], c_wall[:0], p_n[:0], p_t[:0], p_n[:0], in_impact[:0])
     if unsolved.shape[0]:
-        return FUSED_LARGE_CLUSTER, none, ke0, 0.0, 0.0, 0, 0, np.inf
+        return FUSED_LARGE_CLUSTER, none, ke0, 0.0, 0.0, 0, 0, np.inf, 0
     ke1 = kinetic_energy(vel, mass, inertia)
-    if grown_margins(vel, speed_star, eps_m, dt_s).shape[0]:
-        return FUSED_REDETECT, none, ke0, ke1, 0.0, 0, 0, np.inf
-    lam_p, _, st = project_gaps(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, PROJECTION_TOL_M_S,
-                                max_projection_rows)
-    if st != STATUS_OK:
-        return FUSED_PROJECTION, none, ke0, ke1, 0.0, 0, 0, np.inf
-    if grown_margins(vel, speed_star, eps_m, dt_s).shape[0]:
-        return FUSED_REDETECT, none, ke0, ke1, 0.0, 0, 0, np.inf
+    # Stage 5 as Simulator._staged_step runs it with the dense projection (its comments say why).
+    v_impact = vel[:, :2].copy()
+    det_speed = speed_star
+    have_lam = False
+    lam_p = np.zeros(0)
+    n_redetect = 0
+    for _ in range(MAX_REDETECT + 1):
+        grown = grown_margins(vel, det_speed, eps_m, dt_s)
+        if grown.shape[0]:
+            det_speed = np.maximum(det_speed, speeds(vel))
+            na, nb_, ngap, nnx, nny, nra, nrb, nwall = redetect_candidates(
+                position, radius, index, walls, wall_owner, eps_m, dt_s, r_max, det_speed, grown, c_a, c_b, c_wall)
+            extra = na.shape[0]
+            if extra:
+                c_a = np.concatenate((c_a, na))
+                c_b = np.concatenate((c_b, nb_))
+                c_gap = np.concatenate((c_gap, ngap))
+                c_nx = np.concatenate((c_nx, nnx))
+                c_ny = np.concatenate((c_ny, nny))
+                c_wall = np.concatenate((c_wall, nwall))
+                p_n = np.concatenate((p_n, np.zeros(extra)))
+                p_t = np.concatenate((p_t, np.zeros(extra)))
+                in_impact = np.concatenate((in_impact, np.zeros(extra, np.bool_)))
+                n_redetect += 1
+                if have_lam:
+                    lam_p = np.concatenate((lam_p, np.zeros(extra)))
+                    if gap_residuals(vel, ngap / dt_s, na, nb_, nnx, nny).min() < 0.0:  # a new one binds
+                        vel[:, :2] = v_impact
+                        have_lam = False
+        if have_lam:
+            break
+        lam_p, _, st = project_gaps(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, PROJECTION_TOL_M_S,
+                                    max_projection_rows)
+        if st != STATUS_OK:
+            return FUSED_PROJECTION, none, ke0, ke1, 0.0, 0, 0, np.inf, 0
+        have_lam = True
     ke2 = kinetic_energy(vel, mass, inertia)
     min_gap, contacts = finish_step(position, velocity, angular_velocity, heading, radius, index, vel, dt_s,
                                     rotation, walls, c_a, c_b, c_wall, p_n, p_t, lam_p, in_impact)
-    return FUSED_OK, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap
+    return FUSED_OK, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect

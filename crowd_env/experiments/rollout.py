@@ -16,7 +16,7 @@ in compiled code, over
 
 It returns to Python when the steps asked for are done, when nobody is left, when the crowd stalled, or
 when the next step needs the Python path (``ROLLOUT_PYTHON_STEP``: an impact cluster or projection
-beyond the dense solvers, a re-detection, or an input the Python path must reject with its error); the
+beyond the dense solvers, or an input the Python path must reject with its error); the
 runner then runs that one step through ``policy(sim)`` and ``Simulator.step`` (the staged path and the
 solver cascade) and :func:`measure_step`, and goes on compiled. Both paths call the same kernels in the
 same order, so a run is the same to the last bit either way (``tests/experiments/test_rollout.py``,
@@ -176,7 +176,7 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, model, agent, li
     """Up to ``max_steps`` steps of the calibrated crowd, each the agent's decision, the fused step, the exit
     test and :func:`measure_step` (module docstring). ``bodies``, ``world``, ``model`` and ``agent`` are
     the tuples :func:`~crowd_env.experiments.runner.run_scenario` builds from the simulator and the agent.
-    Returns ``(status, steps done, clock)``; the state arrays in ``bodies`` and the measurements are
+    Returns ``(status, steps done, clock, re-detection rounds)``; the state arrays in ``bodies`` and the measurements are
     updated in place."""
     (position, radius, velocity, angular_velocity, heading, mass, inertia, tau, stiffness, damping, desired_speed,
      active, links, link_offsets) = bodies
@@ -187,13 +187,14 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, model, agent, li
     exit_vertices, exit_ring_start, exit_ring_owner, exit_boxes = exits
     no_force = np.zeros((0, 2))
     done = 0
+    n_redetect = 0
     while done < max_steps:
         n = 0
         for i in range(active.shape[0]):
             if active[i]:
                 n += 1
         if n == 0:
-            return ROLLOUT_EMPTY, done, time_s
+            return ROLLOUT_EMPTY, done, time_s, n_redetect
         index = np.empty(n, np.int64)
         n = 0
         for i in range(active.shape[0]):
@@ -205,18 +206,19 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, model, agent, li
             mass, heading, walls, wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n,
             wall_range_m)
         if status != AGENT_OK or first_non_finite(intents) >= 0 or first_non_finite(theta_d) >= 0:
-            return ROLLOUT_PYTHON_STEP, done, time_s
+            return ROLLOUT_PYTHON_STEP, done, time_s, n_redetect
         l_a, l_b, dvec, gi, gj = active_links(position, heading, active, index, links, link_offsets)
         previous = np.empty((n, 2))
         for k in range(n):
             previous[k, 0] = position[index[k], 0]
             previous[k, 1] = position[index[k], 1]
-        fused, _, _, _, _, _, _, min_gap = fused_step(
+        fused, _, _, _, _, _, _, min_gap, rounds = fused_step(
             position, radius, velocity, angular_velocity, heading, mass, inertia, tau, stiffness, damping, intents,
             theta_d, True, no_force, False, index, walls, wall_owner, pairs, pair_radius, l_a, l_b, dvec, gi, gj,
             dt_s, eps_m, k_n, k_tg, k_v, rotation, max_dense_rows, max_dense_bodies, max_projection_rows)
         if fused != FUSED_OK:
-            return ROLLOUT_PYTHON_STEP, done, time_s
+            return ROLLOUT_PYTHON_STEP, done, time_s, n_redetect
+        n_redetect += rounds
         exited = leave_at_exits(position, active, index, previous, exit_destination, exit_vertices, exit_ring_start,
                                 exit_ring_owner, exit_boxes)
         t_prev = time_s
@@ -228,5 +230,5 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, model, agent, li
                         lane_area, density, speed, lateral, record_every, frame_time_s, frame_position, frame_heading,
                         frame_active, stall_ring, stall_state, stall_window_steps, stall_window_s, stall_speed_m_s,
                         dt_s, counts, scalars):
-            return ROLLOUT_STALLED, done, time_s
-    return ROLLOUT_LIMIT, done, time_s
+            return ROLLOUT_STALLED, done, time_s, n_redetect
+    return ROLLOUT_LIMIT, done, time_s, n_redetect

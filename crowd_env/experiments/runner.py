@@ -357,9 +357,9 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
         if kernel_tuples is not None and sim.fused_ready():
             steps = min(int(chunk_steps), n_steps_max - done)
             measures.room_for(steps)
-            status, k, clock = rollout_steps(steps, sim.time_s, sim.step_count, *kernel_tuples, *measures.measure_arguments(),
+            status, k, clock, rounds = rollout_steps(steps, sim.time_s, sim.step_count, *kernel_tuples, *measures.measure_arguments(),
                                              *stall.kernel_arguments, measures.counts, measures.scalars)
-            sim.advanced(k, clock)
+            sim.advanced(k, clock, rounds)
             done += k
             measures.pass_frames(recorder)
             if progress is not None and k:

@@ -202,11 +202,15 @@ def normal_rows_sparse(n, c_a, c_b, c_nx, c_ny):
                          shape=(m, 2 * n))
 
 
+@nb.njit(cache=True)
 def contact_keys(a, b, wall, n, n_walls):
     """One int64 per contact, equal for the same pair (a < b, pedestrian numbers below ``n``) or the
     same pedestrian and wall segment (b < 0, segment ``wall`` of ``n_walls``) wherever it stands in a
     candidate list: matches contacts across lists (re-detection, the previous step's projection).
     A candidate list holds each pair and each pedestrian-segment contact once, so its keys are unique
-    (``np.isin(..., assume_unique=True)`` may be used; ``tests/core/test_simulator.py`` checks it)."""
-    a = np.asarray(a, np.int64)
-    return np.where(b >= 0, a * n + b, n * n + a * max(1, n_walls) + wall)
+    (``tests/core/test_simulator.py`` checks it). ``a``, ``b``, ``wall``: int64 arrays."""
+    out = np.empty(a.shape[0], np.int64)
+    stride = max(1, n_walls)
+    for k in range(a.shape[0]):
+        out[k] = a[k] * n + b[k] if b[k] >= 0 else n * n + a[k] * stride + wall[k]
+    return out
