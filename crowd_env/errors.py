@@ -84,6 +84,10 @@ class EnvStateError(CrowdEnvError, RuntimeError):
     scenario that broke its contract on a reseed."""
 
 
+class WorkerError(CrowdEnvError, RuntimeError):
+    """A worker process of a vector environment raised (its traceback in the message) or died."""
+
+
 class PolicyError(CrowdEnvError, ValueError, TypeError):
     """A policy or reward function that returned a wrong output, an object that is not a policy, or an
     import path that does not name one."""

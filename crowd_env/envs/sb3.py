@@ -76,24 +76,33 @@ class CrowdSB3VecEnv(VecEnv):
             return [indices]
         return indices
 
+    def _copies(self, indices) -> list:
+        return sorted({int(self.vector.slot_copy[i]) for i in self._indices(indices)})
+
     def get_attr(self, attr_name, indices=None):
-        """The attribute of the copy each slot belongs to (``render_mode`` and the like)."""
-        return [getattr(self.vector.envs[self.vector.slot_copy[i]], attr_name) for i in self._indices(indices)]
+        """The attribute of the copy each slot belongs to (``render_mode`` and the like), in whichever process
+        holds the copy."""
+        slots = list(self._indices(indices))
+        copies = self._copies(slots)
+        values = dict(zip(copies, self.vector.call_copies(attr_name, copies=copies)))
+        return [values[int(self.vector.slot_copy[i])] for i in slots]
 
     def set_attr(self, attr_name, value, indices=None) -> None:
-        for c in sorted({int(self.vector.slot_copy[i]) for i in self._indices(indices)}):
-            setattr(self.vector.envs[c], attr_name, value)
+        self.vector.set_attr(attr_name, [value] * len(self._copies(indices)), copies=self._copies(indices))
 
     def env_method(self, method_name, *method_args, indices=None, **method_kwargs):
-        return [getattr(self.vector.envs[self.vector.slot_copy[i]], method_name)(*method_args, **method_kwargs)
-                for i in self._indices(indices)]
+        """The method of the copy each slot belongs to, called once per slot (as SB3 expects)."""
+        slots = list(self._indices(indices))
+        copies = [int(self.vector.slot_copy[i]) for i in slots]
+        return list(self.vector.call_copies(method_name, *method_args, copies=copies, **method_kwargs))
 
     def env_is_wrapped(self, wrapper_class, indices=None):
         return [False for _ in self._indices(indices)]
 
 
 def sb3_vec_env(copies: int = 1, *, seed: int | None = None, **options) -> CrowdSB3VecEnv:
-    """``copies`` copies of ``crowd_v0.parallel_env(**options)`` for SB3; ``seed``: copy c gets seed + c."""
+    """``copies`` copies of ``crowd_v0.parallel_env(**options)`` for SB3; ``seed``: copy c gets seed + c;
+    ``workers`` and ``start_method`` (in ``options``) as in :func:`~crowd_env.envs.vector.vector_env`."""
     vec = CrowdSB3VecEnv(vector_env(copies, **options))
     if seed is not None:
         vec.seed(seed)

@@ -5,7 +5,8 @@
 ``c``), for parameter sharing: one policy acts for all slots. Observations ``(K A, D)`` float32, actions
 ``(K A, 2)``, rewards, terminations and truncations ``(K A,)``, built in arrays: each step loops over the
 K copies, never over agents (each copy advances through the same array core as the PettingZoo API,
-:meth:`~crowd_env.envs.crowd_v0.CrowdParallelEnv._advance`). ``stable_baselines3`` trains on it through
+:meth:`~crowd_env.envs.crowd_v0.CrowdParallelEnv._advance`, and one compiled call files its results
+into the slots), in this process or in ``workers`` processes. ``stable_baselines3`` trains on it through
 :class:`crowd_env.envs.sb3.CrowdSB3VecEnv`; TorchRL wraps it as a Gymnasium vector environment.
 
 Agents that leave (black death, with a mask):
@@ -32,18 +33,41 @@ Seeding per copy:
 Global state:
     :meth:`CrowdVectorEnv.state` is ``(K, S)`` (:meth:`~crowd_env.envs.crowd_v0.CrowdParallelEnv.state` of
     each copy); ``slot_copy[i]`` is the copy of slot i, so ``state()[slot_copy]`` is each slot's.
+Worker processes (``workers=W``):
+    ``vector_env(K, workers=W, ...)`` splits the K copies into W contiguous groups and steps each group
+    in its own process (``start_method``: ``"spawn"`` by default, or ``"forkserver"``; ``"fork"`` too
+    where the platform has it, unsafe with threads). Actions, observations, rewards, flags and the info
+    arrays pass through one shared-memory buffer, so a step pickles nothing but a short command per
+    worker; the results are bitwise those of ``workers=1`` with the same seeds
+    (``tests/envs/test_vector.py``). The copies must pickle (module-level reward and background
+    functions). An exception in a worker is raised in the parent as
+    :class:`~crowd_env.errors.WorkerError` with the worker's traceback in its message (the original
+    exception as its ``__cause__``); a worker that dies is a ``WorkerError`` too, never a hang; after
+    either, the vector environment refuses further use. :meth:`CrowdVectorEnv.close` stops the
+    workers. With workers, ``envs`` are the parent's unstepped templates: read or change the live copies
+    through :meth:`~CrowdVectorEnv.call`, :meth:`~CrowdVectorEnv.get_attr`,
+    :meth:`~CrowdVectorEnv.set_attr`, :meth:`~CrowdVectorEnv.state` and :meth:`~CrowdVectorEnv.render`.
 """
 from __future__ import annotations
 
-from crowd_env.errors import ActionError, EnvOptionError, EnvStateError
+import multiprocessing
+import traceback
+from multiprocessing.connection import wait
 
+import cloudpickle
+import numba as nb
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from crowd_env.errors import ActionError, EnvOptionError, EnvStateError, WorkerError
+
 from .crowd_v0 import CrowdParallelEnv, parallel_env
 
-__all__ = ["CrowdVectorEnv", "vector_env"]
+__all__ = ["CrowdVectorEnv", "vector_env", "WorkerError"]
+
+START_METHODS = ("spawn", "forkserver", "fork")
+_CLOSE_TIMEOUT_S = 10.0
 
 
 def _spaces_key(env: CrowdParallelEnv) -> tuple:
@@ -52,17 +76,298 @@ def _spaces_key(env: CrowdParallelEnv) -> tuple:
             env.observation_frame)
 
 
+def _check_workers(workers, copies: int) -> int:
+    if isinstance(workers, (bool, np.bool_)) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise EnvOptionError(f"workers must be an integer >= 1, got {workers!r}")
+    if workers > copies:
+        raise EnvOptionError(f"workers = {workers} exceeds the {copies} copies: each worker steps at least one "
+                             f"copy; give workers <= {copies}")
+    return int(workers)
+
+
+# The arrays of a step, per slot: name -> (dtype, columns or None). One buffer holds them all (shared with
+# the workers); the serial path allocates them fresh each step.
+def _fields(dim: int) -> dict:
+    return {"actions": (np.float64, 2), "obs": (np.float32, dim), "rewards": (np.float64, None),
+            "terminated": (np.bool_, None), "truncated": (np.bool_, None), "final_obs": (np.float32, dim),
+            "_final_obs": (np.bool_, None), "episode_return": (np.float64, None),
+            "episode_length": (np.int64, None), "episode_ended": (np.bool_, None), "acted": (np.bool_, None),
+            "alive": (np.bool_, None)}
+
+
+def _arrays(n: int, dim: int, buffer=None) -> dict:
+    """The step arrays of ``n`` slots: zeros, or views into ``buffer`` (bytes laid out field by field)."""
+    out, offset = {}, 0
+    for name, (dtype, cols) in _fields(dim).items():
+        shape = (n,) if cols is None else (n, cols)
+        if buffer is None:
+            out[name] = np.zeros(shape, dtype)
+            continue
+        size = int(np.prod(shape)) * np.dtype(dtype).itemsize
+        out[name] = np.frombuffer(buffer, dtype=dtype, count=int(np.prod(shape)), offset=offset).reshape(shape)
+        offset += -(-size // 8) * 8  # 8-byte aligned
+    return out
+
+
+def _buffer_size(n: int, dim: int) -> int:
+    total = 0
+    for dtype, cols in _fields(dim).values():
+        total += -(-(n * (cols or 1) * np.dtype(dtype).itemsize) // 8) * 8
+    return total
+
+
+@nb.njit(cache=True)
+def _record(slots, o, r, te, tr, obs, rewards, terminated, truncated, final_obs, has_final, ep_r, ep_l, has_ep,
+            ret, length, alive):
+    """File one copy's step (rows in its live agents' order) into the slot arrays: an agent that ended
+    gets its last observation as the final one, its episode return and length, and turns into padding."""
+    for a in range(slots.shape[0]):
+        i = slots[a]
+        rewards[i] = r[a]
+        ret[i] += r[a]
+        length[i] += 1
+        terminated[i] = te[a]
+        truncated[i] = tr[a]
+        if te[a] or tr[a]:
+            final_obs[i, :] = o[a, :]
+            has_final[i] = True
+            ep_r[i] = ret[i]
+            ep_l[i] = length[i]
+            has_ep[i] = True
+            ret[i] = 0.0
+            length[i] = 0
+            alive[i] = False
+        else:
+            obs[i, :] = o[a, :]
+
+
+class _Copies:
+    """A group of copies stepped one after another in this process, writing into slot arrays: the work of
+    the vector environment with ``workers=1``, and of each worker process otherwise."""
+
+    def __init__(self, envs, alive: np.ndarray):
+        self.envs = envs
+        self.n_agents = len(envs[0].possible_agents)
+        self.alive = alive  # (slots,) bool, this group's: possibly a view into the shared buffer
+        self.ret = np.zeros(alive.shape[0])
+        self.length = np.zeros(alive.shape[0], np.int64)
+        # per copy: pedestrian index -> agent position (slot offset), -1 for background pedestrians
+        self.position = []
+        for e in envs:
+            pos = np.full(e.n_pedestrians, -1, np.int64)
+            pos[[e._index_of[a] for a in e.possible_agents]] = np.arange(self.n_agents)
+            self.position.append(pos)
+
+    def _reset_copy(self, c: int, seed, options, obs) -> slice:
+        env = self.envs[c]
+        o, _ = env.reset(seed=seed, options=options)
+        rows = slice(c * self.n_agents, (c + 1) * self.n_agents)
+        self.alive[rows] = True
+        obs[rows] = np.stack([o[a] for a in env.possible_agents])
+        self.ret[rows], self.length[rows] = 0.0, 0
+        return rows
+
+    def reset(self, seeds, options, out: dict) -> None:
+        """Reset every copy (copy c with ``seeds[c]``); writes ``out`` (zeros on entry)."""
+        for c, s in enumerate(seeds):
+            self._reset_copy(c, s, options, out["obs"])
+
+    def step(self, actions: np.ndarray, out: dict) -> None:
+        """One step of every copy with the slots' ``actions`` (validated); writes ``out`` (zeros on entry but
+        for the actions and ``alive``)."""
+        acted = out["acted"]
+        acted[:] = self.alive
+        A = self.n_agents
+        obs = out["obs"]
+        for c, env in enumerate(self.envs):
+            base = c * A
+            slots = base + self.position[c][env._agent_index]  # the live agents' slots, in env.agents order
+            o, r, te, tr, _ = env._advance(actions[slots])
+            _record(slots, o, r, te, tr, obs, out["rewards"], out["terminated"], out["truncated"], out["final_obs"],
+                    out["_final_obs"], out["episode_return"], out["episode_length"], out["episode_ended"], self.ret,
+                    self.length, self.alive)
+            if not env.agents:  # the copy's episode is over: reset it in this step
+                rows = slice(base, base + A)
+                padding = np.arange(base, base + A)[~acted[rows]]
+                out["terminated"][padding] = True
+                out["_final_obs"][padding] = True  # final observation: zeros
+                self._reset_copy(c, None, None, obs)
+
+    def state(self) -> np.ndarray:
+        return np.stack([e.state() for e in self.envs])
+
+    def call(self, copies, name: str, args, kwargs) -> list:
+        out = []
+        for c in copies:
+            value = getattr(self.envs[c], name)
+            out.append(value(*args, **kwargs) if callable(value) else value)
+        return out
+
+    def set_attr(self, copies, name: str, values) -> None:
+        for c, v in zip(copies, values):
+            setattr(self.envs[c], name, v)
+
+    def close(self) -> None:
+        for e in self.envs:
+            e.close()
+
+
+def _worker(conn, envs_pickled: bytes, buffer, n_slots: int, dim: int, lo: int, hi: int) -> None:
+    """Body of a worker process: steps its copies (``envs_pickled``, cloudpickled as the geometry's mapping
+    proxies need; slots ``lo:hi``) on the parent's commands."""
+    envs = cloudpickle.loads(envs_pickled)
+    views = _arrays(n_slots, dim, buffer)
+    out = {k: v[lo:hi] for k, v in views.items()}
+    copies = _Copies(envs, out["alive"])
+    results = [v for k, v in out.items() if k not in ("actions", "alive")]
+    while True:
+        try:
+            cmd, arg = conn.recv()
+        except (EOFError, KeyboardInterrupt):  # the parent is gone
+            return
+        try:
+            if cmd in ("step", "reset"):
+                for v in results:
+                    v[...] = 0
+            if cmd == "step":
+                copies.step(out["actions"], out)
+                reply = None
+            elif cmd == "reset":
+                copies.reset(arg[0], arg[1], out)
+                reply = None
+            elif cmd == "state":
+                reply = copies.state()
+            elif cmd == "call":
+                reply = copies.call(*arg)
+            elif cmd == "set_attr":
+                reply = copies.set_attr(*arg)
+            elif cmd == "close":
+                copies.close()
+                conn.send(("ok", None))
+                return
+            else:
+                raise EnvStateError(f"unknown worker command {cmd!r}")
+            conn.send(("ok", reply))
+        except Exception as exc:  # report it with its traceback; the parent decides
+            try:
+                conn.send(("error", (traceback.format_exc(), exc)))
+            except Exception:  # the exception itself does not pickle
+                conn.send(("error", (traceback.format_exc(), None)))
+
+
+class _Workers:
+    """The worker processes of a vector environment and the shared buffer they write into."""
+
+    def __init__(self, envs, workers: int, start_method: str, n_slots: int, dim: int, n_agents: int):
+        ctx = multiprocessing.get_context(start_method)
+        self.n_slots, self.dim = n_slots, dim
+        self.buffer = ctx.RawArray("b", _buffer_size(n_slots, dim))
+        self.views = _arrays(n_slots, dim, self.buffer)
+        self.groups = np.array_split(np.arange(len(envs)), workers)
+        self.conns, self.procs = [], []
+        try:
+            for g in self.groups:
+                lo, hi = int(g[0]) * n_agents, (int(g[-1]) + 1) * n_agents
+                parent, child = ctx.Pipe()
+                try:
+                    group = cloudpickle.dumps([envs[c] for c in g])
+                    proc = ctx.Process(target=_worker, args=(child, group, self.buffer, n_slots, dim, lo, hi),
+                                       daemon=True, name=f"crowd-vector-worker-{len(self.procs)}")
+                    proc.start()
+                except Exception as exc:
+                    raise EnvOptionError(f"could not start worker {len(self.procs)} for copies {g[0]}..{g[-1]} "
+                                         f"({exc}); with workers > 1 the copies must pickle (module-level "
+                                         "reward_fn and background_policy)") from exc
+                finally:
+                    child.close()
+                self.conns.append(parent)
+                self.procs.append(proc)
+        except BaseException:
+            self.close()
+            raise
+        self.broken = None
+
+    def _where(self, w: int) -> str:
+        g = self.groups[w]
+        return f"worker {w} (pid {self.procs[w].pid}, copies {g[0]}..{g[-1]})"
+
+    def send_all(self, message) -> None:
+        for w, conn in enumerate(self.conns):
+            try:
+                conn.send(message)
+            except (BrokenPipeError, OSError) as exc:
+                self.broken = f"{self._where(w)} is gone ({exc})"
+                raise WorkerError(f"{self._where(w)} is gone: it cannot take commands ({exc})") from None
+
+    def gather(self, workers=None) -> list:
+        """Every worker's reply; a worker's exception or death raises :class:`WorkerError`."""
+        replies, error = [], None
+        for w in (range(len(self.conns)) if workers is None else workers):
+            conn, proc = self.conns[w], self.procs[w]
+            try:
+                ready = wait([conn, proc.sentinel])
+                if conn not in ready and not conn.poll():
+                    raise EOFError
+                status, payload = conn.recv()
+            except (EOFError, OSError):
+                proc.join(1.0)
+                error = error or WorkerError(f"{self._where(w)} died (exit code {proc.exitcode}) before replying; "
+                                             "the vector environment cannot continue: close it and make a new one")
+                replies.append(None)
+                continue
+            if status == "error":
+                tb, exc = payload
+                name = type(exc).__name__ if exc is not None else "an exception"
+                err = WorkerError(f"{self._where(w)} raised {name}: {exc}\n--- traceback in the worker ---\n{tb}")
+                err.__cause__ = exc
+                error = error or err
+                replies.append(None)
+            else:
+                replies.append(payload)
+        if error is not None:
+            self.broken = str(error).splitlines()[0]
+            raise error
+        return replies
+
+    def request(self, message, workers=None) -> list:
+        for w in (range(len(self.conns)) if workers is None else workers):
+            try:
+                self.conns[w].send(message)
+            except (BrokenPipeError, OSError) as exc:
+                self.broken = f"{self._where(w)} is gone ({exc})"
+                raise WorkerError(f"{self._where(w)} is gone: it cannot take commands ({exc})") from None
+        return self.gather(workers)
+
+    def close(self) -> None:
+        """Ask each worker to stop, then terminate those that do not within the timeout."""
+        for conn, proc in zip(self.conns, self.procs):
+            if proc.is_alive():
+                try:
+                    conn.send(("close", None))
+                except (BrokenPipeError, OSError):
+                    pass
+        for conn, proc in zip(self.conns, self.procs):
+            proc.join(_CLOSE_TIMEOUT_S)
+            if proc.is_alive():
+                proc.terminate()
+                proc.join(_CLOSE_TIMEOUT_S)
+            conn.close()
+        self.conns, self.procs = [], []
+
+
 class CrowdVectorEnv(VectorEnv):
     """K copies of the crowd environment as one batch of slots (see the module docstring).
 
     Build it with :func:`vector_env` (K copies of the same options) or from ready environments with
     ``CrowdVectorEnv(envs)``: they must share observation, action and state spaces, agent count and
     decision interval (:class:`~crowd_env.errors.EnvOptionError` names the first difference).
+    ``workers``: processes that step the copies (1: this process; at most K); ``start_method``: how
+    they start (:data:`START_METHODS`).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": ["rgb_array"]}
 
-    def __init__(self, envs):
+    def __init__(self, envs, *, workers: int = 1, start_method: str = "spawn"):
         envs = list(envs)
         if not envs:
             raise EnvOptionError("a vector environment needs at least one copy")
@@ -77,6 +382,10 @@ class CrowdVectorEnv(VectorEnv):
             for name, a, b in zip(names, ref, key):
                 if a != b:
                     raise EnvOptionError(f"copy {k} does not match copy 0: its {name} is {b}, copy 0's is {a}")
+        self.workers = _check_workers(workers, len(envs))
+        if start_method not in START_METHODS or start_method not in multiprocessing.get_all_start_methods():
+            raise EnvOptionError(f"start_method must be one of {[m for m in START_METHODS if m in multiprocessing.get_all_start_methods()]}, "
+                                 f"got {start_method!r}")
         self.envs = envs
         self.n_copies = len(envs)
         self.n_agents = len(envs[0].possible_agents)
@@ -91,50 +400,51 @@ class CrowdVectorEnv(VectorEnv):
         self.autoreset_mode = AutoresetMode.SAME_STEP
         self.slot_copy = np.repeat(np.arange(self.n_copies), self.n_agents)
         self.slot_agent = np.tile(np.arange(self.n_agents), self.n_copies)
-        # per copy: pedestrian index -> agent position (slot offset), -1 for background pedestrians
-        self._position = []
-        for e in envs:
-            pos = np.full(e.n_pedestrians, -1, np.int64)
-            pos[[e._index_of[a] for a in e.possible_agents]] = np.arange(self.n_agents)
-            self._position.append(pos)
         self._dim = self.single_observation_space.shape[0]
-        self._alive = np.zeros(self.num_envs, bool)
-        self._return = np.zeros(self.num_envs)
-        self._length = np.zeros(self.num_envs, np.int64)
         self._a_max = envs[0]._a_max_check
         self._started = False
+        self._pool = None
+        if self.workers == 1:
+            self._copies = _Copies(envs, np.zeros(self.num_envs, bool))
+            self._alive = self._copies.alive
+        else:
+            self._copies = None
+            self._pool = _Workers(envs, self.workers, start_method, self.num_envs, self._dim, self.n_agents)
+            self._alive = self._pool.views["alive"]
 
     # ------------------------------------------------------------------ API
+    def _check_usable(self, what: str) -> None:
+        if getattr(self, "closed", False):
+            raise EnvStateError(f"{what} on a closed vector environment")
+        if self._pool is not None and self._pool.broken:
+            raise EnvStateError(f"{what}: a worker failed earlier ({self._pool.broken}); make a new vector environment")
+
     def reset(self, *, seed=None, options=None):
         """Reset every copy; returns ``(observations (K A, D), infos)``. ``seed``: an int
         s (copy c gets s + c), a list of K ints or None (continue each copy's stream)."""
+        self._check_usable("reset()")
         if seed is None or isinstance(seed, (int, np.integer)):
             seeds = [None if seed is None else int(seed) + c for c in range(self.n_copies)]
         else:
             seeds = list(seed)
             if len(seeds) != self.n_copies:
                 raise EnvOptionError(f"reset(seed=...) needs one seed per copy ({self.n_copies}), got {len(seeds)}")
-        obs = np.zeros((self.num_envs, self._dim), np.float32)
-        for c, (env, s) in enumerate(zip(self.envs, seeds)):
-            rows, first = self._reset_copy(c, env, s, options)
-            obs[rows] = first
-        self._return[:] = 0.0
-        self._length[:] = 0
+        if self._pool is None:
+            out = _arrays(self.num_envs, self._dim)
+            self._copies.reset(seeds, options, out)
+        else:
+            pool = self._pool
+            for w, g in enumerate(pool.groups):
+                pool.conns[w].send(("reset", ([seeds[c] for c in g], options)))
+            pool.gather()
+            out = {k: v.copy() for k, v in pool.views.items()}
         self._started = True
-        n = self.num_envs
-        return obs, self._infos(np.zeros(n, bool), np.zeros((n, self._dim), np.float32), np.zeros(n, bool),
-                                np.zeros(n), np.zeros(n, np.int64), np.zeros(n, bool))
+        return out["obs"], self._infos(out)
 
-    def _infos(self, acted, final_obs, has_final, ep_r, ep_l, has_ep) -> dict:
-        return {"alive": self._alive.copy(), "acted": acted, "copy": self.slot_copy.copy(), "final_obs": final_obs,
-                "_final_obs": has_final, "episode_return": ep_r, "episode_length": ep_l, "episode_ended": has_ep}
-
-    def _reset_copy(self, c: int, env: CrowdParallelEnv, seed, options=None):
-        """Reset copy c; returns its slot range and first observations (A, D)."""
-        o, _ = env.reset(seed=seed, options=options)
-        rows = slice(c * self.n_agents, (c + 1) * self.n_agents)
-        self._alive[rows] = True
-        return rows, np.stack([o[a] for a in env.possible_agents])
+    def _infos(self, out: dict) -> dict:
+        return {"alive": self._alive.copy(), "acted": out["acted"], "copy": self.slot_copy.copy(),
+                "final_obs": out["final_obs"], "_final_obs": out["_final_obs"], "episode_return": out["episode_return"],
+                "episode_length": out["episode_length"], "episode_ended": out["episode_ended"]}
 
     def _check_actions(self, actions) -> np.ndarray:
         try:
@@ -145,79 +455,109 @@ class CrowdVectorEnv(VectorEnv):
             raise ActionError(f"actions must have shape ({self.num_envs}, 2) (one velocity intent per slot: "
                               f"{self.n_copies} copies x {self.n_agents} agents), got {arr.shape}")
         live = self._alive
+        if np.abs(arr[live]).max(initial=0.0) <= self._a_max:  # the usual case (NaN fails it)
+            return arr
         bad = live & ~np.isfinite(arr).all(axis=1)
         if bad.any():
             raise ActionError(f"non-finite action(s) in live slot(s) {np.flatnonzero(bad)[:10].tolist()}")
-        out = live & (np.abs(arr) > self._a_max).any(axis=1)
-        if out.any():
-            i = np.flatnonzero(out)
-            a = self.envs[0].action_max_m_s
-            raise ActionError(f"action(s) of live slot(s) {i[:10].tolist()} outside the action space Box(-{a:g}, {a:g}) "
-                              f"m/s: {arr[i[:3]].tolist()}; the environment does not clip")
-        return arr
+        i = np.flatnonzero(live & (np.abs(arr) > self._a_max).any(axis=1))
+        a = self.envs[0].action_max_m_s
+        raise ActionError(f"action(s) of live slot(s) {i[:10].tolist()} outside the action space Box(-{a:g}, {a:g}) "
+                          f"m/s: {arr[i[:3]].tolist()}; the environment does not clip")
 
     def step(self, actions):
         """One environment step of every copy; returns ``(obs, rewards, terminations, truncations, infos)`` as
         arrays over the slots (see the module docstring for padding slots and automatic resets)."""
         if not self._started:
             raise EnvStateError("call reset() before step()")
+        self._check_usable("step()")
         arr = self._check_actions(actions)
-        n, A = self.num_envs, self.n_agents
-        obs = np.zeros((n, self._dim), np.float32)
-        rewards = np.zeros(n)
-        terminated = np.zeros(n, bool)
-        truncated = np.zeros(n, bool)
-        final_obs = np.zeros((n, self._dim), np.float32)
-        has_final = np.zeros(n, bool)
-        ep_r = np.zeros(n)
-        ep_l = np.zeros(n, np.int64)
-        has_ep = np.zeros(n, bool)
-        acted = self._alive.copy()
-        for c, env in enumerate(self.envs):
-            base = c * A
-            slots = base + self._position[c][env._agent_index]  # the live agents' slots, in env.agents order
-            o, r, te, tr, _ = env._advance(arr[slots])
-            rewards[slots] = r
-            self._return[slots] += r
-            self._length[slots] += 1
-            done = te | tr
-            terminated[slots] = te
-            truncated[slots] = tr
-            ended = slots[done]
-            final_obs[ended] = o[done]
-            has_final[ended] = True
-            ep_r[ended], ep_l[ended], has_ep[ended] = self._return[ended], self._length[ended], True
-            self._return[ended], self._length[ended] = 0.0, 0
-            self._alive[ended] = False
-            kept = slots[~done]
-            obs[kept] = o[~done]
-            if not env.agents:  # the copy's episode is over: reset it in this step
-                rows = slice(base, base + A)
-                padding = np.arange(base, base + A)[~acted[rows]]
-                terminated[padding] = True
-                has_final[padding] = True  # final observation: zeros
-                rows, first = self._reset_copy(c, env, None)
-                obs[rows] = first
-                self._return[rows], self._length[rows] = 0.0, 0
-        return obs, rewards, terminated, truncated, self._infos(acted, final_obs, has_final, ep_r, ep_l, has_ep)
+        if self._pool is None:
+            out = _arrays(self.num_envs, self._dim)
+            self._copies.step(arr, out)
+        else:
+            pool = self._pool
+            pool.views["actions"][:] = arr
+            pool.request(("step", None))
+            out = {k: v.copy() for k, v in pool.views.items()}
+        return out["obs"], out["rewards"], out["terminated"], out["truncated"], self._infos(out)
 
     def state(self) -> np.ndarray:
         """The global state of every copy, ``(K, S)`` float32 (index it with ``slot_copy`` for the slots)."""
         if not self._started:
             raise EnvStateError("call reset() before state()")
-        return np.stack([e.state() for e in self.envs])
+        self._check_usable("state()")
+        if self._pool is None:
+            return self._copies.state()
+        return np.concatenate(self._pool.request(("state", None)))
+
+    def _by_worker(self, copies):
+        """(worker, local copy indices, positions in ``copies``) for the copies each worker holds."""
+        copies = list(range(self.n_copies)) if copies is None else [int(c) for c in copies]
+        plan = []
+        for w, g in enumerate(self._pool.groups):
+            local = [(k, c - int(g[0])) for k, c in enumerate(copies) if g[0] <= c <= g[-1]]
+            if local:
+                plan.append((w, [c for _, c in local], [k for k, _ in local]))
+        return copies, plan
+
+    def call_copies(self, name: str, *args, copies=None, **kwargs) -> tuple:
+        """``getattr(copy, name)(*args, **kwargs)`` of each copy in ``copies`` (default all; the attribute's
+        value where it is not callable), in whichever process holds the copy."""
+        self._check_usable(f"call({name!r})")
+        if self._pool is None:
+            return tuple(self._copies.call(range(self.n_copies) if copies is None else copies, name, args, kwargs))
+        copies, plan = self._by_worker(copies)
+        out = [None] * len(copies)
+        for w, local, _ in plan:
+            self._pool.conns[w].send(("call", (local, name, args, kwargs)))
+        for (w, local, where), reply in zip(plan, self._pool.gather([w for w, _, _ in plan])):
+            for k, v in zip(where, reply):
+                out[k] = v
+        return tuple(out)
+
+    def call(self, name: str, *args, **kwargs) -> tuple:
+        """Gymnasium's ``call``: the method ``name`` of every copy called with the arguments (or the attribute)."""
+        return self.call_copies(name, *args, **kwargs)
+
+    def get_attr(self, name: str) -> tuple:
+        """The attribute ``name`` of every copy."""
+        return self.call_copies(name)
+
+    def set_attr(self, name: str, values, *, copies=None) -> None:
+        """Set the attribute ``name`` of each copy in ``copies`` (default all): ``values`` one per copy, or one
+        value for all when it is not a list or tuple."""
+        self._check_usable(f"set_attr({name!r})")
+        targets = list(range(self.n_copies)) if copies is None else [int(c) for c in copies]
+        if not isinstance(values, (list, tuple)):
+            values = [values] * len(targets)
+        if len(values) != len(targets):
+            raise EnvOptionError(f"set_attr({name!r}) needs one value per copy ({len(targets)}), got {len(values)}")
+        if self._pool is None:
+            self._copies.set_attr(targets, name, values)
+            return
+        _, plan = self._by_worker(targets)
+        for w, local, where in plan:
+            self._pool.conns[w].send(("set_attr", (local, name, [values[k] for k in where])))
+        self._pool.gather([w for w, _, _ in plan])
 
     def render(self):
         """The ``rgb_array`` frame of every copy (a tuple), for copies made with ``render_mode="rgb_array"``."""
-        return tuple(e.render() for e in self.envs)
+        return self.call_copies("render")
 
     def close_extras(self, **kwargs):
+        pool = getattr(self, "_pool", None)
+        if pool is not None:
+            pool.close()
         for e in getattr(self, "envs", ()):  # also after a constructor that raised
             e.close()
 
 
-def vector_env(copies: int = 1, **options) -> CrowdVectorEnv:
-    """K = ``copies`` copies of ``crowd_v0.parallel_env(**options)`` as one :class:`CrowdVectorEnv`."""
+def vector_env(copies: int = 1, *, workers: int = 1, start_method: str = "spawn", **options) -> CrowdVectorEnv:
+    """K = ``copies`` copies of ``crowd_v0.parallel_env(**options)`` as one :class:`CrowdVectorEnv`, stepped in
+    ``workers`` processes (1: this one; see the module docstring)."""
     if isinstance(copies, (bool, np.bool_)) or not isinstance(copies, (int, np.integer)) or copies < 1:
         raise EnvOptionError(f"copies must be an integer >= 1, got {copies!r}")
-    return CrowdVectorEnv([parallel_env(**options) for _ in range(int(copies))])
+    _check_workers(workers, int(copies))
+    return CrowdVectorEnv([parallel_env(**options) for _ in range(int(copies))], workers=workers,
+                          start_method=start_method)

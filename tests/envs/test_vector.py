@@ -12,7 +12,7 @@ import pytest
 
 from crowd_env.envs import crowd_v0
 from crowd_env.envs.vector import CrowdVectorEnv, vector_env
-from crowd_env.errors import ActionError, EnvOptionError, EnvStateError
+from crowd_env.errors import ActionError, EnvOptionError, EnvStateError, WorkerError
 
 OPTIONS = {"scenario": "seyfried_bottleneck", "scenario_options": {"width_m": 1.0, "n_pedestrians": 5},
            "frame_skip": 10, "max_steps": 100, "controlled": 4}
@@ -143,3 +143,100 @@ def test_torchrl_wraps_the_vector_env():
     assert tuple(td.shape) == (8, 25)
     assert td["next", "done"].sum().item() >= 8  # every slot ended at least one episode (max_steps 10)
     assert td["next", "alive"].dtype.is_floating_point is False
+
+
+# ---------------------------------------------------------------- worker processes
+def _reward_failing_at_step_3(env, agent_ids, info):
+    """A reward function (module level, so workers can load it) that fails on the third step."""
+    if env._steps >= 3:
+        raise ValueError("reward broke on purpose")
+    return np.zeros(len(agent_ids))
+
+
+def test_workers_give_bitwise_the_serial_results_and_close_stops_them():
+    K, seed = 3, 5
+    serial = vector_env(K, **OPTIONS)
+    par = vector_env(K, workers=2, **OPTIONS)
+    procs = list(par._pool.procs)
+    assert len(procs) == 2 and all(p.is_alive() for p in procs)
+    layout = serial.envs[0].observation_layout
+    rng = np.random.default_rng(1)
+    out_s, out_p = serial.reset(seed=seed), par.reset(seed=seed)
+    n_resets = 0
+    for _ in range(120):
+        for a, b in zip(out_s, out_p):
+            for x, y in (zip(a.values(), b.values()) if isinstance(a, dict) else [(a, b)]):
+                assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
+        actions = _walk(out_s[0], layout, rng)
+        out_s, out_p = serial.step(actions), par.step(actions)
+        n_resets += int(out_s[2][~out_s[4]["acted"]].any())
+    assert n_resets >= 1  # copies reset inside the workers too
+    np.testing.assert_array_equal(serial.state(), par.state())
+    assert par.get_attr("time_s") == serial.get_attr("time_s")
+    par.set_attr("max_steps", [7, 8, 9])
+    assert par.call("__getattribute__", "max_steps") == (7, 8, 9)
+    par.close()
+    assert not any(p.is_alive() for p in procs)
+    par.close()  # twice is fine
+    with pytest.raises(EnvStateError, match="closed"):
+        par.step(np.zeros((par.num_envs, 2)))
+
+
+def test_a_worker_exception_is_raised_in_the_parent_with_its_traceback():
+    vec = vector_env(2, workers=2, **{**OPTIONS, "reward_fn": _reward_failing_at_step_3})
+    vec.reset(seed=0)
+    actions = np.zeros((vec.num_envs, 2))
+    vec.step(actions)
+    vec.step(actions)
+    with pytest.raises(WorkerError, match=r"worker \d \(pid \d+, copies \d\.\.\d\) raised ValueError: reward broke "
+                                          r"on purpose") as info:
+        vec.step(actions)
+    assert "_reward_failing_at_step_3" in str(info.value) and "Traceback" in str(info.value)
+    assert isinstance(info.value.__cause__, ValueError)
+    with pytest.raises(EnvStateError, match="a worker failed earlier"):
+        vec.step(actions)
+    vec.close()
+
+
+def test_a_dead_worker_is_an_error_not_a_hang():
+    import os
+    import signal
+
+    vec = vector_env(2, workers=2, **OPTIONS)
+    vec.reset(seed=0)
+    procs = list(vec._pool.procs)
+    victim = procs[1]
+    os.kill(victim.pid, signal.SIGKILL)
+    victim.join(10)
+    with pytest.raises(WorkerError, match=r"worker 1 \(pid \d+, copies 1\.\.1\) (died|is gone)"):
+        vec.step(np.zeros((vec.num_envs, 2)))
+    vec.close()
+    assert not any(p.is_alive() for p in procs)
+
+
+@pytest.mark.parametrize("options, match", [
+    ({"workers": 0}, "workers must be an integer >= 1, got 0"),
+    ({"workers": True}, "workers must be an integer >= 1, got True"),
+    ({"workers": 1.5}, "workers must be an integer >= 1, got 1.5"),
+    ({"workers": 3}, "workers = 3 exceeds the 2 copies"),
+    ({"workers": 2, "start_method": "teleport"}, "start_method must be one of"),
+])
+def test_bad_worker_options_are_refused_by_name(options, match):
+    with pytest.raises(EnvOptionError, match=match):
+        vector_env(2, **options, **OPTIONS)
+
+
+def test_sb3_view_with_workers():
+    pytest.importorskip("stable_baselines3")
+    from crowd_env.envs.sb3 import sb3_vec_env
+
+    vec = sb3_vec_env(2, seed=3, workers=2, **OPTIONS)
+    obs = vec.reset()
+    assert obs.shape == (8, vec.observation_space.shape[0])
+    vec.step_async(np.tile([1.0, 0.0], (8, 1)))
+    vec.step_wait()
+    assert vec.get_attr("max_steps", indices=[0, 5]) == [100, 100]
+    vec.set_attr("max_steps", 50, indices=[5])
+    assert vec.get_attr("max_steps") == [100] * 4 + [50] * 4
+    assert vec.env_method("__getattribute__", "n_pedestrians", indices=[1, 6]) == [5, 5]
+    vec.close()
