@@ -2,17 +2,23 @@
 """crowd_env against JuPedSim on the same Seyfried bottleneck, in one run: agent-steps/s and J_s.
 
 Same geometry (the walkable area and exit of ``seyfried_bottleneck``), same seeded start positions,
-same radii (0.23 m; JuPedSim's 1 µm less, see run_jupedsim) and desired speeds, h = 0.01 s, one thread. Three simulators evacuate the crowd:
+same radii (0.23 m; JuPedSim's 1 µm less, see run_jupedsim) and desired speeds, h = 0.01 s, one thread.
+The crowd is evacuated by:
 
-* crowd_env, full model: baseline agents (eikonal field + Helbing social forces, Eq. 11-16), heading
-  dynamics, Frémond impacts and the gap projection (disks never overlap);
+* crowd_env, full model (the paper preset's parameters): baseline agents (eikonal field + Helbing
+  social forces, Eq. 11-16), heading dynamics, Frémond impacts and the gap projection (disks never
+  overlap), run three ways on the same start (the three are the same run to the last bit):
+
+  - *compiled rollout*: ``run_scenario`` as the reproduction and the calibration run it (agent,
+    step, exits, passages, densities, stall rule in compiled chunks), timed whole, measurement included;
+  - *step by step*: ``agent(sim)`` and ``Simulator.step`` from Python, timed (passages counted outside);
+  - *compiled work alone*: the floor, the agent's decision, the fused step and the exit test in a
+    compiled loop with nothing else (no measurement, no Python between steps);
 * JuPedSim's social force model (Helbing 2000, its defaults besides radius/speed/mass);
 * JuPedSim's collision-free speed model (Tordeux 2016, its defaults besides radius/speed).
 
-Timed: only the simulation (crowd_env: policy + ``Simulator.step``; JuPedSim: ``Simulation.iterate``).
-Not timed: measuring passages of the bottleneck line (the same :class:`PassageCounter` for all three)
-and the per-step overlap check. Agent-steps = Σ over steps of the pedestrians present. The ratios
-are crowd_env / JuPedSim from the same run. JuPedSim is a benchmark extra
+JuPedSim is timed on ``Simulation.iterate`` only (its passages and the per-step overlap check are not
+timed). Agent-steps = Σ over steps of the pedestrians present. The ratios are from the same run. JuPedSim is a benchmark extra
 (``pip install -e ".[bench]"``), never a dependency of crowd_env.
 
     python benchmarks/compare_jupedsim.py [--n 60] [--width 1.0] [--seeds 3]
@@ -29,9 +35,15 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+import numba as nb  # noqa: E402
+
 from crowd_env.analysis.flow import MeasurementLine, PassageCounter, specific_flow  # noqa: E402
+from crowd_env.core.contacts import active_links  # noqa: E402
 from crowd_env.core.state import min_gap_m  # noqa: E402
+from crowd_env.core.step import FUSED_OK, fused_step, leave_at_exits  # noqa: E402
+from crowd_env.experiments.runner import _compiled_tuples, run_scenario  # noqa: E402
 from crowd_env.scenarios import make_scenario  # noqa: E402
+from crowd_env.walking.agent import AGENT_OK, agent_step  # noqa: E402
 
 MAX_TIME_S = 300.0
 
@@ -45,7 +57,79 @@ def _summary(name, agent_steps, wall_s, counter, width_m, n, n_left, min_gap):
     times = np.sort(counter.times_s)
     js = specific_flow(times, width_m).specific_flow_per_m_s if times.size >= 2 else float("nan")
     return {"model": name, "agent_steps": int(agent_steps), "wall_s": wall_s, "rate": agent_steps / wall_s,
-            "specific_flow": js, "evacuated": n - n_left, "n": n, "min_gap_m": min_gap}
+            "specific_flow": js, "evacuated": n - n_left, "n": n, "min_gap_m": min_gap, "crossing_times_s": times}
+
+
+@nb.njit
+def _floor_steps(max_steps, time_s, bodies, world, model, agent):
+    """The compiled work alone: agent_step, the fused step and the exit test per step, nothing else.
+    Returns (steps done, agent-steps, clock, ok); ok False: the next step needs the staged path."""
+    (position, radius, velocity, angular_velocity, heading, mass, inertia, tau, stiffness, damping, desired_speed,
+     active, links, link_offsets) = bodies
+    walls, wall_owner, exits, exit_destination = world
+    dt_s, eps_m, k_n, k_tg, k_v, rotation, max_rows, max_bodies, max_projection_rows = model
+    origin, res, tt, dirs, field_of, social, a_n, b_m, lam, cutoff, wa, wb = agent
+    done = 0
+    agent_steps = 0
+    while done < max_steps:
+        index = np.flatnonzero(active)
+        if index.shape[0] == 0:
+            break
+        status, intents, theta_d, pairs, pair_radius = agent_step(
+            position, radius, index, origin, res, tt, dirs, field_of, desired_speed, tau, mass, heading, walls,
+            wall_owner, social, a_n, b_m, lam, cutoff, wa, wb)
+        if status != AGENT_OK:
+            return done, agent_steps, time_s, False
+        l_a, l_b, dvec, gi, gj = active_links(position, heading, active, index, links, link_offsets)
+        previous = position[index]
+        fused = fused_step(position, radius, velocity, angular_velocity, heading, mass, inertia, tau, stiffness,
+                           damping, intents, theta_d, True, np.zeros((0, 2)), False, index, walls, wall_owner, pairs,
+                           pair_radius, l_a, l_b, dvec, gi, gj, dt_s, eps_m, k_n, k_tg, k_v, rotation, max_rows,
+                           max_bodies, max_projection_rows)[0]
+        if fused != FUSED_OK:
+            return done, agent_steps, time_s, False
+        leave_at_exits(position, active, index, previous, exit_destination, *exits)
+        time_s += dt_s
+        done += 1
+        agent_steps += index.shape[0]
+    return done, agent_steps, time_s, True
+
+
+def run_floor(scenario, state, params):
+    """The compiled work alone (``_floor_steps``), with the staged path for the steps it hands back."""
+    from baselines.social_force import SocialForceAgent
+
+    sim = scenario.make_simulator(state, params)
+    agent = SocialForceAgent(scenario.navigation())
+    tuples = _compiled_tuples(sim, agent.compiled(state.n))
+    n_max = int(MAX_TIME_S / params.dt_s)
+    agent_steps, wall = 0, 0.0
+    while sim.step_count < n_max and state.active.any():
+        t0 = time.perf_counter()
+        k, a, clock, ok = _floor_steps(n_max - sim.step_count, sim.time_s, *tuples)
+        wall += time.perf_counter() - t0
+        sim.advanced(k, clock)
+        agent_steps += a
+        if not ok:
+            t0 = time.perf_counter()
+            agent_steps += sim.active_index.shape[0]
+            intents, heading = agent(sim)
+            sim.step(intents, desired_heading_rad=heading)
+            wall += time.perf_counter() - t0
+    return {"model": "crowd_env compiled work alone", "agent_steps": int(agent_steps), "wall_s": wall,
+            "rate": agent_steps / wall, "specific_flow": float("nan"), "evacuated": state.n - int(state.active.sum()),
+            "n": state.n, "min_gap_m": float("nan")}
+
+
+def run_rollout(scenario, state, params, agent_steps):
+    """``run_scenario`` (compiled rollout, measurement included) timed whole; ``agent_steps`` from the
+    step-by-step run of the same start (the same run to the last bit)."""
+    from baselines.social_force import SocialForceAgent
+
+    r = run_scenario(scenario, SocialForceAgent(scenario.navigation()), params, state=state, max_time_s=MAX_TIME_S)
+    return {"model": "crowd_env compiled rollout", "agent_steps": agent_steps, "wall_s": r.wall_time_s,
+            "rate": agent_steps / r.wall_time_s, "specific_flow": r.specific_flow_per_m_s, "evacuated": r.n_evacuated,
+            "n": state.n, "min_gap_m": r.min_gap_m, "crossing_times_s": r.crossing_times_s}
 
 
 def run_crowd_env(scenario, state):
@@ -69,7 +153,7 @@ def run_crowd_env(scenario, state):
         agent_steps += n_active
         counter.update(prev, state.position_m, t_prev, sim.time_s, ids)
         gap = min(gap, min_gap_m(state.position_m[state.active], state.radius_m[state.active]))
-    return _summary("crowd_env (full model)", agent_steps, wall, counter, scenario.metadata["width_m"], state.n,
+    return _summary("crowd_env step by step", agent_steps, wall, counter, scenario.metadata["width_m"], state.n,
                     int(np.count_nonzero(state.active)), gap)
 
 
@@ -128,6 +212,17 @@ def run_jupedsim(scenario, state, model: str):
     return _summary(name, agent_steps, wall, counter, scenario.metadata["width_m"], state.n, sim.agent_count(), gap)
 
 
+def run_crowd_env_three_ways(scenario) -> list:
+    """Step by step, compiled rollout and the compiled work alone on the same start (paper parameters)."""
+    from crowd_env.core import ModelParams
+
+    step = run_crowd_env(scenario, scenario.make_state())
+    roll = run_rollout(scenario, scenario.make_state(), ModelParams(), step["agent_steps"])
+    if not np.array_equal(roll.pop("crossing_times_s"), np.sort(step.pop("crossing_times_s"))):
+        raise SystemExit("the compiled rollout and the step-by-step run differ: the benchmark compares unequal work")
+    return [roll, step, run_floor(scenario, scenario.make_state(), ModelParams())]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--n", type=int, default=60)
@@ -142,12 +237,12 @@ def main(argv=None) -> int:
     # Warm-up (compiles or loads crowd_env's kernels, fills caches; loads JuPedSim) on the same case
     # (first seed), not reported.
     warm = make_scenario("seyfried_bottleneck", width_m=args.width, n_pedestrians=args.n, seed=0)
-    run_crowd_env(warm, warm.make_state())
+    run_crowd_env_three_ways(warm)
     run_jupedsim(warm, warm.make_state(), "sfm")
     rows = []
     for seed in range(args.seeds):
         sc = make_scenario("seyfried_bottleneck", width_m=args.width, n_pedestrians=args.n, seed=seed)
-        rows.append(run_crowd_env(sc, sc.make_state()))
+        rows.extend(run_crowd_env_three_ways(sc))
         rows.append(run_jupedsim(sc, sc.make_state(), "sfm"))
         rows.append(run_jupedsim(sc, sc.make_state(), "cfsm"))
     print(f"Seyfried bottleneck b = {args.width} m, N = {args.n}, h = 0.01 s, {args.seeds} seeds, one thread "
@@ -160,14 +255,19 @@ def main(argv=None) -> int:
         steps = sum(r["agent_steps"] for r in rs)
         wall = sum(r["wall_s"] for r in rs)
         totals[name] = steps / wall
-        js = np.nanmean([r["specific_flow"] for r in rs])
+        flows = [r["specific_flow"] for r in rs if np.isfinite(r["specific_flow"])]
+        gaps = [r["min_gap_m"] for r in rs if np.isfinite(r["min_gap_m"])]
+        js = f"{np.mean(flows):.3f}" if flows else "(same run)"
+        gap = f"{min(gaps):.3f}" if gaps else "(same run)"
         ev = f"{sum(r['evacuated'] for r in rs)}/{sum(r['n'] for r in rs)}"
-        print(f"{name:<30} {steps / wall:>14,.0f} {steps:>12,} {wall:>8.2f} {js:>12.3f} {ev:>10} "
-              f"{min(r['min_gap_m'] for r in rs):>10.3f}")
-    ours = totals["crowd_env (full model)"]
-    print(f"ratio crowd_env / JuPedSim social force:         {ours / totals['JuPedSim social force']:.2f}x (target >= 1.0)")
-    print(f"ratio crowd_env / JuPedSim collision-free speed: {ours / totals['JuPedSim collision-free speed']:.2f}x "
-          f"(target >= 1.5)")
+        print(f"{name:<30} {steps / wall:>14,.0f} {steps:>12,} {wall:>8.2f} {js:>12} {ev:>10} {gap:>10}")
+    ours = totals["crowd_env compiled rollout"]
+    sfm, cfsm = totals["JuPedSim social force"], totals["JuPedSim collision-free speed"]
+    print(f"ratio compiled rollout / JuPedSim social force:         {ours / sfm:.2f}x (target >= 2.5)")
+    print(f"ratio compiled rollout / JuPedSim collision-free speed: {ours / cfsm:.2f}x (target >= 4)")
+    print(f"ratio compiled work alone / compiled rollout:           "
+          f"{totals['crowd_env compiled work alone'] / ours:.2f}x (target <= 1.5)")
+    print(f"ratio step by step / JuPedSim social force:             {totals['crowd_env step by step'] / sfm:.2f}x")
     print("experiment (Seyfried 2009, N = 60): J_s = 1.90 1/(m s) at b = 1.0 m")
     return 0
 
