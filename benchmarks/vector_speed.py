@@ -1,21 +1,24 @@
 #!/usr/bin/env python
-"""Speed of the native vector environment against the PettingZoo environment and the bare simulator.
+"""Speed of the native vector environment (1 and 2 worker processes) against the PettingZoo environment.
 
 For N pedestrians (all controlled) and K copies, one "step" advances all K crowds by one environment
 step (``frame_skip=1``: one simulator step of 0.01 s):
 
 - ``bare``: K :class:`~crowd_env.core.simulator.Simulator` objects stepped with the intents (no
   observations, no rewards): the floor any interface sits on;
-- ``pettingzoo``: K ``crowd_v0.parallel_env`` copies stepped one after another with dict actions
+- ``PZ``: K ``crowd_v0.parallel_env`` copies stepped one after another with dict actions
   (observations, rewards and the dicts included);
-- ``vector``: one ``CrowdVectorEnv`` of the K copies stepped with one (K N, 2) action array.
+- ``vec w=1``: one ``CrowdVectorEnv`` of the K copies stepped with one (K N, 2) action array in this process;
+- ``vec w=2``: the same with ``workers=2`` (two processes, shared-memory buffers).
 
-All three walk the same crowds (the Seyfried bottleneck at b = 1 m, seeds 0 … K−1) with the same rule,
-1.3 m/s along each pedestrian's e_d; computing the actions is not timed. Figures: steps/s of the K
-crowds, agent-steps/s, and the ratios vector / pettingzoo and vector / bare, measured in one run.
+All walk the same crowds (the Seyfried bottleneck at b = 1 m, seeds 0 … K−1) with the same rule, 1.3 m/s
+along each pedestrian's e_d; computing the actions is not timed. Every case first runs ``--warmup``
+untimed steps (numba loads its cached kernels lazily, in each worker too). Figures: agent-steps/s (live
+agents only), and, in the same run, vector (2 workers) / PZ (target >= 3 at N = 100) and 2 workers /
+1 worker (target >= 1.6).
 
-    python benchmarks/vector_speed.py                      # N = 10, 100, 1000 x K = 1, 8, 32
-    python benchmarks/vector_speed.py --n 100 --k 8 --steps 50
+    python benchmarks/vector_speed.py                      # N = 100, K = 8
+    python benchmarks/vector_speed.py --n 10 100 --k 2 8 --steps 200
 """
 from __future__ import annotations
 
@@ -30,6 +33,8 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 SPEED_M_S = 1.3
+TARGET_VEC_OVER_PZ = 3.0
+TARGET_TWO_OVER_ONE = 1.6
 
 
 def _options(n: int) -> dict:
@@ -38,6 +43,7 @@ def _options(n: int) -> dict:
 
 
 def bench_bare(n: int, k: int, steps: int, warmup: int) -> float:
+    """Agent-steps/s of K bare simulators."""
     from crowd_env.envs import crowd_v0
 
     envs = [crowd_v0.parallel_env(**_options(n)) for _ in range(k)]
@@ -45,70 +51,82 @@ def bench_bare(n: int, k: int, steps: int, warmup: int) -> float:
         e.reset(seed=c)
     sims = [e.sim for e in envs]
     navs = [e.navigation for e in envs]
-    total = 0.0
+    total, agent_steps = 0.0, 0
     for s in range(warmup + steps):
         intents = [SPEED_M_S * nav.direction(sim.state.position_m) for sim, nav in zip(sims, navs)]
+        live = sum(int(sim.state.active.sum()) for sim in sims)
         t = time.perf_counter()
         for sim, u in zip(sims, intents):
             sim.step(u, desired_heading_rad=np.arctan2(u[:, 1], u[:, 0]))
         if s >= warmup:
             total += time.perf_counter() - t
-    return total / steps
+            agent_steps += live
+    return agent_steps / total
 
 
 def bench_pettingzoo(n: int, k: int, steps: int, warmup: int) -> float:
+    """Agent-steps/s of K PettingZoo environments stepped one after another."""
     from crowd_env.envs import crowd_v0
 
     envs = [crowd_v0.parallel_env(**_options(n)) for _ in range(k)]
     obs = [e.reset(seed=c)[0] for c, e in enumerate(envs)]
     ed = envs[0].observation_layout["desired_direction"]
-    total = 0.0
+    total, agent_steps = 0.0, 0
     for s in range(warmup + steps):
+        for c, e in enumerate(envs):
+            if not e.agents:
+                obs[c] = e.reset()[0]
         actions = [{a: SPEED_M_S * o[a][ed].astype(np.float64) for a in e.agents} for e, o in zip(envs, obs)]
         t = time.perf_counter()
         obs = [e.step(act)[0] for e, act in zip(envs, actions)]
         if s >= warmup:
             total += time.perf_counter() - t
-    return total / steps
+            agent_steps += sum(len(act) for act in actions)
+    return agent_steps / total
 
 
-def bench_vector(n: int, k: int, steps: int, warmup: int) -> float:
+def bench_vector(n: int, k: int, steps: int, warmup: int, workers: int = 1) -> float:
+    """Agent-steps/s of one vector environment of the K copies."""
     from crowd_env.envs.vector import vector_env
 
-    vec = vector_env(k, **_options(n))
-    obs, _ = vec.reset(seed=0)
-    ed = vec.envs[0].observation_layout["desired_direction"]
-    total = 0.0
-    for s in range(warmup + steps):
-        actions = SPEED_M_S * obs[:, ed].astype(np.float64)
-        t = time.perf_counter()
-        obs = vec.step(actions)[0]
-        if s >= warmup:
-            total += time.perf_counter() - t
-    return total / steps
+    vec = vector_env(k, workers=workers, **_options(n))
+    try:
+        obs, _ = vec.reset(seed=0)
+        ed = vec.envs[0].observation_layout["desired_direction"]
+        total, agent_steps = 0.0, 0
+        for s in range(warmup + steps):
+            actions = SPEED_M_S * obs[:, ed].astype(np.float64)
+            t = time.perf_counter()
+            obs, _, _, _, infos = vec.step(actions)
+            if s >= warmup:
+                total += time.perf_counter() - t
+                agent_steps += int(infos["acted"].sum())
+    finally:
+        vec.close()
+    return agent_steps / total
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, nargs="+", default=[10, 100, 1000], help="pedestrians per copy")
-    ap.add_argument("--k", type=int, nargs="+", default=[1, 8, 32], help="copies")
-    ap.add_argument("--steps", type=int, default=None, help="timed steps (default: 2000 / (N K / 10), 5..200)")
-    ap.add_argument("--warmup", type=int, default=3)
+    ap.add_argument("--n", type=int, nargs="+", default=[100], help="pedestrians per copy")
+    ap.add_argument("--k", type=int, nargs="+", default=[8], help="copies (>= 2 for two workers)")
+    ap.add_argument("--steps", type=int, default=400, help="timed steps per case")
+    ap.add_argument("--warmup", type=int, default=800, help="untimed steps first (numba's lazy kernel loading)")
     args = ap.parse_args(argv)
-    # Load every compiled kernel before timing anything: 8 s of a crowd of 20 (contacts, exits, resets).
-    bench_vector(20, 2, 5, 800)
-    print(f"{'N':>5} {'K':>3} {'steps':>5} {'bare st/s':>10} {'PZ st/s':>9} {'vec st/s':>9} {'vec agent-st/s':>14} "
-          f"{'vec/PZ':>7} {'vec/bare':>8}")
+    print(f"cores available: {len(os.sched_getaffinity(0))}; agent-steps/s (live agents), warm-up {args.warmup} steps")
+    print(f"{'N':>5} {'K':>3} {'steps':>5} {'bare':>10} {'PZ':>10} {'vec w=1':>10} {'vec w=2':>10} {'w=1/PZ':>7} "
+          f"{'w=2/PZ':>7} {'target':>6} {'w=2/w=1':>7} {'target':>6}")
     for n in args.n:
         for k in args.k:
-            steps = args.steps or int(np.clip(2000 * 10 / (n * k), 5, 200))
-            bare = bench_bare(n, k, steps, args.warmup)
-            pz = bench_pettingzoo(n, k, steps, args.warmup)
-            vec = bench_vector(n, k, steps, args.warmup)
-            print(f"{n:>5} {k:>3} {steps:>5} {1 / bare:>10.1f} {1 / pz:>9.1f} {1 / vec:>9.1f} {n * k / vec:>14.0f} "
-                  f"{pz / vec:>7.2f} {bare / vec:>8.2f}", flush=True)
-    print("vec/PZ: speed of the vector env over the PettingZoo env on the same crowds; vec/bare: its share of the "
-          "bare simulator's speed (1 = no interface cost)")
+            bare = bench_bare(n, k, args.steps, args.warmup)
+            pz = bench_pettingzoo(n, k, args.steps, args.warmup)
+            one = bench_vector(n, k, args.steps, args.warmup, workers=1)
+            two = bench_vector(n, k, args.steps, args.warmup, workers=2) if k >= 2 else float("nan")
+            print(f"{n:>5} {k:>3} {args.steps:>5} {bare:>10.0f} {pz:>10.0f} {one:>10.0f} {two:>10.0f} {one / pz:>7.2f} "
+                  f"{two / pz:>7.2f} {'>= ' + format(TARGET_VEC_OVER_PZ, 'g'):>6} {two / one:>7.2f} "
+                  f"{'>= ' + format(TARGET_TWO_OVER_ONE, 'g'):>6}", flush=True)
+    print("w=2/PZ: the vector env on two worker processes over the PettingZoo env on the same crowds (target at "
+          "N = 100); w=2/w=1: its speed-up from the second core")
     return 0
 
 

@@ -237,8 +237,8 @@ def _worker(conn, envs_pickled: bytes, buffer, n_slots: int, dim: int, lo: int, 
                 reply = None
             elif cmd == "state":
                 reply = copies.state()
-            elif cmd == "call":
-                reply = copies.call(*arg)
+            elif cmd == "call":  # any object may come back: cloudpickled
+                reply = cloudpickle.dumps(copies.call(*arg))
             elif cmd == "set_attr":
                 reply = copies.set_attr(*arg)
             elif cmd == "close":
@@ -512,7 +512,7 @@ class CrowdVectorEnv(VectorEnv):
         for w, local, _ in plan:
             self._pool.conns[w].send(("call", (local, name, args, kwargs)))
         for (w, local, where), reply in zip(plan, self._pool.gather([w for w, _, _ in plan])):
-            for k, v in zip(where, reply):
+            for k, v in zip(where, cloudpickle.loads(reply)):
                 out[k] = v
         return tuple(out)
 
