@@ -173,13 +173,13 @@ def leave_at_exits(position, active, index, previous, destination, vertices, rin
         y1 = position[i, 1]
         d = destination[i]
         hit = False
-        if d >= 0:
-            hit = path_meets_polygon(x0, y0, x1, y1, d, vertices, ring_start, ring_owner, boxes)
-        else:
-            for e in range(boxes.shape[0]):
-                if path_meets_polygon(x0, y0, x1, y1, e, vertices, ring_start, ring_owner, boxes):
-                    hit = True
-                    break
+        for e in range(boxes.shape[0]):
+            if (d >= 0 and e != d) or max(x0, x1) < boxes[e, 0] or min(x0, x1) > boxes[e, 2] or \
+                    max(y0, y1) < boxes[e, 1] or min(y0, y1) > boxes[e, 3]:
+                continue  # not its exit, or the path's box misses the exit's (the cheap test first)
+            if path_meets_polygon(x0, y0, x1, y1, e, vertices, ring_start, ring_owner, boxes):
+                hit = True
+                break
         if hit:
             active[i] = False
             out[m] = i

@@ -47,6 +47,12 @@ COUNT_PASSED, COUNT_STEPS, COUNT_LATERAL, COUNT_FRAMES = range(4)
 SCALAR_MIN_GAP_M, SCALAR_LAST_EXIT_S = range(2)
 
 
+@nb.njit(cache=True, inline="always")
+def _in_box(x, y, k, boxes):
+    """The point lies in the open bounding box of polygon k (the cheap test before the exact one)."""
+    return boxes[k, 0] < x < boxes[k, 2] and boxes[k, 1] < y < boxes[k, 3]
+
+
 @nb.njit(cache=True)
 def mean_speed_of(velocity, mask):
     """Mean ‖u‖ over the pedestrians flagged in ``mask`` (N,); nan when none is."""
@@ -138,16 +144,16 @@ def measure_step(position, velocity, heading, active, index, previous, n_exited,
         count = 0
         total = 0.0
         for i in range(active.shape[0]):
-            if active[i] and point_in_interior(position[i, 0], position[i, 1], area, vertices, ring_start, ring_owner,
-                                               boxes):
+            if active[i] and _in_box(position[i, 0], position[i, 1], area, boxes) and \
+                    point_in_interior(position[i, 0], position[i, 1], area, vertices, ring_start, ring_owner, boxes):
                 count += 1
                 total += np.sqrt(velocity[i, 0] ** 2 + velocity[i, 1] ** 2)
         density[row, area] = count / area_size_m2[area]
         speed[row, area] = total / count if count else np.nan
     if lane_area >= 0:
         for i in range(active.shape[0]):
-            if active[i] and point_in_interior(position[i, 0], position[i, 1], lane_area, vertices, ring_start,
-                                               ring_owner, boxes):
+            if active[i] and _in_box(position[i, 0], position[i, 1], lane_area, boxes) and \
+                    point_in_interior(position[i, 0], position[i, 1], lane_area, vertices, ring_start, ring_owner, boxes):
                 lateral[counts[COUNT_LATERAL]] = position[i, 1]
                 counts[COUNT_LATERAL] += 1
     counts[COUNT_STEPS] += 1
