@@ -258,7 +258,7 @@ def main(argv=None) -> int:
         flows = [r["specific_flow"] for r in rs if np.isfinite(r["specific_flow"])]
         gaps = [r["min_gap_m"] for r in rs if np.isfinite(r["min_gap_m"])]
         js = f"{np.mean(flows):.3f}" if flows else "(same run)"
-        gap = f"{min(gaps):.3f}" if gaps else "(same run)"
+        gap = f"{min(gaps):.1e}" if gaps else "(same run)"
         ev = f"{sum(r['evacuated'] for r in rs)}/{sum(r['n'] for r in rs)}"
         print(f"{name:<30} {steps / wall:>14,.0f} {steps:>12,} {wall:>8.2f} {js:>12} {ev:>10} {gap:>10}")
     ours = totals["crowd_env compiled rollout"]
