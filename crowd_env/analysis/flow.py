@@ -80,21 +80,29 @@ class MeasurementLine:
         return _crossing_fraction(p0, p1, self._a, self._t, self._normal)
 
 
+@nb.njit(cache=True, inline="always")
+def crossing_alpha(x0, y0, x1, y1, a, t, normal):
+    """Fraction α ∈ [0, 1) of the straight move (x0, y0) → (x1, y1) at which it crosses the segment
+    a → a + t in the positive direction ``normal``; nan where it does not (start strictly behind, end
+    on or past, the crossing point on the segment). The one kernel of every passage count."""
+    s0 = (x0 - a[0]) * normal[0] + (y0 - a[1]) * normal[1]
+    s1 = (x1 - a[0]) * normal[0] + (y1 - a[1]) * normal[1]
+    if s0 < 0.0 and s1 >= 0.0:
+        alpha = s0 / (s0 - s1)
+        px = x0 + alpha * (x1 - x0)
+        py = y0 + alpha * (y1 - y0)
+        u = ((px - a[0]) * t[0] + (py - a[1]) * t[1]) / (t[0] * t[0] + t[1] * t[1])
+        if 0.0 <= u <= 1.0:
+            return alpha
+    return np.nan
+
+
 @nb.njit(cache=True)
 def _crossing_fraction(p0, p1, a, t, normal):
     """Kernel of :meth:`MeasurementLine.crossing_fraction` (segment a → a + t, positive side ``normal``)."""
-    out = np.full(p0.shape[0], np.nan)
-    tt = t[0] * t[0] + t[1] * t[1]
+    out = np.empty(p0.shape[0])
     for k in range(p0.shape[0]):
-        s0 = (p0[k, 0] - a[0]) * normal[0] + (p0[k, 1] - a[1]) * normal[1]
-        s1 = (p1[k, 0] - a[0]) * normal[0] + (p1[k, 1] - a[1]) * normal[1]
-        if s0 < 0.0 and s1 >= 0.0:
-            alpha = s0 / (s0 - s1)
-            px = p0[k, 0] + alpha * (p1[k, 0] - p0[k, 0])
-            py = p0[k, 1] + alpha * (p1[k, 1] - p0[k, 1])
-            u = ((px - a[0]) * t[0] + (py - a[1]) * t[1]) / tt
-            if 0.0 <= u <= 1.0:
-                out[k] = alpha
+        out[k] = crossing_alpha(p0[k, 0], p0[k, 1], p1[k, 0], p1[k, 1], a, t, normal)
     return out
 
 

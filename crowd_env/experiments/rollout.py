@@ -27,6 +27,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from ..analysis.flow import crossing_alpha
 from ..core.polygons import point_in_interior
 from ..core.step import FUSED_OK, first_non_finite, fused_step, leave_at_exits
 from ..core.contacts import active_links
@@ -119,25 +120,16 @@ def measure_step(position, velocity, heading, active, index, previous, n_exited,
     if progressed:
         scalars[SCALAR_LAST_EXIT_S] = time_s
     if has_line:
-        a = line[0]
-        t = line[1]
-        normal = line[2]
-        tt = t[0] * t[0] + t[1] * t[1]
+        a, t, normal = line
         for k in range(index.shape[0]):
             i = index[k]
-            s0 = (previous[k, 0] - a[0]) * normal[0] + (previous[k, 1] - a[1]) * normal[1]
-            s1 = (position[i, 0] - a[0]) * normal[0] + (position[i, 1] - a[1]) * normal[1]
-            if s0 < 0.0 and s1 >= 0.0:
-                alpha = s0 / (s0 - s1)
-                px = previous[k, 0] + alpha * (position[i, 0] - previous[k, 0])
-                py = previous[k, 1] + alpha * (position[i, 1] - previous[k, 1])
-                u = ((px - a[0]) * t[0] + (py - a[1]) * t[1]) / tt
-                if 0.0 <= u <= 1.0 and not passed[i]:
-                    passed[i] = True
-                    cross_ids[counts[COUNT_PASSED]] = i
-                    cross_times[counts[COUNT_PASSED]] = t_prev_s + alpha * (time_s - t_prev_s)
-                    counts[COUNT_PASSED] += 1
-                    progressed = True
+            alpha = crossing_alpha(previous[k, 0], previous[k, 1], position[i, 0], position[i, 1], a, t, normal)
+            if not np.isnan(alpha) and not passed[i]:
+                passed[i] = True
+                cross_ids[counts[COUNT_PASSED]] = i
+                cross_times[counts[COUNT_PASSED]] = t_prev_s + alpha * (time_s - t_prev_s)
+                counts[COUNT_PASSED] += 1
+                progressed = True
     vertices, ring_start, ring_owner, boxes = areas
     row = counts[COUNT_STEPS]
     for area in range(density.shape[1]):
