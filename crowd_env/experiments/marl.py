@@ -38,7 +38,6 @@ Needs the ``marl`` extra (torchrl, tensordict), imported inside the functions. C
 """
 from __future__ import annotations
 
-import csv
 import functools
 import importlib.util
 import json
@@ -50,7 +49,8 @@ import numpy as np
 
 from ..envs import crowd_v0
 from ..errors import MissingDependencyError, TrainingError
-from .training import SharedPolicy, _write_json_atomic, begin_run, evaluate_trained, read_checkpoints
+from .training import (SharedPolicy, _write_json_atomic, begin_run, evaluate_trained, read_checkpoints,
+                       write_progress)
 
 __all__ = ["ALGORITHMS", "GROUP", "CSV_COLUMNS", "DEFAULT_PPO", "TorchRLPolicy", "check_algorithm", "make_env",
            "build_networks", "make_loss", "valid_transitions", "load_policy", "train"]
@@ -272,14 +272,6 @@ def valid_transitions(data, state: bool):
     return flat[group["mask"].reshape(-1)]
 
 
-def _write_progress(rows, out: str) -> None:
-    with open(os.path.join(out, "progress.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=CSV_COLUMNS)
-        w.writeheader()
-        for row in rows:
-            w.writerow(row)
-
-
 def _save_checkpoint(out: str, algorithm: str, frames: int, actor, critic, optim, rows) -> None:
     import torch
 
@@ -386,7 +378,7 @@ def train(env_config: dict, frames: int, out: str, *, algorithm: str = "mappo", 
                    **{k: v / max(count, 1) for k, v in sums.items()}, "wall_s": time.perf_counter() - t_iter}
             t_iter = time.perf_counter()  # wall_s: collection and update of the iteration
             rows.append(row)
-            _write_progress(rows, out)
+            write_progress(out, rows, CSV_COLUMNS)
             progress(f"iter {iteration:4d} | frames {frames_done:8d} | episodes {episodes:3d} | return "
                      f"{ep_return:8.3f} | length {ep_length:6.1f} | loss pi {row['loss_objective']:+.4f} "
                      f"v {row['loss_critic']:.4f} ent {row['loss_entropy']:+.5f}")
@@ -395,7 +387,7 @@ def train(env_config: dict, frames: int, out: str, *, algorithm: str = "mappo", 
         collector.shutdown()
         _save_checkpoint(out, algorithm, frames_done, actor, critic, optim, rows)
     train_s = time.perf_counter() - t1
-    _write_progress(rows, out)
+    write_progress(out, rows, CSV_COLUMNS)
 
     obs_dim = env.observation_spec[GROUP, "observation"].shape[-1]
     space = env.full_action_spec[GROUP, "action"].space

@@ -30,7 +30,6 @@ Needs the ``marl`` extra (``ray[rllib]``), imported inside the functions. Comman
 """
 from __future__ import annotations
 
-import csv
 import importlib.util
 import json
 import os
@@ -42,7 +41,8 @@ import numpy as np
 from ..envs import crowd_v0
 from ..errors import MissingDependencyError, TrainingError
 from .backends import RayBackend, check_reachable
-from .training import SharedPolicy, _write_json_atomic, begin_run, evaluate_trained, read_checkpoints
+from .training import (SharedPolicy, _write_json_atomic, begin_run, evaluate_trained, read_checkpoints,
+                       write_progress)
 
 __all__ = ["ENV_NAME", "MODULE_ID", "CSV_COLUMNS", "DEFAULT_PPO", "RLlibPolicy", "env_creator", "ppo_config",
            "load_policy", "train"]
@@ -155,14 +155,6 @@ def _row(result: dict, iteration: int, wall_s: float) -> dict:
             "wall_s": wall_s}
 
 
-def _write_progress(rows, out: str) -> None:
-    with open(os.path.join(out, "progress.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=CSV_COLUMNS)
-        w.writeheader()
-        for row in rows:
-            w.writerow(row)
-
-
 def _save_checkpoint(algo, out: str, env_steps: int, iteration: int, rows) -> None:
     entries = read_checkpoints(out)
     if entries and entries[-1]["timesteps"] >= env_steps:
@@ -240,7 +232,7 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, address: str |
             row = _row(result, iteration, time.perf_counter() - t_iter)
             env_steps = row["env_steps"]
             rows.append(row)
-            _write_progress(rows, out)
+            write_progress(out, rows, CSV_COLUMNS)
             progress(f"iter {iteration:4d} | env steps {env_steps:8d} | episodes {row['episodes']:3d} | return "
                      f"{row['mean_episode_return']:8.3f} | length {row['mean_episode_length']:6.1f} | loss pi "
                      f"{row['policy_loss']:+.4f} v {row['vf_loss']:.4f} | entropy {row['entropy']:.3f}")
@@ -249,7 +241,7 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, address: str |
         if rows:
             _save_checkpoint(algo, out, env_steps, iteration, rows)
         train_s = time.perf_counter() - t1
-        _write_progress(rows, out)
+        write_progress(out, rows, CSV_COLUMNS)
         module = algo.get_module(MODULE_ID)
         policy_dir = os.path.join(out, "policy")
         shutil.rmtree(policy_dir, ignore_errors=True)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from crowd_env.errors import TrainingError
 
+import csv
 import json
 import os
 import time
@@ -100,6 +101,15 @@ def _write_json_atomic(path: str, value) -> None:
     with open(tmp, "w") as fh:
         json.dump(value, fh, indent=1)
     os.replace(tmp, path)  # a kill leaves either the old file or the new one, never half of one
+
+
+def write_progress(out: str, rows, columns) -> None:
+    """``out/progress.csv``: one row per training iteration, the fields ``columns`` (the TorchRL and RLlib runs)."""
+    with open(os.path.join(out, "progress.csv"), "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=columns)
+        w.writeheader()
+        for row in rows:
+            w.writerow(row)
 
 
 def read_checkpoints(out: str) -> list:
