@@ -159,7 +159,7 @@ def measure_step(position, velocity, heading, active, index, previous, n_exited,
             frame_heading[f, i] = heading[i]
             frame_active[f, i] = active[i]
         counts[COUNT_FRAMES] += 1
-    remaining = active.copy()
+    remaining = np.empty_like(active)
     for i in range(active.shape[0]):
         remaining[i] = active[i] and not passed[i]
     return stall_update(stall_ring, stall_state, stall_window_steps, stall_window_s, stall_speed_m_s, dt_s, time_s,

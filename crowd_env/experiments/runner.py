@@ -27,6 +27,7 @@ from ..analysis.flow import MeasurementLine, specific_flow
 from ..core.params import ModelParams
 from ..core.polygons import pack_polygons
 from ..core.presets import DEFAULT_PRESET, get_preset
+from ..walking.agent import SocialForceAgent
 from .rollout import (COUNT_FRAMES, COUNT_LATERAL, COUNT_PASSED, COUNT_STEPS, ROLLOUT_CHUNK_STEPS, ROLLOUT_PYTHON_STEP,
                       SCALAR_LAST_EXIT_S, SCALAR_MIN_GAP_M, STALL_LAST_PROGRESS_S, STALL_STALLED, STALL_TIME_S,
                       measure_step, rollout_steps, stall_update)
@@ -247,7 +248,10 @@ class _RunMeasures:
         self.record_every = int(record_every)
         self.counts = np.zeros(4, np.int64)
         self.scalars = np.array([min_gap_m, 0.0])
-        self.frames_for(0)
+        self.frame_time_s = np.zeros(0)
+        self.frame_position = np.zeros((0, n, 2))
+        self.frame_heading = np.zeros((0, n))
+        self.frame_active = np.zeros((0, n), dtype=bool)
 
     def room_for(self, steps: int) -> None:
         """Room in the lateral and frame buffers for ``steps`` more steps (keeps what they hold)."""
@@ -259,12 +263,14 @@ class _RunMeasures:
         self.frames_for(steps)
 
     def frames_for(self, steps: int) -> None:
-        """Empty frame buffers for ``steps`` steps (the caller has passed the previous ones on)."""
+        """Frame buffers with room for ``steps`` steps, emptied (the caller has passed the previous frames on);
+        they grow when a longer chunk needs more room and are reused otherwise."""
         f = steps // self.record_every + 1 if self.record_every > 0 else 0
-        self.frame_time_s = np.zeros(f)
-        self.frame_position = np.zeros((f, self.n if f else 0, 2))
-        self.frame_heading = np.zeros((f, self.n if f else 0))
-        self.frame_active = np.zeros((f, self.n if f else 0), dtype=bool)
+        if f > self.frame_time_s.shape[0]:
+            self.frame_time_s = np.zeros(f)
+            self.frame_position = np.zeros((f, self.n, 2))
+            self.frame_heading = np.zeros((f, self.n))
+            self.frame_active = np.zeros((f, self.n), dtype=bool)
         self.counts[COUNT_FRAMES] = 0
 
     def pass_frames(self, recorder) -> None:
@@ -307,10 +313,7 @@ def _compiled_tuples(sim, agent_nav) -> tuple:
 
 def _rollout_navigation(policy, sim, compiled: bool):
     """The policy's compiled navigation when the run may be rolled out in compiled code, else None."""
-    if not compiled or sim.exit_polygons is None or not hasattr(policy, "compiled"):
-        return None
-    from ..walking.agent import SocialForceAgent
-    if not isinstance(policy, SocialForceAgent):
+    if not compiled or sim.exit_polygons is None or not isinstance(policy, SocialForceAgent):
         return None
     return policy.compiled(sim.state.n)
 

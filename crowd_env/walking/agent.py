@@ -101,7 +101,6 @@ def sample_directions(position, index, origin_m, resolution_m, travel_time, dire
     is False when a point is outside the grid or not finite, or has no direction (unreachable)."""
     n = index.shape[0]
     e_d = np.empty((n, 2))
-    t = np.empty(n)
     ok = True
     for f in range(travel_time.shape[0]):
         count = 0
@@ -127,7 +126,6 @@ def sample_directions(position, index, origin_m, resolution_m, travel_time, dire
         for q in range(count):
             e_d[rows[q], 0] = out_dir[q, 0]
             e_d[rows[q], 1] = out_dir[q, 1]
-            t[rows[q]] = out_time[q]
     for k in range(n):
         if not (np.isfinite(e_d[k, 0]) and np.isfinite(e_d[k, 1])):
             ok = False
