@@ -53,7 +53,7 @@ import numpy as np
 from crowd_env.errors import EnvOptionError
 
 from ..core.neighbors import grid_k_nearest
-from ..walking.navigation import NavigationField, _bilinear_sample
+from ..walking.navigation import NavigationField, sample_bilinear
 
 __all__ = ["FRAMES", "OBSERVATION_FIELDS", "EGOCENTRIC_OBSERVATION_FIELDS", "ObservationField", "observation_fields",
            "observation_layout", "observation_size", "check_frame", "ObservationBuilder"]
@@ -254,7 +254,7 @@ def _observe(position, velocity, heading, active, index, grid_xyh, grid_t, grid_
         for a in range(m):
             pos[a, 0] = position[index[a], 0]
             pos[a, 1] = position[index[a], 1]
-        bad = _bilinear_sample(pos, grid_xyh[0], grid_xyh[1], grid_xyh[2], grid_t, grid_d, e_d, travel)
+        bad = sample_bilinear(pos, grid_xyh[0], grid_xyh[1], grid_xyh[2], grid_t, grid_d, e_d, travel)
         if bad >= 0:
             return bad
     act = np.flatnonzero(active)

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..core.angles import direction_angles_rad
 from ..core.neighbors import grid_pairs
-from .navigation import DestinationNavigation, NavigationField, _bilinear_sample
+from .navigation import DestinationNavigation, NavigationField, sample_bilinear
 from .social_force import social_repulsion, total_social_forces
 
 # agent_step's status: the intents are ready, or a pedestrian's e_d is undefined (outside the grid, not
@@ -120,7 +120,7 @@ def sample_directions(position, index, origin_m, resolution_m, travel_time, dire
                 count += 1
         out_dir = np.empty((count, 2))
         out_time = np.empty(count)
-        if _bilinear_sample(pts, origin_m[0], origin_m[1], resolution_m, travel_time[f], direction[f], out_dir,
+        if sample_bilinear(pts, origin_m[0], origin_m[1], resolution_m, travel_time[f], direction[f], out_dir,
                             out_time) >= 0:
             ok = False
         for q in range(count):

@@ -19,11 +19,11 @@ from scipy import ndimage
 from ..core.geometry import Geometry
 from ..core.segments import GeometryError
 
-__all__ = ["NavigationField", "DestinationNavigation", "RigidlyMovedNavigation", "GeometryError"]
+__all__ = ["NavigationField", "DestinationNavigation", "RigidlyMovedNavigation", "GeometryError", "sample_bilinear"]
 
 
 @nb.njit(cache=True)
-def _bilinear_sample(points, x0, y0, h, travel_time, direction, out_dir, out_time):
+def sample_bilinear(points, x0, y0, h, travel_time, direction, out_dir, out_time):
     """Bilinear interpolation of T and of the node directions; returns the first bad point or -1.
 
     A point is bad when it is non-finite or outside the grid. Corners with zero weight are ignored;
@@ -371,7 +371,7 @@ class NavigationField:
         n = pts.shape[0]
         out_dir = np.empty((n, 2))
         out_time = np.empty(n)
-        bad = _bilinear_sample(pts, float(self.origin_m[0]), float(self.origin_m[1]), self.resolution_m,
+        bad = sample_bilinear(pts, float(self.origin_m[0]), float(self.origin_m[1]), self.resolution_m,
                                self.travel_time_s_grid, self.direction_grid, out_dir, out_time)
         if bad >= 0:
             x0, y0 = self.origin_m
