@@ -11,18 +11,27 @@ step (``frame_skip=1``: one simulator step of 0.01 s):
 - ``vec w=1``: one ``CrowdVectorEnv`` of the K copies stepped with one (K N, 2) action array in this process;
 - ``vec w=2``: the same with ``workers=2`` (two processes, shared-memory buffers).
 
-All walk the same crowds (the Seyfried bottleneck at b = 1 m, seeds 0 … K−1) with the same rule, 1.3 m/s
-along each pedestrian's e_d; computing the actions is not timed. Every case first runs ``--warmup``
+All walk the same crowds (the Seyfried bottleneck at b = 1 m, seeds 0 … K−1) with the same rule from the
+observations (computing the actions is not timed), ``--policy``:
+
+- ``speed`` (default): the collision-free speed rule of Tordeux et al. (2016) on each pedestrian's e_d:
+  speed min(1.3, max(0, (s − 0.4 m) / 1 s)), s the distance to the nearest observed neighbour ahead
+  (within 0.4 m of the walking line): a queue that flows through the bottleneck with few contacts, the
+  regime of the PettingZoo figure of ``env_speed.py`` (the calibrated agent's intents);
+- ``walk``: 1.3 m/s along e_d, no regard for others: a dense jam with many simultaneous contacts, where
+  the simulator's impact solver dominates every interface's time.
+ Every case first runs ``--warmup``
 untimed steps (numba loads its cached kernels lazily, in each worker too). Figures: agent-steps/s (live
 agents only), and, in the same run, vector (2 workers) / PZ (target >= 3 at N = 100) and 2 workers /
 1 worker (target >= 1.6).
 
-    python benchmarks/vector_speed.py                      # N = 100, K = 8
+    python benchmarks/vector_speed.py                      # N = 100, K = 8, both rules
     python benchmarks/vector_speed.py --n 10 100 --k 2 8 --steps 200
 """
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
@@ -33,6 +42,26 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 SPEED_M_S = 1.3
+DIAMETER_M = 0.4  # l of the speed rule: the gap below which a pedestrian stops
+TIME_GAP_S = 1.0  # T of the speed rule
+POLICIES = ("speed", "walk")
+
+
+def act(obs: np.ndarray, layout: dict, policy: str) -> np.ndarray:
+    """Velocity intents (M, 2) float64 from observation rows (M, D) (world frame) under ``policy``."""
+    e = obs[:, layout["desired_direction"]].astype(np.float64)
+    if policy == "walk":
+        return SPEED_M_S * e
+    rel = obs[:, layout["neighbors"]].astype(np.float64).reshape(len(obs), -1, 4)[:, :, :2]
+    mask = obs[:, layout["neighbor_mask"]] > 0
+    ahead = rel[:, :, 0] * e[:, None, 0] + rel[:, :, 1] * e[:, None, 1]
+    side = np.abs(rel[:, :, 1] * e[:, None, 0] - rel[:, :, 0] * e[:, None, 1])
+    blocking = mask & (ahead > 0.0) & (side < DIAMETER_M)
+    gap = np.where(blocking, np.hypot(rel[:, :, 0], rel[:, :, 1]), np.inf).min(axis=1, initial=np.inf)
+    speed = np.clip((gap - DIAMETER_M) / TIME_GAP_S, 0.0, SPEED_M_S)
+    return speed[:, None] * e
+
+
 TARGET_VEC_OVER_PZ = 3.0
 TARGET_TWO_OVER_ONE = 1.6
 
@@ -42,60 +71,69 @@ def _options(n: int) -> dict:
             "controlled": "all", "frame_skip": 1, "max_steps": 10**9, "action_max_m_s": 5.0}
 
 
-def bench_bare(n: int, k: int, steps: int, warmup: int) -> float:
-    """Agent-steps/s of K bare simulators."""
+def bench_bare(n: int, k: int, steps: int, warmup: int, policy: str) -> float:
+    """Agent-steps/s of K bare simulators (a copy whose crowd has left is reset, untimed)."""
     from crowd_env.envs import crowd_v0
 
     envs = [crowd_v0.parallel_env(**_options(n)) for _ in range(k)]
     for c, e in enumerate(envs):
         e.reset(seed=c)
-    sims = [e.sim for e in envs]
-    navs = [e.navigation for e in envs]
+    layout = envs[0].observation_layout
     total, agent_steps = 0.0, 0
     for s in range(warmup + steps):
-        intents = [SPEED_M_S * nav.direction(sim.state.position_m) for sim, nav in zip(sims, navs)]
+        for e in envs:
+            if not e.sim.state.active.any():
+                e.reset()
+        sims = [e.sim for e in envs]
+        intents = []
+        for e, sim in zip(envs, sims):
+            obs, _ = e._observer.build(sim.state, np.arange(sim.state.n))
+            u = act(obs, layout, policy)
+            intents.append((u, np.where(np.hypot(u[:, 0], u[:, 1]) > 1e-12, np.arctan2(u[:, 1], u[:, 0]),
+                                        sim.state.heading_rad)))
         live = sum(int(sim.state.active.sum()) for sim in sims)
         t = time.perf_counter()
-        for sim, u in zip(sims, intents):
-            sim.step(u, desired_heading_rad=np.arctan2(u[:, 1], u[:, 0]))
+        for sim, (u, heading) in zip(sims, intents):
+            sim.step(u, desired_heading_rad=heading)
         if s >= warmup:
             total += time.perf_counter() - t
             agent_steps += live
     return agent_steps / total
 
 
-def bench_pettingzoo(n: int, k: int, steps: int, warmup: int) -> float:
+def bench_pettingzoo(n: int, k: int, steps: int, warmup: int, policy: str) -> float:
     """Agent-steps/s of K PettingZoo environments stepped one after another."""
     from crowd_env.envs import crowd_v0
 
     envs = [crowd_v0.parallel_env(**_options(n)) for _ in range(k)]
     obs = [e.reset(seed=c)[0] for c, e in enumerate(envs)]
-    ed = envs[0].observation_layout["desired_direction"]
+    layout = envs[0].observation_layout
     total, agent_steps = 0.0, 0
     for s in range(warmup + steps):
         for c, e in enumerate(envs):
             if not e.agents:
                 obs[c] = e.reset()[0]
-        actions = [{a: SPEED_M_S * o[a][ed].astype(np.float64) for a in e.agents} for e, o in zip(envs, obs)]
+        actions = [dict(zip(e.agents, act(np.stack([o[a] for a in e.agents]), layout, policy)))
+                   for e, o in zip(envs, obs)]
         t = time.perf_counter()
-        obs = [e.step(act)[0] for e, act in zip(envs, actions)]
+        obs = [e.step(a)[0] for e, a in zip(envs, actions)]
         if s >= warmup:
             total += time.perf_counter() - t
-            agent_steps += sum(len(act) for act in actions)
+            agent_steps += sum(len(a) for a in actions)
     return agent_steps / total
 
 
-def bench_vector(n: int, k: int, steps: int, warmup: int, workers: int = 1) -> float:
+def bench_vector(n: int, k: int, steps: int, warmup: int, policy: str, workers: int = 1) -> float:
     """Agent-steps/s of one vector environment of the K copies."""
     from crowd_env.envs.vector import vector_env
 
     vec = vector_env(k, workers=workers, **_options(n))
     try:
         obs, _ = vec.reset(seed=0)
-        ed = vec.envs[0].observation_layout["desired_direction"]
+        layout = vec.envs[0].observation_layout
         total, agent_steps = 0.0, 0
         for s in range(warmup + steps):
-            actions = SPEED_M_S * obs[:, ed].astype(np.float64)
+            actions = act(obs, layout, policy)
             t = time.perf_counter()
             obs, _, _, _, infos = vec.step(actions)
             if s >= warmup:
@@ -112,19 +150,19 @@ def main(argv=None) -> int:
     ap.add_argument("--k", type=int, nargs="+", default=[8], help="copies (>= 2 for two workers)")
     ap.add_argument("--steps", type=int, default=400, help="timed steps per case")
     ap.add_argument("--warmup", type=int, default=800, help="untimed steps first (numba's lazy kernel loading)")
+    ap.add_argument("--policy", choices=POLICIES, nargs="+", default=list(POLICIES), help="action rules (see above)")
     args = ap.parse_args(argv)
     print(f"cores available: {len(os.sched_getaffinity(0))}; agent-steps/s (live agents), warm-up {args.warmup} steps")
-    print(f"{'N':>5} {'K':>3} {'steps':>5} {'bare':>10} {'PZ':>10} {'vec w=1':>10} {'vec w=2':>10} {'w=1/PZ':>7} "
+    print(f"{'policy':>6} {'N':>5} {'K':>3} {'steps':>5} {'bare':>10} {'PZ':>10} {'vec w=1':>10} {'vec w=2':>10} {'w=1/PZ':>7} "
           f"{'w=2/PZ':>7} {'target':>6} {'w=2/w=1':>7} {'target':>6}")
-    for n in args.n:
-        for k in args.k:
-            bare = bench_bare(n, k, args.steps, args.warmup)
-            pz = bench_pettingzoo(n, k, args.steps, args.warmup)
-            one = bench_vector(n, k, args.steps, args.warmup, workers=1)
-            two = bench_vector(n, k, args.steps, args.warmup, workers=2) if k >= 2 else float("nan")
-            print(f"{n:>5} {k:>3} {args.steps:>5} {bare:>10.0f} {pz:>10.0f} {one:>10.0f} {two:>10.0f} {one / pz:>7.2f} "
-                  f"{two / pz:>7.2f} {'>= ' + format(TARGET_VEC_OVER_PZ, 'g'):>6} {two / one:>7.2f} "
-                  f"{'>= ' + format(TARGET_TWO_OVER_ONE, 'g'):>6}", flush=True)
+    for policy, n, k in itertools.product(args.policy, args.n, args.k):
+        bare = bench_bare(n, k, args.steps, args.warmup, policy)
+        pz = bench_pettingzoo(n, k, args.steps, args.warmup, policy)
+        one = bench_vector(n, k, args.steps, args.warmup, policy, workers=1)
+        two = bench_vector(n, k, args.steps, args.warmup, policy, workers=2) if k >= 2 else float("nan")
+        print(f"{policy:>6} {n:>5} {k:>3} {args.steps:>5} {bare:>10.0f} {pz:>10.0f} {one:>10.0f} {two:>10.0f} {one / pz:>7.2f} "
+              f"{two / pz:>7.2f} {'>= ' + format(TARGET_VEC_OVER_PZ, 'g'):>6} {two / one:>7.2f} "
+              f"{'>= ' + format(TARGET_TWO_OVER_ONE, 'g'):>6}", flush=True)
     print("w=2/PZ: the vector env on two worker processes over the PettingZoo env on the same crowds (target at "
           "N = 100); w=2/w=1: its speed-up from the second core")
     return 0

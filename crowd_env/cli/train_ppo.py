@@ -35,6 +35,7 @@ import argparse
 import importlib.util
 import sys
 
+from ..errors import EnvOptionError
 from ..experiments.training import VECTORISERS, TrainingError, train
 from .train_options import add_env_arguments, add_evaluation_arguments, env_config_and_resolver
 
@@ -47,6 +48,8 @@ def main(argv=None) -> int:
     ap.add_argument("--copies", type=int, default=2, help="environment copies concatenated")
     ap.add_argument("--vectoriser", choices=VECTORISERS, default="native",
                     help="native (crowd_env.envs.vector, default) or supersuit")
+    ap.add_argument("--workers", type=int, default=1,
+                    help="processes that step the copies (native vectoriser; 1: this process, at most --copies)")
     ap.add_argument("--n-steps", type=int, default=256, help="PPO rollout length per agent slot")
     ap.add_argument("--batch-size", type=int, default=512)
     ap.add_argument("--n-epochs", type=int, default=10)
@@ -74,8 +77,8 @@ def main(argv=None) -> int:
                         n_steps=args.n_steps, batch_size=args.batch_size, n_epochs=args.n_epochs,
                         learning_rate=args.learning_rate, gamma=args.gamma, eval_seeds=args.eval_seeds,
                         threads=args.threads, verbose=args.verbose, checkpoint_every=args.checkpoint_every,
-                        resume=args.resume, vectoriser=args.vectoriser)
-    except TrainingError as exc:
+                        resume=args.resume, vectoriser=args.vectoriser, workers=args.workers)
+    except (TrainingError, EnvOptionError) as exc:
         raise SystemExit(f"error: {exc}") from None
     print(f"mean per-agent episode return: random {summary['random']['mean_return']:.3f} -> trained "
           f"{summary['trained']['mean_return']:.3f} ({summary['timesteps']} timesteps, "

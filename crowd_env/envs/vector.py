@@ -34,17 +34,19 @@ Global state:
     :meth:`CrowdVectorEnv.state` is ``(K, S)`` (:meth:`~crowd_env.envs.crowd_v0.CrowdParallelEnv.state` of
     each copy); ``slot_copy[i]`` is the copy of slot i, so ``state()[slot_copy]`` is each slot's.
 Worker processes (``workers=W``):
-    ``vector_env(K, workers=W, ...)`` splits the K copies into W contiguous groups and steps each group
-    in its own process (``start_method``: ``"spawn"`` by default, or ``"forkserver"``; ``"fork"`` too
-    where the platform has it, unsafe with threads). Actions, observations, rewards, flags and the info
+    ``vector_env(K, workers=W, ...)`` splits the K copies into W contiguous groups and steps them in W
+    processes at once: group 0 in this process (which would otherwise wait), groups 1 … W−1 in worker
+    processes (``start_method``: ``"spawn"`` by default, or ``"forkserver"``; ``"fork"`` too where the
+    platform has it, unsafe with threads). Actions, observations, rewards, flags and the info
     arrays pass through one shared-memory buffer, so a step pickles nothing but a short command per
     worker; the results are bitwise those of ``workers=1`` with the same seeds
     (``tests/envs/test_vector.py``). The copies must pickle (module-level reward and background
-    functions). An exception in a worker is raised in the parent as
-    :class:`~crowd_env.errors.WorkerError` with the worker's traceback in its message (the original
-    exception as its ``__cause__``); a worker that dies is a ``WorkerError`` too, never a hang; after
+    functions). An exception while stepping a group (group 0's too) is raised as
+    :class:`~crowd_env.errors.WorkerError` with the traceback in its message (the original exception as
+    its ``__cause__``); a worker that dies is a ``WorkerError`` too, never a hang; after
     either, the vector environment refuses further use. :meth:`CrowdVectorEnv.close` stops the
-    workers. With workers, ``envs`` are the parent's unstepped templates: read or change the live copies
+    workers. With workers, ``envs`` are unstepped templates (every group, group 0 included, steps copies of
+    them): read or change the live copies
     through :meth:`~CrowdVectorEnv.call`, :meth:`~CrowdVectorEnv.get_attr`,
     :meth:`~CrowdVectorEnv.set_attr`, :meth:`~CrowdVectorEnv.state` and :meth:`~CrowdVectorEnv.render`.
 """
@@ -212,42 +214,51 @@ class _Copies:
             e.close()
 
 
+def _serve(copies: _Copies, out: dict, results: list, cmd: str, arg):
+    """Run one command on a group of copies (in a worker process or, for group 0, in the parent); returns
+    the reply."""
+    if cmd in ("step", "reset"):
+        for v in results:
+            v[...] = 0
+    if cmd == "step":
+        copies.step(out["actions"], out)
+        return None
+    if cmd == "reset":
+        copies.reset(arg[0], arg[1], out)
+        return None
+    if cmd == "state":
+        return copies.state()
+    if cmd == "call":
+        return copies.call(*arg)
+    if cmd == "set_attr":
+        return copies.set_attr(*arg)
+    raise EnvStateError(f"unknown worker command {cmd!r}")
+
+
+def _group(envs, buffer, n_slots: int, dim: int, lo: int, hi: int):
+    """A group's copies, its views of slots ``lo:hi`` of the shared buffer and the result arrays zeroed
+    before each step."""
+    views = _arrays(n_slots, dim, buffer)
+    out = {k: v[lo:hi] for k, v in views.items()}
+    return _Copies(envs, out["alive"]), out, [v for k, v in out.items() if k not in ("actions", "alive")]
+
+
 def _worker(conn, envs_pickled: bytes, buffer, n_slots: int, dim: int, lo: int, hi: int) -> None:
     """Body of a worker process: steps its copies (``envs_pickled``, cloudpickled as the geometry's mapping
     proxies need; slots ``lo:hi``) on the parent's commands."""
-    envs = cloudpickle.loads(envs_pickled)
-    views = _arrays(n_slots, dim, buffer)
-    out = {k: v[lo:hi] for k, v in views.items()}
-    copies = _Copies(envs, out["alive"])
-    results = [v for k, v in out.items() if k not in ("actions", "alive")]
+    copies, out, results = _group(cloudpickle.loads(envs_pickled), buffer, n_slots, dim, lo, hi)
     while True:
         try:
             cmd, arg = conn.recv()
         except (EOFError, KeyboardInterrupt):  # the parent is gone
             return
         try:
-            if cmd in ("step", "reset"):
-                for v in results:
-                    v[...] = 0
-            if cmd == "step":
-                copies.step(out["actions"], out)
-                reply = None
-            elif cmd == "reset":
-                copies.reset(arg[0], arg[1], out)
-                reply = None
-            elif cmd == "state":
-                reply = copies.state()
-            elif cmd == "call":  # any object may come back: cloudpickled
-                reply = cloudpickle.dumps(copies.call(*arg))
-            elif cmd == "set_attr":
-                reply = copies.set_attr(*arg)
-            elif cmd == "close":
+            if cmd == "close":
                 copies.close()
                 conn.send(("ok", None))
                 return
-            else:
-                raise EnvStateError(f"unknown worker command {cmd!r}")
-            conn.send(("ok", reply))
+            reply = _serve(copies, out, results, cmd, arg)
+            conn.send(("ok", cloudpickle.dumps(reply) if cmd == "call" else reply))  # any object may come back
         except Exception as exc:  # report it with its traceback; the parent decides
             try:
                 conn.send(("error", (traceback.format_exc(), exc)))
@@ -256,7 +267,9 @@ def _worker(conn, envs_pickled: bytes, buffer, n_slots: int, dim: int, lo: int, 
 
 
 class _Workers:
-    """The worker processes of a vector environment and the shared buffer they write into."""
+    """The processes of a vector environment and the shared buffer they write into: group 0 of the copies
+    is stepped in this process (so that it works while the others do, instead of waiting), groups
+    1 … W−1 in worker processes."""
 
     def __init__(self, envs, workers: int, start_method: str, n_slots: int, dim: int, n_agents: int):
         ctx = multiprocessing.get_context(start_method)
@@ -264,45 +277,59 @@ class _Workers:
         self.buffer = ctx.RawArray("b", _buffer_size(n_slots, dim))
         self.views = _arrays(n_slots, dim, self.buffer)
         self.groups = np.array_split(np.arange(len(envs)), workers)
-        self.conns, self.procs = [], []
+        self.conns, self.procs = [None], [None]  # index w: worker w's pipe and process (none for group 0)
+        self.broken = None
         try:
-            for g in self.groups:
+            for w, g in enumerate(self.groups):
                 lo, hi = int(g[0]) * n_agents, (int(g[-1]) + 1) * n_agents
-                parent, child = ctx.Pipe()
                 try:
-                    group = cloudpickle.dumps([envs[c] for c in g])
-                    proc = ctx.Process(target=_worker, args=(child, group, self.buffer, n_slots, dim, lo, hi),
-                                       daemon=True, name=f"crowd-vector-worker-{len(self.procs)}")
-                    proc.start()
+                    group = cloudpickle.dumps([envs[c] for c in g])  # the live copies; envs stay templates
+                    if w == 0:
+                        self.local = _group(cloudpickle.loads(group), self.buffer, n_slots, dim, lo, hi)
+                        continue
+                    parent, child = ctx.Pipe()
+                    try:
+                        proc = ctx.Process(target=_worker, args=(child, group, self.buffer, n_slots, dim, lo, hi),
+                                           daemon=True, name=f"crowd-vector-worker-{w}")
+                        proc.start()
+                    finally:
+                        child.close()
                 except Exception as exc:
-                    raise EnvOptionError(f"could not start worker {len(self.procs)} for copies {g[0]}..{g[-1]} "
-                                         f"({exc}); with workers > 1 the copies must pickle (module-level "
-                                         "reward_fn and background_policy)") from exc
-                finally:
-                    child.close()
+                    raise EnvOptionError(f"could not start worker {w} for copies {g[0]}..{g[-1]} ({exc}); with "
+                                         "workers > 1 the copies must pickle (module-level reward_fn and "
+                                         "background_policy)") from exc
                 self.conns.append(parent)
                 self.procs.append(proc)
         except BaseException:
             self.close()
             raise
-        self.broken = None
 
     def _where(self, w: int) -> str:
         g = self.groups[w]
-        return f"worker {w} (pid {self.procs[w].pid}, copies {g[0]}..{g[-1]})"
+        where = "this process" if w == 0 else f"pid {self.procs[w].pid}"
+        return f"worker {w} ({where}, copies {g[0]}..{g[-1]})"
 
-    def send_all(self, message) -> None:
-        for w, conn in enumerate(self.conns):
+    def run(self, messages: dict) -> dict:
+        """Send ``messages`` (worker -> (command, argument)), run group 0's here meanwhile, and return the
+        replies (worker -> reply). An exception or a dead worker raises :class:`WorkerError` (after every
+        reply is in, so the pipes stay in step) and marks the pool broken."""
+        for w, message in messages.items():
+            if w == 0:
+                continue
             try:
-                conn.send(message)
+                self.conns[w].send(message)
             except (BrokenPipeError, OSError) as exc:
                 self.broken = f"{self._where(w)} is gone ({exc})"
                 raise WorkerError(f"{self._where(w)} is gone: it cannot take commands ({exc})") from None
-
-    def gather(self, workers=None) -> list:
-        """Every worker's reply; a worker's exception or death raises :class:`WorkerError`."""
-        replies, error = [], None
-        for w in (range(len(self.conns)) if workers is None else workers):
+        replies, error = {}, None
+        if 0 in messages:
+            try:
+                replies[0] = _serve(*self.local, *messages[0])
+            except Exception as exc:
+                error = self._error(0, traceback.format_exc(), exc)
+        for w in messages:
+            if w == 0:
+                continue
             conn, proc = self.conns[w], self.procs[w]
             try:
                 ready = wait([conn, proc.sentinel])
@@ -313,46 +340,46 @@ class _Workers:
                 proc.join(1.0)
                 error = error or WorkerError(f"{self._where(w)} died (exit code {proc.exitcode}) before replying; "
                                              "the vector environment cannot continue: close it and make a new one")
-                replies.append(None)
                 continue
             if status == "error":
-                tb, exc = payload
-                name = type(exc).__name__ if exc is not None else "an exception"
-                err = WorkerError(f"{self._where(w)} raised {name}: {exc}\n--- traceback in the worker ---\n{tb}")
-                err.__cause__ = exc
-                error = error or err
-                replies.append(None)
+                error = error or self._error(w, *payload)
             else:
-                replies.append(payload)
+                replies[w] = cloudpickle.loads(payload) if messages[w][0] == "call" else payload
         if error is not None:
             self.broken = str(error).splitlines()[0]
             raise error
         return replies
 
-    def request(self, message, workers=None) -> list:
-        for w in (range(len(self.conns)) if workers is None else workers):
-            try:
-                self.conns[w].send(message)
-            except (BrokenPipeError, OSError) as exc:
-                self.broken = f"{self._where(w)} is gone ({exc})"
-                raise WorkerError(f"{self._where(w)} is gone: it cannot take commands ({exc})") from None
-        return self.gather(workers)
+    def _error(self, w: int, tb: str, exc) -> WorkerError:
+        name = type(exc).__name__ if exc is not None else "an exception"
+        err = WorkerError(f"{self._where(w)} raised {name}: {exc}\n--- traceback in the worker ---\n{tb}")
+        err.__cause__ = exc
+        return err
+
+    def request(self, message) -> list:
+        """The same command to every group; the replies in group order."""
+        replies = self.run(dict.fromkeys(range(len(self.groups)), message))
+        return [replies[w] for w in range(len(self.groups))]
 
     def close(self) -> None:
-        """Ask each worker to stop, then terminate those that do not within the timeout."""
-        for conn, proc in zip(self.conns, self.procs):
+        """Ask each worker to stop, then terminate those that do not within the timeout; close group 0."""
+        for conn, proc in zip(self.conns[1:], self.procs[1:]):
             if proc.is_alive():
                 try:
                     conn.send(("close", None))
                 except (BrokenPipeError, OSError):
                     pass
-        for conn, proc in zip(self.conns, self.procs):
+        for conn, proc in zip(self.conns[1:], self.procs[1:]):
             proc.join(_CLOSE_TIMEOUT_S)
             if proc.is_alive():
                 proc.terminate()
                 proc.join(_CLOSE_TIMEOUT_S)
             conn.close()
-        self.conns, self.procs = [], []
+        local = getattr(self, "local", None)
+        if local is not None:
+            local[0].close()
+            self.local = None
+        self.conns, self.procs = [None], [None]
 
 
 class CrowdVectorEnv(VectorEnv):
@@ -434,9 +461,7 @@ class CrowdVectorEnv(VectorEnv):
             self._copies.reset(seeds, options, out)
         else:
             pool = self._pool
-            for w, g in enumerate(pool.groups):
-                pool.conns[w].send(("reset", ([seeds[c] for c in g], options)))
-            pool.gather()
+            pool.run({w: ("reset", ([seeds[c] for c in g], options)) for w, g in enumerate(pool.groups)})
             out = {k: v.copy() for k, v in pool.views.items()}
         self._started = True
         return out["obs"], self._infos(out)
@@ -509,10 +534,9 @@ class CrowdVectorEnv(VectorEnv):
             return tuple(self._copies.call(range(self.n_copies) if copies is None else copies, name, args, kwargs))
         copies, plan = self._by_worker(copies)
         out = [None] * len(copies)
-        for w, local, _ in plan:
-            self._pool.conns[w].send(("call", (local, name, args, kwargs)))
-        for (w, local, where), reply in zip(plan, self._pool.gather([w for w, _, _ in plan])):
-            for k, v in zip(where, cloudpickle.loads(reply)):
+        replies = self._pool.run({w: ("call", (local, name, args, kwargs)) for w, local, _ in plan})
+        for w, _, where in plan:
+            for k, v in zip(where, replies[w]):
                 out[k] = v
         return tuple(out)
 
@@ -537,9 +561,7 @@ class CrowdVectorEnv(VectorEnv):
             self._copies.set_attr(targets, name, values)
             return
         _, plan = self._by_worker(targets)
-        for w, local, where in plan:
-            self._pool.conns[w].send(("set_attr", (local, name, [values[k] for k in where])))
-        self._pool.gather([w for w, _, _ in plan])
+        self._pool.run({w: ("set_attr", (local, name, [values[k] for k in where])) for w, local, where in plan})
 
     def render(self):
         """The ``rgb_array`` frame of every copy (a tuple), for copies made with ``render_mode="rgb_array"``."""

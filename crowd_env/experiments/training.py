@@ -36,14 +36,19 @@ DEFAULT_SCENARIO_OPTIONS = {"width_m": 1.0, "n_pedestrians": 10}
 VECTORISERS = ("native", "supersuit")
 
 
-def make_vec_env(env_config: dict, copies: int = 1, seed: int | None = None, vectoriser: str = "native"):
-    """SB3 VecEnv over all controlled agents of ``copies`` environments (copy i seeded ``seed + i``)."""
+def make_vec_env(env_config: dict, copies: int = 1, seed: int | None = None, vectoriser: str = "native",
+                 workers: int = 1):
+    """SB3 VecEnv over all controlled agents of ``copies`` environments (copy i seeded ``seed + i``), stepped
+    in ``workers`` processes (the native vectoriser only; see :mod:`crowd_env.envs.vector`)."""
     if vectoriser not in VECTORISERS:
         raise TrainingError(f"unknown vectoriser {vectoriser!r}; choose one of {VECTORISERS}")
     if vectoriser == "native":
         from ..envs.sb3 import sb3_vec_env
 
-        return sb3_vec_env(copies, seed=seed, **env_config)
+        return sb3_vec_env(copies, seed=seed, workers=workers, **env_config)
+    if workers != 1:
+        raise TrainingError(f"workers = {workers!r} needs the native vectoriser; the supersuit chain steps its copies "
+                            "in this process")
     import supersuit as ss
     from stable_baselines3.common.vec_env import VecMonitor
 
@@ -197,7 +202,7 @@ def _report(what: str, result: dict, progress) -> None:
 def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0, copies: int = 2, n_steps: int = 256,
           batch_size: int = 512, n_epochs: int = 10, learning_rate: float = 3e-4, gamma: float = 0.99,
           eval_seeds=(1000, 1001, 1002), threads: int = 1, verbose: int = 0, checkpoint_every: int = 10_000,
-          resume: bool = False, vectoriser: str = "native", progress=print) -> dict:
+          resume: bool = False, vectoriser: str = "native", workers: int = 1, progress=print) -> dict:
     """Train, save and evaluate; returns the summary dict (also written to ``out/summary.json``).
 
     ``resolve(spec, name=None) -> policy`` makes the policies the summary compares
@@ -206,7 +211,8 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
 
     ``checkpoint_every`` timesteps (0: only at the end) a checkpoint is saved under ``out/checkpoints``;
     ``resume`` continues from the latest one up to ``timesteps`` in all (see the module docstring).
-    ``vectoriser``: ``"native"`` or ``"supersuit"`` (see the module docstring).
+    ``vectoriser``: ``"native"`` or ``"supersuit"`` (see the module docstring); ``workers``: processes that
+    step the native vectoriser's copies (:func:`~crowd_env.envs.vector.vector_env`).
     """
     import torch
     from stable_baselines3 import PPO
@@ -221,7 +227,7 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
 
     start = entries[-1]["timesteps"] if entries else 0
     set_random_seed(seed + start)  # python, numpy, torch
-    vec = make_vec_env(env_config, copies, seed + start, vectoriser)
+    vec = make_vec_env(env_config, copies, seed + start, vectoriser, workers)
     curve = []
 
     class Curve(BaseCallback):
@@ -265,18 +271,20 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
     model.action_space.seed(seed + start)
     t1 = time.perf_counter()
     remaining = int(timesteps) - int(model.num_timesteps)
-    if remaining > 0:  # with reset_num_timesteps=False SB3 counts total_timesteps on top of num_timesteps
-        model.learn(total_timesteps=remaining, callback=[Curve(), Checkpoint()], reset_num_timesteps=not entries)
-    train_s = time.perf_counter() - t1
-    model.save(os.path.join(out, "model.zip"))
-    vec.close()
+    try:
+        if remaining > 0:  # with reset_num_timesteps=False SB3 counts total_timesteps on top of num_timesteps
+            model.learn(total_timesteps=remaining, callback=[Curve(), Checkpoint()], reset_num_timesteps=not entries)
+        train_s = time.perf_counter() - t1
+        model.save(os.path.join(out, "model.zip"))
+    finally:
+        vec.close()  # also stops worker processes when training fails
 
     after = evaluate_trained(resolve(model, name="ppo"), env_config, eval_seeds, progress)
     write_curve(curve, out, before["mean_return"], after["mean_return"])
     summary = {"timesteps": int(model.num_timesteps), "resumed_from_timesteps": start, "train_wall_s": train_s,
                "total_wall_s": time.perf_counter() - t0, "random": before, "trained": after,
                "improvement": after["mean_return"] - before["mean_return"], "env_config": env_config,
-               "eval_seeds": list(eval_seeds), "seed": seed, "copies": copies, "vectoriser": vectoriser,
+               "eval_seeds": list(eval_seeds), "seed": seed, "copies": copies, "vectoriser": vectoriser, "workers": workers,
                "ppo": {"n_steps": n_steps, "batch_size": batch_size, "n_epochs": n_epochs,
                        "learning_rate": learning_rate, "gamma": gamma}}
     with open(os.path.join(out, "summary.json"), "w") as fh:

@@ -157,8 +157,8 @@ def test_workers_give_bitwise_the_serial_results_and_close_stops_them():
     K, seed = 3, 5
     serial = vector_env(K, **OPTIONS)
     par = vector_env(K, workers=2, **OPTIONS)
-    procs = list(par._pool.procs)
-    assert len(procs) == 2 and all(p.is_alive() for p in procs)
+    procs = par._pool.procs[1:]  # group 0 steps in this process, group 1 in a worker process
+    assert len(procs) == 1 and all(p.is_alive() for p in procs)
     layout = serial.envs[0].observation_layout
     rng = np.random.default_rng(1)
     out_s, out_p = serial.reset(seed=seed), par.reset(seed=seed)
@@ -182,14 +182,17 @@ def test_workers_give_bitwise_the_serial_results_and_close_stops_them():
         par.step(np.zeros((par.num_envs, 2)))
 
 
-def test_a_worker_exception_is_raised_in_the_parent_with_its_traceback():
-    vec = vector_env(2, workers=2, **{**OPTIONS, "reward_fn": _reward_failing_at_step_3})
+@pytest.mark.parametrize("copy, where", [(0, "this process"), (1, r"pid \d+")])
+def test_an_exception_in_a_group_is_raised_with_its_traceback(copy, where):
+    # copy 0 steps in this process (group 0), copy 1 in the worker process: both report the same way
+    vec = vector_env(2, workers=2, **OPTIONS)
+    vec.set_attr("reward_fn", _reward_failing_at_step_3, copies=[copy])
     vec.reset(seed=0)
     actions = np.zeros((vec.num_envs, 2))
     vec.step(actions)
     vec.step(actions)
-    with pytest.raises(WorkerError, match=r"worker \d \(pid \d+, copies \d\.\.\d\) raised ValueError: reward broke "
-                                          r"on purpose") as info:
+    with pytest.raises(WorkerError, match=rf"worker {copy} \({where}, copies {copy}\.\.{copy}\) raised ValueError: "
+                                          r"reward broke on purpose") as info:
         vec.step(actions)
     assert "_reward_failing_at_step_3" in str(info.value) and "Traceback" in str(info.value)
     assert isinstance(info.value.__cause__, ValueError)
@@ -204,8 +207,8 @@ def test_a_dead_worker_is_an_error_not_a_hang():
 
     vec = vector_env(2, workers=2, **OPTIONS)
     vec.reset(seed=0)
-    procs = list(vec._pool.procs)
-    victim = procs[1]
+    procs = vec._pool.procs[1:]
+    victim = procs[0]
     os.kill(victim.pid, signal.SIGKILL)
     victim.join(10)
     with pytest.raises(WorkerError, match=r"worker 1 \(pid \d+, copies 1\.\.1\) (died|is gone)"):

@@ -18,7 +18,7 @@ from baselines.reference_policies import CallablePolicy, RandomPolicy, SB3Policy
 from crowd_env.envs import crowd_v0  # noqa: E402
 from crowd_env.experiments.evaluation import (ScenarioSpec, evaluate, format_table, plot_results,  # noqa: E402
                                               run_episode, summarize)
-from crowd_env.experiments.training import train  # noqa: E402
+from crowd_env.experiments.training import TrainingError, make_vec_env, train  # noqa: E402
 from tests.conftest import load_script  # noqa: E402
 
 TINY = {"scenario": "seyfried_bottleneck", "scenario_options": {"n_pedestrians": 6, "width_m": 1.0},
@@ -105,3 +105,25 @@ def test_native_and_supersuit_vectorisers_train_to_comparable_returns(tmp_path):
         means[vectoriser] = float(np.mean([r["trained"]["mean_return"] for r in runs]))
         assert means[vectoriser] > random_return + 5.0, (vectoriser, means[vectoriser], random_return)
     assert abs(means["native"] - means["supersuit"]) < 1.5, means
+
+
+def test_training_on_worker_processes_gives_the_same_model(tmp_path):
+    """The native vectoriser's copies stepped in two processes give bitwise the serial observations, so PPO
+    (one torch thread, same seed) ends with the same weights and the same evaluation."""
+    import torch
+
+    kwargs = dict(timesteps=512, resolve=as_policy, seed=0, copies=2, n_steps=64, batch_size=64, n_epochs=2,
+                  eval_seeds=(5,), progress=lambda *a: None)
+    serial = train(TINY, out=str(tmp_path / "w1"), workers=1, **kwargs)
+    parallel = train(TINY, out=str(tmp_path / "w2"), workers=2, **kwargs)
+    assert parallel["workers"] == 2 and serial["trained"] == parallel["trained"]
+    from stable_baselines3 import PPO
+
+    a = PPO.load(str(tmp_path / "w1" / "model.zip"), device="cpu").policy.state_dict()
+    b = PPO.load(str(tmp_path / "w2" / "model.zip"), device="cpu").policy.state_dict()
+    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_workers_need_the_native_vectoriser():
+    with pytest.raises(TrainingError, match="workers = 2 needs the native vectoriser"):
+        make_vec_env(TINY, copies=2, vectoriser="supersuit", workers=2)
