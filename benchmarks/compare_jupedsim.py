@@ -65,7 +65,7 @@ def _floor_steps(max_steps, time_s, bodies, world, model, agent):
     """The compiled work alone: agent_step, the fused step and the exit test per step, nothing else.
     Returns (steps done, agent-steps, clock, ok); ok False: the next step needs the staged path."""
     (position, radius, velocity, angular_velocity, heading, mass, inertia, tau, stiffness, damping, desired_speed,
-     active, links, link_offsets) = bodies
+     active, links, link_offsets, premovement) = bodies
     walls, wall_owner, exits, exit_destination = world
     dt_s, eps_m, k_n, k_tg, k_v, rotation, max_rows, max_bodies, max_projection_rows = model
     origin, res, tt, dirs, field_of, social, a_n, b_m, lam, cutoff, wa, wb = agent
@@ -77,7 +77,7 @@ def _floor_steps(max_steps, time_s, bodies, world, model, agent):
             break
         status, intents, theta_d, pairs, pair_radius = agent_step(
             position, radius, index, origin, res, tt, dirs, field_of, desired_speed, tau, mass, heading, walls,
-            wall_owner, social, a_n, b_m, lam, cutoff, wa, wb)
+            wall_owner, social, a_n, b_m, lam, cutoff, wa, wb, premovement, time_s)
         if status != AGENT_OK:
             return done, agent_steps, time_s, False
         l_a, l_b, dvec, gi, gj = active_links(position, heading, active, index, links, link_offsets)

@@ -48,6 +48,9 @@ class CrowdState:
     (m r^2 / 2). Heading damping defaults to critical damping c = 2 sqrt(I k) (Eq. 15, ζ = 1).
     ``links`` (L, 2) holds index pairs of pedestrians holding hands; ``link_offsets_m`` (L, 4) the
     shoulder points (x_i, y_i, x_j, y_j) in each one's body frame (x along the heading).
+    ``premovement_s`` (N,): the time at which each pedestrian starts to walk (RiMEA's premovement time;
+    0: at once). The core does not read it: the walking model holds a pedestrian still until then
+    (:func:`crowd_env.walking.agent.hold_waiting`).
     """
 
     position_m: np.ndarray
@@ -64,6 +67,11 @@ class CrowdState:
     active: np.ndarray
     links: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     link_offsets_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    premovement_s: np.ndarray | None = None  # None: zeros (everybody walks at once)
+
+    def __post_init__(self) -> None:
+        if self.premovement_s is None:
+            self.premovement_s = np.zeros(self.position_m.shape[0])
 
     @property
     def n(self) -> int:
@@ -72,7 +80,7 @@ class CrowdState:
     @classmethod
     def create(cls, position_m, *, heading_rad=0.0, velocity_m_s=None, angular_velocity_rad_s=0.0,
                mass_kg=None, radius_m=None, inertia_kg_m2=None, desired_speed_m_s=None, tau_s=None,
-               heading_stiffness=None, heading_damping=None, links=None, link_offsets_m=None,
+               heading_stiffness=None, heading_damping=None, links=None, link_offsets_m=None, premovement_s=0.0,
                rng: np.random.Generator | None = None, defaults: PedestrianDefaults = PedestrianDefaults(),
                overlap_tolerance_m: float = 1e-9) -> "CrowdState":
         """Build and validate a state; scalars broadcast, missing values take Table 2 defaults.
@@ -114,6 +122,7 @@ class CrowdState:
             active=np.ones(n, dtype=bool),
             links=np.zeros((0, 2), dtype=np.int64) if links is None else np.array(links, dtype=np.int64).reshape(-1, 2),
             link_offsets_m=np.zeros((0, 4)) if link_offsets_m is None else np.array(link_offsets_m, dtype=np.float64),
+            premovement_s=_as_array("premovement_s", premovement_s, (n,), n),
         )
         state.validate(overlap_tolerance_m=overlap_tolerance_m)
         return state
@@ -128,7 +137,9 @@ class CrowdState:
             bad = np.flatnonzero(~(arr > 0))
             if bad.size:
                 raise StateError(f"{name} must be > 0; pedestrian {int(bad[0])} has {float(arr[bad[0]])!r}")
-        for name in ("heading_stiffness", "heading_damping", "desired_speed_m_s"):
+        if self.premovement_s.shape != (n,):
+            raise StateError(f"premovement_s must have shape ({n},), got {self.premovement_s.shape}")
+        for name in ("heading_stiffness", "heading_damping", "desired_speed_m_s", "premovement_s"):
             arr = getattr(self, name)
             bad = np.flatnonzero(~(arr >= 0))
             if bad.size:

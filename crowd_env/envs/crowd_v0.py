@@ -29,6 +29,8 @@ Actions
     spring-damper is the angle of the intent (the current heading for a zero intent), or the angle of
     e_d with ``heading_target="desired_direction"`` (the baseline's choice). Actions are held for
     ``frame_skip`` simulator steps of ``params.dt_s`` (0.01 s by default).
+    A pedestrian whose premovement time (the scenario's ``premovement_s``, RiMEA's reaction time) has
+    not come stands still: its action is read and validated but held at zero until then.
     The environment never clips or repairs an action: :meth:`CrowdParallelEnv.step` raises
     ``ValueError`` naming the agent(s) for an action outside the Box, a non-finite or wrongly shaped
     action, an unknown or no-longer-live agent id, or a live agent without an action. Actions are read
@@ -116,7 +118,7 @@ from ..core.presets import DEFAULT_PRESET, get_preset
 from ..core.simulator import Simulator
 from ..core.angles import direction_angles_rad
 from ..scenarios import Scenario, make_scenario, scenario_options as _scenario_option_defaults
-from ..walking.agent import SocialForceAgent
+from ..walking.agent import SocialForceAgent, hold_waiting
 from .observations import OBSERVATION_FIELDS, ObservationBuilder, check_frame, to_world_frame
 from .rewards import DefaultReward
 from .state import GlobalStateBuilder
@@ -351,6 +353,7 @@ class CrowdParallelEnv(ParallelEnv):
         self._renderer = None
         self.substep_hooks = []
         self._percussions = None
+        self._last_premovement_s = 0.0
         if render_mode is not None:  # frames show the contact percussions of the steps since the last frame
             from .rendering import ContactPercussions
 
@@ -490,6 +493,7 @@ class CrowdParallelEnv(ParallelEnv):
         state = scenario.make_state(rng=self._rng)
         self._sim = Simulator(state, geometry=self._scenario.geometry, params=self.params,
                               destination=self._scenario.destination)
+        self._last_premovement_s = float(state.premovement_s.max(initial=0.0))
         if self._background_policy is None and not self._controlled_mask.all():
             self._background_policy = default_background_policy(self._scenario)
         self._steps = 0
@@ -623,6 +627,8 @@ class CrowdParallelEnv(ParallelEnv):
                        else self.navigation.direction(st.position_m[idx_c]))
                 theta_c = direction_angles_rad(e_d)
             _set_agent_inputs(intents, heading, st.heading_rad, idx_c, intent_c, theta_c, by_intent)
+            if sim.time_s < self._last_premovement_s:  # somebody has not started yet: hold them still
+                hold_waiting(intents, heading, st.heading_rad, st.premovement_s, sim.time_s, sim.active_index)
             if hooks:
                 prev_pos, prev_t = st.position_m.copy(), sim.time_s
             res = sim.step(intents, desired_heading_rad=heading)

@@ -177,7 +177,7 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, model, agent, li
     Returns ``(status, steps done, clock, re-detection rounds)``; the state arrays in ``bodies`` and the measurements are
     updated in place."""
     (position, radius, velocity, angular_velocity, heading, mass, inertia, tau, stiffness, damping, desired_speed,
-     active, links, link_offsets) = bodies
+     active, links, link_offsets, premovement) = bodies
     walls, wall_owner, exits, exit_destination = world
     (dt_s, eps_m, k_n, k_tg, k_v, rotation, max_dense_rows, max_dense_bodies, max_projection_rows) = model
     (origin_m, resolution_m, travel_time, direction, field_of, social, strength_n, range_m, anisotropy, cutoff_m,
@@ -202,7 +202,7 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, model, agent, li
         status, intents, theta_d, pairs, pair_radius = agent_step(
             position, radius, index, origin_m, resolution_m, travel_time, direction, field_of, desired_speed, tau,
             mass, heading, walls, wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n,
-            wall_range_m)
+            wall_range_m, premovement, time_s)
         if status != AGENT_OK or first_non_finite(intents) >= 0 or first_non_finite(theta_d) >= 0:
             return ROLLOUT_PYTHON_STEP, done, time_s, n_redetect
         l_a, l_b, dvec, gi, gj = active_links(position, heading, active, index, links, link_offsets)

@@ -300,7 +300,7 @@ def _compiled_tuples(sim, agent_nav) -> tuple:
     p = sim.params
     bodies = (st.position_m, st.radius_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad, st.mass_kg,
               st.inertia_kg_m2, st.tau_s, st.heading_stiffness, st.heading_damping, st.desired_speed_m_s, st.active,
-              st.links, st.link_offsets_m)
+              st.links, st.link_offsets_m, st.premovement_s)
     world = (sim.walls, sim.wall_owner, sim.exit_polygons.arrays, sim.exit_destination)
     max_rows, max_bodies = sim.cascade.impact_limits()
     model = (p.dt_s, p.contact_tolerance_m, p.normal_dissipation_kg, p.tangential_dissipation_kg,

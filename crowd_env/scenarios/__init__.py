@@ -4,7 +4,8 @@ Importing this package registers the built-in scenarios: "seyfried_bottleneck" (
 "bottleneck_groups" (hand-holding pairs and triples in the bottleneck crowd), "corridor_bidirectional"
 (alias "corridor"; two groups with opposite destinations), "room_pillar" (room evacuation with a
 pillar before the door), "corner_90" (alias "corner"; L-shaped corridor) and "polygon" (alias
-"custom"; any user geometry from coordinates or WKT).
+"custom"; any user geometry from coordinates or WKT), and the set-ups of the RiMEA verification tests
+("rimea_<test>_<name>", :mod:`crowd_env.scenarios.rimea`).
 """
 from .base import (Scenario, ScenarioError, check_clearance, door_exit, form_groups, list_scenarios, make_scenario,
                    place_pedestrians, register_scenario, scenario_options)
@@ -13,9 +14,10 @@ from .corner import corner_90
 from .corridor import corridor_bidirectional
 from .groups import bottleneck_groups
 from .polygon import scenario_from_polygon
+from .rimea import rimea_scenario
 from .room import room_pillar
 
 __all__ = ["Scenario", "ScenarioError", "list_scenarios", "make_scenario", "place_pedestrians", "register_scenario",
            "scenario_options", "form_groups", "door_exit", "check_clearance", "bottleneck_geometry",
            "seyfried_bottleneck", "bottleneck_groups", "corridor_bidirectional", "room_pillar", "corner_90",
-           "scenario_from_polygon"]
+           "scenario_from_polygon", "rimea_scenario"]

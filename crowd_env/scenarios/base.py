@@ -30,7 +30,7 @@ __all__ = ["Scenario", "ScenarioError", "place_pedestrians", "form_groups", "reg
 
 # Per-pedestrian quantities a scenario may set; anything else is passed as a CrowdState default.
 PEDESTRIAN_PARAMS = ("radius_m", "mass_kg", "inertia_kg_m2", "desired_speed_m_s", "tau_s", "heading_stiffness",
-                     "heading_damping", "velocity_m_s", "angular_velocity_rad_s")
+                     "heading_damping", "velocity_m_s", "angular_velocity_rad_s", "premovement_s")
 
 
 def check_positive(**values) -> None:

@@ -29,14 +29,32 @@ AGENT_BAD_DIRECTION = 1
 
 
 @nb.njit(cache=True)
+def hold_waiting(intents, theta_d, heading, premovement_s, time_s, index):
+    """Hold the pedestrians ``index`` whose premovement time has not come (``time_s < premovement_s[i]``,
+    RiMEA's premovement) still: zero intent, θ_d = their heading, so the driving force brakes them to rest
+    and the heading spring stays relaxed (contacts may still push them). Returns how many wait."""
+    waiting = 0
+    for k in range(index.shape[0]):
+        i = index[k]
+        if time_s < premovement_s[i]:
+            intents[i, 0] = 0.0
+            intents[i, 1] = 0.0
+            theta_d[i] = heading[i]
+            waiting += 1
+    return waiting
+
+
+@nb.njit(cache=True)
 def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, heading, pairs, walls, wall_owner,
-                     social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n, wall_range_m):
+                     social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n, wall_range_m, premovement_s,
+                     time_s):
     """u_int = ‖u_d‖ e_d + (τ/m) Σ f_social (Eq. 14, 16) and θ_d = angle of e_d, in one compiled call.
 
     ``index`` (n,) active pedestrians, ``e_d`` (n, 2) their desired directions (Eq. 13), ``pairs``
     rows into ``index``. Returns full (N, 2) intents (zero for inactive rows) and (N,) desired
     headings (the current heading for inactive rows). The forces are :func:`social_repulsion`'s
-    compiled core, :func:`~crowd_env.walking.social_force.total_social_forces`.
+    compiled core, :func:`~crowd_env.walking.social_force.total_social_forces`. Pedestrians whose
+    premovement time has not come at ``time_s`` stand still (:func:`hold_waiting`).
     """
     n = index.shape[0]
     intents = np.zeros((position.shape[0], 2))
@@ -58,6 +76,7 @@ def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, hea
         intents[i, 0] = desired_speed[i] * e_d[k, 0] + scale * force[k, 0]
         intents[i, 1] = desired_speed[i] * e_d[k, 1] + scale * force[k, 1]
         theta_d[i] = angles[k]
+    hold_waiting(intents, theta_d, heading, premovement_s, time_s, index)
     return intents, theta_d
 
 
@@ -135,7 +154,7 @@ def sample_directions(position, index, origin_m, resolution_m, travel_time, dire
 @nb.njit(cache=True)
 def agent_step(position, radius, index, origin_m, resolution_m, travel_time, direction, field_of, desired_speed, tau,
                mass, heading, walls, wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n,
-               wall_range_m):
+               wall_range_m, premovement_s, time_s):
     """One decision of :class:`SocialForceAgent` in compiled code, exactly as its ``__call__``: e_d from the
     fields (:func:`sample_directions`), the neighbour pairs within 2 r_max + cut-off (the ones
     ``Simulator.neighbor_pairs`` would build, which the step may reuse) and :func:`baseline_intents`.
@@ -155,7 +174,7 @@ def agent_step(position, radius, index, origin_m, resolution_m, travel_time, dir
         pairs = grid_pairs(position, index, pair_radius)
     intents, theta_d = baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, heading, pairs, walls,
                                         wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n,
-                                        wall_range_m)
+                                        wall_range_m, premovement_s, time_s)
     return AGENT_OK, intents, theta_d, pairs, pair_radius
 
 
@@ -209,4 +228,5 @@ class SocialForceAgent:
         return baseline_intents(st.position_m, st.radius_m, idx, e_d, st.desired_speed_m_s, st.tau_s, st.mass_kg,
                                 st.heading_rad, pairs, sim.walls, sim.wall_owner, p.social_forces,
                                 float(p.social_strength_n), float(p.social_range_m), float(p.social_anisotropy),
-                                float(p.social_cutoff_m), float(p.wall_strength_n), float(p.wall_range_m))
+                                float(p.social_cutoff_m), float(p.wall_strength_n), float(p.wall_range_m),
+                                st.premovement_s, float(sim.time_s))

@@ -1,0 +1,214 @@
+"""The building blocks of the RiMEA verification suite: runs, verdicts and the test registry.
+
+A RiMEA test (RiMEA 4.1.1, Annex 1) is a :class:`RimeaTest`: one or more scenarios (data, built with the
+public scenario API in :mod:`crowd_env.scenarios.rimea`), run by a *backend* into a :class:`BackendRun`
+(trajectories at a fixed frame rate, exit times, the smallest gap and the largest excursion outside the
+walkable area), then judged by the test's :meth:`RimeaTest.evaluate` into a :class:`Verdict`. The
+evaluation reads only the runs, so the same test judges crowd_env and JuPedSim alike
+(:mod:`crowd_env.experiments.rimea.jupedsim_backend`).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import shapely
+
+from crowd_env.errors import InputError, NotFoundError
+
+from ...analysis.trajectories import Trajectories
+from ...core.presets import DEFAULT_PRESET, get_preset
+from ...walking.agent import SocialForceAgent
+from ..recording import record_run
+
+__all__ = ["BackendRun", "Verdict", "RimeaTest", "register_test", "rimea_tests", "select_tests", "run_crowd_env",
+           "STAIRS_TESTS", "DOCUMENTATION_TESTS", "OVERLAP_LIMIT_M", "FRAME_RATE_PER_S"]
+
+# Tests RiMEA 4.1.1 defines that a flat 2D model cannot run: stairs (2, 3, 13) and documentation only (8, 14).
+STAIRS_TESTS = ("2", "3", "13")
+DOCUMENTATION_TESTS = ("8", "14")
+OVERLAP_LIMIT_M = 1e-3  # the issue's bound: no overlap beyond 1 mm, in every test
+FRAME_RATE_PER_S = 10.0  # trajectory frames per second of every run (RiMEA's tests need no finer)
+
+_REGISTRY: dict = {}
+
+
+@dataclass
+class BackendRun:
+    """One scenario run by one backend.
+
+    ``trajectories``: every pedestrian on the floor at ``FRAME_RATE_PER_S`` (ids = scenario indices);
+    ``exit_time_s`` (N,): when each left (nan: still inside at the end); ``min_gap_m``: the smallest gap
+    between two disks over the run (negative: an overlap; crowd_env measures it every step, JuPedSim at
+    the frames); ``outside_m``: the farthest any centre lay outside the walkable area (0: never);
+    ``complete``: everybody left; ``stalled``: stopped by crowd_env's stall rule.
+    """
+
+    backend: str
+    scenario_name: str
+    trajectories: Trajectories
+    exit_time_s: np.ndarray
+    min_gap_m: float
+    outside_m: float
+    complete: bool
+    stalled: bool = False
+    wall_time_s: float = float("nan")
+    max_time_s: float = float("nan")
+
+    @property
+    def n_pedestrians(self) -> int:
+        return int(self.exit_time_s.shape[0])
+
+    @property
+    def n_left(self) -> int:
+        return int(np.isfinite(self.exit_time_s).sum())
+
+    @property
+    def evacuation_time_s(self) -> float:
+        """When the last pedestrian left (nan unless everybody did: an incomplete run has no evacuation time)."""
+        return float(np.max(self.exit_time_s)) if self.complete and self.n_pedestrians else float("nan")
+
+    def positions(self, pedestrian: int) -> tuple:
+        """``(time_s, xy (k, 2))`` of one pedestrian's frames."""
+        t = self.trajectories
+        rows = t.id == int(pedestrian)
+        return t.time_s[rows], np.column_stack((t.x_m[rows], t.y_m[rows]))
+
+
+@dataclass
+class Verdict:
+    """A test's reading of one backend's runs: ``measured`` (the figure as printed), ``value`` (the number
+    behind it), ``passed`` (None where RiMEA asks only for documentation) and ``details`` (numbers for the
+    results file)."""
+
+    measured: str
+    value: float
+    passed: bool | None
+    details: dict = field(default_factory=dict)
+
+
+class RimeaTest:
+    """One RiMEA test: subclasses set the class attributes and implement :meth:`scenarios` and
+    :meth:`evaluate` (and :meth:`plot` for its figure).
+
+    ``number`` (a string: "12a"), ``title``, ``checks`` (what it verifies, one line), ``criterion`` (RiMEA's
+    criterion, or the quantitative reading used where RiMEA's is qualitative, stated as such), ``source``
+    (where the reading comes from).
+    """
+
+    number: str = ""
+    title: str = ""
+    checks: str = ""
+    criterion: str = ""
+    source: str = ""
+
+    def scenarios(self, quick: bool, seed: int) -> dict:
+        """Variant name -> :class:`~crowd_env.scenarios.Scenario` (the reduced version with ``quick``)."""
+        raise NotImplementedError
+
+    def max_time_s(self, quick: bool) -> float:
+        """The time limit of each run (a run that does not finish is incomplete, never cut into a figure)."""
+        return 300.0
+
+    def evaluate(self, runs: dict) -> Verdict:
+        """The verdict on one backend's runs (variant name -> :class:`BackendRun`)."""
+        raise NotImplementedError
+
+    def plot(self, ax, runs_by_backend: dict) -> None:
+        """Draw the test's figure on ``ax`` (matplotlib axes) from ``{backend: {variant: BackendRun}}``."""
+        first = next(iter(runs_by_backend.values()))
+        run = next(iter(first.values()))
+        t = run.trajectories
+        ax.plot(t.x_m, t.y_m, ",", alpha=0.3)
+        ax.set_aspect("equal")
+
+
+def register_test(cls):
+    """Class decorator: add a :class:`RimeaTest` subclass to the suite under its ``number``."""
+    if not cls.number or cls.number in _REGISTRY:
+        raise ValueError(f"RiMEA test number {cls.number!r} is empty or taken")
+    _REGISTRY[cls.number] = cls
+    return cls
+
+
+def _sort_key(number: str):
+    digits = "".join(c for c in number if c.isdigit())
+    return int(digits), number[len(digits):]
+
+
+def rimea_tests() -> list:
+    """The registered test numbers in order ("1", "4", ..., "12a", ...)."""
+    return sorted(_REGISTRY, key=_sort_key)
+
+
+def select_tests(numbers=None) -> list:
+    """Instances of the tests ``numbers`` (default: all). A test that needs stairs, one that is
+    documentation only or an unknown number raises :class:`~crowd_env.errors.NotFoundError` naming it.
+    "12" selects 12a-12d."""
+    known = rimea_tests()
+    if not numbers:
+        return [_REGISTRY[k]() for k in known]
+    out = []
+    for raw in numbers:
+        key = str(raw).strip().lower()
+        if key in STAIRS_TESTS:
+            raise NotFoundError(f"RiMEA test {key} needs stairs, which a flat 2D model does not have; the flat "
+                                f"tests are {', '.join(known)}")
+        if key in DOCUMENTATION_TESTS:
+            raise NotFoundError(f"RiMEA test {key} is documentation only (no criterion to run); the runnable tests "
+                                f"are {', '.join(known)}")
+        group = [k for k in known if k == key or (k.rstrip("abcd") == key and k != key)]
+        if not group:
+            raise NotFoundError(f"unknown RiMEA test {raw!r}; RiMEA 4.1.1 numbers them 1-16 and the flat ones here "
+                                f"are {', '.join(known)}")
+        out.extend(_REGISTRY[k]() for k in group if all(type(t) is not _REGISTRY[k] for t in out))
+    return out
+
+
+def outside_distance_m(trajectories: Trajectories, walkable_area) -> float:
+    """The farthest any recorded centre lies outside ``walkable_area`` (0 when all lie in it or on its edge)."""
+    if len(trajectories) == 0:
+        return 0.0
+    x, y = trajectories.x_m, trajectories.y_m
+    inside = shapely.intersects_xy(walkable_area, x, y)
+    if inside.all():
+        return 0.0
+    out = np.flatnonzero(~inside)
+    points = shapely.points(x[out], y[out])
+    return float(shapely.distance(walkable_area, points).max())
+
+
+def exit_times_s(trajectories: Trajectories, n: int, end_frame: int) -> np.ndarray:
+    """(n,) time of the first frame each pedestrian is no longer recorded (it left between that frame and the
+    one before), nan for those still there at ``end_frame``."""
+    out = np.full(n, np.nan)
+    t = trajectories
+    if len(t) == 0:
+        return out
+    last = np.full(n, -1, np.int64)
+    np.maximum.at(last, t.id, t.frame)
+    gone = (last >= 0) & (last < end_frame)
+    out[gone] = (last[gone] + 1) / t.frame_rate_per_s
+    return out
+
+
+def run_crowd_env(scenario, *, seed: int, max_time_s: float, params=None,
+                  frame_rate_per_s: float = FRAME_RATE_PER_S) -> BackendRun:
+    """Run ``scenario`` with the calibrated agent (default preset) and record it: a :class:`BackendRun`."""
+    if not (isinstance(max_time_s, (int, float)) and math.isfinite(max_time_s) and max_time_s > 0):
+        raise InputError(f"max_time_s must be a positive number, got {max_time_s!r}")
+    params = get_preset(DEFAULT_PRESET).params() if params is None else params
+    t0 = time.perf_counter()
+    result, traj = record_run(scenario, SocialForceAgent(scenario.navigation()), params,
+                              frame_rate_per_s=frame_rate_per_s, max_time_s=max_time_s,
+                              rng=np.random.default_rng(seed), line=None, density_areas=(), lane_area=None)
+    wall = time.perf_counter() - t0
+    n = scenario.n_pedestrians
+    end_frame = int(round(result.simulated_time_s * frame_rate_per_s))
+    exits = exit_times_s(traj, n, end_frame)
+    complete = bool(result.n_evacuated == n)
+    return BackendRun("crowd_env", scenario.name, traj, exits, float(result.min_gap_m),
+                      outside_distance_m(traj, scenario.geometry.walkable_area), complete, bool(result.stalled), wall,
+                      float(max_time_s))

@@ -1,0 +1,194 @@
+"""Run RiMEA tests on crowd_env (and JuPedSim beside it) and report: one table, a figure per test, a
+results file.
+
+:func:`run_suite` runs every selected test's scenarios with each backend, judges them with the test's own
+:meth:`~crowd_env.experiments.rimea.base.RimeaTest.evaluate`, and checks the two conditions every test
+shares: no overlap beyond 1 mm (``OVERLAP_LIMIT_M``) and no centre outside the walkable area. A test passes
+for a backend when its criterion holds and both conditions do; a run that did not finish is reported as
+incomplete, never as a figure.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from crowd_env.errors import MissingDependencyError
+
+from .base import OVERLAP_LIMIT_M, Verdict, run_crowd_env, select_tests
+
+__all__ = ["TestResult", "run_suite", "format_table", "write_results", "BACKENDS", "JUPEDSIM_BACKENDS"]
+
+JUPEDSIM_BACKENDS = ("jupedsim_cfsm", "jupedsim_sfm")
+BACKENDS = ("crowd_env",) + JUPEDSIM_BACKENDS
+OUTSIDE_LIMIT_M = 1e-9  # a centre farther than this outside the walkable area counts as outside
+
+
+@dataclass
+class TestResult:
+    """One test's outcome: its description, and per backend the verdict, the shared conditions and the cost."""
+
+    number: str
+    title: str
+    checks: str
+    criterion: str
+    source: str
+    quick: bool
+    verdicts: dict = field(default_factory=dict)  # backend -> Verdict
+    min_gap_m: dict = field(default_factory=dict)  # backend -> smallest gap over all the test's runs
+    outside_m: dict = field(default_factory=dict)  # backend -> largest excursion outside the walkable area
+    complete: dict = field(default_factory=dict)  # backend -> every run finished
+    wall_time_s: dict = field(default_factory=dict)
+    figure: str | None = None
+
+    def passed(self, backend: str = "crowd_env"):
+        """The criterion and both shared conditions (None: documentation only, and the conditions hold)."""
+        v = self.verdicts.get(backend)
+        if v is None:
+            return None
+        shared = self.min_gap_m[backend] >= -OVERLAP_LIMIT_M and self.outside_m[backend] <= OUTSIDE_LIMIT_M
+        if v.passed is None:
+            return None if shared else False
+        return bool(v.passed and shared)
+
+    def to_dict(self) -> dict:
+        out = {k: getattr(self, k) for k in ("number", "title", "checks", "criterion", "source", "quick", "figure")}
+        out["backends"] = {b: {"measured": v.measured, "value": _json_number(v.value), "criterion_met": v.passed,
+                               "passed": self.passed(b), "min_gap_m": _json_number(self.min_gap_m[b]),
+                               "outside_m": _json_number(self.outside_m[b]), "complete": self.complete[b],
+                               "wall_time_s": _json_number(self.wall_time_s[b]),
+                               "details": _jsonable(v.details)} for b, v in self.verdicts.items()}
+        return out
+
+
+def _json_number(x):
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _jsonable(value):
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_jsonable(v) for v in np.asarray(value, dtype=object).tolist()] if isinstance(value, np.ndarray) \
+            else [_jsonable(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return _json_number(value)
+    return value
+
+
+def _runner(backend: str):
+    if backend == "crowd_env":
+        return run_crowd_env
+    from . import jupedsim_backend  # needs the benchmark extra
+
+    return jupedsim_backend.runner(backend)
+
+
+def check_jupedsim() -> None:
+    """Raise :class:`~crowd_env.errors.MissingDependencyError` naming how to install JuPedSim when it is absent."""
+    import importlib.util
+
+    if importlib.util.find_spec("jupedsim") is None:
+        raise MissingDependencyError("the JuPedSim columns need JuPedSim, which is not installed: "
+                                     "pip install -e '.[bench]' (or pip install jupedsim)")
+
+
+def run_suite(numbers=None, *, quick: bool = False, jupedsim: bool = False, seed: int = 0, out_dir=None,
+              progress=print) -> list:
+    """Run the tests ``numbers`` (default: all flat ones; see :func:`~.base.select_tests`) with crowd_env and,
+    with ``jupedsim``, JuPedSim's collision-free speed and social force models. ``quick``: the reduced
+    versions. ``out_dir``: where figures (``rimea_<n>.png``) and ``results.json`` go (None: nothing written).
+    Returns the :class:`TestResult` list."""
+    tests = select_tests(numbers)
+    backends = BACKENDS if jupedsim else ("crowd_env",)
+    if jupedsim:
+        check_jupedsim()
+    if out_dir is not None:
+        os.makedirs(out_dir, exist_ok=True)
+    results = []
+    for test in tests:
+        scenarios = test.scenarios(quick, seed)
+        res = TestResult(test.number, test.title, test.checks, test.criterion, test.source, quick)
+        runs_by_backend = {}
+        for backend in backends:
+            run = _runner(backend)
+            t0 = time.perf_counter()
+            runs = {name: run(sc, seed=seed, max_time_s=test.max_time_s(quick)) for name, sc in scenarios.items()}
+            runs_by_backend[backend] = runs
+            res.verdicts[backend] = test.evaluate(runs)
+            res.min_gap_m[backend] = min(r.min_gap_m for r in runs.values())
+            res.outside_m[backend] = max(r.outside_m for r in runs.values())
+            res.complete[backend] = all(r.complete for r in runs.values())
+            res.wall_time_s[backend] = time.perf_counter() - t0
+            if progress is not None:
+                v = res.verdicts[backend]
+                progress(f"RiMEA {test.number} {backend}: {v.measured} -> {_word(res.passed(backend))} "
+                         f"({res.wall_time_s[backend]:.1f} s)")
+        if out_dir is not None:
+            res.figure = _figure(test, runs_by_backend, os.path.join(out_dir, f"rimea_{test.number}.png"))
+        results.append(res)
+    if out_dir is not None:
+        write_results(results, os.path.join(out_dir, "results.json"), seed=seed)
+    return results
+
+
+def _figure(test, runs_by_backend, path) -> str:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7.0, 4.5))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    test.plot(ax, runs_by_backend)
+    ax.set_title(f"RiMEA test {test.number}: {test.title}", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def write_results(results, path, *, seed: int) -> str:
+    """``results.json``: every test's figures per backend (machine-readable)."""
+    with open(path, "w") as fh:
+        json.dump({"suite": "RiMEA 4.1.1, Annex 1 (flat tests)", "seed": seed,
+                   "overlap_limit_m": OVERLAP_LIMIT_M, "tests": [r.to_dict() for r in results]}, fh, indent=1)
+    return path
+
+
+def _word(passed) -> str:
+    return {True: "pass", False: "FAIL", None: "documented"}[passed]
+
+
+def format_table(results, backends=None) -> str:
+    """The table: test, what it checks, criterion, then per backend the figure measured and pass/fail."""
+    backends = backends or [b for b in BACKENDS if results and b in results[0].verdicts]
+    head = ["test", "checks", "criterion"]
+    for b in backends:
+        head += [f"{b}: measured", f"{b}: result"]
+    rows = []
+    for r in results:
+        row = [r.number, r.checks, r.criterion]
+        for b in backends:
+            v: Verdict | None = r.verdicts.get(b)
+            if v is None:
+                row += ["-", "-"]
+                continue
+            note = "" if r.complete[b] else " (incomplete)"
+            gap = r.min_gap_m[b]
+            extra = f"; overlap {-gap * 1e3:.1f} mm" if gap < -OVERLAP_LIMIT_M else ""
+            extra += f"; {r.outside_m[b]:.3f} m outside" if r.outside_m[b] > OUTSIDE_LIMIT_M else ""
+            row += [v.measured + note, _word(r.passed(b)) + extra]
+        rows.append(row)
+    widths = [max(len(str(x)) for x in col) for col in zip(head, *rows)]
+    lines = [" | ".join(str(x).ljust(w) for x, w in zip(head, widths)),
+             "-|-".join("-" * w for w in widths)]
+    lines += [" | ".join(str(x).ljust(w) for x, w in zip(row, widths)) for row in rows]
+    return "\n".join(lines)
