@@ -494,6 +494,8 @@ class CrowdParallelEnv(ParallelEnv):
         self._sim = Simulator(state, geometry=self._scenario.geometry, params=self.params,
                               destination=self._scenario.destination)
         self._last_premovement_s = float(state.premovement_s.max(initial=0.0))
+        if hasattr(self.navigation, "update"):  # a navigation that changes with the crowd starts afresh
+            self.navigation.update(self._sim)
         if self._background_policy is None and not self._controlled_mask.all():
             self._background_policy = default_background_policy(self._scenario)
         self._steps = 0
@@ -614,7 +616,10 @@ class CrowdParallelEnv(ParallelEnv):
         by_intent = self.heading_target == "intent"
         theta_c = _NO_ANGLES
         hooks = self.substep_hooks
+        update = getattr(self.navigation, "update", None)  # route choice: re-chosen from the crowd each step
         for _ in range(self.frame_skip):
+            if update is not None:
+                update(sim)
             if self._has_background and (self._background_mask & st.active).any():
                 intents, heading = self._background(sim)
             elif not st.active.any():

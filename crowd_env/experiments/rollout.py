@@ -100,7 +100,7 @@ def stall_update(ring, state, window_steps, window_s, speed_m_s, dt_s, time_s, v
 
 
 @nb.njit(cache=True)
-def measure_step(position, velocity, heading, active, index, previous, n_exited, t_prev_s, time_s, step_count,
+def measure_step(position, velocity, heading, active, premovement, index, previous, n_exited, t_prev_s, time_s, step_count,
                  step_min_gap_m, line, has_line, passed, cross_ids, cross_times, areas, area_size_m2, lane_area,
                  density, speed, lateral, record_every, frame_time_s, frame_position, frame_heading, frame_active,
                  stall_ring, stall_state, stall_window_steps, stall_window_s, stall_speed_m_s, dt_s, counts, scalars):
@@ -159,9 +159,9 @@ def measure_step(position, velocity, heading, active, index, previous, n_exited,
             frame_heading[f, i] = heading[i]
             frame_active[f, i] = active[i]
         counts[COUNT_FRAMES] += 1
-    remaining = np.empty_like(active)
+    remaining = np.empty_like(active)  # those left who have started to walk (a waiting crowd is no stall)
     for i in range(active.shape[0]):
-        remaining[i] = active[i] and not passed[i]
+        remaining[i] = active[i] and not passed[i] and time_s >= premovement[i]
     return stall_update(stall_ring, stall_state, stall_window_steps, stall_window_s, stall_speed_m_s, dt_s, time_s,
                         velocity, remaining, progressed)
 
@@ -223,7 +223,8 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, model, agent, li
         time_s += dt_s
         step_count += 1
         done += 1
-        if measure_step(position, velocity, heading, active, index, previous, exited.shape[0], t_prev, time_s,
+        if measure_step(position, velocity, heading, active, premovement, index, previous, exited.shape[0], t_prev,
+                        time_s,
                         step_count, min_gap, line, has_line, passed, cross_ids, cross_times, areas, area_size_m2,
                         lane_area, density, speed, lateral, record_every, frame_time_s, frame_position, frame_heading,
                         frame_active, stall_ring, stall_state, stall_window_steps, stall_window_s, stall_speed_m_s,

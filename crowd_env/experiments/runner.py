@@ -155,7 +155,8 @@ class StallDetector:
 
     At the end of every step, the run is *stalled* when
 
-    1. pedestrians remain: active and, with a measurement line, not yet across it;
+    1. pedestrians remain: active, started (past their premovement time: a crowd still waiting is no
+       stall) and, with a measurement line, not yet across it;
     2. nobody has crossed the line or left during the last ``window_s`` seconds (the window runs from
        the last passage or exit, or from the start); and
     3. the mean speed ‖u‖ of the remaining pedestrians, averaged over the steps of that window, is below
@@ -376,7 +377,8 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
         intents, heading = policy(sim)
         t_prev = sim.time_s
         result = sim.step(intents, desired_heading_rad=heading)
-        measure_step(state.position_m, state.velocity_m_s, state.heading_rad, state.active, idx, previous,
+        measure_step(state.position_m, state.velocity_m_s, state.heading_rad, state.active, state.premovement_s, idx,
+                     previous,
                      result.exited.shape[0], t_prev, sim.time_s, sim.step_count, result.min_gap_m,
                      *measures.measure_arguments(), *stall.kernel_arguments, params.dt_s, measures.counts,
                      measures.scalars)

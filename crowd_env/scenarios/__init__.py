@@ -14,10 +14,12 @@ from .corner import corner_90
 from .corridor import corridor_bidirectional
 from .groups import bottleneck_groups
 from .polygon import scenario_from_polygon
+from .demographics import RIMEA_ADULTS, WEIDMANN_SPEEDS_BY_AGE_M_S, desired_speeds_for_ages
 from .rimea import rimea_scenario
 from .room import room_pillar
 
 __all__ = ["Scenario", "ScenarioError", "list_scenarios", "make_scenario", "place_pedestrians", "register_scenario",
            "scenario_options", "form_groups", "door_exit", "check_clearance", "bottleneck_geometry",
            "seyfried_bottleneck", "bottleneck_groups", "corridor_bidirectional", "room_pillar", "corner_90",
-           "scenario_from_polygon", "rimea_scenario"]
+           "scenario_from_polygon", "rimea_scenario", "desired_speeds_for_ages", "RIMEA_ADULTS",
+           "WEIDMANN_SPEEDS_BY_AGE_M_S"]

@@ -21,12 +21,15 @@ from scipy.spatial import cKDTree
 
 from ..core.geometry import Geometry, as_polygon
 from ..walking.navigation import DestinationNavigation, NavigationField, RigidlyMovedNavigation
+from ..walking.route_choice import QuickestExitNavigation
 from ..core.params import ModelParams, PedestrianDefaults
 from ..core.simulator import Simulator
 from ..core.state import CrowdState, first_overlap
 
 __all__ = ["Scenario", "ScenarioError", "place_pedestrians", "form_groups", "register_scenario", "make_scenario",
            "list_scenarios", "scenario_options", "check_positive", "check_count", "check_clearance", "door_exit"]
+
+ROUTE_CHOICES = ("quickest",)
 
 # Per-pedestrian quantities a scenario may set; anything else is passed as a CrowdState default.
 PEDESTRIAN_PARAMS = ("radius_m", "mass_kg", "inertia_kg_m2", "desired_speed_m_s", "tau_s", "heading_stiffness",
@@ -80,6 +83,21 @@ def door_exit(segment, walkable_area, depth_m: float = 0.5, what: str = "exit"):
     return shapely.Polygon([pts[0], pts[1], pts[1] + depth_m * normal, pts[0] + depth_m * normal])
 
 
+def door_widths_m(geometry) -> np.ndarray:
+    """(E,) the width of each exit's door: the length of the exit polygon's edge on the walkable area's
+    boundary, or, for an exit inside the walkable area, the shorter side of its minimum rectangle."""
+    area = geometry.walkable_area
+    out = []
+    for poly in geometry.exits:
+        opening = poly.intersection(area.boundary).length
+        if opening <= 1e-9:
+            x, y = np.asarray(poly.minimum_rotated_rectangle.exterior.coords).T
+            sides = np.hypot(np.diff(x), np.diff(y))
+            opening = float(sides[sides > 1e-9].min())
+        out.append(float(opening))
+    return np.array(out)
+
+
 def check_count(name: str, value, minimum: int = 1) -> int:
     """``value`` as an int >= ``minimum``, or :class:`ScenarioError` naming ``name``."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
@@ -110,8 +128,11 @@ class Scenario:
     ``navigation_clearance_m``: the eikonal field is solved on the walkable area minus this band
     along the walls (0: the paper's point field; the radius: the disk centres' configuration space;
     see :class:`~crowd_env.walking.navigation.NavigationField`). ``navigation_field``: a prebuilt
-    navigation to use instead of solving Eq. 11-13 on the geometry (:meth:`moved` sets it). Validated
-    on construction.
+    navigation to use instead of solving Eq. 11-13 on the geometry (:meth:`moved` sets it).
+    ``route_choice``: None, or ``"quickest"``: with ``destination`` None and two or more exits, each
+    pedestrian heads for the exit it expects to leave by soonest, re-chosen as the crowd moves
+    (:class:`~crowd_env.walking.route_choice.QuickestExitNavigation`; RiMEA test 11), and leaves through
+    any exit. Validated on construction.
     """
 
     geometry: Geometry
@@ -130,6 +151,7 @@ class Scenario:
     destination: object = None
     exit_names: tuple | None = None
     navigation_field: object = field(default=None, repr=False, compare=False)
+    route_choice: str | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.geometry, Geometry):
@@ -171,6 +193,11 @@ class Scenario:
         self.navigation_clearance_m = float(clearance)
         self.exit_names = self._check_exit_names(self.exit_names)
         self.destination = self._check_destination(self.destination, n)
+        if self.route_choice is not None:
+            if self.route_choice not in ROUTE_CHOICES:
+                raise ScenarioError(f"route_choice must be None or one of {ROUTE_CHOICES}, got {self.route_choice!r}")
+            if self.destination is not None or len(self.geometry.exits) < 2:
+                raise ScenarioError("route_choice needs two or more exits and no fixed destinations (destination=None)")
         self._navigation = None
         self.validate()
 
@@ -249,6 +276,11 @@ class Scenario:
         ``navigation_field``, when given, is returned as it is."""
         if self.navigation_field is not None:
             return self.navigation_field
+        if self.route_choice == "quickest":
+            if self._navigation is None:
+                fields = {k: self._field((k,)) for k in range(len(self.geometry.exits))}
+                self._navigation = QuickestExitNavigation(fields, door_widths_m(self.geometry), self.position_m)
+            return self._navigation
         if self.destination is None:
             return self._field(None)
         if self._navigation is None:

@@ -184,7 +184,9 @@ class SocialForceAgent:
     ``navigation``: an object with ``direction(points) -> (n, 2)`` (a
     :class:`~crowd_env.walking.navigation.NavigationField`), or, when its ``per_pedestrian`` attribute is
     true, ``direction(points, index)`` (a :class:`~crowd_env.walking.navigation.DestinationNavigation`:
-    each pedestrian follows the field of its own destination exit). Social parameters (A, B, λ,
+    each pedestrian follows the field of its own destination exit; a navigation with an ``update(sim)``
+    method, e.g. :class:`~crowd_env.walking.route_choice.QuickestExitNavigation`, is updated once per
+    decision). Social parameters (A, B, λ,
     cut-off, on/off) are read from the simulator's :class:`~crowd_env.core.params.ModelParams`.
     """
 
@@ -222,6 +224,9 @@ class SocialForceAgent:
         idx = sim.active_index
         if idx.size == 0:
             return np.zeros((st.n, 2)), st.heading_rad.copy()
+        update = getattr(self.navigation, "update", None)  # a navigation that changes with the crowd
+        if update is not None:
+            update(sim)
         e_d = self.desired_direction(sim, idx)
         pairs = sim.neighbor_pairs(2.0 * float(st.radius_m[idx].max()) + p.social_cutoff_m) if p.social_forces \
             else np.zeros((0, 2), np.int64)

@@ -24,6 +24,7 @@ from ...walking.agent import SocialForceAgent
 from ..recording import record_run
 
 __all__ = ["BackendRun", "Verdict", "RimeaTest", "register_test", "rimea_tests", "select_tests", "run_crowd_env",
+           "start_times_s", "walking_speeds_m_s", "exits_used", "evacuation_curve", "outside_distance_m", "exit_times_s",
            "STAIRS_TESTS", "DOCUMENTATION_TESTS", "OVERLAP_LIMIT_M", "FRAME_RATE_PER_S"]
 
 # Tests RiMEA 4.1.1 defines that a flat 2D model cannot run: stairs (2, 3, 13) and documentation only (8, 14).
@@ -180,17 +181,17 @@ def outside_distance_m(trajectories: Trajectories, walkable_area) -> float:
     return float(shapely.distance(walkable_area, points).max())
 
 
-def exit_times_s(trajectories: Trajectories, n: int, end_frame: int) -> np.ndarray:
-    """(n,) time of the first frame each pedestrian is no longer recorded (it left between that frame and the
-    one before), nan for those still there at ``end_frame``."""
-    out = np.full(n, np.nan)
+def exit_times_s(trajectories: Trajectories, left, end_time_s: float) -> np.ndarray:
+    """(N,) when each pedestrian flagged in ``left`` (N,) bool left: the time of the first frame it is no
+    longer recorded in (it left between that frame and the one before), at most ``end_time_s`` (the end
+    of the run, which may fall between frames); nan for those still inside."""
+    left = np.asarray(left, dtype=bool)
+    out = np.full(left.shape[0], np.nan)
     t = trajectories
-    if len(t) == 0:
-        return out
-    last = np.full(n, -1, np.int64)
-    np.maximum.at(last, t.id, t.frame)
-    gone = (last >= 0) & (last < end_frame)
-    out[gone] = (last[gone] + 1) / t.frame_rate_per_s
+    last = np.full(left.shape[0], -1, np.int64)
+    if len(t):
+        np.maximum.at(last, t.id, t.frame)
+    out[left] = np.minimum((last[left] + 1) / t.frame_rate_per_s, end_time_s)
     return out
 
 
@@ -201,14 +202,63 @@ def run_crowd_env(scenario, *, seed: int, max_time_s: float, params=None,
         raise InputError(f"max_time_s must be a positive number, got {max_time_s!r}")
     params = get_preset(DEFAULT_PRESET).params() if params is None else params
     t0 = time.perf_counter()
-    result, traj = record_run(scenario, SocialForceAgent(scenario.navigation()), params,
-                              frame_rate_per_s=frame_rate_per_s, max_time_s=max_time_s,
-                              rng=np.random.default_rng(seed), line=None, density_areas=(), lane_area=None)
+    state = scenario.make_state(rng=np.random.default_rng(seed))
+    result, traj = record_run(scenario, SocialForceAgent(scenario.navigation()), params, state=state,
+                              frame_rate_per_s=frame_rate_per_s, max_time_s=max_time_s, line=None, density_areas=(),
+                              lane_area=None)
     wall = time.perf_counter() - t0
-    n = scenario.n_pedestrians
-    end_frame = int(round(result.simulated_time_s * frame_rate_per_s))
-    exits = exit_times_s(traj, n, end_frame)
-    complete = bool(result.n_evacuated == n)
+    exits = exit_times_s(traj, ~state.active, result.simulated_time_s)
+    complete = not bool(state.active.any())
     return BackendRun("crowd_env", scenario.name, traj, exits, float(result.min_gap_m),
                       outside_distance_m(traj, scenario.geometry.walkable_area), complete, bool(result.stalled), wall,
                       float(max_time_s))
+
+
+def start_times_s(run: BackendRun, threshold_m: float = 0.05) -> np.ndarray:
+    """(N,) when each pedestrian first lies more than ``threshold_m`` from its start (JuPedSim's reading of
+    "starts to move" in RiMEA test 5), nan if never."""
+    out = np.full(run.n_pedestrians, np.nan)
+    for i in range(run.n_pedestrians):
+        time_s, xy = run.positions(i)
+        if time_s.size == 0:
+            continue
+        moved = np.flatnonzero(np.hypot(*(xy - xy[0]).T) > threshold_m)
+        if moved.size:
+            out[i] = time_s[moved[0]]
+    return out
+
+
+def walking_speeds_m_s(run: BackendRun, *, skip_s: float = 3.0, window_s: float = 1.0) -> np.ndarray:
+    """(N,) each pedestrian's median speed over windows of ``window_s`` after its first ``skip_s`` of
+    frames (the acceleration), nan where too few frames remain."""
+    fps = run.trajectories.frame_rate_per_s
+    k = max(1, int(round(window_s * fps)))
+    out = np.full(run.n_pedestrians, np.nan)
+    for i in range(run.n_pedestrians):
+        time_s, xy = run.positions(i)
+        keep = time_s >= time_s[0] + skip_s if time_s.size else time_s.astype(bool)
+        xy, time_s = xy[keep], time_s[keep]
+        if xy.shape[0] <= k:
+            continue
+        v = np.hypot(*(xy[k:] - xy[:-k]).T) / (time_s[k:] - time_s[:-k])
+        out[i] = float(np.median(v))
+    return out
+
+
+def exits_used(run: BackendRun, geometry) -> np.ndarray:
+    """(N,) the index of the exit nearest to each pedestrian's last recorded position (the exit it left by,
+    for one that left), -1 for those still inside at the end."""
+    out = np.full(run.n_pedestrians, -1, np.int64)
+    for i in range(run.n_pedestrians):
+        if not np.isfinite(run.exit_time_s[i]):
+            continue
+        _, xy = run.positions(i)
+        p = shapely.Point(*xy[-1])
+        out[i] = int(np.argmin([e.distance(p) for e in geometry.exits]))
+    return out
+
+
+def evacuation_curve(run: BackendRun) -> tuple:
+    """(times, number left by then): the N(t) staircase of a run's exit times."""
+    t = np.sort(run.exit_time_s[np.isfinite(run.exit_time_s)])
+    return t, np.arange(1, t.size + 1)

@@ -24,11 +24,11 @@ RIMEA_RADIUS_M = 0.23  # the preset's body radius (PedestrianDefaults), used in 
 def rimea_scenario(name: str, walkable_area, exits, spawn_area, n_pedestrians: int, *, seed: int = 0,
                    position_m=None, desired_speed_m_s=None, premovement_s=None, destination=None, exit_names=None,
                    measurement_lines=None, radius_m: float = RIMEA_RADIUS_M, heading_rad=None,
-                   metadata: dict | None = None) -> Scenario:
+                   route_choice: str | None = None, metadata: dict | None = None) -> Scenario:
     """A RiMEA set-up: :func:`~crowd_env.scenarios.scenario_from_polygon` (walkable area, exits, pedestrians
     placed in ``spawn_area``, or at ``position_m`` when given) plus the per-pedestrian values a test
     prescribes: ``desired_speed_m_s`` and ``premovement_s`` (scalars or (N,) arrays; None: the preset's
-    desired-speed distribution, resp. no premovement) and ``destination``."""
+    desired-speed distribution, resp. no premovement), ``destination`` and ``route_choice``."""
     base = scenario_from_polygon(walkable_area, exits, spawn_area, n_pedestrians, seed=seed, radius_m=radius_m,
                                  exit_names=exit_names, measurement_lines=measurement_lines, name=name)
     params = dict(base.pedestrian_params)
@@ -39,4 +39,4 @@ def rimea_scenario(name: str, walkable_area, exits, spawn_area, n_pedestrians: i
     position = base.position_m if position_m is None else np.asarray(position_m, dtype=np.float64)
     meta = {**base.metadata, **(metadata or {})}
     return replace(base, position_m=position, pedestrian_params=params, destination=destination,
-                   heading_rad=heading_rad, metadata=meta)
+                   heading_rad=heading_rad, route_choice=route_choice, metadata=meta)

@@ -53,8 +53,8 @@ def test_exit_times_and_the_outside_check_read_the_frames():
 
     t = Trajectories(frame=[0, 1, 2, 0], id=[0, 0, 0, 1], x_m=[0.5, 0.6, 1.2, 0.5], y_m=[0.5] * 4,
                      heading_rad=None, frame_rate_per_s=10.0)
-    times = exit_times_s(t, 3, end_frame=5)
-    np.testing.assert_allclose(times[:2], [0.3, 0.1])
-    assert np.isnan(times[2])  # never recorded: not known to have left
+    times = exit_times_s(t, [True, True, False], end_time_s=0.25)
+    np.testing.assert_allclose(times[:2], [0.25, 0.1])  # left after the last frame: at most the end of the run
+    assert np.isnan(times[2])  # still inside
     box = shapely.box(0, 0, 1, 1)
     assert outside_distance_m(t, box) == pytest.approx(0.2)
