@@ -9,10 +9,12 @@ documentation only: asking for them is an error that says so.
     crowd-rimea --quick                 # the reduced versions, a few minutes
     crowd-rimea 1 6 12 --out runs/rimea # some tests, full size ("12" runs 12a-12d)
     crowd-rimea --quick --jupedsim      # with JuPedSim's CFSM and SFM columns (pip install -e '.[bench]')
+    crowd-rimea --jupedsim --docs --out docs/validation/rimea   # regenerate the documentation's page
 """
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from ..errors import MissingDependencyError, NotFoundError
@@ -27,14 +29,22 @@ def main(argv=None) -> int:
                     help="also run JuPedSim's collision-free speed and social force models")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default="runs/rimea", help="figures and results.json go here")
+    ap.add_argument("--docs", action="store_true",
+                    help="also write rimea_results.md beside the figures (the documentation's page: --out docs/validation/rimea)")
     args = ap.parse_args(argv)
     from ..experiments.rimea import format_table, run_suite
+    from ..experiments.rimea.suite import write_markdown
 
     try:
         results = run_suite(args.tests, quick=args.quick, jupedsim=args.jupedsim, seed=args.seed, out_dir=args.out)
     except (NotFoundError, MissingDependencyError) as exc:
         raise SystemExit(f"error: {exc.args[0] if exc.args else exc}") from None
     print(format_table(results))
+    if args.docs:
+        command = "crowd-rimea " + " ".join(argv if argv is not None else sys.argv[1:])
+        out = args.out.rstrip("/")
+        write_markdown(results, f"{out}/rimea_results.md", command=command.strip(),
+                       figure_prefix=os.path.basename(out) + "/")
     print(f"figures and results.json in {args.out}")
     return 0 if all(r.passed(b) is not False for r in results for b in r.verdicts) else 1
 

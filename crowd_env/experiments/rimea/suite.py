@@ -21,7 +21,8 @@ from crowd_env.errors import MissingDependencyError
 
 from .base import OVERLAP_LIMIT_M, Verdict, run_crowd_env, select_tests
 
-__all__ = ["TestResult", "run_suite", "format_table", "write_results", "BACKENDS", "JUPEDSIM_BACKENDS"]
+__all__ = ["TestResult", "run_suite", "format_table", "write_results", "write_markdown", "BACKENDS",
+           "JUPEDSIM_BACKENDS"]
 
 JUPEDSIM_BACKENDS = ("jupedsim_cfsm", "jupedsim_sfm")
 BACKENDS = ("crowd_env",) + JUPEDSIM_BACKENDS
@@ -192,3 +193,33 @@ def format_table(results, backends=None) -> str:
              "-|-".join("-" * w for w in widths)]
     lines += [" | ".join(str(x).ljust(w) for x, w in zip(row, widths)) for row in rows]
     return "\n".join(lines)
+
+
+def write_markdown(results, path, *, command: str, figure_prefix: str = "") -> str:
+    """The results as a Markdown page fragment (the table, then each test's figure), for the documentation's
+    verification page; figures are referred to as ``figure_prefix`` + file name (they lie beside ``path``;
+    the prefix is the folder as seen from the page that includes the fragment)."""
+    backends = [b for b in BACKENDS if results and b in results[0].verdicts]
+    head = ["test", "checks", "criterion"] + [x for b in backends for x in (f"{b}: measured", f"{b}")]
+    lines = [f"<!-- written by `{command}`; do not edit by hand -->", "",
+             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in results:
+        row = [r.number, r.checks, r.criterion]
+        for b in backends:
+            v = r.verdicts[b]
+            note = "" if r.complete[b] else " (incomplete)"
+            row += [v.measured + note, _word(r.passed(b))]
+        lines.append("| " + " | ".join(str(x).replace("|", "/") for x in row) + " |")
+    lines.append("")
+    mode = "reduced versions (--quick)" if results and results[0].quick else "full versions"
+    lines.append(f"Run: {mode}; smallest gap over all runs: " + ", ".join(
+        f"{b} {min(r.min_gap_m[b] for r in results) * 1e3:.3g} mm" for b in backends) + "; wall time: " + ", ".join(
+        f"{b} {sum(r.wall_time_s[b] for r in results):.0f} s" for b in backends) + ".")
+    lines.append("")
+    for r in results:
+        if r.figure:
+            lines += [f"### Test {r.number}: {r.title}", "", f"Source: {r.source}.", "",
+                      f"![RiMEA test {r.number}]({figure_prefix}{os.path.basename(r.figure)})", ""]
+    with open(path, "w") as fh:
+        fh.write("\n".join(lines))
+    return path
