@@ -35,7 +35,7 @@ from ...scenarios.rimea.t12_bottlenecks import LINES_12C, QUEUE_AREAS_12C, prese
 from .base import BackendRun, RimeaTest, Verdict, register_test
 
 __all__ = ["GoalDistance12a", "BottleneckLength12b", "Congestion12c", "BottleneckWidth12d", "crossing_times_s",
-           "area_counts", "clearance_time_s", "completed_exit_times_s", "REPLICATES", "N_FULL", "N_QUICK",
+           "area_counts", "clearance_time_s", "REPLICATES", "N_FULL", "N_QUICK",
            "REFERENCE_FLOW_PER_M_S"]
 
 REPLICATES = 3
@@ -44,24 +44,6 @@ N_QUICK = 50
 REFERENCE_FLOW_PER_M_S = 1.9  # JuPedSim notebook's line J = 1.9 w (provenance unclear)
 ENTRANCE_1M = ((10.0, 4.5), (10.0, 5.5))
 _COLOURS = ["tab:blue", "tab:orange", "tab:green"]
-
-
-def completed_exit_times_s(run: BackendRun) -> np.ndarray:
-    """The run's exit times, where a completed run also gives the ones its frames miss: a pedestrian recorded in
-    the run's last frame who left before the run ended (between that frame and the end) leaves at the next
-    frame time. Incomplete runs keep nan for those still inside."""
-    out = np.array(run.exit_time_s, dtype=np.float64)
-    if run.complete and np.isnan(out).any():
-        t = run.trajectories
-        last = np.full(out.size, -1, np.int64)
-        np.maximum.at(last, t.id, t.frame)
-        miss = np.isnan(out) & (last >= 0)
-        out[miss] = (last[miss] + 1) / t.frame_rate_per_s
-    return out
-
-
-def _evacuation_time_s(run: BackendRun) -> float:
-    return float(np.max(completed_exit_times_s(run))) if run.complete and run.n_pedestrians else float("nan")
 
 
 def crossing_times_s(run: BackendRun, segment, first_only: bool = True) -> tuple:
@@ -153,7 +135,7 @@ class GoalDistance12a(_Bottleneck12):
         if bad:
             return bad
         room1 = self._by_variant(runs, lambda r: clearance_time_s(r)[0])
-        total = self._by_variant(runs, _evacuation_time_s)
+        total = self._by_variant(runs, lambda r: r.evacuation_time_s)
         mean1 = {k: float(np.mean(v)) for k, v in room1.items()}
         t0, t8 = mean1["a=0"], mean1["a=8"]
         passed = bool(np.isfinite(t0) and np.isfinite(t8) and t0 <= t8)
@@ -169,7 +151,7 @@ class GoalDistance12a(_Bottleneck12):
     def plot(self, ax, runs_by_backend: dict) -> None:
         for c, (backend, runs) in zip(_COLOURS, runs_by_backend.items()):
             room1 = self._by_variant(runs, lambda r: clearance_time_s(r)[0])
-            total = self._by_variant(runs, _evacuation_time_s)
+            total = self._by_variant(runs, lambda r: r.evacuation_time_s)
             a = np.array([float(k.split("=")[1]) for k in room1])
             for x, vals in zip(a, room1.values()):
                 ax.plot([x] * len(vals), vals, "o", color=c, alpha=0.35, ms=4)
@@ -200,7 +182,7 @@ class BottleneckLength12b(_Bottleneck12):
         bad = _incomplete(runs)
         if bad:
             return bad
-        total = self._by_variant(runs, _evacuation_time_s)
+        total = self._by_variant(runs, lambda r: r.evacuation_time_s)
         room1 = self._by_variant(runs, lambda r: clearance_time_s(r)[0])
         ts, tl = float(np.mean(total["short"])), float(np.mean(total["long"]))
         details = {"total_evacuation_s": total, "room1_clearance_s": room1,
@@ -212,7 +194,7 @@ class BottleneckLength12b(_Bottleneck12):
     def plot(self, ax, runs_by_backend: dict) -> None:
         width = 0.8 / max(1, 2 * len(runs_by_backend))
         for j, (backend, runs) in enumerate(runs_by_backend.items()):
-            total = self._by_variant(runs, _evacuation_time_s)
+            total = self._by_variant(runs, lambda r: r.evacuation_time_s)
             room1 = self._by_variant(runs, lambda r: clearance_time_s(r)[0])
             x = np.arange(len(total))
             off = (2 * j) * width

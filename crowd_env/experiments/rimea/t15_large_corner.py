@@ -14,7 +14,6 @@ import numpy as np
 from ...scenarios import make_scenario
 from ...scenarios.rimea.t15_large_corner import SHORT_M
 from .base import BackendRun, RimeaTest, Verdict, register_test
-from .t12_bottlenecks import completed_exit_times_s
 
 __all__ = ["LargeCrowdCorner", "arrival_flow_per_s", "N_FULL", "N_QUICK"]
 
@@ -24,14 +23,9 @@ _COLOURS = {"long": "tab:blue", "corner": "tab:red", "short": "tab:green"}
 _STYLES = ["-", "--", ":"]
 
 
-def _evacuation_time_s(run: BackendRun) -> float:
-    return float(np.max(completed_exit_times_s(run))) if run.complete and run.n_pedestrians else float("nan")
-
-
 def arrival_flow_per_s(run: BackendRun) -> float:
     """The arrival rate at the exit while the middle 60 % of the crowd arrive: 0.6 N / (t_80% - t_20%)."""
-    t = np.sort(completed_exit_times_s(run))
-    t = t[np.isfinite(t)]
+    t = np.sort(run.exit_time_s[np.isfinite(run.exit_time_s)])
     if t.size < 5:
         return float("nan")
     lo, hi = t[int(0.2 * (t.size - 1))], t[int(0.8 * (t.size - 1))]
@@ -58,7 +52,7 @@ class LargeCrowdCorner(RimeaTest):
         return 600.0
 
     def evaluate(self, runs: dict) -> Verdict:
-        times = {k: _evacuation_time_s(r) for k, r in runs.items()}
+        times = {k: r.evacuation_time_s for k, r in runs.items()}
         details = {"evacuation_time_s": times, "n_left": {k: r.n_left for k, r in runs.items()},
                    "n_pedestrians": {k: r.n_pedestrians for k, r in runs.items()},
                    "wall_time_s": {k: r.wall_time_s for k, r in runs.items()},
@@ -75,7 +69,7 @@ class LargeCrowdCorner(RimeaTest):
     def plot(self, ax, runs_by_backend: dict) -> None:
         for ls, (backend, runs) in zip(_STYLES, runs_by_backend.items()):
             for name, run in runs.items():
-                t = np.sort(completed_exit_times_s(run))
+                t = np.sort(run.exit_time_s[np.isfinite(run.exit_time_s)])
                 t = t[np.isfinite(t)]
                 ax.step(np.concatenate(([0.0], t)), np.arange(t.size + 1), ls, where="post", color=_COLOURS.get(name),
                         label=f"{backend}: {name}")
