@@ -158,34 +158,15 @@ def run_crowd_env(scenario, state):
 
 
 def run_jupedsim(scenario, state, model: str):
-    import jupedsim as jps
+    """JuPedSim's ``model`` ("sfm" or "cfsm") on ``scenario`` with the pedestrians of ``state``, built by the
+    RiMEA suite's JuPedSim backend (:func:`crowd_env.experiments.rimea.jupedsim_backend.build_simulation`:
+    the walkable area united with the exit, one exit stage, the same positions, radii 1 µm thinner,
+    desired speeds and, for the social force model, masses; JuPedSim's defaults otherwise)."""
+    from crowd_env.experiments.rimea.jupedsim_backend import build_simulation
 
-    geometry = scenario.geometry
-    # JuPedSim refuses an agent whose distance to a wall equals its radius (our placement lets disks
-    # touch the walls): its agents are 1 µm thinner.
-    radius = state.radius_m - 1e-6
-    if model == "sfm":
-        jmodel = jps.SocialForceModel()
-
-        def params(k, journey, stage):
-            return jps.SocialForceModelAgentParameters(
-                position=tuple(state.position_m[k]), orientation=(1.0, 0.0), journey_id=journey, stage_id=stage,
-                desired_speed=float(state.desired_speed_m_s[k]), radius=float(radius[k]),
-                mass=float(state.mass_kg[k]))
-        name = "JuPedSim social force"
-    else:
-        jmodel = jps.CollisionFreeSpeedModel()
-
-        def params(k, journey, stage):
-            return jps.CollisionFreeSpeedModelAgentParameters(
-                position=tuple(state.position_m[k]), journey_id=journey, stage_id=stage,
-                desired_speed=float(state.desired_speed_m_s[k]), radius=float(radius[k]))
-        name = "JuPedSim collision-free speed"
-    sim = jps.Simulation(model=jmodel, geometry=geometry.navigable_area, dt=0.01)
-    stage = sim.add_exit_stage(geometry.exits[0])
-    journey = sim.add_journey(jps.JourneyDescription([stage]))
-    ids = np.array([sim.add_agent(params(k, journey, stage)) for k in range(state.n)])
-    row_of = {int(a): k for k, a in enumerate(ids)}
+    setup = build_simulation(scenario, state, model, dt_s=0.01)
+    sim, row_of, radius = setup.sim, setup.row_of, setup.radius_m
+    name = "JuPedSim social force" if model == "sfm" else "JuPedSim collision-free speed"
     counter = _counter(scenario)
     pos = state.position_m.copy()
     agent_steps, wall, gap = 0, 0.0, np.inf
