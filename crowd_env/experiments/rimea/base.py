@@ -42,8 +42,8 @@ class BackendRun:
 
     ``trajectories``: every pedestrian on the floor at ``FRAME_RATE_PER_S`` (ids = scenario indices);
     ``exit_time_s`` (N,): when each left (nan: still inside at the end); ``min_gap_m``: the smallest gap
-    between two disks over the run (negative: an overlap; crowd_env measures it every step, JuPedSim at
-    the frames); ``outside_m``: the farthest any centre lay outside the walkable area (0: never);
+    between two disks or a disk and a wall over the run (negative: an overlap; crowd_env measures it every
+    step, JuPedSim at the frames); ``outside_m``: the farthest any centre lay outside the walkable area (0: never);
     ``complete``: everybody left; ``stalled``: stopped by crowd_env's stall rule.
     """
 

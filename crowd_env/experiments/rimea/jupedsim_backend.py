@@ -88,7 +88,7 @@ from crowd_env.errors import InputError, MissingDependencyError, NotFoundError
 
 from ...analysis.trajectories import Trajectories, steps_per_frame
 from ...walking.navigation import DestinationNavigation, NavigationField, RigidlyMovedNavigation
-from .base import FRAME_RATE_PER_S, BackendRun, outside_distance_m
+from .base import FRAME_RATE_PER_S, BackendRun, exit_times_s, outside_distance_m
 
 __all__ = ["runner", "run_jupedsim", "build_simulation", "JupedsimSetup", "choose_exits", "jupedsim_geometry",
            "frame_min_gap_m", "MODELS", "DT_S", "RADIUS_SHRINK_M", "EXIT_CLEARANCE_M", "WAYPOINT_DISTANCE_M",
@@ -414,9 +414,7 @@ def run_jupedsim(scenario, model: str, *, seed: int, max_time_s: float, frame_ra
     stopped = iteration < frame * every
     traj = Trajectories(np.concatenate(rows["frame"]), np.concatenate(rows["id"]), np.concatenate(rows["x"]),
                         np.concatenate(rows["y"]), np.concatenate(rows["h"]), frame_rate_per_s=1.0 / (every * dt_s))
-    last = np.full(n, -1, np.int64)  # the last frame each was recorded in
-    np.maximum.at(last, traj.id, traj.frame)
-    exits = np.where(left, (last + 1) / traj.frame_rate_per_s, np.nan)
+    exits = exit_times_s(traj, left, frame / traj.frame_rate_per_s)  # a JuPedSim run ends on a frame
     complete = bool(left.all()) and not stopped
     wall = time.perf_counter() - t0
     return BackendRun(f"jupedsim_{model}", scenario.name, traj, exits, float(gap),
