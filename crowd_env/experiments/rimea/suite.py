@@ -168,6 +168,16 @@ def _word(passed) -> str:
     return {True: "pass", False: "FAIL", None: "documented"}[passed]
 
 
+def _cells(r: TestResult, b: str) -> list:
+    """The two cells of one backend: the figure measured (marked when a run did not finish) and the result
+    (with the overlap or excursion that failed the shared conditions)."""
+    note = "" if r.complete[b] else " (incomplete)"
+    gap = r.min_gap_m[b]
+    extra = f"; overlap {-gap * 1e3:.1f} mm" if gap < -OVERLAP_LIMIT_M else ""
+    extra += f"; {r.outside_m[b]:.3f} m outside" if r.outside_m[b] > OUTSIDE_LIMIT_M else ""
+    return [r.verdicts[b].measured + note, _word(r.passed(b)) + extra]
+
+
 def format_table(results, backends=None) -> str:
     """The table: test, what it checks, criterion, then per backend the figure measured and pass/fail."""
     backends = backends or [b for b in BACKENDS if results and b in results[0].verdicts]
@@ -182,11 +192,7 @@ def format_table(results, backends=None) -> str:
             if v is None:
                 row += ["-", "-"]
                 continue
-            note = "" if r.complete[b] else " (incomplete)"
-            gap = r.min_gap_m[b]
-            extra = f"; overlap {-gap * 1e3:.1f} mm" if gap < -OVERLAP_LIMIT_M else ""
-            extra += f"; {r.outside_m[b]:.3f} m outside" if r.outside_m[b] > OUTSIDE_LIMIT_M else ""
-            row += [v.measured + note, _word(r.passed(b)) + extra]
+            row += _cells(r, b)
         rows.append(row)
     widths = [max(len(str(x)) for x in col) for col in zip(head, *rows)]
     lines = [" | ".join(str(x).ljust(w) for x, w in zip(head, widths)),
@@ -206,9 +212,7 @@ def write_markdown(results, path, *, command: str, figure_prefix: str = "") -> s
     for r in results:
         row = [r.number, r.checks, r.criterion]
         for b in backends:
-            v = r.verdicts[b]
-            note = "" if r.complete[b] else " (incomplete)"
-            row += [v.measured + note, _word(r.passed(b))]
+            row += _cells(r, b)
         lines.append("| " + " | ".join(str(x).replace("|", "/") for x in row) + " |")
     lines.append("")
     mode = "reduced versions (--quick)" if results and results[0].quick else "full versions"
