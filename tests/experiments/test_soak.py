@@ -48,7 +48,11 @@ def test_reduced_soak_over_every_registered_scenario():
     assert sorted(r["scenarios"]) == distinct_scenarios() and "seyfried_bottleneck" in r["scenarios"]
     assert set(r["modes"]) == set(ACTION_MODES)
     assert r["violations"] == {}, "\n".join(r["examples"])
-    assert r["impact_steps"] > 0.3 * r["sim_steps"]  # the energy check had impacts to judge
+    # the energy check had impacts to judge: in the crowd scenarios, as before the RiMEA set-ups were
+    # registered (those are sparse by design: test 1 is one walker), and in the RiMEA ones too
+    crowd = [v for k, v in r["per_pair"].items() if not k.startswith("rimea_")]
+    assert sum(v["impact_steps"] for v in crowd) > 0.3 * sum(v["sim_steps"] for v in crowd)
+    assert sum(v["impact_steps"] for k, v in r["per_pair"].items() if k.startswith("rimea_")) > 0
     assert r["max_overlap_m"] < 1e-3 and r["max_impact_energy_increase_j"] <= 1e-9
     assert time.perf_counter() - t0 < 60
 

@@ -129,7 +129,7 @@ class RimeaTest:
 def register_test(cls):
     """Class decorator: add a :class:`RimeaTest` subclass to the suite under its ``number``."""
     if not cls.number or cls.number in _REGISTRY:
-        raise ValueError(f"RiMEA test number {cls.number!r} is empty or taken")
+        raise InputError(f"RiMEA test number {cls.number!r} is empty or taken")
     _REGISTRY[cls.number] = cls
     return cls
 

@@ -201,10 +201,9 @@ def format_table(results, backends=None) -> str:
     return "\n".join(lines)
 
 
-def write_markdown(results, path, *, command: str, figure_prefix: str = "") -> str:
+def write_markdown(results, path, *, command: str) -> str:
     """The results as a Markdown page fragment (the table, then each test's figure), for the documentation's
-    verification page; figures are referred to as ``figure_prefix`` + file name (they lie beside ``path``;
-    the prefix is the folder as seen from the page that includes the fragment)."""
+    verification page; figures are referred to by file name (they lie beside ``path``)."""
     backends = [b for b in BACKENDS if results and b in results[0].verdicts]
     head = ["test", "checks", "criterion"] + [x for b in backends for x in (f"{b}: measured", f"{b}")]
     lines = [f"<!-- written by `{command}`; do not edit by hand -->", "",
@@ -223,7 +222,7 @@ def write_markdown(results, path, *, command: str, figure_prefix: str = "") -> s
     for r in results:
         if r.figure:
             lines += [f"### Test {r.number}: {r.title}", "", f"Source: {r.source}.", "",
-                      f"![RiMEA test {r.number}]({figure_prefix}{os.path.basename(r.figure)})", ""]
+                      f"![RiMEA test {r.number}]({os.path.basename(r.figure)})", ""]
     with open(path, "w") as fh:
         fh.write("\n".join(lines))
     return path

@@ -5,7 +5,7 @@ Each test's set-up is an ordinary :class:`~crowd_env.scenarios.Scenario` built w
 ``desired_speed_m_s`` and ``premovement_s``, destinations), registered under ``rimea_<test>_<name>`` so
 that users can run, train on or modify it like any other scenario (``make_scenario("rimea_1_corridor")``).
 Dimensions follow RiMEA 4.1.1 where its text gives them and JuPedSim's transcription of its figures
-otherwise (docs/verification.md lists the sources test by test). One module per test (``t<nn>_*.py``),
+otherwise (docs/validation/rimea.md lists the sources test by test). One module per test (``t<nn>_*.py``),
 each registering its scenarios when imported; options give the reduced versions of the default suite.
 """
 import importlib

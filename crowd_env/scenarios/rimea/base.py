@@ -4,7 +4,7 @@ Each test's set-up is an ordinary :class:`~crowd_env.scenarios.Scenario` built w
 (:func:`~crowd_env.scenarios.scenario_from_polygon`, per-pedestrian parameters such as
 ``desired_speed_m_s`` and ``premovement_s``, destinations), registered under ``rimea_<test>_<name>`` so
 that users can run, train on or modify it like any other scenario. Dimensions follow RiMEA 4.1.1 where its
-text gives them and JuPedSim's transcription of its figures otherwise (docs/verification.md lists the
+text gives them and JuPedSim's transcription of its figures otherwise (docs/validation/rimea.md lists the
 sources test by test). ``quick`` options give the reduced versions of the default test suite.
 """
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """RiMEA test 9: a crowd leaves a large public room through four exits, then through two."""
 from __future__ import annotations
 
-from ..base import Scenario, check_count, register_scenario
+from ..base import Scenario, ScenarioError, check_count, register_scenario
 from .base import rimea_scenario
 
 DOORS = {"exit_1": [(4.0, 0.0), (5.0, 0.0)], "exit_2": [(25.0, 0.0), (26.0, 0.0)],
@@ -15,7 +15,7 @@ def rimea_9_large_room(seed: int = 0, n_pedestrians: int = 1000, open_exits: int
     the two doors of one long wall (y = 20: exits 3 and 4 become wall)."""
     n = check_count("n_pedestrians", n_pedestrians)
     if open_exits not in (2, 4):
-        raise ValueError(f"open_exits must be 4 or 2, got {open_exits!r}")
+        raise ScenarioError(f"open_exits must be 4 or 2, got {open_exits!r}")
     doors = DOORS if open_exits == 4 else {k: v for k, v in DOORS.items() if k in ("exit_1", "exit_2")}
     walk = [(0.0, 0.0), (30.0, 0.0), (30.0, 20.0), (0.0, 20.0)]
     spawn = [(2.0, 2.0), (28.0, 2.0), (28.0, 18.0), (2.0, 18.0)]
