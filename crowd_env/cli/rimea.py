@@ -42,7 +42,8 @@ def main(argv=None) -> int:
     print(format_table(results))
     if args.docs:
         command = "crowd-rimea " + " ".join(argv if argv is not None else sys.argv[1:])
-        write_markdown(results, os.path.join(args.out, "rimea_results.md"), command=command.strip())
+        write_markdown(results, os.path.join(args.out, "rimea_results.md"), command=command.strip(),
+                       figure_prefix=os.path.basename(os.path.normpath(args.out)) + "/")
     print(f"figures and results.json in {args.out}")
     return 0 if all(r.passed(b) is not False for r in results for b in r.verdicts) else 1
 

@@ -201,9 +201,10 @@ def format_table(results, backends=None) -> str:
     return "\n".join(lines)
 
 
-def write_markdown(results, path, *, command: str) -> str:
+def write_markdown(results, path, *, command: str, figure_prefix: str = "") -> str:
     """The results as a Markdown page fragment (the table, then each test's figure), for the documentation's
-    verification page; figures are referred to by file name (they lie beside ``path``)."""
+    verification page, which includes it: figures (beside ``path``) are referred to as ``figure_prefix`` +
+    file name, the prefix being their folder as seen from the including page."""
     backends = [b for b in BACKENDS if results and b in results[0].verdicts]
     head = ["test", "checks", "criterion"] + [x for b in backends for x in (f"{b}: measured", f"{b}")]
     lines = [f"<!-- written by `{command}`; do not edit by hand -->", "",
@@ -222,7 +223,7 @@ def write_markdown(results, path, *, command: str) -> str:
     for r in results:
         if r.figure:
             lines += [f"### Test {r.number}: {r.title}", "", f"Source: {r.source}.", "",
-                      f"![RiMEA test {r.number}]({os.path.basename(r.figure)})", ""]
+                      f"![RiMEA test {r.number}]({figure_prefix}{os.path.basename(r.figure)})", ""]
     with open(path, "w") as fh:
         fh.write("\n".join(lines))
     return path
