@@ -24,7 +24,7 @@ from ...walking.agent import SocialForceAgent
 from ..recording import record_run
 
 __all__ = ["BackendRun", "Verdict", "RimeaTest", "register_test", "rimea_tests", "select_tests", "run_crowd_env",
-           "start_times_s", "walking_speeds_m_s", "exits_used", "evacuation_curve", "outside_distance_m", "exit_times_s",
+           "WindowedTest", "start_times_s", "walking_speeds_m_s", "exits_used", "evacuation_curve", "outside_distance_m", "exit_times_s",
            "STAIRS_TESTS", "DOCUMENTATION_TESTS", "OVERLAP_LIMIT_M", "FRAME_RATE_PER_S"]
 
 # Tests RiMEA 4.1.1 defines that a flat 2D model cannot run: stairs (2, 3, 13) and documentation only (8, 14).
@@ -262,3 +262,31 @@ def evacuation_curve(run: BackendRun) -> tuple:
     """(times, number left by then): the N(t) staircase of a run's exit times."""
     t = np.sort(run.exit_time_s[np.isfinite(run.exit_time_s)])
     return t, np.arange(1, t.size + 1)
+
+
+class WindowedTest(RimeaTest):
+    """A test measured over a time window after a transient (a fundamental diagram), not to the end of an
+    evacuation: its runs last ``transient_s + window_s`` of its design, ``FULL_DESIGN`` or, with ``quick``,
+    ``QUICK_DESIGN`` (dicts with at least those two keys). :meth:`scenarios` records the design it built
+    in ``self._design``; :meth:`design_for` recovers it from the runs' time limit when it did not."""
+
+    FULL_DESIGN: dict = {}
+    QUICK_DESIGN: dict = {}
+
+    def __init__(self):
+        self._design = None
+
+    @classmethod
+    def design(cls, quick: bool) -> dict:
+        return dict(cls.QUICK_DESIGN if quick else cls.FULL_DESIGN)
+
+    def max_time_s(self, quick: bool) -> float:
+        d = self.design(quick)
+        return d["transient_s"] + d["window_s"]
+
+    def design_for(self, runs: dict) -> dict:
+        """The design the ``runs`` were made with."""
+        if self._design is not None:
+            return self._design
+        t_max = max(r.max_time_s for r in runs.values())
+        return self.design(abs(t_max - self.max_time_s(True)) < 1e-9)

@@ -59,7 +59,7 @@ from ...analysis.trajectories import Trajectories
 from ...errors import ScenarioError
 from ...scenarios import make_scenario
 from ...scenarios.rimea.t04_fundamental_diagram import MEASURING_AREA_NAMES, fd_measuring_areas, hexagonal_capacity_per_m2
-from .base import RimeaTest, Verdict, register_test
+from .base import Verdict, WindowedTest, register_test
 
 __all__ = ["FundamentalDiagram", "FULL", "QUICK", "measure_areas", "line_flow_per_m_s"]
 
@@ -169,7 +169,9 @@ def line_flow_per_m_s(traj: Trajectories, x_line_m: float, y_range, t0_s: float,
 
 
 @register_test
-class FundamentalDiagram(RimeaTest):
+class FundamentalDiagram(WindowedTest):
+    FULL_DESIGN = FULL
+    QUICK_DESIGN = QUICK
     number = "4"
     title = "Measurement of the fundamental diagram"
     checks = "speed and flow against density in a 10 m wide corridor filled at 0.5-6 P/m²"
@@ -182,12 +184,8 @@ class FundamentalDiagram(RimeaTest):
               "rho_max 5.4); the monotonicity reading follows JuPedSim's placeholder docstring")
 
     def __init__(self):
-        self._design = None
+        super().__init__()
         self._unplaceable = {}
-
-    @staticmethod
-    def design(quick: bool) -> dict:
-        return dict(QUICK if quick else FULL)
 
     def scenarios(self, quick: bool, seed: int) -> dict:
         d = self.design(quick)
@@ -203,20 +201,10 @@ class FundamentalDiagram(RimeaTest):
                 self._unplaceable[float(rho)] = str(exc)
         return out
 
-    def max_time_s(self, quick: bool) -> float:
-        d = self.design(quick)
-        return d["transient_s"] + d["window_s"]
-
-    def _design_for(self, runs: dict) -> dict:
-        if self._design is not None:
-            return self._design
-        t_max = max(r.max_time_s for r in runs.values())
-        return self.design(abs(t_max - self.max_time_s(True)) < 1e-9)
-
     def measure(self, runs: dict) -> list:
         """One row per run: the nominal density and, per measuring area, the figures of :func:`measure_areas`,
         the main area's line flow and Weidmann's speed at its measured density."""
-        d = self._design_for(runs)
+        d = self.design_for(runs)
         areas = fd_measuring_areas(d["back_margin_m"], d["width_m"])
         t0, t1 = d["transient_s"], d["transient_s"] + d["window_s"]
         rows = []
@@ -268,7 +256,7 @@ class FundamentalDiagram(RimeaTest):
         details = {"table": table, "unplaceable": unplaceable, "speed_rises_m_s": rises, "monotone": monotone,
                    "flow_consistent": flow_ok,
                    "max_abs_deviation_from_weidmann_m_s": float(np.max(np.abs(dev))) if dev else float("nan"),
-                   "hexagonal_packing_per_m2": hexagonal_capacity_per_m2(), "design": self._design_for(runs)}
+                   "hexagonal_packing_per_m2": hexagonal_capacity_per_m2(), "design": self.design_for(runs)}
         return Verdict("main area v(rho): " + text, float(np.max(np.abs(dev))) if dev else float("nan"), passed, details)
 
     def plot(self, ax, runs_by_backend: dict) -> None:

@@ -49,7 +49,7 @@ from ...analysis.rimea_data import loop_headway_density_per_m, single_file_perce
 from ...scenarios import make_scenario
 from ...scenarios.rimea.t16_single_file import CENTRELINE_SPACING_M
 from ...walking.circulation import CirculationNavigation, oval_centreline
-from .base import RimeaTest, Verdict, register_test
+from .base import Verdict, WindowedTest, register_test
 
 __all__ = ["SingleFileFundamentalDiagram", "FULL", "QUICK", "loop_samples", "bin_samples"]
 
@@ -133,7 +133,9 @@ def bin_samples(density_per_m, speed_m_s, bin_width: float = BIN_WIDTH_PER_M, mi
 
 
 @register_test
-class SingleFileFundamentalDiagram(RimeaTest):
+class SingleFileFundamentalDiagram(WindowedTest):
+    FULL_DESIGN = FULL
+    QUICK_DESIGN = QUICK
     number = "16"
     title = "1D fundamental diagram (single file)"
     checks = "speed against 1D density of disks circulating in single file on a 0.8 m wide oval ring"
@@ -143,32 +145,15 @@ class SingleFileFundamentalDiagram(RimeaTest):
     source = ("RiMEA 4.1.1 A4 test 16 (ring one agent wide, envelope of Fig. 20); ring, measurement and the 75 % "
               "reading from jupedsim-web-community tests/vv/test_rimea.py and scripts/scenario_builders/rimea16_loop.py")
 
-    def __init__(self):
-        self._design = None
-
-    @staticmethod
-    def design(quick: bool) -> dict:
-        return dict(QUICK if quick else FULL)
-
     def scenarios(self, quick: bool, seed: int) -> dict:
         d = self.design(quick)
         self._design = d
         return {_variant(n): make_scenario("rimea_16_ring", seed=seed, n_pedestrians=n, **RING)
                 for n in d["n_pedestrians"]}
 
-    def max_time_s(self, quick: bool) -> float:
-        d = self.design(quick)
-        return d["transient_s"] + d["window_s"]
-
-    def _design_for(self, runs: dict) -> dict:
-        if self._design is not None:
-            return self._design
-        t_max = max(r.max_time_s for r in runs.values())
-        return self.design(abs(t_max - self.max_time_s(True)) < 1e-9)
-
     def measure(self, runs: dict) -> tuple:
         """``(per-run rows, pooled samples (density, speed), bins)``."""
-        d = self._design_for(runs)
+        d = self.design_for(runs)
         nav = ring_navigation()
         rows, dens, speed = [], [], []
         for name, run in sorted(runs.items(), key=lambda kv: int(kv[0].split("_")[1])):
@@ -198,7 +183,7 @@ class SingleFileFundamentalDiagram(RimeaTest):
         if stalled:
             text += f"; stalled: {', '.join(stalled)}"
         return Verdict(text, frac, passed, {"bins": bins, "runs": rows, "inside": n_in, "above": n_above,
-                                            "below": n_below, "design": self._design_for(runs)})
+                                            "below": n_below, "design": self.design_for(runs)})
 
     def plot(self, ax, runs_by_backend: dict) -> None:
         ref = single_file_percentiles()
