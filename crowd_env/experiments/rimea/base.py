@@ -73,9 +73,10 @@ class BackendRun:
 
     def positions(self, pedestrian: int) -> tuple:
         """``(time_s, xy (k, 2))`` of one pedestrian's frames."""
-        t = self.trajectories
-        rows = t.id == int(pedestrian)
-        return t.time_s[rows], np.column_stack((t.x_m[rows], t.y_m[rows]))
+        t = self.trajectories  # rows sorted by (id, frame): one pedestrian's rows are a contiguous block
+        lo, hi = np.searchsorted(t.id, [int(pedestrian), int(pedestrian) + 1])
+        rows = slice(int(lo), int(hi))
+        return t.frame[rows] / t.frame_rate_per_s, np.column_stack((t.x_m[rows], t.y_m[rows]))
 
 
 @dataclass
