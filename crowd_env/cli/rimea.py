@@ -9,7 +9,11 @@ documentation only: asking for them is an error that says so.
     crowd-rimea --quick                 # the reduced versions, a few minutes
     crowd-rimea 1 6 12 --out runs/rimea # some tests, full size ("12" runs 12a-12d)
     crowd-rimea --quick --jupedsim      # with JuPedSim's CFSM and SFM columns (pip install -e '.[bench]')
-    crowd-rimea --jupedsim --docs --out docs/validation/rimea   # regenerate the documentation's page
+    crowd-rimea --jupedsim --docs --out docs/validation/rimea --resume  # regenerate the documentation's page
+
+Each test's result is kept in --out as soon as it is done (tests/rimea_<n>.json); --resume reads back the
+kept results made with the same version (--quick or not), seed and models instead of running them again,
+so a long run that was stopped goes on where it was, and one test can be run on its own first.
 """
 from __future__ import annotations
 
@@ -29,6 +33,8 @@ def main(argv=None) -> int:
                     help="also run JuPedSim's collision-free speed and social force models")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default="runs/rimea", help="figures and results.json go here")
+    ap.add_argument("--resume", action="store_true",
+                    help="read back tests already done in --out with the same version, seed and models")
     ap.add_argument("--docs", action="store_true",
                     help="also write rimea_results.md beside the figures (the documentation's page: --out docs/validation/rimea)")
     args = ap.parse_args(argv)
@@ -36,7 +42,8 @@ def main(argv=None) -> int:
     from ..experiments.rimea.suite import write_markdown
 
     try:
-        results = run_suite(args.tests, quick=args.quick, jupedsim=args.jupedsim, seed=args.seed, out_dir=args.out)
+        results = run_suite(args.tests, quick=args.quick, jupedsim=args.jupedsim, seed=args.seed, out_dir=args.out,
+                            resume=args.resume)
     except (NotFoundError, MissingDependencyError) as exc:
         raise SystemExit(f"error: {exc.args[0] if exc.args else exc}") from None
     print(format_table(results))

@@ -67,6 +67,17 @@ class BackendRun:
         return int(np.isfinite(self.exit_time_s).sum())
 
     @property
+    def end_time_s(self) -> float:
+        """The time of the run's last recorded frame (nan when nothing was recorded)."""
+        t = self.trajectories
+        return float(t.frame.max() / t.frame_rate_per_s) if len(t) else float("nan")
+
+    def reached_time_limit(self) -> bool:
+        """The run went on to ``max_time_s`` (within one frame), without stalling or being stopped early."""
+        frame_s = 1.0 / self.trajectories.frame_rate_per_s
+        return bool(not self.stalled and self.end_time_s >= self.max_time_s - 1.5 * frame_s)
+
+    @property
     def evacuation_time_s(self) -> float:
         """When the last pedestrian left (nan unless everybody did: an incomplete run has no evacuation time)."""
         return float(np.max(self.exit_time_s)) if self.complete and self.n_pedestrians else float("nan")
@@ -105,6 +116,16 @@ class RimeaTest:
     checks: str = ""
     criterion: str = ""
     source: str = ""
+    #: the runs are measured over a time window and end at the time limit by design (a ring, a filled
+    #: corridor): such a run is complete when it reached the limit, not when everybody left
+    runs_to_time_limit: bool = False
+
+    def runs_complete(self, runs: dict) -> bool:
+        """Every run finished as the test intends: everybody left, or (``runs_to_time_limit``) the run
+        went on to its time limit without stalling or being stopped."""
+        if self.runs_to_time_limit:
+            return all(r.reached_time_limit() for r in runs.values())
+        return all(r.complete for r in runs.values())
 
     def scenarios(self, quick: bool, seed: int) -> dict:
         """Variant name -> :class:`~crowd_env.scenarios.Scenario` (the reduced version with ``quick``)."""
@@ -273,6 +294,7 @@ class WindowedTest(RimeaTest):
 
     FULL_DESIGN: dict = {}
     QUICK_DESIGN: dict = {}
+    runs_to_time_limit = True
 
     def __init__(self):
         self._design = None

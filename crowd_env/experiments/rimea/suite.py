@@ -17,11 +17,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from crowd_env.errors import MissingDependencyError
+from crowd_env.errors import InputError, MissingDependencyError
 
 from .base import OVERLAP_LIMIT_M, Verdict, run_crowd_env, select_tests
 
-__all__ = ["TestResult", "run_suite", "format_table", "write_results", "write_markdown", "BACKENDS",
+__all__ = ["TestResult", "run_suite", "load_test_result", "test_result_path", "format_table", "write_results", "write_markdown", "BACKENDS",
            "JUPEDSIM_BACKENDS"]
 
 JUPEDSIM_BACKENDS = ("jupedsim_cfsm", "jupedsim_sfm")
@@ -66,6 +66,25 @@ class TestResult:
         return out
 
 
+    @classmethod
+    def from_dict(cls, data: dict) -> "TestResult":
+        """The inverse of :meth:`to_dict` (a result read back from its file; the runs themselves are not kept)."""
+        res = cls(data["number"], data["title"], data["checks"], data["criterion"], data["source"],
+                  bool(data["quick"]), figure=data.get("figure"))
+        for b, d in data["backends"].items():
+            res.verdicts[b] = Verdict(d["measured"], _from_json_number(d["value"]), d["criterion_met"],
+                                      d.get("details") or {})
+            res.min_gap_m[b] = _from_json_number(d["min_gap_m"])
+            res.outside_m[b] = _from_json_number(d["outside_m"])
+            res.complete[b] = bool(d["complete"])
+            res.wall_time_s[b] = _from_json_number(d["wall_time_s"])
+        return res
+
+
+def _from_json_number(x) -> float:
+    return float("nan") if x is None else float(x)
+
+
 def _json_number(x):
     x = float(x)
     return x if math.isfinite(x) else None
@@ -103,20 +122,67 @@ def check_jupedsim() -> None:
                                      "pip install -e '.[bench]' (or pip install jupedsim)")
 
 
+def test_result_path(out_dir, number: str) -> str:
+    """Where :func:`run_suite` keeps one test's result: ``<out_dir>/tests/rimea_<number>.json``."""
+    return os.path.join(out_dir, "tests", f"rimea_{number}.json")
+
+
+def _settings(quick: bool, seed: int, backends) -> dict:
+    return {"quick": bool(quick), "seed": int(seed), "backends": list(backends)}
+
+
+def load_test_result(out_dir, number: str, *, quick: bool, seed: int, backends):
+    """The kept result of test ``number`` in ``out_dir`` when it was run with these settings (version, seed,
+    backends) and its figure is still there; None otherwise (a result made with other settings is never
+    reused)."""
+    path = test_result_path(out_dir, number)
+    if not os.path.exists(path):
+        return None
+    with open(path) as fh:
+        data = json.load(fh)
+    if data.get("settings") != _settings(quick, seed, backends):
+        return None
+    res = TestResult.from_dict(data["result"])
+    if res.figure is not None and not os.path.exists(res.figure):
+        return None
+    return res
+
+
+def _keep_test_result(out_dir, res: TestResult, *, quick: bool, seed: int, backends) -> None:
+    path = test_result_path(out_dir, res.number)
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    tmp = path + ".tmp"
+    with open(tmp, "w") as fh:
+        json.dump({"settings": _settings(quick, seed, backends), "result": res.to_dict()}, fh, indent=1)
+    os.replace(tmp, path)
+
+
 def run_suite(numbers=None, *, quick: bool = False, jupedsim: bool = False, seed: int = 0, out_dir=None,
-              progress=print) -> list:
+              resume: bool = False, progress=print) -> list:
     """Run the tests ``numbers`` (default: all flat ones; see :func:`~.base.select_tests`) with crowd_env and,
     with ``jupedsim``, JuPedSim's collision-free speed and social force models. ``quick``: the reduced
-    versions. ``out_dir``: where figures (``rimea_<n>.png``) and ``results.json`` go (None: nothing written).
+    versions. ``out_dir``: where figures (``rimea_<n>.png``), each test's result (``tests/rimea_<n>.json``,
+    written as soon as the test is done) and ``results.json`` (the selected tests) go (None: nothing
+    written). ``resume``: a test whose kept result in ``out_dir`` was made with the same version, seed and
+    backends is read back instead of run again (the full suite costs hours: see the verification page).
     Returns the :class:`TestResult` list."""
     tests = select_tests(numbers)
     backends = BACKENDS if jupedsim else ("crowd_env",)
     if jupedsim:
         check_jupedsim()
+    if resume and out_dir is None:
+        raise InputError("resume needs out_dir, where the kept results are")
     if out_dir is not None:
         os.makedirs(out_dir, exist_ok=True)
     results = []
     for test in tests:
+        if resume:
+            kept = load_test_result(out_dir, test.number, quick=quick, seed=seed, backends=backends)
+            if kept is not None:
+                if progress is not None:
+                    progress(f"RiMEA {test.number}: kept result read from {test_result_path(out_dir, test.number)}")
+                results.append(kept)
+                continue
         scenarios = test.scenarios(quick, seed)
         res = TestResult(test.number, test.title, test.checks, test.criterion, test.source, quick)
         runs_by_backend = {}
@@ -128,7 +194,7 @@ def run_suite(numbers=None, *, quick: bool = False, jupedsim: bool = False, seed
             res.verdicts[backend] = test.evaluate(runs)
             res.min_gap_m[backend] = min(r.min_gap_m for r in runs.values())
             res.outside_m[backend] = max(r.outside_m for r in runs.values())
-            res.complete[backend] = all(r.complete for r in runs.values())
+            res.complete[backend] = test.runs_complete(runs)
             res.wall_time_s[backend] = time.perf_counter() - t0
             if progress is not None:
                 v = res.verdicts[backend]
@@ -136,6 +202,7 @@ def run_suite(numbers=None, *, quick: bool = False, jupedsim: bool = False, seed
                          f"({res.wall_time_s[backend]:.1f} s)")
         if out_dir is not None:
             res.figure = _figure(test, runs_by_backend, os.path.join(out_dir, f"rimea_{test.number}.png"))
+            _keep_test_result(out_dir, res, quick=quick, seed=seed, backends=backends)
         results.append(res)
     if out_dir is not None:
         write_results(results, os.path.join(out_dir, "results.json"), seed=seed)

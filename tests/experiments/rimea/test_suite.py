@@ -58,3 +58,52 @@ def test_exit_times_and_the_outside_check_read_the_frames():
     assert np.isnan(times[2])  # still inside
     box = shapely.box(0, 0, 1, 1)
     assert outside_distance_m(t, box) == pytest.approx(0.2)
+
+
+def test_kept_results_are_read_back_only_with_the_same_settings(tmp_path, monkeypatch):
+    from crowd_env.errors import InputError
+    from crowd_env.experiments.rimea import suite
+
+    (first,) = run_suite(["1"], out_dir=str(tmp_path), progress=None)
+    assert (tmp_path / "tests" / "rimea_1.json").exists()
+    calls = []
+    real = suite._runner
+
+    def counting(backend):
+        calls.append(backend)
+        return real(backend)
+
+    monkeypatch.setattr(suite, "_runner", counting)
+    (again,) = run_suite(["1"], out_dir=str(tmp_path), resume=True, progress=None)
+    assert calls == []  # read back, not run
+    assert again.verdicts["crowd_env"].value == first.verdicts["crowd_env"].value
+    assert again.passed() is first.passed() and again.min_gap_m == first.min_gap_m
+    assert again.figure == first.figure
+    run_suite(["1"], out_dir=str(tmp_path), resume=True, seed=1, progress=None)  # another seed: run again
+    assert calls == ["crowd_env"]
+    (tmp_path / "rimea_1.png").unlink()  # a kept result whose figure is gone is run again
+    run_suite(["1"], out_dir=str(tmp_path), resume=True, seed=1, progress=None)
+    assert calls == ["crowd_env", "crowd_env"]
+    with pytest.raises(InputError, match="resume needs out_dir"):
+        run_suite(["1"], resume=True, progress=None)
+
+
+def _run(end_frame: int, *, stalled=False, max_time_s=2.0):
+    from crowd_env.experiments.rimea.base import BackendRun
+
+    frames = np.arange(end_frame + 1)
+    t = Trajectories(frame=frames, id=np.zeros_like(frames), x_m=np.zeros(frames.size), y_m=np.zeros(frames.size),
+                     heading_rad=None, frame_rate_per_s=10.0)
+    return BackendRun("crowd_env", "x", t, np.array([np.nan]), 0.01, 0.0, False, stalled, max_time_s=max_time_s)
+
+
+def test_a_windowed_test_is_complete_when_its_runs_reach_the_time_limit():
+    from crowd_env.experiments.rimea.base import RimeaTest, WindowedTest
+
+    full, short, stalled = _run(20), _run(15), _run(20, stalled=True)
+    assert full.end_time_s == 2.0 and full.reached_time_limit()
+    assert not short.reached_time_limit() and not stalled.reached_time_limit()
+    windowed = WindowedTest()
+    assert windowed.runs_complete({"a": full}) and not windowed.runs_complete({"a": full, "b": short})
+    assert not windowed.runs_complete({"a": stalled})
+    assert not RimeaTest().runs_complete({"a": full})  # an evacuation test: somebody is still inside
