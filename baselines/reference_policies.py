@@ -172,7 +172,8 @@ _NAMED = {"baseline": CalibratedPolicy, "calibrated": CalibratedPolicy, "social_
 
 
 def as_policy(spec, name: str | None = None) -> EnvPolicy:
-    """An :class:`EnvPolicy` from a name, a saved model (SB3 ``.zip``; ``crowd-train-mappo``'s ``policy.pt`` or its
+    """An :class:`EnvPolicy` from a name (``baseline``, ``random``, ``zero`` or a shipped trained policy:
+    ``baselines.trained.list_trained()``), a policy file (``.npz``), a saved model (SB3 ``.zip``; ``crowd-train-mappo``'s ``policy.pt`` or its
     run folder; ``crowd-train-rllib``'s run folder), an SB3 model, a policy or a callable."""
     if isinstance(spec, EnvPolicy):
         if name:
@@ -185,6 +186,15 @@ def as_policy(spec, name: str | None = None) -> EnvPolicy:
             if name:
                 p.name = name
             return p
+        from .trained import FilePolicy, list_trained, load_trained  # shipped and saved policy files
+
+        if s in list_trained():
+            p = load_trained(s)
+            if name:
+                p.name = name
+            return p
+        if s.endswith(".npz"):
+            return FilePolicy(s, name=name)
         if s.endswith(".pt") or os.path.exists(os.path.join(s, "policy.pt")):
             from crowd_env.experiments.marl import load_policy  # crowd-train-mappo (MAPPO / IPPO)
 
@@ -195,7 +205,7 @@ def as_policy(spec, name: str | None = None) -> EnvPolicy:
             return load_rllib(s, name=name)
         if s.endswith(".zip") or os.path.exists(s) or os.path.exists(s + ".zip"):
             return SB3Policy(s, name=name)
-        raise ValueError(f"unknown policy {s!r}: give one of {sorted(_NAMED)}, a saved model (SB3 .zip, a "
+        raise ValueError(f"unknown policy {s!r}: give one of {sorted(_NAMED) + list_trained()}, a policy file (.npz), a saved model (SB3 .zip, a "
                          "crowd-train-mappo policy.pt or run folder, a crowd-train-rllib run folder) or a callable")
     if hasattr(spec, "predict") and hasattr(spec, "observation_space"):
         return SB3Policy(spec, name=name)

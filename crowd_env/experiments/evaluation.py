@@ -30,6 +30,10 @@ environment's ``substep_hooks``):
 - ``n_percussions`` and ``mean_percussion_kg_m_s``: number and mean size of the non-zero normal
   contact percussions (pedestrian-pedestrian and pedestrian-wall; impacts and the sustained-contact
   projection, each simulator step counted);
+- ``density_front_per_m2``: the classic density (pedestrians whose centre lies in the area, over its area)
+  in the geometry's measurement area "front" (the Seyfried bottleneck's area before the entrance; NaN
+  for geometries without one), averaged over the simulator steps between the first and the last passage
+  at the line (the window of J_s; NaN with fewer than two passages);
 - ``min_gap_m``: smallest gap between two pedestrians or a pedestrian and a wall (negative = overlap);
 - ``mean_return``: mean over agents of the summed environment reward.
 """
@@ -44,6 +48,7 @@ import time
 from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
+import shapely
 from scipy.spatial import cKDTree
 
 from ..analysis.flow import MeasurementLine, PassageCounter, specific_flow
@@ -59,6 +64,7 @@ METRICS = (
     ("mean_speed_m_s", "mean speed (m/s)"),
     ("n_percussions", "# percussions"),
     ("mean_percussion_kg_m_s", "mean perc. (kg m/s)"),
+    ("density_front_per_m2", "density front (1/m²)"),
     ("min_gap_m", "min gap (m)"),
     ("mean_return", "mean return"),
 )
@@ -86,6 +92,7 @@ class EpisodeMetrics:
     stall_time_s: float = field(default=float("nan"), compare=False)  # nan unless stalled (nan != nan)
     partial_specific_flow_per_m_s: float = float("nan")
     partial_flow_per_s: float = float("nan")
+    density_front_per_m2: float = float("nan")
 
 
 @dataclass
@@ -172,6 +179,18 @@ class _Probe:
         self.min_gap = self._gap(env)
         self.passed = np.zeros(env.n_pedestrians, dtype=bool)
         self.stall = StallDetector(env.sim.params.dt_s, start_s=env.sim.time_s)
+        self.front = geom.measurement_areas.get("front")
+        self.front_density, self.front_time = [], []
+
+    def front_density_per_m2(self) -> float:
+        """Mean density in the "front" area over the steps between the first and the last passage (NaN
+        without the area or with fewer than two passages)."""
+        if self.front is None or self.counter is None or len(self.counter.times_s) < 2:
+            return float("nan")
+        t = np.asarray(self.front_time)
+        times = np.sort(self.counter.times_s)
+        window = (t >= times[0]) & (t <= times[-1])
+        return float(np.mean(np.asarray(self.front_density)[window])) if window.any() else float("nan")
 
     @staticmethod
     def _gap(env) -> float:
@@ -210,6 +229,11 @@ class _Probe:
         if res.exited.size:
             self.last_exit_s = env.sim.time_s
         self.min_gap = min(self.min_gap, self._gap(env))
+        if self.front is not None:
+            pos = st.position_m[st.active]
+            inside = int(np.count_nonzero(shapely.contains_xy(self.front, pos[:, 0], pos[:, 1]))) if pos.size else 0
+            self.front_density.append(inside / self.front.area)
+            self.front_time.append(env.sim.time_s)
 
 
 def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", seed: int = 0, *,
@@ -280,7 +304,8 @@ def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", se
         mean_percussion_kg_m_s=probe.perc_sum / probe.n_perc if probe.n_perc else 0.0,
         min_gap_m=probe.min_gap, mean_return=float(np.mean(list(returns.values()))),
         wall_time_s=time.perf_counter() - t0, complete=bool(complete), stalled=probe.stall.stalled,
-        stall_time_s=probe.stall.stall_time_s, partial_specific_flow_per_m_s=js, partial_flow_per_s=j)
+        stall_time_s=probe.stall.stall_time_s, partial_specific_flow_per_m_s=js, partial_flow_per_s=j,
+        density_front_per_m2=probe.front_density_per_m2())
     env.close()
     return result
 

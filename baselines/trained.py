@@ -1,0 +1,68 @@
+"""Trained reference policies shipped with crowd_env, loadable by name without training.
+
+Each is a :mod:`policy file <crowd_env.experiments.policy_files>` in ``baselines/trained/`` (``<name>.npz``),
+written by ``crowd-benchmark`` (docs/validation/benchmark.md: how each was trained, on which task, and
+how it compares with the calibrated model). A file policy acts with the environment options it was
+trained with (observation layout, decision interval, action bound), which it names in ``env_overrides``
+so the evaluation harness applies them::
+
+    from baselines.trained import load_trained, list_trained
+    policy = load_trained("bottleneck_bc")       # also: as_policy("bottleneck_bc"), crowd-evaluate --policy
+
+Inference is numpy only (no torch).
+"""
+from __future__ import annotations
+
+import os
+
+from crowd_env.experiments.policy_files import load_policy_file
+
+from .reference_policies import EnvPolicy, stack_observations
+
+__all__ = ["FilePolicy", "TRAINED_DIR", "list_trained", "load_trained", "POLICY_OPTIONS"]
+
+TRAINED_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "trained")
+# The environment options a trained policy depends on: its observation layout, decision interval and action.
+POLICY_OPTIONS = ("n_neighbors", "n_rays", "neighbor_radius_m", "ray_range_m", "observation_frame", "frame_skip",
+                  "action_max_m_s", "heading_target")
+
+
+class FilePolicy(EnvPolicy):
+    """A policy file's MLP shared by all live agents, one batched forward pass per decision."""
+
+    def __init__(self, path: str, name: str | None = None):
+        self.file = load_policy_file(os.fspath(path))
+        self.path = os.fspath(path)
+        self.name = name or os.path.splitext(os.path.basename(self.path))[0]
+        cfg = self.file.env_config
+        self.env_overrides = {k: cfg[k] for k in POLICY_OPTIONS if k in cfg}
+
+    def reset(self, env, seed=None) -> None:
+        have = env.observation_space(env.possible_agents[0]).shape
+        if tuple(have) != (self.file.obs_dim,):
+            raise ValueError(f"policy {self.name!r} expects observations of size {self.file.obs_dim}, the environment "
+                             f"gives {have} (use its options: {self.env_overrides})")
+
+    def act(self, env, observations) -> dict:
+        if not env.agents:
+            return {}
+        return dict(zip(env.agents, self.file.actions(stack_observations(env, observations))))
+
+    def actions(self, observations):
+        """Batched actions (n, 2) for observations (n, D), as the vector environments take them."""
+        return self.file.actions(observations)
+
+
+def list_trained() -> list:
+    """Names of the shipped trained policies (``baselines/trained/<name>.npz``)."""
+    if not os.path.isdir(TRAINED_DIR):
+        return []
+    return sorted(f[:-4] for f in os.listdir(TRAINED_DIR) if f.endswith(".npz"))
+
+
+def load_trained(name: str) -> FilePolicy:
+    """The shipped policy ``name`` (see :func:`list_trained`); ``ValueError`` naming the shipped ones otherwise."""
+    path = os.path.join(TRAINED_DIR, f"{name}.npz")
+    if not os.path.isfile(path):
+        raise ValueError(f"no shipped trained policy {name!r}; shipped: {', '.join(list_trained()) or 'none'}")
+    return FilePolicy(path, name=name)

@@ -1,0 +1,113 @@
+"""The benchmark of learned policies against the calibrated model: plan checks, statistics, policy files
+against their frameworks, behaviour cloning, and the whole command on its quick version."""
+import json
+import os
+
+import numpy as np
+import pytest
+
+from crowd_env.errors import InputError, PolicyError, RunStoreError
+from crowd_env.experiments import benchmark as bm
+from crowd_env.experiments.policy_files import MLPPolicyFile, load_policy_file, save_policy_file
+
+
+def test_the_plan_refuses_unknown_names_bad_budgets_and_seeds_shared_with_training():
+    with pytest.raises(InputError, match=r"unknown benchmark task\(s\) \['nope'\]"):
+        bm.make_plan(tasks=["nope"])
+    with pytest.raises(InputError, match=r"unknown benchmark policy\(ies\) \['dqn'\]"):
+        bm.make_plan(policies=["dqn"])
+    with pytest.raises(InputError, match="budget ppo_timesteps must be a positive integer"):
+        bm.make_plan(budgets={"ppo_timesteps": 0})
+    with pytest.raises(InputError, match="unknown budget 'steps'"):
+        bm.make_plan(budgets={"steps": 3})
+    with pytest.raises(InputError, match=r"evaluation seeds \[10000\] are also training seeds"):
+        bm.make_plan(eval_seeds=[10_000])
+    plan = bm.make_plan()
+    assert list(plan.tasks) == ["bottleneck", "bottleneck_learners", "corridor_bidirectional", "room_pillar"]
+    assert plan.policies == ("baseline", "random", "zero", "ppo", "mappo", "bc")
+    assert len(plan.train_seeds) >= 3 and len(plan.eval_seeds) >= 10
+
+
+def test_bootstrap_interval_covers_the_mean_and_narrows_with_more_data():
+    rng = np.random.default_rng(0)
+    small = [rng.normal(1.0, 1.0, 10) for _ in range(3)]
+    large = [rng.normal(1.0, 1.0, 1000) for _ in range(3)]
+    m, lo, hi = bm.bootstrap_interval(small)
+    assert lo <= m <= hi and m == pytest.approx(np.mean(np.concatenate(small)))
+    m2, lo2, hi2 = bm.bootstrap_interval(large)
+    assert hi2 - lo2 < (hi - lo) / 3 and lo2 < 1.0 < hi2
+    # between-seed spread counts: groups that disagree give a wide interval even with many episodes each
+    apart = [np.full(1000, v) for v in (0.0, 1.0, 2.0)]
+    _, lo3, hi3 = bm.bootstrap_interval(apart)
+    assert hi3 - lo3 > 0.9
+    assert all(np.isnan(bm.bootstrap_interval([[np.nan, np.nan]])))
+    assert bm.bootstrap_interval([[2.0]]) == (2.0, 2.0, 2.0)
+
+
+def test_policy_files_match_the_frameworks_forward_pass(tmp_path):
+    torch = pytest.importorskip("torch")
+    from crowd_env.experiments.marl import TorchRLPolicy, _actor_net
+    from crowd_env.experiments.policy_files import from_sb3, from_torchrl
+
+    torch.manual_seed(0)
+    obs = np.random.default_rng(0).normal(size=(7, 45)).astype(np.float32) * 3
+    pol = TorchRLPolicy(_actor_net(45, 2, [32, 32]), 45, [-2.5, -2.5], [2.5, 2.5])
+    f = from_torchrl(pol, env_config={"frame_skip": 10})
+    np.testing.assert_allclose(f.actions(obs), pol.actions(obs), atol=2e-6)
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+
+    model = PPO("MlpPolicy", gym.make("Pendulum-v1"), policy_kwargs={"net_arch": [64, 64]}, device="cpu")
+    o = np.random.default_rng(1).normal(size=(5, 3)).astype(np.float32) * 5
+    g = from_sb3(model, env_config={})
+    np.testing.assert_allclose(g.actions(o), model.predict(o, deterministic=True)[0], atol=2e-6)
+    path = save_policy_file(f, str(tmp_path / "p.npz"))
+    back = load_policy_file(path)
+    np.testing.assert_allclose(back.actions(obs), f.actions(obs), atol=1e-6)  # stored as float32
+    assert back.env_config == {"frame_skip": 10} and back.n_parameters == f.n_parameters
+    with pytest.raises(PolicyError, match=r"observations of shape \(n, 45\)"):
+        back.actions(obs[:, :40])
+    with pytest.raises(PolicyError, match="no policy file"):
+        load_policy_file(str(tmp_path / "missing.npz"))
+    with pytest.raises(PolicyError, match="do not chain"):
+        MLPPolicyFile([np.zeros((3, 4)), np.zeros((5, 2))], [np.zeros(4), np.zeros(2)], "tanh", "linear",
+                      [-1, -1], [1, 1], np.zeros(3), np.ones(3))
+
+
+def test_the_quick_benchmark_trains_evaluates_resumes_and_ships(tmp_path, monkeypatch):
+    from baselines.reference_policies import as_policy
+
+    out = str(tmp_path / "bench")
+    plan = bm.make_plan(quick=True)
+    results = bm.run_benchmark(plan, out, progress=None)
+    cells = {c["policy"]: c for c in results["cells"]}
+    assert set(cells) == set(bm.POLICIES)
+    base = cells["baseline"]
+    assert base["n_complete"] == base["n_episodes"] == len(plan.eval_seeds)
+    assert base["measures"]["specific_flow_per_m_s"]["low"] <= base["measures"]["specific_flow_per_m_s"]["mean"]
+    assert cells["zero"]["measures"]["evacuated_fraction"]["mean"] == 0.0  # nobody walks
+    assert cells["zero"]["measures"]["specific_flow_per_m_s"]["mean"] is None  # a stalled run has no flow
+    for p in bm.LEARNED:
+        assert cells[p]["n_episodes"] == len(plan.train_seeds) * len(plan.eval_seeds)
+        assert cells[p]["training"]["runs"] == len(plan.train_seeds) and cells[p]["training"]["agent_steps"] > 0
+    table = bm.format_results(results)
+    assert "J_s (1/m/s)" in table and "baseline" in table
+    # resuming: nothing is trained or evaluated again
+    monkeypatch.setattr(bm, "train_one", lambda job: pytest.fail("retrained"))
+    monkeypatch.setattr(bm, "evaluate_one", lambda job: pytest.fail("re-evaluated"))
+    again = bm.run_benchmark(plan, out, progress=None)
+    assert again["cells"] == results["cells"]
+    with pytest.raises(RunStoreError, match="another plan"):
+        bm.run_benchmark(bm.make_plan(quick=True, eval_seeds=[5]), out, progress=None)
+    # shipping: the policy files load by path and act in the environment with their own options
+    shipped = bm.ship_policies(out, plan, str(tmp_path / "ship"))
+    assert sorted(os.path.basename(p) for p in shipped) == ["bottleneck_bc.npz", "bottleneck_mappo.npz",
+                                                            "bottleneck_ppo.npz"]
+    policy = as_policy(shipped[0])
+    from crowd_env.experiments.evaluation import run_episode
+
+    m = run_episode(policy, bm.ScenarioSpec("seyfried_bottleneck", {"width_m": 1.0, "n_pedestrians": 8}), 3,
+                    max_time_s=2.0)
+    assert m.n_pedestrians == 8
+    with open(os.path.join(out, "plan.json")) as fh:
+        assert json.load(fh)["quick"] is True
