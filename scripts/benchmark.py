@@ -1,4 +1,4 @@
-"""The benchmark of learned policies against the calibrated model on crowd_env (and JuPedSim beside it): see ``crowd-benchmark --help``."""
+"""The benchmark of learned policies against the calibrated model: see ``crowd-benchmark --help``."""
 from crowd_env.cli.benchmark import main
 
 if __name__ == "__main__":
