@@ -111,3 +111,19 @@ def test_the_quick_benchmark_trains_evaluates_resumes_and_ships(tmp_path, monkey
     assert m.n_pedestrians == 8
     with open(os.path.join(out, "plan.json")) as fh:
         assert json.load(fh)["quick"] is True
+
+
+def test_shipped_policies_keep_the_size_budget_and_act():
+    from baselines.trained import TRAINED_DIR, list_trained, load_trained
+
+    names = list_trained()
+    sizes = {n: os.path.getsize(os.path.join(TRAINED_DIR, f"{n}.npz")) for n in names}
+    assert all(s <= 200_000 for s in sizes.values()), sizes  # docs/validation/benchmark.md: 200 kB per file
+    assert sum(sizes.values()) <= 2_000_000
+    for n in names:
+        policy = load_trained(n)
+        obs = np.zeros((3, policy.file.obs_dim), np.float32)
+        a = policy.actions(obs)
+        assert a.shape == (3, 2) and np.all(np.isfinite(a))
+    with pytest.raises(ValueError, match="no shipped trained policy 'nope'"):
+        load_trained("nope")

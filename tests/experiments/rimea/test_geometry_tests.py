@@ -118,8 +118,14 @@ def test_the_forbidden_square_catches_a_trajectory_that_cuts_the_corner():
 def test_clearance_crossings_and_queue_counts_read_the_frames():
     # id 0 crosses x = 10 between frames 1 and 2 (x 9.8 -> 10.2: t = 0.15 s); id 1 never does
     run = _run({0: [(9.6, 5.0), (9.8, 5.0), (10.2, 5.0)], 1: [(9.0, 5.0), (9.1, 5.0), (9.2, 5.0)]})
+    run.exit_time_s[1] = np.nan  # id 1 is still inside at the end
     t, n = clearance_time_s(run)
     assert n == 1 and np.isnan(t)  # not everybody crossed: no clearance time
+    # id 1 left (into the goal behind the line) between two frames without a frame past the line: it
+    # crossed, no later than its exit time (0.3 s)
+    run.exit_time_s[1] = 0.3
+    t, n = clearance_time_s(run)
+    assert n == 2 and t == pytest.approx(0.3)
     t, n = clearance_time_s(_run({0: [(9.6, 5.0), (9.8, 5.0), (10.2, 5.0)]}))
     assert n == 1 and t == pytest.approx(0.15)
     frames, counts = area_counts(run, (8.0, 3.5, 10.0, 6.5))
