@@ -22,14 +22,15 @@ import sys
 from ..errors import BackendError, InputError, RunStoreError
 
 
-def _budget(text: str):
-    key, sep, value = text.partition("=")
-    if not sep:
-        raise argparse.ArgumentTypeError(f"a budget is KEY=INTEGER, got {text!r}")
-    try:
-        return key, int(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"budget {key}: {value!r} is not an integer") from None
+def _budgets(ap, texts) -> dict:
+    """``--budget KEY=N`` options as a dict; a malformed one stops the command naming it (argparse's error)."""
+    out = {}
+    for text in texts:
+        key, sep, value = text.partition("=")
+        if not sep or not value.strip().lstrip("-").isdigit():
+            ap.error(f"--budget takes KEY=INTEGER, got {text!r}")
+        out[key] = int(value)
+    return out
 
 
 def main(argv=None) -> int:
@@ -40,7 +41,7 @@ def main(argv=None) -> int:
     ap.add_argument("--policies", nargs="+", help="policy names (default: all)")
     ap.add_argument("--train-seeds", type=int, nargs="+")
     ap.add_argument("--eval-seeds", type=int, nargs="+")
-    ap.add_argument("--budget", type=_budget, action="append", default=[], metavar="KEY=N",
+    ap.add_argument("--budget", action="append", default=[], metavar="KEY=N",
                     help="change a training budget (ppo_timesteps, mappo_frames, bc_demo_seeds, bc_epochs)")
     ap.add_argument("--out", default="runs/benchmark")
     ap.add_argument("--backend", default="ray", choices=("ray", "process", "serial"))
@@ -53,7 +54,7 @@ def main(argv=None) -> int:
 
     try:
         plan = make_plan(quick=args.quick, tasks=args.tasks, policies=args.policies, train_seeds=args.train_seeds,
-                         eval_seeds=args.eval_seeds, budgets=dict(args.budget))
+                         eval_seeds=args.eval_seeds, budgets=_budgets(ap, args.budget))
         with make_backend(args.backend, address=args.address, jobs=args.jobs) as backend:
             results = run_benchmark(plan, args.out, backend=backend)
     except (InputError, RunStoreError, BackendError) as exc:

