@@ -124,7 +124,7 @@ from .rewards import DefaultReward
 from .state import GlobalStateBuilder
 
 __all__ = ["CrowdParallelEnv", "parallel_env", "env", "EnvOptionError", "ResetOptionsWarning", "ENV_OPTIONS",
-           "OBSERVATION_FIELDS", "DEFAULT_ACTION_MAX_M_S", "default_background_policy", "agent_id"]
+           "OBSERVATION_FIELDS", "DEFAULT_ACTION_MAX_M_S", "default_background_policy", "agent_id", "decisions_for_time"]
 
 DEFAULT_ACTION_MAX_M_S = 2.5
 DEFAULT_EPISODE_TIME_S = 60.0
@@ -137,6 +137,12 @@ class ResetOptionsWarning(UserWarning):
 def agent_id(index: int) -> str:
     """The agent id of pedestrian ``index``: ``"ped_<index>"``."""
     return f"ped_{int(index)}"
+
+
+def decisions_for_time(time_s: float, decision_dt_s: float) -> int:
+    """The number of decisions of ``decision_dt_s`` that cover ``time_s`` (at least one): the ``max_steps``
+    of an episode of that simulated length."""
+    return max(1, int(math.ceil(time_s / decision_dt_s - 1e-9)))
 
 
 def default_background_policy(scenario):
@@ -290,7 +296,7 @@ class CrowdParallelEnv(ParallelEnv):
         self.params = params
         self.frame_skip = _positive_number("frame_skip", frame_skip, integer=True)
         if max_steps is None:
-            max_steps = max(1, int(math.ceil(DEFAULT_EPISODE_TIME_S / (params.dt_s * self.frame_skip) - 1e-9)))
+            max_steps = decisions_for_time(DEFAULT_EPISODE_TIME_S, params.dt_s * self.frame_skip)
         self.max_steps = _positive_number("max_steps", max_steps, integer=True)
         self.action_max_m_s = _positive_number("action_max_m_s", action_max_m_s)
         self.n_neighbors = _positive_number("n_neighbors", n_neighbors, integer=True, allow_zero=True)

@@ -33,6 +33,7 @@ skips what is there, and a folder made with another plan is refused.
 """
 from __future__ import annotations
 
+import csv
 import json
 import math
 import os
@@ -43,7 +44,9 @@ import numpy as np
 
 from crowd_env.errors import InputError, RunStoreError
 
-from .evaluation import ScenarioSpec, import_object, run_episode
+from ..core.params import ModelParams
+from ..envs.crowd_v0 import decisions_for_time
+from .evaluation import ScenarioSpec, evaluate, import_object
 from .store import write_atomic as _write_text
 
 __all__ = ["Task", "TASKS", "QUICK_TASKS", "POLICIES", "LEARNED", "BUDGETS", "QUICK_BUDGETS", "BenchmarkPlan",
@@ -67,8 +70,8 @@ class Task:
     max_time_s: float
 
     def learner_config(self) -> dict:
-        dt_decision = 0.01 * self.env_config.get("frame_skip", 1)
-        return {**self.env_config, "max_steps": int(math.ceil(self.max_time_s / dt_decision - 1e-9))}
+        dt_decision = ModelParams().dt_s * self.env_config.get("frame_skip", 1)
+        return {**self.env_config, "max_steps": decisions_for_time(self.max_time_s, dt_decision)}
 
 
 def _bottleneck(n: int, controlled="all") -> dict:
@@ -233,17 +236,14 @@ def train_one(job: dict) -> dict:
 def evaluate_one(job: dict) -> list:
     """Evaluate one policy (``job``: task, policy, its file for a learned one, eval seeds, resolver) on every
     evaluation seed; writes and returns the episodes' metrics (dicts)."""
-    resolve = import_object(job["resolver"])
     task = Task(**job["task"])
-    spec = job["policy_file"] or job["policy"]
     label = job["policy"]
-    rows = []
     cfg = dict(task.env_config)
-    spec_scn = ScenarioSpec(cfg.pop("scenario"), cfg.pop("scenario_options", None), label=task.name)
-    for seed in job["eval_seeds"]:
-        policy = resolve(spec, name=label)
-        m = run_episode(policy, spec_scn, int(seed), env_options=cfg, max_time_s=task.max_time_s)
-        rows.append(asdict(m))
+    scenario = ScenarioSpec(cfg.pop("scenario"), cfg.pop("scenario_options", None), label=task.name)
+    episodes = evaluate({label: job["policy_file"] or label}, [scenario], [int(s) for s in job["eval_seeds"]],
+                        env_options=cfg, max_time_s=task.max_time_s, progress=None,
+                        resolve=import_object(job["resolver"]))
+    rows = [asdict(m) for m in episodes]
     write_atomic(job["out"], {"task": task.name, "policy": label, "train_seed": job["train_seed"], "episodes": rows})
     return rows
 
@@ -252,12 +252,12 @@ def evaluate_one(job: dict) -> list:
 
 def _check_folder(out: str, plan: BenchmarkPlan) -> None:
     path = os.path.join(out, "plan.json")
-    want = plan.to_dict()
+    want = json.loads(json.dumps(plan.to_dict()))  # as it reads back (tuples as lists)
     if os.path.exists(path):
         with open(path) as fh:
             have = json.load(fh)
-        if have != json.loads(json.dumps(want)):
-            diff = sorted(k for k in set(have) | set(want) if have.get(k) != json.loads(json.dumps(want)).get(k))
+        if have != want:
+            diff = sorted(k for k in set(have) | set(want) if have.get(k) != want.get(k))
             raise RunStoreError(f"{out} holds a benchmark of another plan (differs in {diff}); use another --out")
     else:
         os.makedirs(out, exist_ok=True)
@@ -444,8 +444,6 @@ def learning_curves(out: str, plan: BenchmarkPlan) -> dict:
                     path = os.path.join(folder, "progress.csv")
                     if not os.path.exists(path):
                         continue
-                    import csv
-
                     with open(path) as fh:
                         rows = list(csv.DictReader(fh))
                     x = np.cumsum([float(r["agent_steps"]) for r in rows])
@@ -478,7 +476,7 @@ def plot_learning_curves(out: str, plan: BenchmarkPlan, results: dict, path: str
                 smooth = np.convolve(y, np.ones(w) / w, mode="valid")
                 ax.plot(x[w - 1:], smooth, color=colours[algo], lw=1.2, label=f"{algo} (training)" if k == 0 else None)
         for c in results["cells"]:
-            if c["task"] == name and c["policy"] in ("baseline", "random", "zero", "bc", "ppo", "mappo"):
+            if c["task"] == name:
                 m = c["measures"]["mean_return"]
                 if m["mean"] is not None:
                     ax.axhline(m["mean"], color=colours[c["policy"]], ls="--", lw=0.9,

@@ -52,7 +52,7 @@ import shapely
 from scipy.spatial import cKDTree
 
 from ..analysis.flow import MeasurementLine, PassageCounter, specific_flow
-from ..envs.crowd_v0 import CrowdParallelEnv
+from ..envs.crowd_v0 import CrowdParallelEnv, decisions_for_time
 from .runner import StallDetector
 
 __all__ = ["EpisodeMetrics", "ScenarioSpec", "import_object", "resolve_policy", "run_episode", "evaluate", "summarize",
@@ -259,7 +259,7 @@ def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", se
     opts = {"controlled": "all", **(env_options or {}), **spec.env_options(), **getattr(policy, "env_overrides", {})}
     opts.pop("max_steps", None)
     env = CrowdParallelEnv(**opts)
-    env.max_steps = max(1, int(math.ceil(max_time_s / env.dt_s - 1e-9)))  # frame_skip and dt resolved
+    env.max_steps = decisions_for_time(max_time_s, env.dt_s)  # frame_skip and dt resolved
     t0 = time.perf_counter()
     obs, _ = env.reset(seed=seed)
     if hasattr(policy, "reset"):

@@ -23,7 +23,7 @@ import numpy as np
 
 from crowd_env.errors import TrainingError
 
-from ..envs.crowd_v0 import CrowdParallelEnv
+from ..envs.crowd_v0 import DEFAULT_ACTION_MAX_M_S, CrowdParallelEnv, decisions_for_time
 from .policy_files import MLPPolicyFile, save_policy_file
 
 __all__ = ["collect_demonstrations", "train_behaviour_cloning", "DEFAULT_BC"]
@@ -52,7 +52,7 @@ def collect_demonstrations(env_config: dict, seeds, *, teacher, every: int = DEF
     xs, ys, agent_steps = [], [], 0
     for seed in seeds:
         env = CrowdParallelEnv(**{k: v for k, v in cfg.items() if k != "max_steps"})
-        env.max_steps = max(1, int(np.ceil(max_time_s / env.dt_s - 1e-9)))
+        env.max_steps = decisions_for_time(max_time_s, env.dt_s)
         obs, _ = env.reset(seed=int(seed))
         teacher.reset(env, int(seed))
         k = 0
@@ -134,7 +134,7 @@ def train_behaviour_cloning(env_config: dict, out: str, *, teacher, seed: int = 
         fh.writelines(f"{r['epoch']},{r['train_mse']:.6g},{r['validation_mse']:.6g},{r['wall_s']:.3f}\n" for r in rows)
     cfg = {k: v for k, v in demonstration_env_config(env_config, teacher).items() if k != "max_steps"}
     linears = [m for m in net if isinstance(m, torch.nn.Linear)]
-    space_max = float(cfg.get("action_max_m_s", 2.5))
+    space_max = float(cfg.get("action_max_m_s", DEFAULT_ACTION_MAX_M_S))
     summary = {"algorithm": "bc", "teacher": getattr(teacher, "name", type(teacher).__name__),
                "demo_seeds": [int(s) for s in demo_seeds], "every": int(every), "samples": int(x.shape[0]),
                "agent_steps": int(agent_steps), "collect_wall_s": collect_s, "train_wall_s": train_s,

@@ -112,6 +112,11 @@ class _Bottleneck12(RimeaTest):
                                                      desired_speed_m_s=speeds, **options)
         return out
 
+    def _times(self, runs: dict) -> tuple:
+        """``(room1, total)``: variant -> the room-1 clearance times and the total evacuation times per replicate."""
+        return (self._by_variant(runs, lambda r: clearance_time_s(r)[0]),
+                self._by_variant(runs, lambda r: r.evacuation_time_s))
+
     @staticmethod
     def _by_variant(runs: dict, value) -> dict:
         """variant label -> [value(run) per replicate]."""
@@ -143,8 +148,7 @@ class GoalDistance12a(_Bottleneck12):
         bad = _incomplete(runs)
         if bad:
             return bad
-        room1 = self._by_variant(runs, lambda r: clearance_time_s(r)[0])
-        total = self._by_variant(runs, lambda r: r.evacuation_time_s)
+        room1, total = self._times(runs)
         mean1 = {k: float(np.mean(v)) for k, v in room1.items()}
         t0, t8 = mean1["a=0"], mean1["a=8"]
         passed = bool(np.isfinite(t0) and np.isfinite(t8) and t0 <= t8)
@@ -159,8 +163,7 @@ class GoalDistance12a(_Bottleneck12):
 
     def plot(self, ax, runs_by_backend: dict) -> None:
         for c, (backend, runs) in zip(_COLOURS, runs_by_backend.items()):
-            room1 = self._by_variant(runs, lambda r: clearance_time_s(r)[0])
-            total = self._by_variant(runs, lambda r: r.evacuation_time_s)
+            room1, total = self._times(runs)
             a = np.array([float(k.split("=")[1]) for k in room1])
             for x, vals in zip(a, room1.values()):
                 ax.plot([x] * len(vals), vals, "o", color=c, alpha=0.35, ms=4)
@@ -191,8 +194,7 @@ class BottleneckLength12b(_Bottleneck12):
         bad = _incomplete(runs)
         if bad:
             return bad
-        total = self._by_variant(runs, lambda r: r.evacuation_time_s)
-        room1 = self._by_variant(runs, lambda r: clearance_time_s(r)[0])
+        room1, total = self._times(runs)
         ts, tl = float(np.mean(total["short"])), float(np.mean(total["long"]))
         details = {"total_evacuation_s": total, "room1_clearance_s": room1,
                    "room1_clearance_mean_s": {k: float(np.mean(v)) for k, v in room1.items()},
@@ -203,8 +205,7 @@ class BottleneckLength12b(_Bottleneck12):
     def plot(self, ax, runs_by_backend: dict) -> None:
         width = 0.8 / max(1, 2 * len(runs_by_backend))
         for j, (backend, runs) in enumerate(runs_by_backend.items()):
-            total = self._by_variant(runs, lambda r: r.evacuation_time_s)
-            room1 = self._by_variant(runs, lambda r: clearance_time_s(r)[0])
+            room1, total = self._times(runs)
             x = np.arange(len(total))
             off = (2 * j) * width
             ax.bar(x + off, [np.mean(v) for v in total.values()], width,
