@@ -151,7 +151,7 @@ def make_plan(*, quick: bool = False, tasks=None, policies=None, train_seeds=Non
     for k, v in b.items():
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
             raise InputError(f"budget {k} must be a positive integer, got {v!r}")
-    overlap = set(evals) & set(_demo_seeds(0, b["bc_demo_seeds"]) + [_train_env_seed(s) for s in train])
+    overlap = set(evals) & _seeds_used_in_training(train, b["bc_demo_seeds"])
     if overlap:
         raise InputError(f"evaluation seeds {sorted(overlap)} are also training seeds")
     return BenchmarkPlan({n: known[n] for n in names}, pols, train, evals, b, quick=quick)
@@ -163,6 +163,16 @@ def _train_env_seed(seed: int) -> int:
 
 def _demo_seeds(seed: int, n: int) -> list:
     return [20_000 + 1_000 * int(seed) + i for i in range(int(n))]
+
+
+def _seeds_used_in_training(train_seeds, n_demo: int) -> set:
+    """Every episode seed a training run sets: the training copies (PPO's two, MAPPO's first), the trainers'
+    own evaluation episodes and the demonstrations, for each training seed."""
+    out = set()
+    for s in train_seeds:
+        base = _train_env_seed(s)
+        out |= {base, base + 1, base + 500, *_demo_seeds(s, n_demo)}
+    return out
 
 
 def write_atomic(path: str, value) -> None:

@@ -22,6 +22,8 @@ def test_the_plan_refuses_unknown_names_bad_budgets_and_seeds_shared_with_traini
         bm.make_plan(budgets={"steps": 3})
     with pytest.raises(InputError, match=r"evaluation seeds \[10000\] are also training seeds"):
         bm.make_plan(eval_seeds=[10_000])
+    with pytest.raises(InputError, match=r"evaluation seeds \[12500, 21003\] are also training seeds"):
+        bm.make_plan(eval_seeds=[0, 21_003, 12_500])  # seed 1's demonstrations, seed 2's trainer evaluation
     plan = bm.make_plan()
     assert list(plan.tasks) == ["bottleneck", "bottleneck_learners", "corridor_bidirectional", "room_pillar"]
     assert plan.policies == ("baseline", "random", "zero", "ppo", "mappo", "bc")
