@@ -8,6 +8,10 @@ so the evaluation harness applies them::
 
     from baselines.trained import load_trained, list_trained
     policy = load_trained("bottleneck_bc")       # also: as_policy("bottleneck_bc"), crowd-evaluate --policy
+    env = crowd_v0.parallel_env(controlled=6, background_policy="bottleneck_ppo")  # the others: a trained policy
+
+The environment finds :func:`background_policy` through the ``crowd_env.background_policies`` entry point
+(``pyproject.toml``), so that crowd_env never imports this package.
 
 Inference is numpy only (no torch).
 """
@@ -15,16 +19,17 @@ from __future__ import annotations
 
 import os
 
+from crowd_env.envs.background import OBSERVATION_POLICY_OPTIONS
+from crowd_env.errors import NotFoundError
 from crowd_env.experiments.policy_files import load_policy_file
 
 from .reference_policies import EnvPolicy, stack_observations
 
-__all__ = ["FilePolicy", "TRAINED_DIR", "list_trained", "load_trained", "POLICY_OPTIONS"]
+__all__ = ["FilePolicy", "TRAINED_DIR", "list_trained", "load_trained", "background_policy", "POLICY_OPTIONS"]
 
 TRAINED_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "trained")
 # The environment options a trained policy depends on: its observation layout, decision interval and action.
-POLICY_OPTIONS = ("n_neighbors", "n_rays", "neighbor_radius_m", "ray_range_m", "observation_frame", "frame_skip",
-                  "action_max_m_s", "heading_target")
+POLICY_OPTIONS = OBSERVATION_POLICY_OPTIONS
 
 
 class FilePolicy(EnvPolicy):
@@ -66,3 +71,15 @@ def load_trained(name: str) -> FilePolicy:
     if not os.path.isfile(path):
         raise ValueError(f"no shipped trained policy {name!r}; shipped: {', '.join(list_trained()) or 'none'}")
     return FilePolicy(path, name=name)
+
+
+def background_policy(spec: str) -> FilePolicy:
+    """The environment's loader of named background policies (entry point ``crowd_env.background_policies``):
+    a shipped trained policy's name or a policy file (``.npz``); :class:`~crowd_env.errors.NotFoundError` (a
+    ``LookupError``) naming the shipped ones otherwise."""
+    if spec in list_trained():
+        return load_trained(spec)
+    if spec.endswith(".npz"):
+        return FilePolicy(spec)
+    raise NotFoundError(f"not a shipped trained policy ({', '.join(list_trained()) or 'none shipped'}) nor a "
+                      f"policy file (.npz): {spec!r}")

@@ -51,6 +51,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--controlled", default="all", help="'all', a count, a fraction or comma-separated ids")
     ap.add_argument("--frame-skip", type=int, default=None, help="decision interval in simulator steps "
                     "(default: the model's env_config.json, else 1)")
+    ap.add_argument("--background", default=None, metavar="POLICY",
+                    help="the policy of the pedestrians not controlled: 'calibrated' (default), a shipped trained "
+                         "policy's name or a policy file (.npz)")
     ap.add_argument("--out", default="runs/eval", help="output directory (results.csv, summary.txt, metrics.png)")
     ap.add_argument("--video", default=None, metavar="PATH",
                     help="record the first episode (first scenario, first seed) of each policy to PATH (.mp4 or "
@@ -66,6 +69,8 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
 
     env_options = policy_env_options(args.model[0] if args.model else None, args.frame_skip, args.controlled)
+    if args.background is not None:
+        env_options["background_policy"] = args.background
 
     try:
         options = key_values(args.scenario_option, "--scenario-option needs key=value")

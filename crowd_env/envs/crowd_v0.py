@@ -16,7 +16,9 @@ Agents
     Every pedestrian of the scenario has a stable id ``"ped_<i>"`` (``i`` = its index in the
     scenario). The ``controlled`` option picks which of them are agents (``possible_agents``); the
     others are driven each simulator step by the ``background_policy`` (default: the calibrated
-    eikonal + social-force agent, :class:`crowd_env.walking.agent.SocialForceAgent`).
+    eikonal + social-force agent, :class:`crowd_env.walking.agent.SocialForceAgent`; or a trained
+    policy by name, e.g. ``background_policy="bottleneck_ppo"``, which :mod:`crowd_env.envs.background`
+    runs for them as the environment runs it for its agents).
 
 Actions
     A velocity intent ``(2,)`` in m/s in ``Box(-a_max, a_max)`` (world frame, or the body frame with
@@ -105,6 +107,7 @@ from crowd_env.errors import ActionError, EnvStateError, PolicyError, EnvOptionE
 
 import inspect
 import math
+import os
 import warnings
 
 import numba as nb
@@ -118,7 +121,8 @@ from ..core.presets import DEFAULT_PRESET, get_preset
 from ..core.simulator import Simulator
 from ..core.angles import direction_angles_rad
 from ..scenarios import Scenario, make_scenario, scenario_options as _scenario_option_defaults
-from ..walking.agent import SocialForceAgent, hold_waiting
+from ..walking.agent import SocialForceAgent, desired_direction, hold_waiting
+from .background import OBSERVATION_POLICY_OPTIONS, ObservingBackground, is_observation_policy, load_named_background
 from .observations import OBSERVATION_FIELDS, ObservationBuilder, check_frame, to_world_frame
 from .rewards import DefaultReward
 from .state import GlobalStateBuilder
@@ -219,7 +223,11 @@ class CrowdParallelEnv(ParallelEnv):
     - ``controlled``: ``"all"``, a count k (k pedestrians evenly spread over the indices), a fraction
       in (0, 1], or a list of ids (``"ped_3"`` or ``3``).
     - ``background_policy``: ``policy(sim) -> intents (N, 2)`` or ``(intents, desired_heading (N,))``
-      for the pedestrians not controlled; default: the calibrated social-force agent.
+      for the pedestrians not controlled; default: the calibrated social-force agent. Also an observation
+      policy (``actions(observations)`` and ``env_overrides``, e.g. a trained policy file), run for the
+      background pedestrians with its own observation options and decision interval, or a name:
+      ``"calibrated"``, a shipped trained policy (``baselines.trained.list_trained()``) or a ``.npz``
+      policy file (:mod:`crowd_env.envs.background`).
     - ``preset``: the model configuration (:mod:`crowd_env.core.presets`; default ``"calibrated"``,
       calibrated on every figure of the Seyfried experiment); ``params``: a
       :class:`~crowd_env.core.params.ModelParams` used as it is instead, or a dict of fields that
@@ -315,8 +323,12 @@ class CrowdParallelEnv(ParallelEnv):
         elif not callable(reward_fn):
             raise EnvOptionError(f"reward_fn must be callable reward_fn(env, agent_ids, info), got {reward_fn!r}")
         self.reward_fn = reward_fn
-        if background_policy is not None and not callable(background_policy):
-            raise EnvOptionError(f"background_policy must be callable policy(sim), got {background_policy!r}")
+        if isinstance(background_policy, (str, os.PathLike)):
+            background_policy = load_named_background(background_policy)
+        observing = is_observation_policy(background_policy)
+        if background_policy is not None and not observing and not callable(background_policy):
+            raise EnvOptionError("background_policy must be a name, a callable policy(sim) or an observation policy "
+                                 f"(actions(observations) and env_overrides), got {background_policy!r}")
         self._background_policy = background_policy
         # -- agents
         self._controlled_index = _select_controlled(controlled, n)
@@ -330,7 +342,6 @@ class CrowdParallelEnv(ParallelEnv):
         self.agents = []
         # -- navigation, observations and spaces
         self.navigation = scenario.navigation()
-        self._per_pedestrian_navigation = bool(getattr(self.navigation, "per_pedestrian", False))
         t_bound = self.navigation.max_travel_time_s + 1.0
         self.velocity_bound_m_s = max(20.0, 2.0 * self.action_max_m_s)
         self._observer = ObservationBuilder(self.navigation, scenario.geometry.walls, n_neighbors=self.n_neighbors,
@@ -338,6 +349,13 @@ class CrowdParallelEnv(ParallelEnv):
                                             ray_range_m=ray_range_m, velocity_bound_m_s=self.velocity_bound_m_s,
                                             travel_time_bound_s=t_bound, frame=self.observation_frame)
         self.observation_layout = dict(self._observer.layout)
+        if observing:  # a learned background: observed and acting with its own options
+            defaults = {k: v.default for k, v in inspect.signature(type(self).__init__).parameters.items()}
+            options = {k: background_policy.env_overrides.get(k, defaults[k]) for k in OBSERVATION_POLICY_OPTIONS}
+            self._background_policy = ObservingBackground(
+                background_policy, options, navigation=self.navigation, walls=scenario.geometry.walls,
+                background_mask=self._background_mask, dt_s=self.params.dt_s,
+                velocity_bound_m_s=self.velocity_bound_m_s, travel_time_bound_s=t_bound)
         self._state_builder = GlobalStateBuilder(self.navigation, scenario.geometry, self._controlled_mask,
                                                  frame=self.observation_frame,
                                                  velocity_bound_m_s=self.velocity_bound_m_s, travel_time_bound_s=t_bound)
@@ -634,9 +652,7 @@ class CrowdParallelEnv(ParallelEnv):
                 intents = np.zeros((n, 2))
                 heading = st.heading_rad.copy()
             if not by_intent:
-                e_d = (self.navigation.direction(st.position_m[idx_c], idx_c) if self._per_pedestrian_navigation
-                       else self.navigation.direction(st.position_m[idx_c]))
-                theta_c = direction_angles_rad(e_d)
+                theta_c = direction_angles_rad(desired_direction(self.navigation, st.position_m, idx_c))
             _set_agent_inputs(intents, heading, st.heading_rad, idx_c, intent_c, theta_c, by_intent)
             if sim.time_s < self._last_premovement_s:  # somebody has not started yet: hold them still
                 hold_waiting(intents, heading, st.heading_rad, st.premovement_s, sim.time_s, sim.active_index)

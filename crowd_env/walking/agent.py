@@ -178,6 +178,15 @@ def agent_step(position, radius, index, origin_m, resolution_m, travel_time, dir
     return AGENT_OK, intents, theta_d, pairs, pair_radius
 
 
+def desired_direction(navigation, position_m: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """e_d (Eq. 13), (m, 2), of pedestrians ``index`` at ``position_m[index]`` from ``navigation``: its
+    ``direction(points)``, or ``direction(points, index)`` when its ``per_pedestrian`` attribute is true
+    (each pedestrian's own destination)."""
+    if getattr(navigation, "per_pedestrian", False):
+        return navigation.direction(position_m[index], index)
+    return navigation.direction(position_m[index])
+
+
 class SocialForceAgent:
     """Policy object: ``agent(sim) -> (intents (N, 2), desired_heading (N,))`` for a :class:`Simulator`.
 
@@ -196,9 +205,7 @@ class SocialForceAgent:
     def desired_direction(self, sim, index=None) -> np.ndarray:
         """e_d (Eq. 13) at the positions of pedestrians ``index`` (default: the active ones)."""
         idx = sim.active_index if index is None else index
-        if getattr(self.navigation, "per_pedestrian", False):
-            return self.navigation.direction(sim.state.position_m[idx], idx)
-        return self.navigation.direction(sim.state.position_m[idx])
+        return desired_direction(self.navigation, sim.state.position_m, idx)
 
     def social_force(self, sim, e_d: np.ndarray) -> np.ndarray:
         """Σ f_social (N) on every active pedestrian, from pedestrians and walls (Eq. 16); compact rows."""

@@ -1,0 +1,148 @@
+"""Learned background pedestrians (crowd_env.envs.background) and background policies by name.
+
+Two implementations of the same thing: pedestrians driven in the background by an observation policy
+must move exactly as the same pedestrians do when they are the environment's agents acting with that
+policy (observations, decision interval, egocentric frame, heading). Then: the decision interval is the
+policy's own, names and policy files load through the entry point, and bad policies are named.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from baselines.trained import FilePolicy
+from crowd_env.envs import crowd_v0
+from crowd_env.envs.observations import observation_size
+from crowd_env.errors import EnvOptionError, PolicyError
+from crowd_env.experiments.policy_files import MLPPolicyFile, save_policy_file
+from crowd_env.scenarios import make_scenario
+
+SCENARIO = {"scenario": "seyfried_bottleneck", "scenario_options": {"width_m": 1.0, "n_pedestrians": 12}}
+
+
+def _policy_file(tmp_path, frame="world", frame_skip=5, seed=0, scale=1.0) -> str:
+    """A random 2-layer tanh MLP whose actions (TanhNormal's mean, inside Box(-2.5, 2.5)) depend on the
+    observation, saved as a policy file trained with ``frame`` and ``frame_skip``."""
+    rng = np.random.default_rng(seed)
+    d = observation_size(6, 8, frame)
+    w = [rng.normal(0, 0.3, (d, 16)), rng.normal(0, 0.5, (16, 4))]
+    b = [np.zeros(16), np.array([0.8, 0.0, 0.0, 0.0])]
+    pf = MLPPolicyFile(w, b, "tanh", "tanh_box", np.full(2, -2.5 * scale), np.full(2, 2.5 * scale), np.zeros(d),
+                       np.full(d, 2.0), env_config={"observation_frame": frame, "frame_skip": frame_skip,
+                                                    "action_max_m_s": 2.5})
+    return save_policy_file(pf, str(tmp_path / f"p_{frame}_{frame_skip}_{scale}.npz"))
+
+
+def _positions(env, policy, steps=30, seed=4):
+    obs, _ = env.reset(seed=seed)
+    policy.reset(env)
+    out = [env.sim.state.position_m.copy()]
+    for _ in range(steps):
+        if not env.agents:
+            break
+        obs, *_ = env.step(policy.act(env, obs))
+        out.append(env.sim.state.position_m.copy())
+    return np.array(out)
+
+
+@pytest.mark.parametrize("frame", ["world", "egocentric"])
+def test_background_pedestrians_move_as_the_same_policy_s_agents(tmp_path, frame):
+    policy = FilePolicy(_policy_file(tmp_path, frame))
+    all_agents = crowd_v0.parallel_env(**SCENARIO, controlled="all", **policy.env_overrides)
+    one_agent = crowd_v0.parallel_env(**SCENARIO, controlled=[0], background_policy=policy, **policy.env_overrides)
+    a = _positions(all_agents, policy)
+    b = _positions(one_agent, policy)
+    assert a.shape == b.shape and a.shape[0] == 31
+    moved = np.abs(a[-1] - a[0]).max()
+    assert moved > 0.5  # the policy walks them somewhere
+    np.testing.assert_allclose(b, a, rtol=0, atol=1e-9)
+
+
+def test_a_learned_background_differs_from_the_calibrated_one(tmp_path):
+    """The option is not ignored: the same crowd with the calibrated background moves otherwise."""
+    policy = FilePolicy(_policy_file(tmp_path))
+    learned = crowd_v0.parallel_env(**SCENARIO, controlled=[0], background_policy=policy, **policy.env_overrides)
+    calibrated = crowd_v0.parallel_env(**SCENARIO, controlled=[0], **policy.env_overrides)
+    assert np.abs(_positions(learned, policy, 10) - _positions(calibrated, policy, 10)).max() > 0.05
+
+
+class _Counting:
+    """An observation policy that walks east and counts its calls (decisions)."""
+
+    def __init__(self, frame_skip):
+        self.env_overrides = {"frame_skip": frame_skip}
+        self.calls = []
+
+    def actions(self, observations):
+        self.calls.append(observations.shape[0])
+        return np.tile([1.0, 0.0], (observations.shape[0], 1))
+
+
+def test_the_background_decides_at_its_own_interval():
+    pol = _Counting(frame_skip=4)
+    env = crowd_v0.parallel_env(**SCENARIO, controlled=[0], background_policy=pol, frame_skip=1)
+    env.reset(seed=0)
+    for _ in range(12):
+        env.step({"ped_0": np.zeros(2)})
+    assert pol.calls == [11, 11, 11]  # steps 0, 4, 8: the 11 background pedestrians at once
+    env.reset(seed=1)  # a new episode decides at once
+    env.step({"ped_0": np.zeros(2)})
+    assert len(pol.calls) == 4
+
+
+def test_names_and_files_load_through_the_entry_point(tmp_path):
+    path = _policy_file(tmp_path)
+    by_object = crowd_v0.parallel_env(**SCENARIO, controlled=[0], background_policy=FilePolicy(path), frame_skip=5)
+    by_path = crowd_v0.parallel_env(**SCENARIO, controlled=[0], background_policy=path, frame_skip=5)
+    zero = FilePolicy(path)
+    np.testing.assert_array_equal(_positions(by_path, zero, 8), _positions(by_object, zero, 8))
+    default = crowd_v0.parallel_env(**SCENARIO, controlled=[0], frame_skip=5)
+    named = crowd_v0.parallel_env(**SCENARIO, controlled=[0], background_policy="calibrated", frame_skip=5)
+    np.testing.assert_array_equal(_positions(named, zero, 8), _positions(default, zero, 8))
+
+
+def test_unknown_names_and_bad_policies_are_named(tmp_path):
+    with pytest.raises(EnvOptionError, match="unknown background policy 'no_such_policy'.*shipped"):
+        crowd_v0.parallel_env(**SCENARIO, controlled=[0], background_policy="no_such_policy")
+    with pytest.raises(EnvOptionError, match="background_policy must be"):
+        crowd_v0.parallel_env(**SCENARIO, controlled=[0], background_policy=3)
+    world = FilePolicy(_policy_file(tmp_path, "world"))
+    world.env_overrides["observation_frame"] = "egocentric"  # its options no longer give its input size
+    with pytest.raises(PolicyError, match="expects observations of size"):
+        crowd_v0.parallel_env(**SCENARIO, controlled=[0], background_policy=world)
+    wide = FilePolicy(_policy_file(tmp_path, scale=10.0))  # acts in Box(-25, 25) but claims a_max 2.5
+    env = crowd_v0.parallel_env(**SCENARIO, controlled=[0], background_policy=wide, frame_skip=5)
+    env.reset(seed=0)
+    with pytest.raises(PolicyError, match="outside its Box.*nothing is clipped"):
+        for _ in range(5):
+            env.step({"ped_0": np.zeros(2)})
+
+
+def test_per_pedestrian_destinations_and_desired_direction_heading(tmp_path):
+    """A scenario with per-pedestrian exits and heading_target='desired_direction': the background's θ_d
+    is the angle of each one's own e_d, as for an agent."""
+    sc = make_scenario("rimea_10_escape_routes", seed=0)
+    assert sc.destination is not None and len(set(sc.destination.tolist())) > 1
+    d = observation_size(6, 8, "world")
+    rng = np.random.default_rng(0)
+    pf = MLPPolicyFile([rng.normal(0, 0.3, (d, 4))], [np.zeros(4)], "tanh", "tanh_box", np.full(2, -2.5),
+                       np.full(2, 2.5), np.zeros(d), np.ones(d),
+                       env_config={"heading_target": "desired_direction", "frame_skip": 2})
+    policy = FilePolicy(save_policy_file(pf, str(tmp_path / "dd.npz")))
+    a = _positions(crowd_v0.parallel_env(scenario=sc, controlled="all", **policy.env_overrides), policy, 10)
+    b = _positions(crowd_v0.parallel_env(scenario=sc, controlled=[0], background_policy=policy,
+                                         **policy.env_overrides), policy, 10)
+    np.testing.assert_allclose(b, a, rtol=0, atol=1e-9)
+
+
+
+def test_crowd_evaluate_takes_a_background_policy(tmp_path, capsys):
+    from crowd_env.cli.evaluate import main
+
+    path = _policy_file(tmp_path)
+    args = ["--policies", "baseline", "--scenario-option", "n_pedestrians=6", "--controlled", "2", "--seeds", "0",
+            "--max-time", "2", "--out", str(tmp_path / "eval")]
+    assert main(args + ["--background", path]) == 0
+    assert (tmp_path / "eval" / "results.csv").exists()
+    with pytest.raises(SystemExit, match="unknown background policy 'nobody'"):
+        main(args + ["--background", "nobody"])
