@@ -3,7 +3,8 @@
 Trains PPO (shared network), MAPPO (centralised critic) and a behaviour clone of the calibrated model on
 each task with several training seeds, evaluates them with the calibrated model, random and zero
 policies on the same unseen evaluation seeds, and writes the results table (means with 95 % intervals),
-results.json, results.md and learning_curves.png to --out. Every unit of work is kept as it finishes:
+results.json, results.md, learning_curves.png and a video of each policy on the bottleneck
+(videos/<task>_<policy>.mp4) to --out. Every unit of work is kept as it finishes:
 rerunning the same command resumes. See docs/validation/benchmark.md for the tasks, the measures and the
 cost of the full run.
 
@@ -11,15 +12,17 @@ cost of the full run.
     crowd-benchmark --out runs/bench                      # the full suite (Ray on all local cores)
     crowd-benchmark --out runs/bench --address auto       # on a running Ray cluster
     crowd-benchmark --out runs/bench --ship baselines/trained   # also copy the seed-0 policies to ship
+    crowd-benchmark --out runs/bench --docs docs/validation/benchmark   # and the documentation's figures
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import shutil
 import sys
 
-from ..errors import BackendError, InputError, RunStoreError
+from ..errors import BackendError, InputError, MissingDependencyError, RunStoreError
 
 
 def _budgets(ap, texts) -> dict:
@@ -48,6 +51,11 @@ def main(argv=None) -> int:
     ap.add_argument("--address", default=None, help="Ray cluster address (host:port, ray://host:port or auto)")
     ap.add_argument("--jobs", type=int, default=None, help="workers (local Ray CPUs or processes)")
     ap.add_argument("--ship", default=None, metavar="DIR", help="copy the first training seed's policies here")
+    ap.add_argument("--no-videos", action="store_true",
+                    help="no video of each policy on the bottleneck (they need the video extra)")
+    ap.add_argument("--docs", default=None, metavar="DIR",
+                    help="also copy results.md, learning_curves.png and the videos here (the documentation's "
+                         "results page: docs/validation/benchmark)")
     args = ap.parse_args(argv)
     from ..experiments.backends import make_backend
     from ..experiments.benchmark import format_results, make_plan, plot_learning_curves, run_benchmark, ship_policies
@@ -56,8 +64,8 @@ def main(argv=None) -> int:
         plan = make_plan(quick=args.quick, tasks=args.tasks, policies=args.policies, train_seeds=args.train_seeds,
                          eval_seeds=args.eval_seeds, budgets=_budgets(ap, args.budget))
         with make_backend(args.backend, address=args.address, jobs=args.jobs) as backend:
-            results = run_benchmark(plan, args.out, backend=backend)
-    except (InputError, RunStoreError, BackendError) as exc:
+            results = run_benchmark(plan, args.out, backend=backend, videos=not args.no_videos)
+    except (InputError, RunStoreError, BackendError, MissingDependencyError) as exc:
         raise SystemExit(f"error: {exc}") from None
     print(format_results(results))
     plot_learning_curves(args.out, plan, results, os.path.join(args.out, "learning_curves.png"))
@@ -67,6 +75,14 @@ def main(argv=None) -> int:
     if args.ship:
         for p in ship_policies(args.out, plan, args.ship):
             print(f"shipped {p}")
+    if args.docs:
+        os.makedirs(os.path.join(args.docs, "videos"), exist_ok=True)
+        names = ["results.md", "learning_curves.png"]
+        if not args.no_videos:
+            names += [os.path.join("videos", f) for f in sorted(os.listdir(os.path.join(args.out, "videos")))]
+        for name in names:
+            shutil.copyfile(os.path.join(args.out, name), os.path.join(args.docs, name))
+        print(f"copied {', '.join(names)} to {args.docs}")
     print(f"results.json, results.md and learning_curves.png in {args.out}")
     print(json.dumps({"wall_s_this_run": round(results["wall_s_this_run"], 1)}))
     return 0

@@ -51,7 +51,8 @@ from .store import write_atomic as _write_text
 
 __all__ = ["Task", "TASKS", "QUICK_TASKS", "POLICIES", "LEARNED", "BUDGETS", "QUICK_BUDGETS", "BenchmarkPlan",
            "make_plan", "run_benchmark", "bootstrap_interval", "summarize_cells", "format_results", "MEASURES",
-           "train_one", "evaluate_one", "learning_curves", "plot_learning_curves", "ship_policies"]
+           "train_one", "evaluate_one", "video_one", "video_path", "video_task", "learning_curves",
+           "plot_learning_curves", "ship_policies"]
 
 POLICIES = ("baseline", "random", "zero", "ppo", "mappo", "bc")
 LEARNED = ("ppo", "mappo", "bc")
@@ -243,19 +244,45 @@ def train_one(job: dict) -> dict:
     return cost
 
 
+def _scenario_and_options(task: "Task") -> tuple:
+    """The task's scenario (a :class:`ScenarioSpec` labelled with the task's name) and its other env options."""
+    cfg = dict(task.env_config)
+    return ScenarioSpec(cfg.pop("scenario"), cfg.pop("scenario_options", None), label=task.name), cfg
+
+
 def evaluate_one(job: dict) -> list:
     """Evaluate one policy (``job``: task, policy, its file for a learned one, eval seeds, resolver) on every
     evaluation seed; writes and returns the episodes' metrics (dicts)."""
     task = Task(**job["task"])
     label = job["policy"]
-    cfg = dict(task.env_config)
-    scenario = ScenarioSpec(cfg.pop("scenario"), cfg.pop("scenario_options", None), label=task.name)
+    scenario, cfg = _scenario_and_options(task)
     episodes = evaluate({label: job["policy_file"] or label}, [scenario], [int(s) for s in job["eval_seeds"]],
                         env_options=cfg, max_time_s=task.max_time_s, progress=None,
                         resolve=import_object(job["resolver"]))
     rows = [asdict(m) for m in episodes]
     write_atomic(job["out"], {"task": task.name, "policy": label, "train_seed": job["train_seed"], "episodes": rows})
     return rows
+
+
+def video_path(out: str, task: str, policy: str) -> str:
+    return os.path.join(out, "videos", f"{task}_{policy}.mp4")
+
+
+def video_one(job: dict) -> dict:
+    """Record one episode of one policy (``job``: task, policy, its file for a learned one, the evaluation
+    seed, resolver, out) as an MP4 in real time (:func:`crowd_env.experiments.video.record_rollout`: the
+    evaluation harness's episode, percussions drawn; written under a temporary name and renamed, so a killed
+    unit leaves no video); returns what was written and the episode's figures."""
+    from .video import record_rollout
+
+    task = Task(**job["task"])
+    scenario, cfg = _scenario_and_options(task)
+    seed = int(job["seed"])
+    metrics, info = record_rollout(job["policy_file"] or job["policy"], job["out"], scenario, seed, env_options=cfg,
+                                   max_time_s=task.max_time_s, resolver=job["resolver"],
+                                   label=f"{job['policy']}, {task.name}, evaluation seed {seed}")
+    return {"path": job["out"], "n_frames": info.n_frames, "fps": info.fps, "n_evacuated": metrics.n_evacuated,
+            "n_pedestrians": metrics.n_pedestrians, "simulated_time_s": metrics.simulated_time_s}
 
 
 # -- running the plan ----------------------------------------------------------------------------------------
@@ -278,15 +305,27 @@ def _done_training(folder: str) -> bool:
     return os.path.exists(os.path.join(folder, "policy.npz")) and os.path.exists(os.path.join(folder, "cost.json"))
 
 
-def run_benchmark(plan: BenchmarkPlan, out: str, *, backend=None, progress=print) -> dict:
+def video_task(plan: "BenchmarkPlan") -> str:
+    """The task the videos show: the all-controlled bottleneck when the plan has it, else its first task."""
+    return "bottleneck" if "bottleneck" in plan.tasks else next(iter(plan.tasks))
+
+
+def run_benchmark(plan: BenchmarkPlan, out: str, *, backend=None, progress=print, videos: bool = True) -> dict:
     """Run ``plan`` into ``out`` (resuming what is there) on ``backend`` (a :mod:`backends
-    <crowd_env.experiments.backends>` executor; default serial): train, then evaluate, then summarise.
-    Returns the results (also ``out/results.json``); a failed unit is named in a
-    :class:`~crowd_env.errors.BackendError` after the others finished, and is retried by the next run."""
+    <crowd_env.experiments.backends>` executor; default serial): train, then evaluate, then (``videos``)
+    record one episode of each policy on :func:`video_task` (the first evaluation seed; a learned policy's
+    first training seed) to ``out/videos/<task>_<policy>.mp4``, then summarise. Returns the results (also
+    ``out/results.json``); a failed unit is named in a :class:`~crowd_env.errors.BackendError` after the
+    others finished, and is retried by the next run. Videos need the ``video`` extra, checked first."""
     from .backends import BackendError, SerialBackend
 
     backend = backend or SerialBackend()
     progress = progress or (lambda *a: None)
+    if videos:
+        from .video import check_video_path
+
+        os.makedirs(os.path.join(out, "videos"), exist_ok=True)
+        check_video_path(video_path(out, "task", "policy"))  # the writer is installed, before any work
     _check_folder(out, plan)
     t0 = time.perf_counter()
     jobs = [{"task": asdict(t), "algorithm": a, "seed": s, "budgets": plan.budgets, "resolver": plan.resolver,
@@ -319,6 +358,19 @@ def run_benchmark(plan: BenchmarkPlan, out: str, *, backend=None, progress=print
             progress(f"{what}: {len(value)} episodes, J_s {np.nanmean(js) if np.isfinite(js).any() else float('nan'):.2f}")
         else:
             failed.append(f"{what}: {value}")
+    if videos:
+        t, first = plan.tasks[video_task(plan)], plan.train_seeds[0]
+        shots = [{"task": asdict(t), "policy": p, "seed": plan.eval_seeds[0], "resolver": plan.resolver,
+                  "policy_file": os.path.join(train_dir(out, t.name, p, first), "policy.npz") if p in LEARNED else None,
+                  "out": video_path(out, t.name, p)} for p in plan.policies]
+        todo = [j for j in shots if not os.path.exists(j["out"])
+                and (j["policy_file"] is None or os.path.exists(j["policy_file"]))]
+        for job, ok, value in backend.imap_unordered(video_one, todo):
+            what = f"video {job['task']['name']} {job['policy']}"
+            if ok:
+                progress(f"{what}: {value['path']} ({value['n_frames']} frames)")
+            else:
+                failed.append(f"{what}: {value}")
     if failed:
         raise BackendError(f"{len(failed)} benchmark unit(s) failed (rerun to retry them):\n" + "\n".join(failed))
     results = summarize_cells(out, plan)

@@ -121,7 +121,7 @@ def train_behaviour_cloning(env_config: dict, out: str, *, teacher, seed: int = 
             opt.zero_grad()
             loss.backward()
             opt.step()
-            total += float(loss) * i.numel()
+            total += float(loss.detach()) * i.numel()
             count += i.numel()
         with torch.no_grad():
             val_loss = float(((net(X[val_t]) - Y[val_t]) ** 2).mean())

@@ -76,12 +76,18 @@ def test_policy_files_match_the_frameworks_forward_pass(tmp_path):
                       [-1, -1], [1, 1], np.zeros(3), np.ones(3))
 
 
-def test_the_quick_benchmark_trains_evaluates_resumes_and_ships(tmp_path, monkeypatch):
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    """The quick benchmark run once for this module: (plan, out folder, results)."""
+    out = str(tmp_path_factory.mktemp("bench") / "out")
+    plan = bm.make_plan(quick=True)
+    return plan, out, bm.run_benchmark(plan, out, progress=None)
+
+
+def test_the_quick_benchmark_trains_evaluates_resumes_and_ships(quick_run, tmp_path, monkeypatch):
     from baselines.reference_policies import as_policy
 
-    out = str(tmp_path / "bench")
-    plan = bm.make_plan(quick=True)
-    results = bm.run_benchmark(plan, out, progress=None)
+    plan, out, results = quick_run
     cells = {c["policy"]: c for c in results["cells"]}
     assert set(cells) == set(bm.POLICIES)
     base = cells["baseline"]
@@ -94,9 +100,22 @@ def test_the_quick_benchmark_trains_evaluates_resumes_and_ships(tmp_path, monkey
         assert cells[p]["training"]["runs"] == len(plan.train_seeds) and cells[p]["training"]["agent_steps"] > 0
     table = bm.format_results(results)
     assert "J_s (1/m/s)" in table and "baseline" in table
-    # resuming: nothing is trained or evaluated again
+    # a video of each policy on the bottleneck, in real time: as long as its episode
+    from imageio_ffmpeg import count_frames_and_secs
+
+    limit_s = plan.tasks["bottleneck"].max_time_s
+    for p in bm.POLICIES:
+        frames, secs = count_frames_and_secs(bm.video_path(out, "bottleneck", p))
+        assert frames >= 2 and 0.0 < secs <= limit_s + 0.1
+    frames, secs = count_frames_and_secs(bm.video_path(out, "bottleneck", "zero"))
+    assert secs == pytest.approx(limit_s, abs=0.15)  # nobody walks: the whole time limit
+    frames, secs = count_frames_and_secs(bm.video_path(out, "bottleneck", "baseline"))
+    assert secs < limit_s - 5  # the calibrated crowd of 8 leaves well before it
+    assert not [f for f in os.listdir(os.path.join(out, "videos")) if not f.endswith(".mp4") or ".part" in f]
+    # resuming: nothing is trained, evaluated or recorded again
     monkeypatch.setattr(bm, "train_one", lambda job: pytest.fail("retrained"))
     monkeypatch.setattr(bm, "evaluate_one", lambda job: pytest.fail("re-evaluated"))
+    monkeypatch.setattr(bm, "video_one", lambda job: pytest.fail("recorded again"))
     again = bm.run_benchmark(plan, out, progress=None)
     assert again["cells"] == results["cells"]
     with pytest.raises(RunStoreError, match="another plan"):
@@ -113,6 +132,26 @@ def test_the_quick_benchmark_trains_evaluates_resumes_and_ships(tmp_path, monkey
     assert m.n_pedestrians == 8
     with open(os.path.join(out, "plan.json")) as fh:
         assert json.load(fh)["quick"] is True
+
+
+def test_the_command_resumes_and_writes_the_documentation_s_figures(quick_run, tmp_path, monkeypatch, capsys):
+    from crowd_env.cli.benchmark import main
+
+    plan, out, _ = quick_run
+    monkeypatch.setattr(bm, "train_one", lambda job: pytest.fail("retrained"))
+    docs, ship = tmp_path / "docs", tmp_path / "ship"
+    assert main(["--quick", "--backend", "serial", "--out", out, "--docs", str(docs), "--ship", str(ship)]) == 0
+    printed = capsys.readouterr().out
+    assert "J_s (1/m/s)" in printed and "shipped" in printed
+    assert sorted(os.listdir(docs)) == ["learning_curves.png", "results.md", "videos"]
+    assert sorted(os.listdir(docs / "videos")) == sorted(f"bottleneck_{p}.mp4" for p in bm.POLICIES)
+    assert (docs / "results.md").read_text().startswith("<!-- written by `crowd-benchmark --quick")
+    assert sorted(os.listdir(ship)) == ["bottleneck_bc.npz", "bottleneck_mappo.npz", "bottleneck_ppo.npz"]
+    with pytest.raises(SystemExit):
+        main(["--quick", "--out", out, "--budget", "ppo_timesteps=lots"])
+    assert "--budget takes KEY=INTEGER, got 'ppo_timesteps=lots'" in capsys.readouterr().err
+    with pytest.raises(SystemExit, match="another plan"):
+        main(["--quick", "--backend", "serial", "--out", out, "--eval-seeds", "7"])
 
 
 def test_shipped_policies_keep_the_size_budget_and_act():
