@@ -58,7 +58,8 @@ def main(argv=None) -> int:
                          "results page: docs/validation/benchmark)")
     args = ap.parse_args(argv)
     from ..experiments.backends import make_backend
-    from ..experiments.benchmark import format_results, make_plan, plot_learning_curves, run_benchmark, ship_policies
+    from ..experiments.benchmark import (format_checks, format_results, make_plan, plot_learning_curves, run_benchmark,
+                                         ship_policies, target_checks)
 
     try:
         plan = make_plan(quick=args.quick, tasks=args.tasks, policies=args.policies, train_seeds=args.train_seeds,
@@ -67,11 +68,21 @@ def main(argv=None) -> int:
             results = run_benchmark(plan, args.out, backend=backend, videos=not args.no_videos)
     except (InputError, RunStoreError, BackendError, MissingDependencyError) as exc:
         raise SystemExit(f"error: {exc}") from None
+    checks = target_checks(results)
+    compute = results["compute_s"]
+    cost = (f"work: {compute['total'] / 3600:.2f} core-hours (training {compute['training'] / 3600:.2f}, evaluation "
+            f"{compute['evaluation'] / 3600:.2f}, videos {compute['videos'] / 3600:.2f}): about "
+            f"{compute['total'] / 3600 / 2:.2f} h on 2 cores with 2 workers")
     print(format_results(results))
+    print()
+    print(format_checks(checks))
+    print(cost)
     plot_learning_curves(args.out, plan, results, os.path.join(args.out, "learning_curves.png"))
     with open(os.path.join(args.out, "results.md"), "w") as fh:
         fh.write(f"<!-- written by `crowd-benchmark {' '.join(argv if argv is not None else sys.argv[1:])}` -->\n\n")
-        fh.write(format_results(results, markdown=True) + "\n")
+        fh.write(format_results(results, markdown=True) + "\n\n")
+        fh.write("Targets:\n\n" + format_checks(checks, markdown=True) + "\n\n")
+        fh.write(cost[0].upper() + cost[1:] + ".\n")
     if args.ship:
         for p in ship_policies(args.out, plan, args.ship):
             print(f"shipped {p}")
@@ -79,7 +90,8 @@ def main(argv=None) -> int:
         os.makedirs(os.path.join(args.docs, "videos"), exist_ok=True)
         names = ["results.md", "learning_curves.png"]
         if not args.no_videos:
-            names += [os.path.join("videos", f) for f in sorted(os.listdir(os.path.join(args.out, "videos")))]
+            names += [os.path.join("videos", f) for f in sorted(os.listdir(os.path.join(args.out, "videos")))
+                      if f.endswith(".mp4")]
         for name in names:
             shutil.copyfile(os.path.join(args.out, name), os.path.join(args.docs, name))
         print(f"copied {', '.join(names)} to {args.docs}")

@@ -52,7 +52,7 @@ from .store import write_atomic as _write_text
 __all__ = ["Task", "TASKS", "QUICK_TASKS", "POLICIES", "LEARNED", "BUDGETS", "QUICK_BUDGETS", "BenchmarkPlan",
            "make_plan", "run_benchmark", "bootstrap_interval", "summarize_cells", "format_results", "MEASURES",
            "train_one", "evaluate_one", "video_one", "video_path", "video_task", "learning_curves",
-           "plot_learning_curves", "ship_policies"]
+           "plot_learning_curves", "ship_policies", "compute_seconds", "target_checks", "format_checks"]
 
 POLICIES = ("baseline", "random", "zero", "ppo", "mappo", "bc")
 LEARNED = ("ppo", "mappo", "bc")
@@ -278,11 +278,15 @@ def video_one(job: dict) -> dict:
     task = Task(**job["task"])
     scenario, cfg = _scenario_and_options(task)
     seed = int(job["seed"])
+    t0 = time.perf_counter()
     metrics, info = record_rollout(job["policy_file"] or job["policy"], job["out"], scenario, seed, env_options=cfg,
                                    max_time_s=task.max_time_s, resolver=job["resolver"],
                                    label=f"{job['policy']}, {task.name}, evaluation seed {seed}")
-    return {"path": job["out"], "n_frames": info.n_frames, "fps": info.fps, "n_evacuated": metrics.n_evacuated,
-            "n_pedestrians": metrics.n_pedestrians, "simulated_time_s": metrics.simulated_time_s}
+    value = {"path": job["out"], "n_frames": info.n_frames, "fps": info.fps, "n_evacuated": metrics.n_evacuated,
+             "n_pedestrians": metrics.n_pedestrians, "simulated_time_s": metrics.simulated_time_s,
+             "wall_s": time.perf_counter() - t0}
+    write_atomic(job["out"][:-len(".mp4")] + ".json", value)
+    return value
 
 
 # -- running the plan ----------------------------------------------------------------------------------------
@@ -440,7 +444,70 @@ def summarize_cells(out: str, plan: BenchmarkPlan) -> dict:
                 cell["training"] = {"runs": len(costs), "agent_steps": int(np.mean([c["agent_steps"] for c in costs])),
                                     "wall_s": float(np.mean([c["total_wall_s"] for c in costs])), "cores": 1}
             cells.append(cell)
-    return {"plan": plan.to_dict(), "cells": cells}
+    return {"plan": plan.to_dict(), "cells": cells, "compute_s": compute_seconds(out, plan)}
+
+
+def compute_seconds(out: str, plan: BenchmarkPlan) -> dict:
+    """The work of the run so far in core-seconds (each unit runs on one core), per phase: training (the
+    training runs' wall times), evaluation (the episodes' wall times) and videos; ``total``. On k cores with k
+    workers the run takes about total / k, whatever the number of sessions it was resumed in."""
+    train = evaluation = videos = 0.0
+    for t in plan.tasks.values():
+        for p in plan.policies:
+            for s in (plan.train_seeds if p in LEARNED else (None,)):
+                if s is not None and os.path.exists(os.path.join(train_dir(out, t.name, p, s), "cost.json")):
+                    with open(os.path.join(train_dir(out, t.name, p, s), "cost.json")) as fh:
+                        train += float(json.load(fh)["total_wall_s"])
+                if os.path.exists(eval_path(out, t.name, p, s)):
+                    with open(eval_path(out, t.name, p, s)) as fh:
+                        evaluation += sum(float(r["wall_time_s"]) for r in json.load(fh)["episodes"])
+            cost = video_path(out, t.name, p)[:-len(".mp4")] + ".json"
+            if os.path.exists(cost):
+                with open(cost) as fh:
+                    videos += float(json.load(fh)["wall_s"])
+    return {"training": train, "evaluation": evaluation, "videos": videos, "total": train + evaluation + videos}
+
+
+def target_checks(results: dict) -> list:
+    """The benchmark's targets on its results, one row each (``check``, ``task``, ``policy``, ``measured``,
+    ``target``, ``holds``): every learned policy's return above random's on its task with non-overlapping 95 %
+    intervals; the behaviour clone's J_s within 10 % of the calibrated model's and its number of percussions
+    within a factor 2, on every task where both have a J_s. A cell that is missing is not checked."""
+    by = {(c["task"], c["policy"]): c["measures"] for c in results["cells"]}
+    rows = []
+    for (task, policy), m in by.items():
+        rand = by.get((task, "random"))
+        if policy in LEARNED and rand is not None:
+            r, q = m["mean_return"], rand["mean_return"]
+            holds = None not in (r["low"], q["high"]) and r["low"] > q["high"]
+            rows.append({"check": "return above random, intervals apart", "task": task, "policy": policy,
+                         "measured": f"{_fmt('', '{:.2f}', r['low'])} > {_fmt('', '{:.2f}', q['high'])}",
+                         "target": "low(policy) > high(random)", "holds": bool(holds)})
+        base = by.get((task, "baseline"))
+        if policy == "bc" and base is not None and base["specific_flow_per_m_s"]["mean"] is not None:
+            js, jb = m["specific_flow_per_m_s"]["mean"], base["specific_flow_per_m_s"]["mean"]
+            ratio = js / jb if js is not None else float("nan")
+            rows.append({"check": "behaviour clone's J_s", "task": task, "policy": policy,
+                         "measured": f"{ratio:.3f} x calibrated", "target": "within 10 %",
+                         "holds": bool(abs(ratio - 1.0) <= 0.10)})
+            n, nb = m["n_percussions"]["mean"], base["n_percussions"]["mean"]
+            ratio = n / nb if n is not None and nb else float("nan")
+            rows.append({"check": "behaviour clone's percussions", "task": task, "policy": policy,
+                         "measured": f"{ratio:.2f} x calibrated", "target": "within a factor 2",
+                         "holds": bool(0.5 <= ratio <= 2.0)})
+    return rows
+
+
+def format_checks(rows: list, *, markdown: bool = False) -> str:
+    """:func:`target_checks` as a table."""
+    head = ["check", "task", "policy", "measured", "target", "holds"]
+    table = [[r[k] if k != "holds" else ("yes" if r[k] else "NO") for k in head] for r in rows]
+    if markdown:
+        return "\n".join(["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+                         + ["| " + " | ".join(r) + " |" for r in table])
+    widths = [max(len(h), *(len(r[i]) for r in table)) if table else len(h) for i, h in enumerate(head)]
+    return "\n".join([" | ".join(h.ljust(w) for h, w in zip(head, widths))]
+                     + [" | ".join(x.ljust(w) for x, w in zip(r, widths)) for r in table])
 
 
 def _num(v: float):

@@ -111,7 +111,11 @@ def test_the_quick_benchmark_trains_evaluates_resumes_and_ships(quick_run, tmp_p
     assert secs == pytest.approx(limit_s, abs=0.15)  # nobody walks: the whole time limit
     frames, secs = count_frames_and_secs(bm.video_path(out, "bottleneck", "baseline"))
     assert secs < limit_s - 5  # the calibrated crowd of 8 leaves well before it
-    assert not [f for f in os.listdir(os.path.join(out, "videos")) if not f.endswith(".mp4") or ".part" in f]
+    assert sorted(os.listdir(os.path.join(out, "videos"))) == sorted(f"bottleneck_{p}{e}" for p in bm.POLICIES
+                                                                    for e in (".mp4", ".json"))
+    work = results["compute_s"]
+    assert min(work["training"], work["evaluation"], work["videos"]) > 0
+    assert work["total"] == pytest.approx(work["training"] + work["evaluation"] + work["videos"])
     # resuming: nothing is trained, evaluated or recorded again
     monkeypatch.setattr(bm, "train_one", lambda job: pytest.fail("retrained"))
     monkeypatch.setattr(bm, "evaluate_one", lambda job: pytest.fail("re-evaluated"))
@@ -134,6 +138,28 @@ def test_the_quick_benchmark_trains_evaluates_resumes_and_ships(quick_run, tmp_p
         assert json.load(fh)["quick"] is True
 
 
+def _cell(task, policy, ret, js=None, perc=None):
+    m = {k: {"mean": None, "low": None, "high": None, "n": 10} for k, _, _ in bm.MEASURES}
+    m["mean_return"] = dict(zip(("low", "mean", "high"), ret), n=10)
+    m["specific_flow_per_m_s"]["mean"], m["n_percussions"]["mean"] = js, perc
+    return {"task": task, "policy": policy, "measures": m}
+
+
+def test_target_checks_read_the_intervals_and_ratios():
+    results = {"cells": [_cell("a", "random", (-9, -8, -7)), _cell("a", "ppo", (-6.9, -5, -4)),
+                         _cell("a", "mappo", (-7.1, -5, -4)), _cell("a", "baseline", (0, 1, 2), js=2.0, perc=1000),
+                         _cell("a", "bc", (0, 1, 2), js=2.19, perc=1990),
+                         _cell("b", "baseline", (0, 1, 2), js=2.0, perc=1000), _cell("b", "bc", (0, 1, 2), js=1.78, perc=2010),
+                         _cell("c", "ppo", (0, 1, 2))]}  # no random on c: not checked
+    got = {(r["task"], r["policy"], r["check"]): r["holds"] for r in bm.target_checks(results)}
+    assert got == {("a", "ppo", "return above random, intervals apart"): True,
+                   ("a", "mappo", "return above random, intervals apart"): False,  # -7.1 < -7: they overlap
+                   ("a", "bc", "return above random, intervals apart"): True,
+                   ("a", "bc", "behaviour clone's J_s"): True, ("a", "bc", "behaviour clone's percussions"): True,
+                   ("b", "bc", "behaviour clone's J_s"): False, ("b", "bc", "behaviour clone's percussions"): False}
+    assert "NO" in bm.format_checks(bm.target_checks(results), markdown=True)
+
+
 def test_the_command_resumes_and_writes_the_documentation_s_figures(quick_run, tmp_path, monkeypatch, capsys):
     from crowd_env.cli.benchmark import main
 
@@ -145,7 +171,9 @@ def test_the_command_resumes_and_writes_the_documentation_s_figures(quick_run, t
     assert "J_s (1/m/s)" in printed and "shipped" in printed
     assert sorted(os.listdir(docs)) == ["learning_curves.png", "results.md", "videos"]
     assert sorted(os.listdir(docs / "videos")) == sorted(f"bottleneck_{p}.mp4" for p in bm.POLICIES)
-    assert (docs / "results.md").read_text().startswith("<!-- written by `crowd-benchmark --quick")
+    page = (docs / "results.md").read_text()
+    assert page.startswith("<!-- written by `crowd-benchmark --quick") and "return above random" in page
+    assert "core-hours" in page
     assert sorted(os.listdir(ship)) == ["bottleneck_bc.npz", "bottleneck_mappo.npz", "bottleneck_ppo.npz"]
     with pytest.raises(SystemExit):
         main(["--quick", "--out", out, "--budget", "ppo_timesteps=lots"])
