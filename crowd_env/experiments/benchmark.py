@@ -309,6 +309,21 @@ def _done_training(folder: str) -> bool:
     return os.path.exists(os.path.join(folder, "policy.npz")) and os.path.exists(os.path.join(folder, "cost.json"))
 
 
+def _run_units(backend, fn, jobs, failed: list, progress, what, report) -> None:
+    """Run ``fn`` on every job on ``backend``; ``progress`` names each finished one (``what(job)``:
+    ``report(value)``), ``failed`` collects the others with their error."""
+    for job, ok, value in backend.imap_unordered(fn, jobs):
+        if ok:
+            progress(f"{what(job)}: {report(value)}")
+        else:
+            failed.append(f"{what(job)}: {value}")
+
+
+def _nanmean(values) -> float:
+    v = np.asarray(values, dtype=float)
+    return float(np.nanmean(v)) if np.isfinite(v).any() else float("nan")
+
+
 def video_task(plan: "BenchmarkPlan") -> str:
     """The task the videos show: the all-controlled bottleneck when the plan has it, else its first task."""
     return "bottleneck" if "bottleneck" in plan.tasks else next(iter(plan.tasks))
@@ -337,12 +352,9 @@ def run_benchmark(plan: BenchmarkPlan, out: str, *, backend=None, progress=print
             for t in plan.tasks.values() for a in plan.policies if a in LEARNED for s in plan.train_seeds]
     todo = [j for j in jobs if not _done_training(j["dir"])]
     failed = []
-    for job, ok, value in backend.imap_unordered(train_one, todo):
-        what = f"train {job['task']['name']} {job['algorithm']} seed {job['seed']}"
-        if ok:
-            progress(f"{what}: {value['agent_steps']} agent steps, {value['total_wall_s']:.0f} s")
-        else:
-            failed.append(f"{what}: {value}")
+    _run_units(backend, train_one, todo, failed, progress,
+               lambda j: f"train {j['task']['name']} {j['algorithm']} seed {j['seed']}",
+               lambda v: f"{v['agent_steps']} agent steps, {v['total_wall_s']:.0f} s")
     evals = []
     for t in plan.tasks.values():
         for p in plan.policies:
@@ -354,14 +366,10 @@ def run_benchmark(plan: BenchmarkPlan, out: str, *, backend=None, progress=print
                               "eval_seeds": list(plan.eval_seeds), "resolver": plan.resolver,
                               "out": eval_path(out, t.name, p, s)})
     todo = [j for j in evals if not os.path.exists(j["out"])]
-    for job, ok, value in backend.imap_unordered(evaluate_one, todo):
-        what = f"evaluate {job['task']['name']} {job['policy']}" + (
-            f" (trained with seed {job['train_seed']})" if job["train_seed"] is not None else "")
-        if ok:
-            js = [r["specific_flow_per_m_s"] for r in value]
-            progress(f"{what}: {len(value)} episodes, J_s {np.nanmean(js) if np.isfinite(js).any() else float('nan'):.2f}")
-        else:
-            failed.append(f"{what}: {value}")
+    _run_units(backend, evaluate_one, todo, failed, progress,
+               lambda j: f"evaluate {j['task']['name']} {j['policy']}" + (
+                   f" (trained with seed {j['train_seed']})" if j["train_seed"] is not None else ""),
+               lambda v: f"{len(v)} episodes, J_s {_nanmean([r['specific_flow_per_m_s'] for r in v]):.2f}")
     if videos:
         t, first = plan.tasks[video_task(plan)], plan.train_seeds[0]
         shots = [{"task": asdict(t), "policy": p, "seed": plan.eval_seeds[0], "resolver": plan.resolver,
@@ -369,12 +377,8 @@ def run_benchmark(plan: BenchmarkPlan, out: str, *, backend=None, progress=print
                   "out": video_path(out, t.name, p)} for p in plan.policies]
         todo = [j for j in shots if not os.path.exists(j["out"])
                 and (j["policy_file"] is None or os.path.exists(j["policy_file"]))]
-        for job, ok, value in backend.imap_unordered(video_one, todo):
-            what = f"video {job['task']['name']} {job['policy']}"
-            if ok:
-                progress(f"{what}: {value['path']} ({value['n_frames']} frames)")
-            else:
-                failed.append(f"{what}: {value}")
+        _run_units(backend, video_one, todo, failed, progress, lambda j: f"video {j['task']['name']} {j['policy']}",
+                   lambda v: f"{v['path']} ({v['n_frames']} frames)")
     if failed:
         raise BackendError(f"{len(failed)} benchmark unit(s) failed (rerun to retry them):\n" + "\n".join(failed))
     results = summarize_cells(out, plan)
