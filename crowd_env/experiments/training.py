@@ -91,9 +91,9 @@ class SharedPolicy:
 def mean_return(policy, env_config: dict, seeds) -> dict:
     """Mean per-agent episode return (and evacuated fraction) of ``policy`` over ``seeds``."""
     dt = ModelParams.from_dict(env_config["params"]).dt_s if env_config.get("params") else ModelParams().dt_s
-    max_time = env_config["max_steps"] * env_config["frame_skip"] * dt
+    max_time = env_config["max_steps"] * env_config.get("frame_skip", 1) * dt
     opts = {k: v for k, v in env_config.items() if k not in ("scenario", "scenario_options", "max_steps")}
-    spec = ScenarioSpec(env_config["scenario"], env_config["scenario_options"])
+    spec = ScenarioSpec(env_config["scenario"], env_config.get("scenario_options"))
     runs = [run_episode(policy, spec, s, env_options=opts, max_time_s=max_time) for s in seeds]
     return {"mean_return": float(np.mean([r.mean_return for r in runs])),
             "std_return": float(np.std([r.mean_return for r in runs])),

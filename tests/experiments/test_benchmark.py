@@ -11,6 +11,19 @@ from crowd_env.experiments import benchmark as bm
 from crowd_env.experiments.policy_files import MLPPolicyFile, load_policy_file, save_policy_file
 
 
+@pytest.mark.parametrize("name", list(bm.TASKS))
+def test_every_full_task_s_configuration_runs_through_the_trainers_evaluation(name):
+    """The trainers (PPO and MAPPO) rate random and trained policies with training.mean_return on the task's
+    learner configuration; every full task's must go through it (the quick run covers the bottleneck only:
+    the corridor and the room have no scenario_options, which once failed here with a KeyError)."""
+    from baselines.reference_policies import RandomPolicy
+    from crowd_env.experiments import training
+
+    cfg = {**bm.TASKS[name].learner_config(), "max_steps": 3}
+    out = training.mean_return(RandomPolicy(seed=0), cfg, [7])
+    assert np.isfinite(out["mean_return"]) and 0.0 <= out["evacuated_fraction"] <= 1.0
+
+
 def test_the_plan_refuses_unknown_names_bad_budgets_and_seeds_shared_with_training():
     with pytest.raises(InputError, match=r"unknown benchmark task\(s\) \['nope'\]"):
         bm.make_plan(tasks=["nope"])
