@@ -84,7 +84,9 @@ Episode end
     gets ``terminations[a] = True`` on that step (with its final observation) and is removed from
     ``agents``. Observations and rewards use each agent's own destination field. After ``max_steps`` environment
     steps every live agent is truncated. ``step({})`` with no live agent returns five empty dicts
-    (SuperSuit's ``black_death_v3`` relies on it). ``reset(options=...)`` ignores its options.
+    (SuperSuit's ``black_death_v3`` relies on it); ``step_background()`` then moves the pedestrians
+    still on the floor on (the background policy's), for measuring the whole crowd when only some
+    pedestrians are agents. ``reset(options=...)`` ignores its options.
 
 Determinism
     ``reset(seed=s)`` seeds everything random: the start positions (a named scenario is rebuilt with a
@@ -618,6 +620,24 @@ class CrowdParallelEnv(ParallelEnv):
         if self.render_mode == "human":
             self.render()
         return obs_d, rew_d, term_d, trunc_d, info_d
+
+    def step_background(self) -> bool:
+        """After every agent has left, one environment step (``frame_skip`` simulator steps) of the
+        pedestrians still on the floor, driven by the background policy, with the sub-step hooks as in
+        :meth:`step`; returns False, doing nothing, once nobody is on the floor or ``max_steps`` is reached.
+        The evaluation harness runs it so that a crowd's measures (evacuation, flow) cover the whole crowd
+        when only some pedestrians are agents: ``while env.step_background(): ...``."""
+        if self._sim is None:
+            raise EnvStateError("call reset() before step_background()")
+        if self.agents:
+            raise EnvStateError(f"{len(self.agents)} agent(s) are live: step() them; step_background() moves the "
+                                "crowd on after they have left")
+        if self._steps >= self.max_steps or not self._sim.state.active.any():
+            return False
+        self._advance(np.zeros((0, 2)))
+        if self.render_mode == "human":
+            self.render()
+        return True
 
     def _advance(self, intent_c: np.ndarray):
         """One environment step of the live agents with validated intents ``intent_c`` (n_live, 2) float64 in

@@ -10,7 +10,9 @@ baselines and users' own policies are plugged in.
 
 Each episode runs the parallel environment (every pedestrian controlled by the policy by default)
 for at most ``max_time_s`` of simulated time, measuring at every simulator step (through the
-environment's ``substep_hooks``):
+environment's ``substep_hooks``). When only some pedestrians are agents, the episode goes on after the
+last agent has left until the whole crowd has (``CrowdParallelEnv.step_background``), so that the crowd's
+measures below cover everybody whatever the agents did:
 
 - ``specific_flow_per_m_s`` J_s = N / (Δt b) at the scenario's measurement line (Kabalan Eq. 22;
   NaN with fewer than two passages or no width in the scenario metadata, and NaN unless the episode is
@@ -276,6 +278,9 @@ def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", se
             obs, rewards, _, _, _ = env.step(actions)
             for a, r in rewards.items():
                 returns[a] += r
+            if video is not None:
+                video.after_step(env)
+        while env.step_background():  # learners among a crowd: the crowd goes on after they have left
             if video is not None:
                 video.after_step(env)
         completed = True

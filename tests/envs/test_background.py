@@ -13,7 +13,7 @@ import pytest
 from baselines.trained import FilePolicy
 from crowd_env.envs import crowd_v0
 from crowd_env.envs.observations import observation_size
-from crowd_env.errors import EnvOptionError, PolicyError
+from crowd_env.errors import EnvOptionError, EnvStateError, PolicyError
 from crowd_env.experiments.policy_files import MLPPolicyFile, save_policy_file
 from crowd_env.scenarios import make_scenario
 
@@ -146,3 +146,24 @@ def test_crowd_evaluate_takes_a_background_policy(tmp_path, capsys):
     assert (tmp_path / "eval" / "results.csv").exists()
     with pytest.raises(SystemExit, match="unknown background policy 'nobody'"):
         main(args + ["--background", "nobody"])
+
+
+def test_step_background_moves_the_crowd_on_after_the_agents_only():
+    env = crowd_v0.parallel_env(**SCENARIO, controlled=[0], frame_skip=10, max_steps=400)
+    with pytest.raises(EnvStateError, match="reset"):
+        env.step_background()
+    env.reset(seed=0)
+    with pytest.raises(EnvStateError, match="1 agent.*live"):
+        env.step_background()
+    while env.agents:
+        env.step({"ped_0": np.array([2.0, 0.0])})
+    on_floor = int(env.sim.state.active.sum())
+    t = env.sim.time_s
+    assert on_floor > 0 and env.step_background() and env.sim.time_s == pytest.approx(t + 0.1)
+    steps = 1
+    while env.step_background():
+        steps += 1
+    assert not env.sim.state.active.any()  # the calibrated crowd has left
+    end = env.sim.time_s  # the last step stops at the last exit
+    assert t + 0.1 * (steps - 1) < end <= t + 0.1 * steps + 1e-9
+    assert not env.step_background() and env.sim.time_s == end

@@ -30,3 +30,16 @@ def test_harness_baseline_metrics_match_simulator():
     assert r1.min_gap_m > -1e-3 and r1.mean_speed_m_s > 0.3
     z = run_episode(ZeroIntentPolicy(), spec, 0, max_time_s=2.0)
     assert z.n_evacuated == 0 and np.isnan(z.evacuation_time_s) and z.mean_return < r1.mean_return
+
+
+def test_learners_among_a_crowd_are_measured_until_the_whole_crowd_has_left():
+    """With some pedestrians as agents the episode goes on after they leave (CrowdParallelEnv.step_background):
+    the calibrated model as the agents' policy then gives exactly the all-calibrated crowd's measures (the
+    same model at the same decision interval), whichever pedestrians are the agents."""
+    spec = ScenarioSpec("seyfried_bottleneck", {"n_pedestrians": 10, "seed": 0})
+    everyone = run_episode(as_policy("baseline"), spec, 0, max_time_s=40.0)
+    for controlled in ([0, 1, 2], [7]):
+        some = run_episode(as_policy("baseline"), spec, 0, env_options={"controlled": controlled}, max_time_s=40.0)
+        assert some.complete and some.n_evacuated == 10
+        for key in ("evacuation_time_s", "specific_flow_per_m_s", "n_percussions", "min_gap_m", "mean_speed_m_s"):
+            assert getattr(some, key) == getattr(everyone, key), key
