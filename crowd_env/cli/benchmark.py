@@ -45,7 +45,8 @@ def main(argv=None) -> int:
     ap.add_argument("--train-seeds", type=int, nargs="+")
     ap.add_argument("--eval-seeds", type=int, nargs="+")
     ap.add_argument("--budget", action="append", default=[], metavar="KEY=N",
-                    help="change a training budget (ppo_timesteps, mappo_frames, bc_demo_seeds, bc_epochs)")
+                    help="change a training budget (ppo_timesteps, mappo_frames, bc_demo_seeds, bc_epochs, "
+                         "bc_dagger_rounds)")
     ap.add_argument("--out", default="runs/benchmark")
     ap.add_argument("--backend", default="ray", choices=("ray", "process", "serial"))
     ap.add_argument("--address", default=None, help="Ray cluster address (host:port, ray://host:port or auto)")

@@ -94,8 +94,10 @@ QUICK_TASKS = {
                        20.0),
 }
 # Training budgets: PPO timesteps (agent steps), MAPPO environment steps (frames), BC demonstration seeds
-BUDGETS = {"ppo_timesteps": 2_000_000, "mappo_frames": 20_000, "bc_demo_seeds": 10, "bc_epochs": 15}
-QUICK_BUDGETS = {"ppo_timesteps": 512, "mappo_frames": 40, "bc_demo_seeds": 1, "bc_epochs": 2}
+BUDGETS = {"ppo_timesteps": 2_000_000, "mappo_frames": 20_000, "bc_demo_seeds": 10, "bc_epochs": 15,
+           "bc_dagger_rounds": 3}
+QUICK_BUDGETS = {"ppo_timesteps": 512, "mappo_frames": 40, "bc_demo_seeds": 1, "bc_epochs": 2, "bc_dagger_rounds": 1}
+ZERO_ALLOWED = ("bc_dagger_rounds",)  # 0: plain behaviour cloning
 MEASURES = (
     ("evacuated_fraction", "evacuated", "{:.0%}"),
     ("evacuation_time_s", "evac. time (s)", "{:.1f}"),
@@ -150,9 +152,13 @@ def make_plan(*, quick: bool = False, tasks=None, policies=None, train_seeds=Non
             raise InputError(f"unknown budget {k!r}; the budgets are {list(b)}")
         b[k] = v
     for k, v in b.items():
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-            raise InputError(f"budget {k} must be a positive integer, got {v!r}")
-    overlap = set(evals) & _seeds_used_in_training(train, b["bc_demo_seeds"])
+        least = 0 if k in ZERO_ALLOWED else 1
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < least:
+            raise InputError(f"budget {k} must be an integer >= {least}, got {v!r}")
+    if b["bc_demo_seeds"] > 100 or b["bc_dagger_rounds"] > 9:  # each round's seeds in its own hundred
+        raise InputError(f"at most 100 demonstration seeds and 9 DAgger rounds, got {b['bc_demo_seeds']} and "
+                         f"{b['bc_dagger_rounds']}")
+    overlap = set(evals) & _seeds_used_in_training(train, b["bc_demo_seeds"], b["bc_dagger_rounds"])
     if overlap:
         raise InputError(f"evaluation seeds {sorted(overlap)} are also training seeds")
     return BenchmarkPlan({n: known[n] for n in names}, pols, train, evals, b, quick=quick)
@@ -162,17 +168,21 @@ def _train_env_seed(seed: int) -> int:
     return 10_000 + 1_000 * int(seed)  # the seeds of training episodes start here (never an evaluation seed)
 
 
-def _demo_seeds(seed: int, n: int) -> list:
-    return [20_000 + 1_000 * int(seed) + i for i in range(int(n))]
+def _demo_seeds(seed: int, n: int, round_: int = 0) -> list:
+    """The demonstration seeds of training seed ``seed``'s behaviour cloning, round ``round_`` (0: the teacher's
+    demonstrations; then the DAgger rounds)."""
+    return [20_000 + 1_000 * int(seed) + 100 * int(round_) + i for i in range(int(n))]
 
 
-def _seeds_used_in_training(train_seeds, n_demo: int) -> set:
+def _seeds_used_in_training(train_seeds, n_demo: int, n_rounds: int = 0) -> set:
     """Every episode seed a training run sets: the training copies (PPO's two, MAPPO's first), the trainers'
-    own evaluation episodes and the demonstrations, for each training seed."""
+    own evaluation episodes and the demonstrations of every round, for each training seed."""
     out = set()
     for s in train_seeds:
         base = _train_env_seed(s)
-        out |= {base, base + 1, base + 500, *_demo_seeds(s, n_demo)}
+        out |= {base, base + 1, base + 500}
+        for r in range(n_rounds + 1):
+            out |= set(_demo_seeds(s, n_demo, r))
     return out
 
 
@@ -228,6 +238,8 @@ def train_one(job: dict) -> dict:
 
         summary = train_behaviour_cloning(cfg, folder, teacher=resolve("baseline"), seed=seed,
                                           demo_seeds=_demo_seeds(seed, budgets["bc_demo_seeds"]),
+                                          dagger_seeds=[_demo_seeds(seed, budgets["bc_demo_seeds"], r) for r in
+                                                        range(1, int(budgets.get("bc_dagger_rounds", 0)) + 1)],
                                           epochs=int(budgets["bc_epochs"]), max_time_s=task.max_time_s,
                                           progress=quiet)
         agent_steps = int(summary["agent_steps"])

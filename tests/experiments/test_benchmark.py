@@ -29,14 +29,22 @@ def test_the_plan_refuses_unknown_names_bad_budgets_and_seeds_shared_with_traini
         bm.make_plan(tasks=["nope"])
     with pytest.raises(InputError, match=r"unknown benchmark policy\(ies\) \['dqn'\]"):
         bm.make_plan(policies=["dqn"])
-    with pytest.raises(InputError, match="budget ppo_timesteps must be a positive integer"):
+    with pytest.raises(InputError, match="budget ppo_timesteps must be an integer >= 1"):
         bm.make_plan(budgets={"ppo_timesteps": 0})
+    with pytest.raises(InputError, match="budget bc_dagger_rounds must be an integer >= 0"):
+        bm.make_plan(budgets={"bc_dagger_rounds": -1})
+    assert bm.make_plan(budgets={"bc_dagger_rounds": 0}).budgets["bc_dagger_rounds"] == 0  # plain cloning
+    with pytest.raises(InputError, match="at most 100 demonstration seeds and 9 DAgger rounds"):
+        bm.make_plan(budgets={"bc_dagger_rounds": 10})
     with pytest.raises(InputError, match="unknown budget 'steps'"):
         bm.make_plan(budgets={"steps": 3})
     with pytest.raises(InputError, match=r"evaluation seeds \[10000\] are also training seeds"):
         bm.make_plan(eval_seeds=[10_000])
     with pytest.raises(InputError, match=r"evaluation seeds \[12500, 21003\] are also training seeds"):
         bm.make_plan(eval_seeds=[0, 21_003, 12_500])  # seed 1's demonstrations, seed 2's trainer evaluation
+    with pytest.raises(InputError, match=r"evaluation seeds \[22305\] are also training seeds"):
+        bm.make_plan(eval_seeds=[22_305])  # seed 2's third DAgger round
+    assert bm.make_plan(eval_seeds=[22_305], budgets={"bc_dagger_rounds": 2}).eval_seeds == (22_305,)
     plan = bm.make_plan()
     assert list(plan.tasks) == ["bottleneck", "bottleneck_learners", "corridor_bidirectional", "room_pillar"]
     assert plan.policies == ("baseline", "random", "zero", "ppo", "mappo", "bc")
