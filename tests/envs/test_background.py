@@ -167,3 +167,22 @@ def test_step_background_moves_the_crowd_on_after_the_agents_only():
     end = env.sim.time_s  # the last step stops at the last exit
     assert t + 0.1 * (steps - 1) < end <= t + 0.1 * steps + 1e-9
     assert not env.step_background() and env.sim.time_s == end
+
+
+
+def test_a_shipped_clone_walks_a_crowd_out_as_its_background():
+    """The shipped behaviour clone of the calibrated model, by name as the background of a 20-person
+    bottleneck crowd, walks everybody out without overlap at the calibrated crowd's flow (the shipped PPO
+    policy there gives less than half of it)."""
+    from baselines.reference_policies import as_policy
+    from baselines.trained import list_trained
+    from crowd_env.experiments.evaluation import ScenarioSpec, run_episode
+
+    assert "bottleneck_bc" in list_trained()
+    spec = ScenarioSpec("seyfried_bottleneck", {"width_m": 1.0, "n_pedestrians": 20})
+    runs = {bg: run_episode(as_policy("baseline"), spec, 5, env_options={"controlled": [0], "background_policy": bg},
+                            max_time_s=60.0) for bg in ("bottleneck_bc", "calibrated")}
+    for m in runs.values():
+        assert m.complete and m.n_evacuated == 20 and m.min_gap_m > -1e-3
+    clone, model = runs["bottleneck_bc"].specific_flow_per_m_s, runs["calibrated"].specific_flow_per_m_s
+    assert abs(clone - model) < 0.10 * model

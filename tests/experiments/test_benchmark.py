@@ -207,6 +207,7 @@ def test_shipped_policies_keep_the_size_budget_and_act():
     from baselines.trained import TRAINED_DIR, list_trained, load_trained
 
     names = list_trained()
+    assert names == sorted(f"{t}_{a}" for t in bm.TASKS for a in bm.LEARNED)  # each task's seed-0 policies
     sizes = {n: os.path.getsize(os.path.join(TRAINED_DIR, f"{n}.npz")) for n in names}
     assert all(s <= 200_000 for s in sizes.values()), sizes  # docs/validation/benchmark.md: 200 kB per file
     assert sum(sizes.values()) <= 2_000_000
