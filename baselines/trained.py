@@ -10,7 +10,7 @@ so the evaluation harness applies them::
     policy = load_trained("bottleneck_bc")       # also: as_policy("bottleneck_bc"), crowd-evaluate --policy
     env = crowd_v0.parallel_env(controlled=6, background_policy="bottleneck_ppo")  # the others: a trained policy
 
-The environment finds :func:`background_policy` through the ``crowd_env.background_policies`` entry point
+The environment finds :func:`background_policy` through the ``crowd_env_background_policies`` entry point
 (``pyproject.toml``), so that crowd_env never imports this package.
 
 Inference is numpy only (no torch).
@@ -74,7 +74,7 @@ def load_trained(name: str) -> FilePolicy:
 
 
 def background_policy(spec: str) -> FilePolicy:
-    """The environment's loader of named background policies (entry point ``crowd_env.background_policies``):
+    """The environment's loader of named background policies (entry point ``crowd_env_background_policies``):
     a shipped trained policy's name or a policy file (``.npz``); :class:`~crowd_env.errors.NotFoundError` (a
     ``LookupError``) naming the shipped ones otherwise."""
     if spec in list_trained():

@@ -26,7 +26,8 @@ extensions = [
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 myst_enable_extensions = ["dollarmath", "colon_fence", "deflist"]
 myst_heading_anchors = 3
-exclude_patterns = ["_build", "Thumbs.db", ".DS_Store", "validation/rimea/rimea_results.md"]  # included by validation/rimea.md
+exclude_patterns = ["_build", "Thumbs.db", ".DS_Store", "validation/rimea/rimea_results.md",  # included by validation/rimea.md
+                    "validation/benchmark/results.md"]  # included by validation/benchmark.md
 
 autosummary_generate = True
 autodoc_default_options = {"members": True, "undoc-members": False, "show-inheritance": True}

@@ -24,7 +24,7 @@ A test checks that pedestrians in the background of a policy move exactly as the
 when they are agents acting with it (``tests/envs/test_background.py``).
 
 **Names.** ``background_policy`` may also be a name or a path: ``"calibrated"`` (alias ``"baseline"``,
-the default) or anything a loader registered under the ``crowd_env.background_policies`` entry-point
+the default) or anything a loader registered under the ``crowd_env_background_policies`` entry-point
 group accepts. The project's ``baselines`` package registers :func:`baselines.trained.background_policy`,
 which takes the name of a shipped trained policy (``baselines.trained.list_trained()``) or a policy file
 (``.npz``). crowd_env itself never imports ``baselines`` (the layer contract): it finds the loader
@@ -50,7 +50,7 @@ __all__ = ["ObservingBackground", "OBSERVATION_POLICY_OPTIONS", "CALIBRATED_NAME
 OBSERVATION_POLICY_OPTIONS = ("n_neighbors", "n_rays", "neighbor_radius_m", "ray_range_m", "observation_frame",
                               "frame_skip", "action_max_m_s", "heading_target")
 CALIBRATED_NAMES = ("calibrated", "baseline")
-ENTRY_POINT_GROUP = "crowd_env.background_policies"
+ENTRY_POINT_GROUP = "crowd_env_background_policies"
 
 
 def is_observation_policy(policy) -> bool:

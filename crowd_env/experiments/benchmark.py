@@ -280,9 +280,12 @@ def video_path(out: str, task: str, policy: str) -> str:
     return os.path.join(out, "videos", f"{task}_{policy}.mp4")
 
 
+VIDEO_FPS, VIDEO_QUALITY = 5.0, 4.0  # a frame every 0.2 s in real time; about 3 MB for the six videos
+
+
 def video_one(job: dict) -> dict:
     """Record one episode of one policy (``job``: task, policy, its file for a learned one, the evaluation
-    seed, resolver, out) as an MP4 in real time (:func:`crowd_env.experiments.video.record_rollout`: the
+    seed, resolver, out) as an MP4 in real time at :data:`VIDEO_FPS` frames per second (:func:`crowd_env.experiments.video.record_rollout`: the
     evaluation harness's episode, percussions drawn; written under a temporary name and renamed, so a killed
     unit leaves no video); returns what was written and the episode's figures."""
     from .video import record_rollout
@@ -292,8 +295,8 @@ def video_one(job: dict) -> dict:
     seed = int(job["seed"])
     t0 = time.perf_counter()
     metrics, info = record_rollout(job["policy_file"] or job["policy"], job["out"], scenario, seed, env_options=cfg,
-                                   max_time_s=task.max_time_s, resolver=job["resolver"],
-                                   label=f"{job['policy']}, {task.name}, evaluation seed {seed}")
+                                   max_time_s=task.max_time_s, resolver=job["resolver"], fps=VIDEO_FPS,
+                                   quality=VIDEO_QUALITY, label=f"{job['policy']}, {task.name}, evaluation seed {seed}")
     value = {"path": job["out"], "n_frames": info.n_frames, "fps": info.fps, "n_evacuated": metrics.n_evacuated,
              "n_pedestrians": metrics.n_pedestrians, "simulated_time_s": metrics.simulated_time_s,
              "wall_s": time.perf_counter() - t0}

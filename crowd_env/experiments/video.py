@@ -51,12 +51,13 @@ from ..envs.rendering import ContactPercussions, CrowdRenderer
 from ..errors import InputError, MissingDependencyError, MissingFileError, NotFoundError, PolicyError
 from .evaluation import ScenarioSpec, import_object, resolve_policy, run_episode
 
-__all__ = ["VIDEO_FORMATS", "MAX_DEFAULT_FPS", "VideoInfo", "VideoWriter", "RolloutVideo", "check_video_path",
+__all__ = ["VIDEO_FORMATS", "MAX_DEFAULT_FPS", "DEFAULT_QUALITY", "VideoInfo", "VideoWriter", "RolloutVideo", "check_video_path",
            "frame_stride", "policy_from_spec", "record_rollout", "record_trajectory_file", "per_policy",
            "per_policy_path", "geometry_path_for"]
 
 VIDEO_FORMATS = {".mp4": "MP4 (H.264, imageio's ffmpeg plugin)", ".gif": "GIF (pillow)"}
 MAX_DEFAULT_FPS = 25.0  # without fps or every: the smallest stride with frames at least 1/25 s apart
+DEFAULT_QUALITY = 7.0  # MP4: imageio's quality, 0 (smallest file) to 10 (best)
 _EXTRA = "pip install 'crowd_env[video]'"
 
 
@@ -112,6 +113,12 @@ def _check_fps(fps) -> float:
     return value
 
 
+def _check_quality(quality) -> float:
+    if isinstance(quality, bool) or not isinstance(quality, (int, float)) or not 0 <= quality <= 10:
+        raise InputError(f"quality must be a number from 0 (smallest file) to 10 (best), got {quality!r}")
+    return float(quality)
+
+
 def _check_every(every) -> int:
     if isinstance(every, bool) or not isinstance(every, (int, np.integer)) or every < 1:
         raise InputError(f"every (the frame stride) must be an integer >= 1, got {every!r}")
@@ -164,9 +171,10 @@ class VideoWriter:
     The frames go to a temporary file beside ``path``, renamed to ``path`` by :meth:`close`;
     :meth:`close` with ``keep=False`` (or an exception inside the ``with`` block) removes it instead."""
 
-    def __init__(self, path, fps: float):
+    def __init__(self, path, fps: float, quality: float = DEFAULT_QUALITY):
         self.path = check_video_path(path)
         self.fps = _check_fps(fps)
+        self.quality = _check_quality(quality)
         self.gif = self.path.suffix.lower() == ".gif"
         if self.gif:
             _check_gif_fps(self.fps)
@@ -183,7 +191,8 @@ class VideoWriter:
         import imageio.v2 as iio2
 
         return iio2.get_writer(self._tmp, format="FFMPEG", mode="I", fps=self.fps, codec="libx264",
-                               pixelformat="yuv420p", macro_block_size=16, quality=7, ffmpeg_log_level="error")
+                               pixelformat="yuv420p", macro_block_size=16, quality=self.quality,
+                               ffmpeg_log_level="error")
 
     def append(self, frame) -> None:
         frame = np.asarray(frame)
@@ -236,8 +245,9 @@ class RolloutVideo:
     (default: nothing)."""
 
     def __init__(self, path, *, fps=None, every=None, label: str = "", percussion_scale_kg_m_s: float = 20.0,
-                 width_in: float = 8.0, dpi: int = 80):
+                 width_in: float = 8.0, dpi: int = 80, quality: float = DEFAULT_QUALITY):
         self.path = check_video_path(path)
+        self.quality = _check_quality(quality)
         self.fps = None if fps is None else _check_fps(fps)
         self.every = None if every is None else _check_every(every)
         self.label = str(label)
@@ -252,7 +262,7 @@ class RolloutVideo:
         self._renderer = CrowdRenderer(env.geometry, self._controlled, "rgb_array", width_in=self.width_in,
                                        dpi=self.dpi, pixel_multiple=16,
                                        percussion_scale_kg_m_s=self.percussion_scale_kg_m_s)
-        self._writer = VideoWriter(self.path, fps)
+        self._writer = VideoWriter(self.path, fps, self.quality)
         self._contacts = ContactPercussions()
         env.substep_hooks.append(self._contacts)
         self._steps = 0
@@ -305,13 +315,14 @@ def policy_from_spec(spec, resolver: str | None = None, name: str | None = None)
 def record_rollout(policy, path, scenario="seyfried_bottleneck", seed: int = 0, *, scenario_options=None,
                    env_options: dict | None = None, max_time_s: float = 30.0, fps=None, every=None,
                    resolver: str | None = None, line: str | None = None, percussion_scale_kg_m_s: float = 20.0,
-                   label: str | None = None) -> tuple:
+                   label: str | None = None, quality: float = DEFAULT_QUALITY) -> tuple:
     """Write a video of one episode of ``policy`` on ``scenario`` (a registered name with
     ``scenario_options``, or a :class:`~crowd_env.experiments.evaluation.ScenarioSpec`) with ``seed``, at
     most ``max_time_s`` simulated seconds, to ``path`` (``.mp4`` or ``.gif``). ``policy``: a policy object
     or a spec (:func:`policy_from_spec` with ``resolver``); ``env_options`` go to the environment as in
     :func:`~crowd_env.experiments.evaluation.run_episode` (``controlled`` defaults to ``"all"``).
-    Returns ``(EpisodeMetrics, VideoInfo)``. The path, fps and stride are checked before the episode runs."""
+    ``quality``: the MP4's, 0 (smallest file) to 10 (best; default 7). Returns ``(EpisodeMetrics, VideoInfo)``.
+    The path, fps, stride and quality are checked before the episode runs."""
     path = check_video_path(path)
     if fps is not None:
         fps = _check_fps(fps)
@@ -324,7 +335,8 @@ def record_rollout(policy, path, scenario="seyfried_bottleneck", seed: int = 0, 
     name = getattr(pol, "name", type(pol).__name__)
     if label is None:
         label = f"{name}, {spec.scenario if isinstance(spec.scenario, str) else spec.label}, seed {seed}"
-    video = RolloutVideo(path, fps=fps, every=every, label=label, percussion_scale_kg_m_s=percussion_scale_kg_m_s)
+    video = RolloutVideo(path, fps=fps, every=every, label=label, percussion_scale_kg_m_s=percussion_scale_kg_m_s,
+                         quality=quality)
     metrics = run_episode(pol, spec, seed, env_options=env_options, max_time_s=max_time_s, line=line, video=video)
     return metrics, video.info
 

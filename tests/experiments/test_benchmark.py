@@ -124,12 +124,12 @@ def test_the_quick_benchmark_trains_evaluates_resumes_and_ships(quick_run, tmp_p
     # a video of each policy on the bottleneck, in real time: as long as its episode
     from imageio_ffmpeg import count_frames_and_secs
 
-    limit_s = plan.tasks["bottleneck"].max_time_s
+    limit_s, frame_s = plan.tasks["bottleneck"].max_time_s, 1.0 / bm.VIDEO_FPS
     for p in bm.POLICIES:
         frames, secs = count_frames_and_secs(bm.video_path(out, "bottleneck", p))
-        assert frames >= 2 and 0.0 < secs <= limit_s + 0.1
+        assert frames >= 2 and secs == pytest.approx(frames * frame_s) and secs <= limit_s + frame_s + 1e-6
     frames, secs = count_frames_and_secs(bm.video_path(out, "bottleneck", "zero"))
-    assert secs == pytest.approx(limit_s, abs=0.15)  # nobody walks: the whole time limit
+    assert frames == int(limit_s / frame_s) + 1  # nobody walks: t = 0 and every 0.2 s to the time limit
     frames, secs = count_frames_and_secs(bm.video_path(out, "bottleneck", "baseline"))
     assert secs < limit_s - 5  # the calibrated crowd of 8 leaves well before it
     assert sorted(os.listdir(os.path.join(out, "videos"))) == sorted(f"bottleneck_{p}{e}" for p in bm.POLICIES

@@ -267,3 +267,22 @@ def test_bad_trajectory_input_raises_the_named_error(exported):
     with pytest.raises(InputError, match="fps"):
         record_trajectory_file(d / "run.txt", d / "v.gif", fps=-1)
     assert not list(d.glob("v.*"))
+
+
+def test_mp4_quality_trades_file_size_and_is_checked(tmp_path):
+    from crowd_env.experiments.video import RolloutVideo, VideoWriter
+
+    rng = np.random.default_rng(0)
+    frames = [(rng.random((64, 96, 3)) * 255).astype(np.uint8) for _ in range(20)]  # noise: hard to compress
+    sizes = {}
+    for q in (2, 9):
+        path = tmp_path / f"q{q}.mp4"
+        w = VideoWriter(path, 10.0, quality=q)
+        for f in frames:
+            w.append(f)
+        w.close()
+        sizes[q] = path.stat().st_size
+    assert sizes[2] < 0.5 * sizes[9]
+    for bad in (-1, 11, "high", True):
+        with pytest.raises(InputError, match="quality must be a number from 0"):
+            RolloutVideo(tmp_path / "x.mp4", quality=bad)
