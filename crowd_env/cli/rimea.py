@@ -11,9 +11,10 @@ documentation only: asking for them is an error that says so.
     crowd-rimea --quick --jupedsim      # with JuPedSim's CFSM and SFM columns (pip install -e '.[bench]')
     crowd-rimea --jupedsim --docs --out docs/validation/rimea --resume  # regenerate the documentation's page
 
-Each test's result is kept in --out as soon as it is done (tests/rimea_<n>.json); --resume reads back the
-kept results made with the same version (--quick or not), seed and models instead of running them again,
-so a long run that was stopped goes on where it was, and one test can be run on its own first.
+Each test's result is kept in --out as soon as it is done (tests/rimea_<n>.json), and so is each scenario run
+(runs/rimea_<n>_<variant>_<model>.npz); --resume reads back the kept results and runs made with the same
+version (--quick or not), seed and models instead of running them again, so a long run that was stopped goes
+on where it was (within a test, at its next run), and one test can be run on its own first.
 """
 from __future__ import annotations
 

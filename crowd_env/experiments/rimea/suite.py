@@ -12,17 +12,17 @@ from __future__ import annotations
 import json
 import math
 import os
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from crowd_env.errors import InputError, MissingDependencyError
 
-from .base import OVERLAP_LIMIT_M, Verdict, run_crowd_env, select_tests
+from ...analysis.trajectories import Trajectories
+from .base import OVERLAP_LIMIT_M, BackendRun, Verdict, run_crowd_env, select_tests
 
-__all__ = ["TestResult", "run_suite", "load_test_result", "test_result_path", "format_table", "write_results", "write_markdown", "BACKENDS",
-           "JUPEDSIM_BACKENDS"]
+__all__ = ["TestResult", "run_suite", "load_test_result", "test_result_path", "run_path", "save_run", "load_run",
+           "format_table", "write_results", "write_markdown", "BACKENDS", "JUPEDSIM_BACKENDS"]
 
 JUPEDSIM_BACKENDS = ("jupedsim_cfsm", "jupedsim_sfm")
 BACKENDS = ("crowd_env",) + JUPEDSIM_BACKENDS
@@ -157,15 +157,49 @@ def _keep_test_result(out_dir, res: TestResult, *, quick: bool, seed: int, backe
     os.replace(tmp, path)
 
 
+def run_path(out_dir, number: str, variant: str, backend: str) -> str:
+    """Where :func:`run_suite` keeps one scenario run: ``<out_dir>/runs/rimea_<number>_<variant>_<backend>.npz``."""
+    return os.path.join(out_dir, "runs", f"rimea_{number}_{variant}_{backend}.npz")
+
+
+def save_run(run: BackendRun, path: str, settings: dict) -> None:
+    """Keep ``run`` at ``path`` (compressed arrays and a JSON header with ``settings``), written atomically."""
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    t = run.trajectories
+    meta = {"settings": settings, "backend": run.backend, "scenario_name": run.scenario_name,
+            "min_gap_m": run.min_gap_m, "outside_m": run.outside_m, "complete": run.complete, "stalled": run.stalled,
+            "wall_time_s": run.wall_time_s, "max_time_s": run.max_time_s, "frame_rate_per_s": t.frame_rate_per_s}
+    tmp = path + ".tmp.npz"
+    np.savez_compressed(tmp, meta=np.array(json.dumps(meta)), frame=t.frame, id=t.id, x_m=t.x_m, y_m=t.y_m,
+                        heading_rad=t.heading_rad, exit_time_s=run.exit_time_s)
+    os.replace(tmp, path)
+
+
+def load_run(path: str, settings: dict):
+    """The run kept at ``path`` when it was made with ``settings``; None otherwise."""
+    if not os.path.exists(path):
+        return None
+    with np.load(path, allow_pickle=False) as data:
+        meta = json.loads(str(data["meta"]))
+        if meta["settings"] != settings:
+            return None
+        traj = Trajectories(data["frame"], data["id"], data["x_m"], data["y_m"], data["heading_rad"],
+                            meta["frame_rate_per_s"])
+        return BackendRun(meta["backend"], meta["scenario_name"], traj, data["exit_time_s"], meta["min_gap_m"],
+                          meta["outside_m"], meta["complete"], meta["stalled"], meta["wall_time_s"], meta["max_time_s"])
+
+
 def run_suite(numbers=None, *, quick: bool = False, jupedsim: bool = False, seed: int = 0, out_dir=None,
               resume: bool = False, progress=print) -> list:
     """Run the tests ``numbers`` (default: all flat ones; see :func:`~.base.select_tests`) with crowd_env and,
     with ``jupedsim``, JuPedSim's collision-free speed and social force models. ``quick``: the reduced
     versions. ``out_dir``: where figures (``rimea_<n>.png``), each test's result (``tests/rimea_<n>.json``,
-    written as soon as the test is done) and ``results.json`` (the selected tests) go (None: nothing
-    written). ``resume``: a test whose kept result in ``out_dir`` was made with the same version, seed and
-    backends is read back instead of run again (the full suite costs hours: see the verification page).
-    Returns the :class:`TestResult` list."""
+    written as soon as the test is done), each scenario run (``runs/``, :func:`run_path`, written as soon as
+    it is done) and ``results.json`` (the selected tests) go (None: nothing written). ``resume``: a test
+    whose kept result in ``out_dir`` was made with the same version, seed and backends is read back instead
+    of run again, and so is each kept run of a test that was not finished (the full suite costs hours, one
+    run of test 4 alone more than an hour: see the verification page). A test's wall time is the sum of its
+    runs' own, wherever they were made. Returns the :class:`TestResult` list."""
     tests = select_tests(numbers)
     backends = BACKENDS if jupedsim else ("crowd_env",)
     if jupedsim:
@@ -188,14 +222,24 @@ def run_suite(numbers=None, *, quick: bool = False, jupedsim: bool = False, seed
         runs_by_backend = {}
         for backend in backends:
             run = _runner(backend)
-            t0 = time.perf_counter()
-            runs = {name: run(sc, seed=seed, max_time_s=test.max_time_s(quick)) for name, sc in scenarios.items()}
+            runs = {}
+            for name, sc in scenarios.items():
+                settings = {**_settings(quick, seed, [backend]), "test": test.number, "variant": name,
+                            "max_time_s": float(test.max_time_s(quick))}
+                path = run_path(out_dir, test.number, name, backend) if out_dir is not None else None
+                runs[name] = load_run(path, settings) if resume else None
+                if runs[name] is None:
+                    runs[name] = run(sc, seed=seed, max_time_s=test.max_time_s(quick))
+                    if path is not None:
+                        save_run(runs[name], path, settings)
+                elif progress is not None:
+                    progress(f"RiMEA {test.number} {backend} {name}: kept run read from {path}")
             runs_by_backend[backend] = runs
             res.verdicts[backend] = test.evaluate(runs)
             res.min_gap_m[backend] = min(r.min_gap_m for r in runs.values())
             res.outside_m[backend] = max(r.outside_m for r in runs.values())
             res.complete[backend] = test.runs_complete(runs)
-            res.wall_time_s[backend] = time.perf_counter() - t0
+            res.wall_time_s[backend] = float(sum(r.wall_time_s for r in runs.values()))
             if progress is not None:
                 v = res.verdicts[backend]
                 progress(f"RiMEA {test.number} {backend}: {v.measured} -> {_word(res.passed(backend))} "

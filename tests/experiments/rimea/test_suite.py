@@ -88,6 +88,47 @@ def test_kept_results_are_read_back_only_with_the_same_settings(tmp_path, monkey
         run_suite(["1"], resume=True, progress=None)
 
 
+def test_the_runs_of_an_unfinished_test_are_kept_and_read_back(tmp_path, monkeypatch):
+    """A killed test resumes run by run: the runs made before the kill are read back (test 4's reduced version,
+    one run per density that can be placed; the kill comes at the third), the rest are run, and the result is
+    the uninterrupted one's."""
+    from crowd_env.experiments.rimea import suite
+
+    made = []
+    real = suite._runner
+    monkeypatch.setattr(suite, "_runner", lambda backend: (lambda sc, **kw: made.append(sc.name) or real(backend)(sc, **kw)))
+    (whole,) = run_suite(["4"], quick=True, progress=None)
+    n_runs = len(made)  # the densities that can be placed
+    assert n_runs >= 3
+    made.clear()
+
+    def killed_at_the_third(backend):
+        run = real(backend)
+
+        def once(sc, **kw):
+            if len(made) == 2:
+                raise KeyboardInterrupt
+            made.append(sc.name)
+            return run(sc, **kw)
+        return once
+
+    monkeypatch.setattr(suite, "_runner", killed_at_the_third)
+    with pytest.raises(KeyboardInterrupt):
+        run_suite(["4"], quick=True, out_dir=str(tmp_path), progress=None)
+    assert len(list((tmp_path / "runs").glob("rimea_4_*_crowd_env.npz"))) == 2
+    assert not (tmp_path / "tests" / "rimea_4.json").exists()
+    made.clear()
+    monkeypatch.setattr(suite, "_runner", lambda backend: (lambda sc, **kw: made.append(sc.name) or real(backend)(sc, **kw)))
+    (resumed,) = run_suite(["4"], quick=True, out_dir=str(tmp_path), resume=True, progress=None)
+    assert len(made) == n_runs - 2  # only the runs that were not kept
+    assert resumed.verdicts["crowd_env"].value == whole.verdicts["crowd_env"].value
+    assert resumed.verdicts["crowd_env"].measured == whole.verdicts["crowd_env"].measured
+    assert resumed.min_gap_m == whole.min_gap_m and resumed.complete == whole.complete
+    made.clear()
+    run_suite(["4"], quick=True, out_dir=str(tmp_path / "other"), seed=1, resume=True, progress=None)
+    assert len(made) == n_runs  # kept runs of another seed or folder are never reused
+
+
 def _run(end_frame: int, *, stalled=False, max_time_s=2.0):
     from crowd_env.experiments.rimea.base import BackendRun
 
