@@ -47,7 +47,8 @@ from crowd_env.errors import InputError, RunStoreError
 from ..core.params import ModelParams
 from ..envs.crowd_v0 import decisions_for_time
 from .evaluation import ScenarioSpec, evaluate, import_object
-from .store import write_atomic as _write_text
+from .store import write_json_atomic
+from .tables import format_table
 
 __all__ = ["Task", "TASKS", "QUICK_TASKS", "POLICIES", "LEARNED", "BUDGETS", "QUICK_BUDGETS", "BenchmarkPlan",
            "make_plan", "run_benchmark", "bootstrap_interval", "summarize_cells", "format_results", "MEASURES",
@@ -186,12 +187,6 @@ def _seeds_used_in_training(train_seeds, n_demo: int, n_rounds: int = 0) -> set:
     return out
 
 
-def write_atomic(path: str, value) -> None:
-    """``value`` as JSON at ``path``, written atomically (:func:`crowd_env.experiments.store.write_atomic`)."""
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    _write_text(path, json.dumps(value, indent=1))
-
-
 # -- the two kinds of work unit ------------------------------------------------------------------------------
 
 def train_dir(out: str, task: str, algorithm: str, seed: int) -> str:
@@ -252,7 +247,7 @@ def train_one(job: dict) -> dict:
     cost = {"algorithm": algo, "task": task.name, "seed": seed, "agent_steps": agent_steps,
             "train_wall_s": float(summary.get("train_wall_s", float("nan"))),
             "total_wall_s": time.perf_counter() - t0, "cores": 1}
-    write_atomic(os.path.join(folder, "cost.json"), cost)
+    write_json_atomic(os.path.join(folder, "cost.json"), cost)
     return cost
 
 
@@ -272,7 +267,7 @@ def evaluate_one(job: dict) -> list:
                         env_options=cfg, max_time_s=task.max_time_s, progress=None,
                         resolve=import_object(job["resolver"]))
     rows = [asdict(m) for m in episodes]
-    write_atomic(job["out"], {"task": task.name, "policy": label, "train_seed": job["train_seed"], "episodes": rows})
+    write_json_atomic(job["out"], {"task": task.name, "policy": label, "train_seed": job["train_seed"], "episodes": rows})
     return rows
 
 
@@ -300,7 +295,7 @@ def video_one(job: dict) -> dict:
     value = {"path": job["out"], "n_frames": info.n_frames, "fps": info.fps, "n_evacuated": metrics.n_evacuated,
              "n_pedestrians": metrics.n_pedestrians, "simulated_time_s": metrics.simulated_time_s,
              "wall_s": time.perf_counter() - t0}
-    write_atomic(job["out"][:-len(".mp4")] + ".json", value)
+    write_json_atomic(job["out"][:-len(".mp4")] + ".json", value)
     return value
 
 
@@ -317,7 +312,7 @@ def _check_folder(out: str, plan: BenchmarkPlan) -> None:
             raise RunStoreError(f"{out} holds a benchmark of another plan (differs in {diff}); use another --out")
     else:
         os.makedirs(out, exist_ok=True)
-        write_atomic(path, want)
+        write_json_atomic(path, want)
 
 
 def _done_training(folder: str) -> bool:
@@ -398,7 +393,7 @@ def run_benchmark(plan: BenchmarkPlan, out: str, *, backend=None, progress=print
         raise BackendError(f"{len(failed)} benchmark unit(s) failed (rerun to retry them):\n" + "\n".join(failed))
     results = summarize_cells(out, plan)
     results["wall_s_this_run"] = time.perf_counter() - t0
-    write_atomic(os.path.join(out, "results.json"), results)
+    write_json_atomic(os.path.join(out, "results.json"), results)
     return results
 
 
@@ -520,13 +515,8 @@ def target_checks(results: dict) -> list:
 def format_checks(rows: list, *, markdown: bool = False) -> str:
     """:func:`target_checks` as a table."""
     head = ["check", "task", "policy", "measured", "target", "holds"]
-    table = [[r[k] if k != "holds" else ("yes" if r[k] else "NO") for k in head] for r in rows]
-    if markdown:
-        return "\n".join(["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-                         + ["| " + " | ".join(r) + " |" for r in table])
-    widths = [max(len(h), *(len(r[i]) for r in table)) if table else len(h) for i, h in enumerate(head)]
-    return "\n".join([" | ".join(h.ljust(w) for h, w in zip(head, widths))]
-                     + [" | ".join(x.ljust(w) for x, w in zip(r, widths)) for r in table])
+    return format_table(head, [[r[k] if k != "holds" else ("yes" if r[k] else "NO") for k in head] for r in rows],
+                        markdown=markdown)
 
 
 def _num(v: float):
@@ -558,14 +548,7 @@ def format_results(results: dict, *, markdown: bool = False) -> str:
         tr = c.get("training")
         row.append(f"{tr['agent_steps']:,} agent steps, {tr['wall_s']:.0f} s" if tr else "-")
         rows.append(row)
-    if markdown:
-        lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-        lines += ["| " + " | ".join(r) + " |" for r in rows]
-        return "\n".join(lines)
-    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h) for i, h in enumerate(head)]
-    lines = [" | ".join(h.ljust(w) for h, w in zip(head, widths)), "-+-".join("-" * w for w in widths)]
-    lines += [" | ".join(x.ljust(w) for x, w in zip(r, widths)) for r in rows]
-    return "\n".join(lines)
+    return format_table(head, rows, markdown=markdown)
 
 
 # -- figures and shipping ------------------------------------------------------------------------------------

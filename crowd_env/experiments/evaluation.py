@@ -55,6 +55,7 @@ from scipy.spatial import cKDTree
 
 from ..analysis.flow import MeasurementLine, PassageCounter, specific_flow
 from ..envs.crowd_v0 import CrowdParallelEnv, decisions_for_time
+from . import tables
 from .runner import StallDetector
 
 __all__ = ["EpisodeMetrics", "ScenarioSpec", "import_object", "resolve_policy", "run_episode", "evaluate", "summarize",
@@ -381,11 +382,7 @@ def format_table(rows) -> str:
                 s += f" [{k}/{n}]"
             cells.append(s)
         lines.append(cells)
-    widths = [max(len(h), *(len(c[i]) for c in lines)) if lines else len(h) for i, h in enumerate(head)]
-    fmt = " | ".join("{:<%d}" % w if i < 2 else "{:>%d}" % w for i, w in enumerate(widths))
-    out = [fmt.format(*head), "-+-".join("-" * w for w in widths)]
-    out += [fmt.format(*c) for c in lines]
-    return "\n".join(out)
+    return tables.format_table(head, lines, align="<<" + ">" * (len(head) - 2))
 
 
 def write_csv(results, path) -> None:

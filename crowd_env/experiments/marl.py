@@ -49,8 +49,8 @@ import numpy as np
 
 from ..envs import crowd_v0
 from ..errors import MissingDependencyError, TrainingError
-from .training import (SharedPolicy, _write_json_atomic, begin_run, evaluate_trained, read_checkpoints,
-                       write_progress)
+from .store import write_json_atomic
+from .training import SharedPolicy, begin_run, evaluate_trained, read_checkpoints, write_progress
 
 __all__ = ["ALGORITHMS", "GROUP", "CSV_COLUMNS", "DEFAULT_PPO", "TorchRLPolicy", "check_algorithm", "make_env",
            "build_networks", "make_loss", "valid_transitions", "load_policy", "train"]
@@ -284,7 +284,7 @@ def _save_checkpoint(out: str, algorithm: str, frames: int, actor, critic, optim
     torch.save({"algorithm": algorithm, "frames": frames, "actor": actor.state_dict(), "critic": critic.state_dict(),
                 "optim": optim.state_dict(), "progress": rows}, os.path.join(folder, name + ".tmp"))
     os.replace(os.path.join(folder, name + ".tmp"), os.path.join(folder, name))
-    _write_json_atomic(os.path.join(folder, "index.json"),
+    write_json_atomic(os.path.join(folder, "index.json"),
                        {"checkpoints": entries + [{"timesteps": frames, "model": name, "algorithm": algorithm}]})
 
 

@@ -41,8 +41,8 @@ import numpy as np
 from ..envs import crowd_v0
 from ..errors import MissingDependencyError, TrainingError
 from .backends import RayBackend, check_reachable
-from .training import (SharedPolicy, _write_json_atomic, begin_run, evaluate_trained, read_checkpoints,
-                       write_progress)
+from .store import write_json_atomic
+from .training import SharedPolicy, begin_run, evaluate_trained, read_checkpoints, write_progress
 
 __all__ = ["ENV_NAME", "MODULE_ID", "CSV_COLUMNS", "DEFAULT_PPO", "RLlibPolicy", "env_creator", "ppo_config",
            "load_policy", "train"]
@@ -165,10 +165,10 @@ def _save_checkpoint(algo, out: str, env_steps: int, iteration: int, rows) -> No
     tmp = os.path.join(folder, name + ".tmp")
     shutil.rmtree(tmp, ignore_errors=True)
     algo.save_to_path(os.path.abspath(tmp))
-    _write_json_atomic(os.path.join(tmp, "progress.json"), rows)
+    write_json_atomic(os.path.join(tmp, "progress.json"), rows)
     shutil.rmtree(os.path.join(folder, name), ignore_errors=True)
     os.replace(tmp, os.path.join(folder, name))
-    _write_json_atomic(os.path.join(folder, "index.json"),
+    write_json_atomic(os.path.join(folder, "index.json"),
                        {"checkpoints": entries + [{"timesteps": env_steps, "model": name, "iteration": iteration}]})
 
 
@@ -246,7 +246,7 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, address: str |
         policy_dir = os.path.join(out, "policy")
         shutil.rmtree(policy_dir, ignore_errors=True)
         module.save_to_path(os.path.abspath(policy_dir))
-        _write_json_atomic(os.path.join(out, "policy.json"),
+        write_json_atomic(os.path.join(out, "policy.json"),
                            {**policy_meta, "normalize_actions": bool(config.normalize_actions), "module_id": MODULE_ID})
         cluster_cpus = backend.n_workers
         algo.stop()

@@ -30,7 +30,7 @@ from pathlib import Path
 
 from ..analysis.trajectories import trajectory_frame_rate
 
-__all__ = ["RunStoreError", "RunStore", "config_hash", "normalise_record", "run_key", "task_key", "write_atomic",
+__all__ = ["RunStoreError", "RunStore", "config_hash", "normalise_record", "run_key", "task_key", "write_atomic", "write_json_atomic",
            "CONFIG_NAME", "LAYOUTS"]
 
 CONFIG_NAME = "config.json"
@@ -84,6 +84,14 @@ def write_atomic(path: Path, text: str) -> None:
         fh.flush()
         os.fsync(fh.fileno())
     tmp.replace(path)
+
+
+def write_json_atomic(path, value) -> None:
+    """``value`` as JSON (indented) at ``path``, its folder made if needed, written atomically
+    (:func:`write_atomic`)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, json.dumps(value, indent=1))
 
 
 def _config_difference(old: dict, config: dict) -> list:

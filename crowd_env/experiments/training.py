@@ -28,6 +28,7 @@ import numpy as np
 from ..core.params import ModelParams
 from ..envs import crowd_v0
 from .evaluation import ScenarioSpec, run_episode
+from .store import write_json_atomic
 
 __all__ = ["DEFAULT_SCENARIO_OPTIONS", "SharedPolicy", "TrainingError", "make_vec_env", "mean_return", "read_checkpoints",
            "save_checkpoint", "check_resume", "begin_run", "evaluate_trained", "train", "write_curve"]
@@ -101,12 +102,6 @@ def mean_return(policy, env_config: dict, seeds) -> dict:
             "n_percussions": float(np.mean([r.n_percussions for r in runs]))}
 
 
-def _write_json_atomic(path: str, value) -> None:
-    tmp = path + ".tmp"
-    with open(tmp, "w") as fh:
-        json.dump(value, fh, indent=1)
-    os.replace(tmp, path)  # a kill leaves either the old file or the new one, never half of one
-
 
 def write_progress(out: str, rows, columns) -> None:
     """``out/progress.csv``: one row per training iteration, the fields ``columns`` (the TorchRL and RLlib runs)."""
@@ -144,8 +139,8 @@ def save_checkpoint(model, out: str, curve: list) -> dict | None:
         entry["vecnormalize"] = f"vecnormalize_{t}_steps.pkl"
         norm.save(os.path.join(folder, entry["vecnormalize"] + ".tmp"))
         os.replace(os.path.join(folder, entry["vecnormalize"] + ".tmp"), os.path.join(folder, entry["vecnormalize"]))
-    _write_json_atomic(os.path.join(folder, "curve.json"), curve)
-    _write_json_atomic(os.path.join(folder, "index.json"), {"checkpoints": entries + [entry]})
+    write_json_atomic(os.path.join(folder, "curve.json"), curve)
+    write_json_atomic(os.path.join(folder, "index.json"), {"checkpoints": entries + [entry]})
     return entry
 
 
@@ -182,7 +177,7 @@ def begin_run(out: str, env_config: dict, *, resume: bool, resolve, eval_seeds, 
         before = saved["result"] if saved["eval_seeds"] == list(eval_seeds) and saved["seed"] == seed else None
     if before is None:
         before = mean_return(resolve("random"), env_config, eval_seeds)
-        _write_json_atomic(random_path, {"eval_seeds": list(eval_seeds), "seed": seed, "result": before})
+        write_json_atomic(random_path, {"eval_seeds": list(eval_seeds), "seed": seed, "result": before})
     _report("random", before, progress)
     return entries, before
 

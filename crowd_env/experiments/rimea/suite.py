@@ -19,6 +19,8 @@ import numpy as np
 from crowd_env.errors import InputError, MissingDependencyError
 
 from ...analysis.trajectories import Trajectories
+from .. import tables
+from ..store import write_json_atomic
 from .base import OVERLAP_LIMIT_M, BackendRun, Verdict, run_crowd_env, select_tests
 
 __all__ = ["TestResult", "run_suite", "load_test_result", "test_result_path", "run_path", "save_run", "load_run",
@@ -149,12 +151,8 @@ def load_test_result(out_dir, number: str, *, quick: bool, seed: int, backends):
 
 
 def _keep_test_result(out_dir, res: TestResult, *, quick: bool, seed: int, backends) -> None:
-    path = test_result_path(out_dir, res.number)
-    os.makedirs(os.path.dirname(path), exist_ok=True)
-    tmp = path + ".tmp"
-    with open(tmp, "w") as fh:
-        json.dump({"settings": _settings(quick, seed, backends), "result": res.to_dict()}, fh, indent=1)
-    os.replace(tmp, path)
+    write_json_atomic(test_result_path(out_dir, res.number),
+                      {"settings": _settings(quick, seed, backends), "result": res.to_dict()})
 
 
 def run_path(out_dir, number: str, variant: str, backend: str) -> str:
@@ -305,11 +303,7 @@ def format_table(results, backends=None) -> str:
                 continue
             row += _cells(r, b)
         rows.append(row)
-    widths = [max(len(str(x)) for x in col) for col in zip(head, *rows)]
-    lines = [" | ".join(str(x).ljust(w) for x, w in zip(head, widths)),
-             "-|-".join("-" * w for w in widths)]
-    lines += [" | ".join(str(x).ljust(w) for x, w in zip(row, widths)) for row in rows]
-    return "\n".join(lines)
+    return tables.format_table(head, rows, separator="-|-")
 
 
 def write_markdown(results, path, *, command: str, figure_prefix: str = "") -> str:
@@ -318,14 +312,9 @@ def write_markdown(results, path, *, command: str, figure_prefix: str = "") -> s
     file name, the prefix being their folder as seen from the including page."""
     backends = [b for b in BACKENDS if results and b in results[0].verdicts]
     head = ["test", "checks", "criterion"] + [x for b in backends for x in (f"{b}: measured", f"{b}")]
-    lines = [f"<!-- written by `{command}`; do not edit by hand -->", "",
-             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for r in results:
-        row = [r.number, r.checks, r.criterion]
-        for b in backends:
-            row += _cells(r, b)
-        lines.append("| " + " | ".join(str(x).replace("|", "/") for x in row) + " |")
-    lines.append("")
+    rows = [[r.number, r.checks, r.criterion] + [x for b in backends for x in _cells(r, b)] for r in results]
+    lines = [f"<!-- written by `{command}`; do not edit by hand -->", "", tables.format_table(head, rows, markdown=True),
+             ""]
     mode = "reduced versions (--quick)" if results and results[0].quick else "full versions"
     lines.append(f"Run: {mode}; smallest gap over all runs: " + ", ".join(
         f"{b} {min(r.min_gap_m[b] for r in results) * 1e3:.3g} mm" for b in backends) + "; wall time: " + ", ".join(
