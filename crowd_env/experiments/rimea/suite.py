@@ -76,7 +76,9 @@ class TestResult:
         for b, d in data["backends"].items():
             res.verdicts[b] = Verdict(d["measured"], _from_json_number(d["value"]), d["criterion_met"],
                                       d.get("details") or {})
-            res.min_gap_m[b] = _from_json_number(d["min_gap_m"])
+            # null: no two bodies (nor a body and a wall) ever came within measuring range, a gap of +inf
+            # (JSON has no infinity); an overlap is always a finite number
+            res.min_gap_m[b] = math.inf if d["min_gap_m"] is None else float(d["min_gap_m"])
             res.outside_m[b] = _from_json_number(d["outside_m"])
             res.complete[b] = bool(d["complete"])
             res.wall_time_s[b] = _from_json_number(d["wall_time_s"])

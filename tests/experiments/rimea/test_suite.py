@@ -88,6 +88,24 @@ def test_kept_results_are_read_back_only_with_the_same_settings(tmp_path, monkey
         run_suite(["1"], resume=True, progress=None)
 
 
+def test_a_kept_result_reads_back_with_its_verdict_when_nobody_came_near():
+    """Test 7's people walk abreast, far apart: no gap is ever measured (+inf), written as null; read back it
+    must still pass (it once read back as NaN, which fails the no-overlap condition)."""
+    from crowd_env.experiments.rimea.base import Verdict
+    from crowd_env.experiments.rimea.suite import TestResult
+
+    res = TestResult("7", "t", "c", "k", "s", True)
+    res.verdicts["crowd_env"] = Verdict("ok", 1.0, True, {})
+    res.min_gap_m["crowd_env"], res.outside_m["crowd_env"] = float("inf"), 0.0
+    res.complete["crowd_env"], res.wall_time_s["crowd_env"] = True, 1.0
+    data = json.loads(json.dumps(res.to_dict()))
+    assert data["backends"]["crowd_env"]["min_gap_m"] is None and res.passed() is True
+    back = TestResult.from_dict(data)
+    assert back.min_gap_m["crowd_env"] == float("inf") and back.passed() is True
+    res.min_gap_m["crowd_env"] = -0.01  # an overlap stays one
+    assert TestResult.from_dict(json.loads(json.dumps(res.to_dict()))).passed() is False
+
+
 def test_the_runs_of_an_unfinished_test_are_kept_and_read_back(tmp_path, monkeypatch):
     """A killed test resumes run by run: the runs made before the kill are read back (test 4's reduced version,
     one run per density that can be placed; the kill comes at the third), the rest are run, and the result is
