@@ -186,15 +186,11 @@ def as_policy(spec, name: str | None = None) -> EnvPolicy:
             if name:
                 p.name = name
             return p
-        from .trained import FilePolicy, list_trained, load_trained  # shipped and saved policy files
+        from .trained import file_policy, list_trained  # shipped and saved policy files
 
-        if s in list_trained():
-            p = load_trained(s)
-            if name:
-                p.name = name
+        p = file_policy(s, name=name)
+        if p is not None:
             return p
-        if s.endswith(".npz"):
-            return FilePolicy(s, name=name)
         if s.endswith(".pt") or os.path.exists(os.path.join(s, "policy.pt")):
             from crowd_env.experiments.marl import load_policy  # crowd-train-mappo (MAPPO / IPPO)
 

@@ -25,11 +25,9 @@ from crowd_env.experiments.policy_files import load_policy_file
 
 from .reference_policies import EnvPolicy, stack_observations
 
-__all__ = ["FilePolicy", "TRAINED_DIR", "list_trained", "load_trained", "background_policy", "POLICY_OPTIONS"]
+__all__ = ["FilePolicy", "TRAINED_DIR", "list_trained", "load_trained", "file_policy", "background_policy"]
 
 TRAINED_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "trained")
-# The environment options a trained policy depends on: its observation layout, decision interval and action.
-POLICY_OPTIONS = OBSERVATION_POLICY_OPTIONS
 
 
 class FilePolicy(EnvPolicy):
@@ -39,13 +37,18 @@ class FilePolicy(EnvPolicy):
         self.file = load_policy_file(os.fspath(path))
         self.path = os.fspath(path)
         self.name = name or os.path.splitext(os.path.basename(self.path))[0]
-        cfg = self.file.env_config
-        self.env_overrides = {k: cfg[k] for k in POLICY_OPTIONS if k in cfg}
+        cfg = self.file.env_config  # the options its observation layout, decision interval and action depend on
+        self.env_overrides = {k: cfg[k] for k in OBSERVATION_POLICY_OPTIONS if k in cfg}
+
+    @property
+    def obs_dim(self) -> int:
+        """The size of the observations it acts on."""
+        return self.file.obs_dim
 
     def reset(self, env, seed=None) -> None:
         have = env.observation_space(env.possible_agents[0]).shape
-        if tuple(have) != (self.file.obs_dim,):
-            raise ValueError(f"policy {self.name!r} expects observations of size {self.file.obs_dim}, the environment "
+        if tuple(have) != (self.obs_dim,):
+            raise ValueError(f"policy {self.name!r} expects observations of size {self.obs_dim}, the environment "
                              f"gives {have} (use its options: {self.env_overrides})")
 
     def act(self, env, observations) -> dict:
@@ -73,13 +76,24 @@ def load_trained(name: str) -> FilePolicy:
     return FilePolicy(path, name=name)
 
 
+def file_policy(spec: str, name: str | None = None) -> FilePolicy | None:
+    """The policy of a shipped trained policy's name or of a policy file (``.npz``), named ``name`` when
+    given; None for anything else."""
+    if spec in list_trained():
+        p = load_trained(spec)
+        p.name = name or p.name
+        return p
+    if spec.endswith(".npz"):
+        return FilePolicy(spec, name=name)
+    return None
+
+
 def background_policy(spec: str) -> FilePolicy:
     """The environment's loader of named background policies (entry point ``crowd_env_background_policies``):
-    a shipped trained policy's name or a policy file (``.npz``); :class:`~crowd_env.errors.NotFoundError` (a
-    ``LookupError``) naming the shipped ones otherwise."""
-    if spec in list_trained():
-        return load_trained(spec)
-    if spec.endswith(".npz"):
-        return FilePolicy(spec)
+    :func:`file_policy`; :class:`~crowd_env.errors.NotFoundError` (a ``LookupError``) naming the shipped ones
+    for anything else."""
+    p = file_policy(spec)
+    if p is not None:
+        return p
     raise NotFoundError(f"not a shipped trained policy ({', '.join(list_trained()) or 'none shipped'}) nor a "
                       f"policy file (.npz): {spec!r}")

@@ -12,13 +12,11 @@ from ..core.params import ModelParams
 from ..errors import OptionError
 from ..core.presets import DEFAULT_PRESET, get_preset
 from ..experiments.bottleneck import GEOMETRY_OPTIONS, bottleneck_config, model_params
+from ..experiments.evaluation import DEFAULT_POLICY_RESOLVER
 
 __all__ = ["add_geometry_arguments", "model_params_from_args", "navigation_clearance_from_args", "config_of",
            "DEFAULT_POLICY_RESOLVER", "key_values", "policy_env_options", "MODEL_ENV_KEYS"]
 
-# Names and saved models are turned into policies by the shipped baselines, reached by import path so that
-# crowd_env never imports baselines.
-DEFAULT_POLICY_RESOLVER = "baselines.reference_policies:as_policy"
 
 
 def key_values(items, usage: str) -> dict:

@@ -5,7 +5,8 @@ The environment's ``background_policy`` option drives the pedestrians it does no
 takes an *observation policy*: an object with ``actions(observations (n, D)) -> (n, 2)`` and
 ``env_overrides``, the environment options it was trained with (``n_neighbors``, ``n_rays``,
 ``neighbor_radius_m``, ``ray_range_m``, ``observation_frame``, ``frame_skip``, ``action_max_m_s``,
-``heading_target``; those it does not name take the environment's defaults). A trained policy file
+``heading_target``; those it does not name take the environment's defaults), and optionally ``obs_dim``,
+the observation size it expects (checked against its options). A trained policy file
 (:class:`baselines.trained.FilePolicy`) is one. :class:`ObservingBackground` runs it for the background
 pedestrians exactly as the environment runs it for its agents:
 
@@ -85,8 +86,8 @@ class ObservingBackground:
     """``policy(sim) -> intents (N, 2)`` (and desired headings with ``heading_target="desired_direction"``)
     for the background pedestrians (``background_mask``), from the observation policy ``policy``.
 
-    ``options``: the resolved :data:`OBSERVATION_POLICY_OPTIONS` (the policy's ``env_overrides`` over the
-    environment's defaults); ``navigation`` and ``walls``: the environment's; ``dt_s``: the simulator step;
+    ``options``: the resolved and checked :data:`OBSERVATION_POLICY_OPTIONS` (the policy's ``env_overrides``
+    over the environment's defaults); ``navigation`` and ``walls``: the environment's; ``dt_s``: the simulator step;
     the bounds only set the observation builder's declared space. Rows of pedestrians it does not drive are
     zero (the environment overwrites its agents' rows)."""
 
@@ -97,18 +98,13 @@ class ObservingBackground:
         self.frame_skip = int(options["frame_skip"])
         self.action_max_m_s = float(options["action_max_m_s"])
         self.heading_target = options["heading_target"]
-        if self.heading_target not in ("intent", "desired_direction"):
-            raise EnvOptionError(f"background policy: heading_target must be 'intent' or 'desired_direction', "
-                                 f"got {self.heading_target!r}")
         self.observer = ObservationBuilder(navigation, walls, n_neighbors=int(options["n_neighbors"]),
                                            n_rays=int(options["n_rays"]),
                                            neighbor_radius_m=float(options["neighbor_radius_m"]),
                                            ray_range_m=float(options["ray_range_m"]),
                                            velocity_bound_m_s=velocity_bound_m_s, travel_time_bound_s=travel_time_bound_s,
                                            frame=options["observation_frame"])
-        want = getattr(policy, "obs_dim", None)
-        if want is None and hasattr(policy, "file"):
-            want = policy.file.obs_dim
+        want = getattr(policy, "obs_dim", None)  # checked when the policy says
         if want is not None and int(want) != self.observer.size:
             raise PolicyError(f"background policy {getattr(policy, 'name', policy)!r} expects observations of size "
                               f"{want}; its options {self.options} give {self.observer.size}")

@@ -167,6 +167,35 @@ def _positive_number(name, value, *, integer=False, allow_zero=False):
     return int(value) if integer else float(value)
 
 
+def _check_heading_target(name, value) -> str:
+    if value not in ("intent", "desired_direction"):
+        raise EnvOptionError(f"{name} must be 'intent' or 'desired_direction', got {value!r}")
+    return value
+
+
+_OPTION_CHECKS = {  # the options an observation policy depends on (OBSERVATION_POLICY_OPTIONS), checked
+    "frame_skip": lambda n, v: _positive_number(n, v, integer=True),
+    "action_max_m_s": _positive_number,
+    "n_neighbors": lambda n, v: _positive_number(n, v, integer=True, allow_zero=True),
+    "n_rays": lambda n, v: _positive_number(n, v, integer=True, allow_zero=True),
+    "neighbor_radius_m": _positive_number,
+    "ray_range_m": _positive_number,
+    "heading_target": _check_heading_target,
+    "observation_frame": lambda n, v: check_frame(v),
+}
+
+
+def _observation_options(values: dict, what: str = "") -> dict:
+    """``values`` of the :data:`OBSERVATION_POLICY_OPTIONS`, checked and converted as the environment's own
+    options are; ``what`` starts the message of an :class:`EnvOptionError` (e.g. whose options they are)."""
+    try:
+        return {k: _OPTION_CHECKS[k](k, v) for k, v in values.items()}
+    except EnvOptionError as exc:
+        if not what:
+            raise
+        raise EnvOptionError(f"{what}{exc}") from None
+
+
 def _select_controlled(controlled, n: int) -> np.ndarray:
     """Sorted pedestrian indices selected by the ``controlled`` option."""
     if isinstance(controlled, str):
@@ -304,19 +333,17 @@ class CrowdParallelEnv(ParallelEnv):
         else:
             raise EnvOptionError(f"params must be a ModelParams or a dict, got {type(params).__name__}")
         self.params = params
-        self.frame_skip = _positive_number("frame_skip", frame_skip, integer=True)
+        own = _observation_options({"frame_skip": frame_skip, "action_max_m_s": action_max_m_s,
+                                    "n_neighbors": n_neighbors, "n_rays": n_rays, "neighbor_radius_m": neighbor_radius_m,
+                                    "ray_range_m": ray_range_m, "heading_target": heading_target,
+                                    "observation_frame": observation_frame})
+        self.frame_skip = own["frame_skip"]
         if max_steps is None:
             max_steps = decisions_for_time(DEFAULT_EPISODE_TIME_S, params.dt_s * self.frame_skip)
         self.max_steps = _positive_number("max_steps", max_steps, integer=True)
-        self.action_max_m_s = _positive_number("action_max_m_s", action_max_m_s)
-        self.n_neighbors = _positive_number("n_neighbors", n_neighbors, integer=True, allow_zero=True)
-        self.n_rays = _positive_number("n_rays", n_rays, integer=True, allow_zero=True)
-        neighbor_radius_m = _positive_number("neighbor_radius_m", neighbor_radius_m)
-        ray_range_m = _positive_number("ray_range_m", ray_range_m)
-        if heading_target not in ("intent", "desired_direction"):
-            raise EnvOptionError(f"heading_target must be 'intent' or 'desired_direction', got {heading_target!r}")
-        self.heading_target = heading_target
-        self.observation_frame = check_frame(observation_frame)
+        self.action_max_m_s, self.n_neighbors, self.n_rays = own["action_max_m_s"], own["n_neighbors"], own["n_rays"]
+        neighbor_radius_m, ray_range_m = own["neighbor_radius_m"], own["ray_range_m"]
+        self.heading_target, self.observation_frame = own["heading_target"], own["observation_frame"]
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise EnvOptionError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         self.render_mode = render_mode
@@ -351,9 +378,9 @@ class CrowdParallelEnv(ParallelEnv):
                                             ray_range_m=ray_range_m, velocity_bound_m_s=self.velocity_bound_m_s,
                                             travel_time_bound_s=t_bound, frame=self.observation_frame)
         self.observation_layout = dict(self._observer.layout)
-        if observing:  # a learned background: observed and acting with its own options
-            defaults = {k: v.default for k, v in inspect.signature(type(self).__init__).parameters.items()}
-            options = {k: background_policy.env_overrides.get(k, defaults[k]) for k in OBSERVATION_POLICY_OPTIONS}
+        if observing:  # a learned background: observed and acting with its own options, checked as ours are
+            options = _observation_options({k: background_policy.env_overrides.get(k, ENV_DEFAULTS[k])
+                                            for k in OBSERVATION_POLICY_OPTIONS}, what="background policy: ")
             self._background_policy = ObservingBackground(
                 background_policy, options, navigation=self.navigation, walls=scenario.geometry.walls,
                 background_mask=self._background_mask, dt_s=self.params.dt_s,
@@ -828,8 +855,9 @@ def _all_finite(values):
     return True
 
 
-ENV_OPTIONS = tuple(p.name for p in inspect.signature(CrowdParallelEnv.__init__).parameters.values()
-                    if p.kind == p.KEYWORD_ONLY)
+ENV_DEFAULTS = {p.name: p.default for p in inspect.signature(CrowdParallelEnv.__init__).parameters.values()
+                if p.kind == p.KEYWORD_ONLY}
+ENV_OPTIONS = tuple(ENV_DEFAULTS)
 
 
 def _check_options(options: dict) -> None:

@@ -46,7 +46,7 @@ from crowd_env.errors import InputError, RunStoreError
 
 from ..core.params import ModelParams
 from ..envs.crowd_v0 import decisions_for_time
-from .evaluation import ScenarioSpec, evaluate, import_object
+from .evaluation import DEFAULT_POLICY_RESOLVER, ScenarioSpec, evaluate, import_object
 from .store import write_json_atomic
 from .tables import format_table
 
@@ -58,7 +58,6 @@ __all__ = ["Task", "TASKS", "QUICK_TASKS", "POLICIES", "LEARNED", "BUDGETS", "QU
 POLICIES = ("baseline", "random", "zero", "ppo", "mappo", "bc")
 LEARNED = ("ppo", "mappo", "bc")
 LEARNER_OPTIONS = {"frame_skip": 10}
-DEFAULT_RESOLVER = "baselines.reference_policies:as_policy"
 
 
 @dataclass(frozen=True)
@@ -99,6 +98,7 @@ BUDGETS = {"ppo_timesteps": 2_000_000, "mappo_frames": 20_000, "bc_demo_seeds": 
            "bc_dagger_rounds": 3}
 QUICK_BUDGETS = {"ppo_timesteps": 512, "mappo_frames": 40, "bc_demo_seeds": 1, "bc_epochs": 2, "bc_dagger_rounds": 1}
 ZERO_ALLOWED = ("bc_dagger_rounds",)  # 0: plain behaviour cloning
+VIDEO_FPS, VIDEO_QUALITY = 5.0, 4.0  # the videos: a frame every 0.2 s in real time; about 3 MB for six
 MEASURES = (
     ("evacuated_fraction", "evacuated", "{:.0%}"),
     ("evacuation_time_s", "evac. time (s)", "{:.1f}"),
@@ -121,7 +121,7 @@ class BenchmarkPlan:
     train_seeds: tuple = (0, 1, 2)
     eval_seeds: tuple = tuple(range(10))
     budgets: dict = field(default_factory=lambda: dict(BUDGETS))
-    resolver: str = DEFAULT_RESOLVER
+    resolver: str = DEFAULT_POLICY_RESOLVER
     quick: bool = False
 
     def to_dict(self) -> dict:
@@ -231,12 +231,10 @@ def train_one(job: dict) -> dict:
     elif algo == "bc":
         from .imitation import train_behaviour_cloning
 
-        summary = train_behaviour_cloning(cfg, folder, teacher=resolve("baseline"), seed=seed,
-                                          demo_seeds=_demo_seeds(seed, budgets["bc_demo_seeds"]),
-                                          dagger_seeds=[_demo_seeds(seed, budgets["bc_demo_seeds"], r) for r in
-                                                        range(1, int(budgets.get("bc_dagger_rounds", 0)) + 1)],
-                                          epochs=int(budgets["bc_epochs"]), max_time_s=task.max_time_s,
-                                          progress=quiet)
+        rounds = [_demo_seeds(seed, budgets["bc_demo_seeds"], r) for r in range(int(budgets["bc_dagger_rounds"]) + 1)]
+        summary = train_behaviour_cloning(cfg, folder, teacher=resolve("baseline"), seed=seed, demo_seeds=rounds[0],
+                                          dagger_seeds=rounds[1:], epochs=int(budgets["bc_epochs"]),
+                                          max_time_s=task.max_time_s, progress=quiet)
         agent_steps = int(summary["agent_steps"])
         policy = None  # written by train_behaviour_cloning
     else:
@@ -275,14 +273,12 @@ def video_path(out: str, task: str, policy: str) -> str:
     return os.path.join(out, "videos", f"{task}_{policy}.mp4")
 
 
-VIDEO_FPS, VIDEO_QUALITY = 5.0, 4.0  # a frame every 0.2 s in real time; about 3 MB for the six videos
-
-
 def video_one(job: dict) -> dict:
     """Record one episode of one policy (``job``: task, policy, its file for a learned one, the evaluation
-    seed, resolver, out) as an MP4 in real time at :data:`VIDEO_FPS` frames per second (:func:`crowd_env.experiments.video.record_rollout`: the
-    evaluation harness's episode, percussions drawn; written under a temporary name and renamed, so a killed
-    unit leaves no video); returns what was written and the episode's figures."""
+    seed, resolver, out) as an MP4 in real time at :data:`VIDEO_FPS` frames per second
+    (:func:`crowd_env.experiments.video.record_rollout`: the evaluation harness's episode, percussions drawn;
+    written under a temporary name and renamed, so a killed unit leaves no video); returns what was written
+    and the episode's figures."""
     from .video import record_rollout
 
     task = Task(**job["task"])

@@ -58,9 +58,12 @@ from ..envs.crowd_v0 import CrowdParallelEnv, decisions_for_time
 from . import tables
 from .runner import StallDetector
 
-__all__ = ["EpisodeMetrics", "ScenarioSpec", "import_object", "resolve_policy", "run_episode", "evaluate", "summarize",
+__all__ = ["DEFAULT_POLICY_RESOLVER", "EpisodeMetrics", "ScenarioSpec", "import_object", "resolve_policy", "run_episode", "evaluate", "summarize",
            "format_table", "write_csv", "plot_results", "METRICS"]
 
+# Names and saved models are turned into policies by the shipped baselines, reached by import path so that
+# crowd_env never imports baselines.
+DEFAULT_POLICY_RESOLVER = "baselines.reference_policies:as_policy"
 METRICS = (
     ("specific_flow_per_m_s", "J_s (1/m/s)"),
     ("evacuation_time_s", "evac. time (s)"),
@@ -183,6 +186,8 @@ class _Probe:
         self.passed = np.zeros(env.n_pedestrians, dtype=bool)
         self.stall = StallDetector(env.sim.params.dt_s, start_s=env.sim.time_s)
         self.front = geom.measurement_areas.get("front")
+        if self.front is not None:
+            shapely.prepare(self.front)  # tested against the crowd at every step
         self.front_density, self.front_time = [], []
 
     def front_density_per_m2(self) -> float:

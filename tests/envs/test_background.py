@@ -110,6 +110,13 @@ def test_unknown_names_and_bad_policies_are_named(tmp_path):
     world.env_overrides["observation_frame"] = "egocentric"  # its options no longer give its input size
     with pytest.raises(PolicyError, match="expects observations of size"):
         crowd_v0.parallel_env(**SCENARIO, controlled=[0], background_policy=world)
+    for key, bad, what in (("n_rays", -1, "n_rays must be a finite integer >= 0"),
+                           ("heading_target", "sideways", "heading_target must be 'intent' or 'desired_direction'"),
+                           ("observation_frame", "polar", "observation_frame must be one of")):
+        odd = FilePolicy(_policy_file(tmp_path))
+        odd.env_overrides[key] = bad  # checked as the environment checks its own options
+        with pytest.raises(EnvOptionError, match=f"background policy: {what}"):
+            crowd_v0.parallel_env(**SCENARIO, controlled=[0], background_policy=odd)
     wide = FilePolicy(_policy_file(tmp_path, scale=10.0))  # acts in Box(-25, 25) but claims a_max 2.5
     env = crowd_v0.parallel_env(**SCENARIO, controlled=[0], background_policy=wide, frame_skip=5)
     env.reset(seed=0)
