@@ -123,17 +123,39 @@ def bench_pettingzoo(n: int, k: int, steps: int, warmup: int, policy: str) -> fl
     return agent_steps / total
 
 
-def bench_vector(n: int, k: int, steps: int, warmup: int, policy: str, workers: int = 1) -> float:
-    """Agent-steps/s of one vector environment of the K copies."""
+def _timed(obj, name: str, clock: list) -> None:
+    """Wrap ``obj.name`` so that its calls add their wall time to ``clock[0]``."""
+    inner = getattr(obj, name)
+
+    def timed(*a, **kw):
+        t = time.perf_counter()
+        out = inner(*a, **kw)
+        clock[0] += time.perf_counter() - t
+        return out
+
+    setattr(obj, name, timed)
+
+
+def bench_vector(n: int, k: int, steps: int, warmup: int, policy: str, workers: int = 1) -> tuple:
+    """Agent-steps/s of one vector environment of the K copies, and (with one worker: the copies live
+    in this process) the seconds per agent-step of its simulator steps and of its observation passes
+    (NaN with more workers)."""
     from crowd_env.envs.vector import vector_env
 
     vec = vector_env(k, workers=workers, **_options(n))
+    sim_clock, obs_clock = [0.0], [0.0]
     try:
         obs, _ = vec.reset(seed=0)
         layout = vec.envs[0].observation_layout
+        if workers == 1:
+            for e in vec.envs:
+                _timed(e.sim, "step", sim_clock)  # reset() makes a new simulator: a copy that resets is untimed
+                _timed(e._observer, "observe", obs_clock)
         total, agent_steps = 0.0, 0
         for s in range(warmup + steps):
             actions = act(obs, layout, policy)
+            if s == warmup:
+                sim_clock[0] = obs_clock[0] = 0.0
             t = time.perf_counter()
             obs, _, _, _, infos = vec.step(actions)
             if s >= warmup:
@@ -141,7 +163,9 @@ def bench_vector(n: int, k: int, steps: int, warmup: int, policy: str, workers: 
                 agent_steps += int(infos["acted"].sum())
     finally:
         vec.close()
-    return agent_steps / total
+    if workers != 1:
+        return agent_steps / total, float("nan"), float("nan")
+    return agent_steps / total, sim_clock[0] / agent_steps, obs_clock[0] / agent_steps
 
 
 def main(argv=None) -> int:
@@ -154,17 +178,22 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     print(f"cores available: {len(os.sched_getaffinity(0))}; agent-steps/s (live agents), warm-up {args.warmup} steps")
     print(f"{'policy':>6} {'N':>5} {'K':>3} {'steps':>5} {'bare':>10} {'PZ':>10} {'vec w=1':>10} {'vec w=2':>10} {'w=1/PZ':>7} "
-          f"{'w=2/PZ':>7} {'target':>6} {'w=2/w=1':>7} {'target':>6}")
+          f"{'w=2/PZ':>7} {'target':>6} {'w=2/w=1':>7} {'target':>6} {'sim %':>6} {'obs %':>6} {'ceil/PZ':>7}")
     for policy, n, k in itertools.product(args.policy, args.n, args.k):
         bare = bench_bare(n, k, args.steps, args.warmup, policy)
         pz = bench_pettingzoo(n, k, args.steps, args.warmup, policy)
-        one = bench_vector(n, k, args.steps, args.warmup, policy, workers=1)
-        two = bench_vector(n, k, args.steps, args.warmup, policy, workers=2) if k >= 2 else float("nan")
+        one, sim_s, obs_s = bench_vector(n, k, args.steps, args.warmup, policy, workers=1)
+        two = bench_vector(n, k, args.steps, args.warmup, policy, workers=2)[0] if k >= 2 else float("nan")
+        ceiling = 2.0 / (sim_s + obs_s)  # two cores doing nothing but the simulator steps and observation passes
         print(f"{policy:>6} {n:>5} {k:>3} {args.steps:>5} {bare:>10.0f} {pz:>10.0f} {one:>10.0f} {two:>10.0f} {one / pz:>7.2f} "
               f"{two / pz:>7.2f} {'>= ' + format(TARGET_VEC_OVER_PZ, 'g'):>6} {two / one:>7.2f} "
-              f"{'>= ' + format(TARGET_TWO_OVER_ONE, 'g'):>6}", flush=True)
+              f"{'>= ' + format(TARGET_TWO_OVER_ONE, 'g'):>6} {100 * sim_s * one:>6.1f} {100 * obs_s * one:>6.1f} "
+              f"{ceiling / pz:>7.2f}", flush=True)
     print("w=2/PZ: the vector env on two worker processes over the PettingZoo env on the same crowds (target at "
-          "N = 100); w=2/w=1: its speed-up from the second core")
+          "N = 100); w=2/w=1: its speed-up from the second core;\nsim %, obs %: the shares of the vector env's time "
+          "(one worker) in its simulator steps and in its compiled observation passes; ceil/PZ: what two cores doing\n"
+          "nothing but those two would reach over the PettingZoo env (the most any two-process interface with these "
+          "observations can reach; the rest is per-copy bookkeeping)")
     return 0
 
 

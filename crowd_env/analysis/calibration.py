@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.checks import check_integer, check_number
 from .experiment import SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, ExperimentError, ExperimentTable, seyfried_2009
 
 
@@ -151,8 +152,7 @@ def point_error(width_m, n_pedestrians, specific_flow_per_m_s, reference: Experi
     """
     ref = seyfried_2009() if reference is None else reference
     b, n, js = _runs(width_m, n_pedestrians, specific_flow_per_m_s, allow_undefined=True)
-    if not (np.isfinite(range_weight) and range_weight >= 0):
-        raise CalibrationError(f"range_weight must be a finite number >= 0, got {range_weight!r}")
+    check_number("range_weight", range_weight, error=CalibrationError, minimum=0.0)
     undefined = ~np.isfinite(js)
     js = np.where(undefined, 0.0, js)
     keys, inverse = np.unique(np.column_stack([np.round(b, 6), n]), axis=0, return_inverse=True)
@@ -200,8 +200,7 @@ def check_grid_values(values, name: str) -> np.ndarray:
 
 def grid_axis(low: float, high: float, size: int, name: str, spacing: str = "linear") -> np.ndarray:
     """``size`` values from ``low`` to ``high`` (the paper: 20 linearly spaced values), ``spacing`` linear or log."""
-    if isinstance(size, bool) or int(size) != size or size < 1:
-        raise CalibrationError(f"{name} grid size must be a positive integer, got {size!r}")
+    check_integer(f"{name} grid size", size, error=CalibrationError, minimum=1, whole_floats=True)
     if not (np.isfinite(low) and np.isfinite(high)) or low <= 0 or high <= 0:
         raise CalibrationError(f"{name} range must be finite and > 0, got [{low}, {high}]")
     if size > 1 and not low < high:

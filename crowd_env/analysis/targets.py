@@ -35,6 +35,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from ..core.checks import check_number
 from .calibration import CalibrationError, relative_squared_errors
 from .experiment import (FRONT_DENSITY_RANGE_PER_M2, INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RANGE_M_S,
                          SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, WIDTHS_M, ExperimentTable, seyfried_2009)
@@ -65,9 +66,7 @@ class TargetWeights:
 
     def __post_init__(self) -> None:
         for f in fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
-                raise CalibrationError(f"weight {f.name} must be a finite number >= 0, got {value!r}")
+            check_number(f"weight {f.name}", getattr(self, f.name), error=CalibrationError, minimum=0.0)
 
     def as_dict(self) -> dict:
         return {f.name: float(getattr(self, f.name)) for f in fields(self)}

@@ -18,6 +18,7 @@ from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 from shapely.validation import explain_validity
 
+from .checks import check_number
 from .segments import GeometryError, as_segments, closest_point_on_segment
 
 __all__ = ["Geometry", "Raster", "GeometryError", "as_polygon"]
@@ -275,6 +276,17 @@ class Geometry:
         """(min_x, min_y, max_x, max_y) in metres of the walkable area and exits together."""
         return tuple(float(v) for v in self._navigable.bounds)
 
+    def __getstate__(self) -> dict:
+        """A geometry pickles (a simulator does, for checkpoints and worker processes): its read-only
+        mappings travel as plain dicts and come back read-only."""
+        state = self.__dict__.copy()
+        state["_lines"], state["_areas"] = dict(self._lines), dict(self._areas)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._lines, self._areas = MappingProxyType(self._lines), MappingProxyType(self._areas)
+
     def __repr__(self) -> str:
         b = ", ".join(f"{v:.3g}" for v in self.bounds)
         return (f"Geometry({self.name!r}, area={self._area.area:.4g} m², bounds=({b}), walls={self._walls.shape[0]}, "
@@ -312,8 +324,7 @@ class Geometry:
         Node coordinates are integer multiples of ``resolution_m`` so that walls on such multiples fall
         exactly on nodes. Nodes on a boundary count as walkable (shapely.intersects_xy).
         """
-        if not (isinstance(resolution_m, (int, float, np.floating)) and np.isfinite(resolution_m) and resolution_m > 0):
-            raise GeometryError(f"resolution_m must be a positive finite number, got {resolution_m!r}")
+        check_number("resolution_m", resolution_m, error=GeometryError, positive=True)
         if int(padding_cells) < 1:
             raise GeometryError(f"padding_cells must be >= 1, got {padding_cells!r}")
         h = float(resolution_m)

@@ -122,6 +122,7 @@ from ..core.params import ModelParams, ParameterError
 from ..core.presets import DEFAULT_PRESET, get_preset
 from ..core.simulator import Simulator
 from ..core.angles import direction_angles_rad
+from ..core.checks import check_integer, check_number
 from ..scenarios import Scenario, make_scenario, scenario_options as _scenario_option_defaults
 from ..walking.agent import SocialForceAgent, desired_direction, hold_waiting
 from .background import OBSERVATION_POLICY_OPTIONS, ObservingBackground, is_observation_policy, load_named_background
@@ -157,14 +158,12 @@ def default_background_policy(scenario):
     return SocialForceAgent(scenario.navigation())
 
 
-def _positive_number(name, value, *, integer=False, allow_zero=False):
-    ok_type = (int, np.integer) if integer else (int, float, np.integer, np.floating)
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, ok_type) or not math.isfinite(value) \
-            or (value < 0 if allow_zero else value <= 0):
-        kind = "integer" if integer else "number"
-        bound = ">= 0" if allow_zero else "> 0"
-        raise EnvOptionError(f"{name} must be a finite {kind} {bound}, got {value!r}")
-    return int(value) if integer else float(value)
+def _positive_number(name, value):
+    return check_number(name, value, error=EnvOptionError, positive=True)
+
+
+def _count(name, value, minimum=0):
+    return check_integer(name, value, error=EnvOptionError, minimum=minimum)
 
 
 def _check_heading_target(name, value) -> str:
@@ -174,10 +173,10 @@ def _check_heading_target(name, value) -> str:
 
 
 _OPTION_CHECKS = {  # the options an observation policy depends on (OBSERVATION_POLICY_OPTIONS), checked
-    "frame_skip": lambda n, v: _positive_number(n, v, integer=True),
+    "frame_skip": lambda n, v: _count(n, v, minimum=1),
     "action_max_m_s": _positive_number,
-    "n_neighbors": lambda n, v: _positive_number(n, v, integer=True, allow_zero=True),
-    "n_rays": lambda n, v: _positive_number(n, v, integer=True, allow_zero=True),
+    "n_neighbors": _count,
+    "n_rays": _count,
     "neighbor_radius_m": _positive_number,
     "ray_range_m": _positive_number,
     "heading_target": _check_heading_target,
@@ -340,7 +339,7 @@ class CrowdParallelEnv(ParallelEnv):
         self.frame_skip = own["frame_skip"]
         if max_steps is None:
             max_steps = decisions_for_time(DEFAULT_EPISODE_TIME_S, params.dt_s * self.frame_skip)
-        self.max_steps = _positive_number("max_steps", max_steps, integer=True)
+        self.max_steps = _count("max_steps", max_steps, minimum=1)
         self.action_max_m_s, self.n_neighbors, self.n_rays = own["action_max_m_s"], own["n_neighbors"], own["n_rays"]
         neighbor_radius_m, ray_range_m = own["neighbor_radius_m"], own["ray_range_m"]
         self.heading_target, self.observation_frame = own["heading_target"], own["observation_frame"]

@@ -28,6 +28,7 @@ import warnings
 import numpy as np
 
 from ..errors import InputError
+from ..core.checks import check_integer, check_number
 
 __all__ = ["CrowdRenderer", "ContactPercussions", "contact_segments", "CONTROLLED_COLOR", "BACKGROUND_COLOR",
            "PERCUSSION_CMAP"]
@@ -123,10 +124,8 @@ class CrowdRenderer:
 
     def __init__(self, geometry, controlled_mask: np.ndarray, mode: str, *, width_in: float = 8.0, dpi: int = 80,
                  fps: float = 10.0, pixel_multiple: int = 1, percussion_scale_kg_m_s: float = 20.0):
-        if not (isinstance(pixel_multiple, (int, np.integer)) and pixel_multiple >= 1):
-            raise InputError(f"pixel_multiple must be an integer >= 1, got {pixel_multiple!r}")
-        if not (np.isfinite(percussion_scale_kg_m_s) and percussion_scale_kg_m_s > 0):
-            raise InputError(f"percussion_scale_kg_m_s must be a positive number, got {percussion_scale_kg_m_s!r}")
+        check_integer("pixel_multiple", pixel_multiple, error=InputError, minimum=1)
+        check_number("percussion_scale_kg_m_s", percussion_scale_kg_m_s, error=InputError, positive=True)
         self.geometry = geometry
         self.controlled = np.asarray(controlled_mask, dtype=bool)
         self.mode = mode

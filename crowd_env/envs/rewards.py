@@ -10,11 +10,12 @@ from __future__ import annotations
 
 from crowd_env.errors import InputError
 
-import math
 from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
+
+from ..core.checks import check_number
 
 __all__ = ["DefaultReward", "REWARD_INFO_KEYS"]
 
@@ -52,9 +53,7 @@ class DefaultReward:
 
     def __post_init__(self):
         for name in ("progress_weight", "collision_weight", "time_cost_per_s", "exit_bonus"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise InputError(f"DefaultReward.{name} must be a finite number, got {value!r}")
+            check_number(f"DefaultReward.{name}", getattr(self, name), error=InputError)
 
     def __call__(self, env, agent_ids, info) -> np.ndarray:
         return _default_reward(info["progress_s"], info["contact_percussion_kg_m_s"], info["exited"],

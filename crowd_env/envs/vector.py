@@ -64,6 +64,7 @@ from gymnasium.vector.utils import batch_space
 
 from crowd_env.errors import ActionError, EnvOptionError, EnvStateError, WorkerError
 
+from ..core.checks import check_integer
 from .crowd_v0 import CrowdParallelEnv, parallel_env
 
 __all__ = ["CrowdVectorEnv", "vector_env", "WorkerError"]
@@ -79,8 +80,7 @@ def _spaces_key(env: CrowdParallelEnv) -> tuple:
 
 
 def _check_workers(workers, copies: int) -> int:
-    if isinstance(workers, (bool, np.bool_)) or not isinstance(workers, (int, np.integer)) or workers < 1:
-        raise EnvOptionError(f"workers must be an integer >= 1, got {workers!r}")
+    check_integer("workers", workers, error=EnvOptionError, minimum=1)
     if workers > copies:
         raise EnvOptionError(f"workers = {workers} exceeds the {copies} copies: each worker steps at least one "
                              f"copy; give workers <= {copies}")
@@ -578,8 +578,7 @@ class CrowdVectorEnv(VectorEnv):
 def vector_env(copies: int = 1, *, workers: int = 1, start_method: str = "spawn", **options) -> CrowdVectorEnv:
     """K = ``copies`` copies of ``crowd_v0.parallel_env(**options)`` as one :class:`CrowdVectorEnv`, stepped in
     ``workers`` processes (1: this one; see the module docstring)."""
-    if isinstance(copies, (bool, np.bool_)) or not isinstance(copies, (int, np.integer)) or copies < 1:
-        raise EnvOptionError(f"copies must be an integer >= 1, got {copies!r}")
+    check_integer("copies", copies, error=EnvOptionError, minimum=1)
     _check_workers(workers, int(copies))
     return CrowdVectorEnv([parallel_env(**options) for _ in range(int(copies))], workers=workers,
                           start_method=start_method)

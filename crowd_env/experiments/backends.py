@@ -19,6 +19,7 @@ import sys
 import traceback
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
+from ..core.checks import check_integer
 
 __all__ = ["BACKENDS", "BackendError", "SerialBackend", "ProcessBackend", "RayBackend", "check_reachable",
            "make_backend", "execute", "run_all"]
@@ -176,8 +177,8 @@ def make_backend(name: str = "ray", *, address: str | None = None, jobs: int | N
         raise BackendError(f"unknown backend {name!r}; choose one of {BACKENDS}")
     if address is not None and name != "ray":
         raise BackendError(f"--address needs the ray backend, not {name!r}")
-    if jobs is not None and (isinstance(jobs, bool) or int(jobs) != jobs or jobs < 1):
-        raise BackendError(f"jobs must be a positive integer, got {jobs!r}")
+    if jobs is not None:
+        check_integer("jobs", jobs, error=BackendError, minimum=1, whole_floats=True)
     if name == "ray":
         return RayBackend(address, jobs, connect_timeout_s)
     if name == "process":

@@ -45,6 +45,7 @@ import numpy as np
 from crowd_env.errors import InputError, RunStoreError
 
 from ..core.params import ModelParams
+from ..core.checks import check_integer
 from ..envs.crowd_v0 import decisions_for_time
 from .evaluation import DEFAULT_POLICY_RESOLVER, ScenarioSpec, evaluate, import_object
 from .store import write_json_atomic
@@ -154,8 +155,7 @@ def make_plan(*, quick: bool = False, tasks=None, policies=None, train_seeds=Non
         b[k] = v
     for k, v in b.items():
         least = 0 if k in ZERO_ALLOWED else 1
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < least:
-            raise InputError(f"budget {k} must be an integer >= {least}, got {v!r}")
+        check_integer(f"budget {k}", v, error=InputError, minimum=least)
     if b["bc_demo_seeds"] > 100 or b["bc_dagger_rounds"] > 9:  # each round's seeds in its own hundred
         raise InputError(f"at most 100 demonstration seeds and 9 DAgger rounds, got {b['bc_demo_seeds']} and "
                          f"{b['bc_dagger_rounds']}")

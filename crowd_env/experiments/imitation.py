@@ -23,6 +23,8 @@ import numpy as np
 
 from crowd_env.errors import TrainingError
 
+from ..core.checks import check_integer
+
 from ..envs.crowd_v0 import DEFAULT_ACTION_MAX_M_S, CrowdParallelEnv, decisions_for_time
 from .policy_files import MLPPolicyFile, save_policy_file
 
@@ -45,8 +47,7 @@ def collect_demonstrations(env_config: dict, seeds, *, teacher, every: int = DEF
     decisions simulated (the collection's cost). With a ``driver`` (``driver(observations (n, D)) -> (n, 2)``,
     e.g. the clone) the driver's actions move the crowd and the teacher only labels the states it reaches
     (DAgger's collection)."""
-    if isinstance(every, bool) or not isinstance(every, (int, np.integer)) or every < 1:
-        raise TrainingError(f"every must be an integer >= 1, got {every!r}")
+    check_integer("every", every, error=TrainingError, minimum=1)
     seeds = list(seeds)
     if not seeds:
         raise TrainingError("collect_demonstrations needs at least one seed")
@@ -92,8 +93,7 @@ def train_behaviour_cloning(env_config: dict, out: str, *, teacher, seed: int = 
     import torch
 
     for name, value in (("epochs", epochs), ("batch_size", batch_size)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise TrainingError(f"{name} must be an integer >= 1, got {value!r}")
+        check_integer(name, value, error=TrainingError, minimum=1)
     if not 0.0 < validation_fraction < 1.0:
         raise TrainingError(f"validation_fraction must lie in (0, 1), got {validation_fraction!r}")
     rounds = [list(demo_seeds)] + [list(r) for r in dagger_seeds]

@@ -47,6 +47,7 @@ import warnings
 
 import numpy as np
 
+from ..core.checks import check_integer
 from ..envs import crowd_v0
 from ..errors import MissingDependencyError, TrainingError
 from .store import write_json_atomic
@@ -307,8 +308,7 @@ def train(env_config: dict, frames: int, out: str, *, algorithm: str = "mappo", 
     check_algorithm(algorithm)
     for name, value in (("frames", frames), ("frames_per_batch", frames_per_batch), ("num_epochs", num_epochs),
                         ("minibatch_size", minibatch_size)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise TrainingError(f"{name} must be an integer >= 1, got {value!r}")
+        check_integer(name, value, error=TrainingError, minimum=1)
     if checkpoint_every < 0:
         raise TrainingError(f"checkpoint_every must be >= 0, got {checkpoint_every!r}")
     _require()

@@ -38,6 +38,7 @@ import time
 
 import numpy as np
 
+from ..core.checks import check_integer
 from ..envs import crowd_v0
 from ..errors import MissingDependencyError, TrainingError
 from .backends import RayBackend, check_reachable
@@ -191,8 +192,7 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, address: str |
     """
     for name, value in (("timesteps", timesteps), ("train_batch_size", train_batch_size),
                         ("minibatch_size", minibatch_size), ("num_epochs", num_epochs)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise TrainingError(f"{name} must be an integer >= 1, got {value!r}")
+        check_integer(name, value, error=TrainingError, minimum=1)
     if checkpoint_every < 0 or num_env_runners < 0:
         raise TrainingError(f"checkpoint_every and num_env_runners must be >= 0, got {checkpoint_every!r} and "
                             f"{num_env_runners!r}")

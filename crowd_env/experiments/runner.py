@@ -18,16 +18,21 @@ from __future__ import annotations
 
 from crowd_env.errors import InputError, NotFoundError
 
+import os
+import pickle
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..analysis.flow import MeasurementLine, specific_flow
+from ..core.checks import check_number
 from ..core.params import ModelParams
 from ..core.polygons import pack_polygons
 from ..core.presets import DEFAULT_PRESET, get_preset
 from ..walking.agent import SocialForceAgent
+from .store import write_atomic
 from .rollout import (COUNT_FRAMES, COUNT_LATERAL, COUNT_PASSED, COUNT_STEPS, ROLLOUT_CHUNK_STEPS, ROLLOUT_PYTHON_STEP,
                       SCALAR_LAST_EXIT_S, SCALAR_MIN_GAP_M, STALL_LAST_PROGRESS_S, STALL_STALLED, STALL_TIME_S,
                       measure_step, rollout_steps, stall_update)
@@ -47,6 +52,52 @@ STATIONARY_PASSAGE_FRACTIONS = (0.2, 0.8)
 # those three as stalled (the experiment never stood still for 20 s). See README, "Stalls".
 STALL_WINDOW_S = 20.0
 STALL_SPEED_M_S = 0.05
+
+CHECKPOINT_EVERY_S = 600.0  # wall seconds between two checkpoints of a long run (RunCheckpoint)
+
+
+@dataclass
+class RunCheckpoint:
+    """Where :func:`run_scenario` keeps a long run so that a killed process can go on from there.
+
+    Every ``every_s`` wall seconds (between two compiled chunks or Python steps) the whole run is pickled
+    to ``path``, written atomically: the simulator (state, solver warm starts, clock), the policy, the
+    measures so far, the stall detector and the recorder's frames. With ``resume``, a run that finds a
+    checkpoint made with the same ``key`` (the caller's description of the run: scenario, seed,
+    settings, version) goes on from it, and its result is the uninterrupted run's to the last bit
+    (``tests/experiments/test_checkpoint.py``), its wall time the sum of both parts; a checkpoint with
+    another key is ignored with a :class:`RuntimeWarning` and overwritten. The file is removed once the
+    run is over. It is a pickle: load only checkpoints you wrote. ``resumed_wall_s``: after the run, the
+    wall time its kept part had taken (0 when it started afresh)."""
+
+    path: str
+    key: str
+    every_s: float = CHECKPOINT_EVERY_S
+    resume: bool = True
+    resumed_wall_s: float = field(default=0.0, init=False)
+
+    def __post_init__(self):
+        check_number("checkpoint every_s", self.every_s, error=InputError, minimum=0.0)
+
+    def load(self):
+        """The kept run (a dict), or None when there is none to resume."""
+        if not self.resume or not os.path.exists(self.path):
+            return None
+        with open(self.path, "rb") as fh:
+            kept = pickle.load(fh)
+        if kept.get("key") != self.key:
+            warnings.warn(f"checkpoint {self.path} was made for another run ({kept.get('key')!r}, not {self.key!r}): "
+                          "starting afresh", RuntimeWarning, stacklevel=3)
+            return None
+        return kept
+
+    def save(self, **run) -> None:
+        os.makedirs(os.path.dirname(os.path.abspath(self.path)), exist_ok=True)
+        write_atomic(self.path, pickle.dumps({"key": self.key, **run}, protocol=pickle.HIGHEST_PROTOCOL))
+
+    def remove(self) -> None:
+        if os.path.exists(self.path):
+            os.remove(self.path)
 
 
 @dataclass
@@ -170,12 +221,9 @@ class StallDetector:
 
     def __init__(self, dt_s: float, window_s: float | None = STALL_WINDOW_S, speed_m_s: float = STALL_SPEED_M_S,
                  start_s: float = 0.0):
-        if window_s is not None and not (np.isfinite(window_s) and window_s > 0):
-            raise InputError(f"stall window must be a positive number of seconds or None, got {window_s!r}")
-        if not (np.isfinite(speed_m_s) and speed_m_s >= 0):
-            raise InputError(f"stall speed must be a finite number >= 0, got {speed_m_s!r}")
-        self.window_s = None if window_s is None else float(window_s)
-        self.speed_m_s = float(speed_m_s)
+        self.window_s = None if window_s is None else check_number("stall window_s", window_s, error=InputError,
+                                                                   positive=True, suffix=" or None")
+        self.speed_m_s = check_number("stall speed_m_s", speed_m_s, error=InputError, minimum=0.0)
         self.dt_s = float(dt_s)
         self.window_steps = 0 if window_s is None else max(1, int(round(self.window_s / self.dt_s)))
         self.ring = np.zeros(max(self.window_steps, 1))  # per-step mean speeds of the window
@@ -324,7 +372,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
                  width_m: float | None = None, state=None, rng=None, progress=None,
                  stall_window_s: float | None = STALL_WINDOW_S, stall_speed_m_s: float = STALL_SPEED_M_S,
                  compiled: bool = True, recorder=None, record_every: int = 1,
-                 chunk_steps: int = ROLLOUT_CHUNK_STEPS) -> RunResult:
+                 chunk_steps: int = ROLLOUT_CHUNK_STEPS, checkpoint: RunCheckpoint | None = None) -> RunResult:
     """Simulate ``scenario`` driven by ``policy(sim) -> (intents, desired_heading)`` until all leave, the
     time limit ``max_time_s``, or a stall.
 
@@ -337,8 +385,9 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     runs every step from Python). ``recorder``: a
     :class:`~crowd_env.analysis.recorder.TrajectoryRecorder` that gets the state every ``record_every``-th
     step (at t = step · h). ``progress(sim)`` is called after every step run from Python and after every
-    compiled chunk. Returns a :class:`RunResult`; its flows are nan unless the run is complete (module
-    docstring).
+    compiled chunk. ``checkpoint``: a :class:`RunCheckpoint` that keeps the run every so often and resumes
+    a kept one (then ``state`` and ``recorder`` are brought to the kept run's, in place). Returns a
+    :class:`RunResult`; its flows are nan unless the run is complete (module docstring).
     """
     params = get_preset(DEFAULT_PRESET).params() if params is None else params
     if int(record_every) < 1:
@@ -352,11 +401,25 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     measures = _RunMeasures(scenario, state.n, n_steps_max, line, density_areas, lane_area, sim.min_gap_m(),
                             record_every if recorder is not None else 0)
     stall = StallDetector(params.dt_s, stall_window_s, stall_speed_m_s, start_s=sim.time_s)
+    done, wall_before_s = 0, 0.0
+    kept = checkpoint.load() if checkpoint is not None else None
+    if kept is not None:  # go on from the kept run: the caller's state and recorder become its own
+        sim, policy, measures, stall, done, wall_before_s = (kept[k] for k in ("sim", "policy", "measures", "stall",
+                                                                              "done", "wall_s"))
+        checkpoint.resumed_wall_s = wall_before_s
+        state.__dict__.update(sim.state.__dict__)
+        sim.state = state
+        if recorder is not None:
+            recorder.__dict__.update(kept["recorder"].__dict__)
     nav = _rollout_navigation(policy, sim, compiled)
     kernel_tuples = _compiled_tuples(sim, nav) if nav is not None else None
     t_wall = time.perf_counter()
-    done = 0
+    t_saved = t_wall
     while done < n_steps_max and state.active.any() and not stall.stalled:
+        if checkpoint is not None and time.perf_counter() - t_saved >= checkpoint.every_s:
+            checkpoint.save(sim=sim, policy=policy, measures=measures, stall=stall, done=done, recorder=recorder,
+                            wall_s=wall_before_s + time.perf_counter() - t_wall)
+            t_saved = time.perf_counter()
         python_step = True
         if kernel_tuples is not None and sim.fused_ready():
             steps = min(int(chunk_steps), n_steps_max - done)
@@ -398,9 +461,11 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     n_left = int(np.count_nonzero(~state.active))
     complete = not (state.active & ~passed).any()  # nobody left who has not passed
     n_measured = int(measures.counts[COUNT_STEPS])
+    if checkpoint is not None:
+        checkpoint.remove()
     return RunResult(
         n_pedestrians=state.n, width_m=width_m, seed=scenario.seed, n_steps=sim.step_count,
-        simulated_time_s=sim.time_s, wall_time_s=time.perf_counter() - t_wall, n_evacuated=n_left,
+        simulated_time_s=sim.time_s, wall_time_s=wall_before_s + time.perf_counter() - t_wall, n_evacuated=n_left,
         evacuation_time_s=float(measures.scalars[SCALAR_LAST_EXIT_S]) if n_left == state.n else float("nan"),
         crossing_times_s=times, flow_per_s=j if complete else float("nan"),
         specific_flow_per_m_s=js if complete else float("nan"), min_gap_m=float(measures.scalars[SCALAR_MIN_GAP_M]),

@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis.trajectories import Trajectories, geometry_paths, read_geometry
+from ..core.checks import check_integer
 from ..core.params import PedestrianDefaults
 from ..envs.rendering import ContactPercussions, CrowdRenderer
 from ..errors import InputError, MissingDependencyError, MissingFileError, NotFoundError, PolicyError
@@ -120,9 +121,7 @@ def _check_quality(quality) -> float:
 
 
 def _check_every(every) -> int:
-    if isinstance(every, bool) or not isinstance(every, (int, np.integer)) or every < 1:
-        raise InputError(f"every (the frame stride) must be an integer >= 1, got {every!r}")
-    return int(every)
+    return check_integer("every (the frame stride)", every, error=InputError, minimum=1)
 
 
 def _check_gif_fps(fps: float) -> None:

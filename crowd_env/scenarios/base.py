@@ -19,6 +19,7 @@ import shapely
 import shapely.affinity
 from scipy.spatial import cKDTree
 
+from ..core.checks import check_integer, check_number, is_integer
 from ..core.geometry import Geometry, as_polygon
 from ..walking.navigation import DestinationNavigation, NavigationField, RigidlyMovedNavigation
 from ..walking.route_choice import QuickestExitNavigation
@@ -39,9 +40,7 @@ PEDESTRIAN_PARAMS = ("radius_m", "mass_kg", "inertia_kg_m2", "desired_speed_m_s"
 def check_positive(**values) -> None:
     """Raise :class:`ScenarioError` naming the first value that is not a positive finite number."""
     for name, value in values.items():
-        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
-                or not math.isfinite(value) or value <= 0:
-            raise ScenarioError(f"{name} must be a positive finite number, got {value!r}")
+        check_number(name, value, error=ScenarioError, positive=True)
 
 
 def check_clearance(value, radius_m: float) -> float:
@@ -49,10 +48,7 @@ def check_clearance(value, radius_m: float) -> float:
     ``value`` checked to be finite and >= 0."""
     if value is None:
         return float(radius_m)
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(value) or value < 0:
-        raise ScenarioError(f"navigation_clearance_m must be None or a finite number >= 0, got {value!r}")
-    return float(value)
+    return check_number("navigation_clearance_m", value, error=ScenarioError, minimum=0.0, suffix=" or None")
 
 
 def door_exit(segment, walkable_area, depth_m: float = 0.5, what: str = "exit"):
@@ -99,11 +95,9 @@ def door_widths_m(geometry) -> np.ndarray:
 
 
 def check_count(name: str, value, minimum: int = 1) -> int:
-    """``value`` as an int >= ``minimum``, or :class:`ScenarioError` naming ``name``."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(value) or int(value) != value or value < minimum:
-        raise ScenarioError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
+    """``value`` as an int >= ``minimum`` (a float of integral value too), or :class:`ScenarioError` naming
+    ``name``."""
+    return check_integer(name, value, error=ScenarioError, minimum=minimum, whole_floats=True)
 
 
 @dataclass(eq=False)
@@ -186,11 +180,8 @@ class Scenario:
                 k = int(np.flatnonzero(links[:, 0] == links[:, 1])[0])
                 raise ScenarioError(f"link {k} joins pedestrian {int(links[k, 0])} to itself")
             self.links = links.astype(np.int64)
-        clearance = self.navigation_clearance_m
-        if isinstance(clearance, (bool, np.bool_)) or not isinstance(clearance, (int, float, np.integer, np.floating)) \
-                or not math.isfinite(clearance) or clearance < 0:
-            raise ScenarioError(f"navigation_clearance_m must be a finite number >= 0, got {clearance!r}")
-        self.navigation_clearance_m = float(clearance)
+        self.navigation_clearance_m = check_number("navigation_clearance_m", self.navigation_clearance_m,
+                                                   error=ScenarioError, minimum=0.0)
         self.exit_names = self._check_exit_names(self.exit_names)
         self.destination = self._check_destination(self.destination, n)
         if self.route_choice is not None:
@@ -220,7 +211,7 @@ class Scenario:
             if exit not in self.exit_names:
                 raise ScenarioError(f"unknown exit {exit!r}; exits are {list(self.exit_names)}")
             return self.exit_names.index(exit)
-        if isinstance(exit, (int, np.integer)) and not isinstance(exit, (bool, np.bool_)) and -1 <= exit < n_exits:
+        if is_integer(exit) and -1 <= exit < n_exits:
             return int(exit)
         raise ScenarioError(f"an exit is a name in {list(self.exit_names)} or an index in [-1, {n_exits}) "
                             f"(-1: any exit), got {exit!r}")
@@ -488,9 +479,7 @@ def place_pedestrians(region, n: int | None = None, radius_m: float = 0.23, rng:
                                 f"{density_per_m2:.4g} /m² (at most {n_sites} pedestrians)")
     if n is None:
         raise ScenarioError("give the number of pedestrians n or density_per_m2")
-    if int(n) != n or n < 0:
-        raise ScenarioError(f"the number of pedestrians must be a non-negative integer, got {n!r}")
-    n = int(n)
+    n = check_count("the number of pedestrians n", n, minimum=0)
     n_sites = n if density_per_m2 is None else max(n, n_sites)
     if n == 0:
         return np.zeros((0, 2))

@@ -45,7 +45,7 @@ from shapely.ops import unary_union
 from ..core.geometry import Geometry
 from ..walking.navigation import NavigationField
 from ..core.segments import GeometryError
-from .base import Scenario, ScenarioError, check_clearance, check_positive as _positive, place_pedestrians, register_scenario
+from .base import Scenario, ScenarioError, check_clearance, check_count, check_positive as _positive, place_pedestrians, register_scenario
 
 __all__ = ["seyfried_bottleneck", "bottleneck_geometry", "BottleneckScenario"]
 
@@ -125,9 +125,7 @@ def seyfried_bottleneck(width_m: float = 1.0, n_pedestrians: int = 60, seed: int
     _positive(width_m=width_m, corridor_width_m=corridor_width_m, channel_length_m=channel_length_m,
               initial_density_per_m2=initial_density_per_m2, section_depth_m=section_depth_m,
               block_start_upstream_m=block_start_upstream_m, radius_m=radius_m)
-    if int(n_pedestrians) != n_pedestrians or n_pedestrians < 1:
-        raise ScenarioError(f"n_pedestrians must be a positive integer, got {n_pedestrians!r}")
-    n_pedestrians = int(n_pedestrians)
+    n_pedestrians = check_count("n_pedestrians", n_pedestrians)
     clearance = check_clearance(navigation_clearance_m, radius_m)
     try:
         slowdown = NavigationField.check_wall_slowdown(navigation_wall_slowdown)

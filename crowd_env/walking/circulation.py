@@ -33,6 +33,7 @@ import numba as nb
 import numpy as np
 import shapely
 
+from ..core.checks import check_number
 from ..core.segments import GeometryError
 
 __all__ = ["CirculationNavigation", "oval_centreline", "project_onto_loop"]
@@ -91,8 +92,7 @@ def oval_centreline(straight_m: float = 4.0, radius_m: float = 3.0, spacing_m: f
     and (``straight_m``, 0), vertices about ``spacing_m`` apart; vertex 0 is (0, −``radius_m``), the start of
     the lower straight. Length 2 ``straight_m`` + 2π ``radius_m``."""
     for name, value in (("straight_m", straight_m), ("radius_m", radius_m), ("spacing_m", spacing_m)):
-        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-            raise GeometryError(f"{name} must be a positive finite number, got {value!r}")
+        check_number(name, value, error=GeometryError, positive=True)
     n_straight = max(1, int(math.ceil(straight_m / spacing_m)))
     n_arc = max(8, int(math.ceil(math.pi * radius_m / spacing_m)))
     xs = np.linspace(0.0, straight_m, n_straight, endpoint=False)
@@ -133,11 +133,8 @@ class CirculationNavigation:
             raise GeometryError(f"centreline vertices {k} and {(k + 1) % v.shape[0]} coincide")
         if not shapely.LinearRing(v).is_simple:
             raise GeometryError("the centreline crosses itself: a loop to circulate on must be a simple closed curve")
-        for name, value in (("lookahead_m", lookahead_m),):
-            if not (math.isfinite(value) and value >= 0):
-                raise GeometryError(f"{name} must be a finite number >= 0, got {value!r}")
-        if not (math.isfinite(speed_m_s) and speed_m_s > 0):
-            raise GeometryError(f"speed_m_s must be a positive finite number, got {speed_m_s!r}")
+        check_number("lookahead_m", lookahead_m, error=GeometryError, minimum=0.0)
+        check_number("speed_m_s", speed_m_s, error=GeometryError, positive=True)
         self.vertices = v
         self.vertices.setflags(write=False)
         self.cumulative_m = np.concatenate(([0.0], np.cumsum(seg_len)))
@@ -151,10 +148,9 @@ class CirculationNavigation:
         self.vertex_tangent = vt / norm[:, None]
         self.lookahead_m = float(lookahead_m)
         self.speed_m_s = float(speed_m_s)
-        self.half_width_m = None if half_width_m is None else float(half_width_m)
+        self.half_width_m = None if half_width_m is None else check_number("half_width_m", half_width_m,
+                                                                           error=GeometryError, positive=True)
         if self.half_width_m is not None:
-            if not (math.isfinite(self.half_width_m) and self.half_width_m > 0):
-                raise GeometryError(f"half_width_m must be a positive finite number, got {half_width_m!r}")
             r_min = self.min_radius_of_curvature_m()
             if self.half_width_m >= r_min:
                 raise GeometryError(f"half_width_m {self.half_width_m:g} m is not below the centreline's smallest radius "

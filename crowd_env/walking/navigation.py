@@ -16,6 +16,7 @@ import numpy as np
 import shapely
 from scipy import ndimage
 
+from ..core.checks import check_number
 from ..core.geometry import Geometry
 from ..core.segments import GeometryError
 
@@ -187,10 +188,8 @@ class NavigationField:
                  clearance_m: float = 0.0, exits=None):
         if not isinstance(geometry, Geometry):
             raise GeometryError(f"NavigationField needs a Geometry, got {type(geometry).__name__}")
-        if not (np.isfinite(speed_m_s) and speed_m_s > 0):
-            raise GeometryError(f"speed_m_s must be a positive finite number, got {speed_m_s!r}")
+        self.speed_m_s = check_number("speed_m_s", speed_m_s, error=GeometryError, positive=True)
         self.geometry = geometry
-        self.speed_m_s = float(speed_m_s)
         self.wall_slowdown = self.check_wall_slowdown(wall_slowdown)
         self.clearance_m = self._check_clearance(clearance_m)
         self.exits = self._check_exits(exits, geometry)

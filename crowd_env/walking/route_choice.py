@@ -22,6 +22,7 @@ import numpy as np
 
 from crowd_env.errors import GeometryError
 
+from ..core.checks import check_number
 from .navigation import DestinationNavigation
 
 __all__ = ["QuickestExitNavigation", "DEFAULT_CAPACITY_PER_M_S"]
@@ -46,10 +47,8 @@ class QuickestExitNavigation(DestinationNavigation):
         if widths.shape != (len(keys),) or not np.all(widths > 0):
             raise GeometryError(f"door_widths_m must be {len(keys)} positive widths, got {door_widths_m!r}")
         for name, value in (("capacity_per_m_s", capacity_per_m_s), ("interval_s", interval_s)):
-            if not (np.isfinite(value) and value > 0):
-                raise GeometryError(f"{name} must be a positive number, got {value!r}")
-        if not (np.isfinite(switch_margin_s) and switch_margin_s >= 0):
-            raise GeometryError(f"switch_margin_s must be a number >= 0, got {switch_margin_s!r}")
+            check_number(name, value, error=GeometryError, positive=True)
+        check_number("switch_margin_s", switch_margin_s, error=GeometryError, minimum=0.0)
         self.door_widths_m = widths
         self.capacity_per_m_s = float(capacity_per_m_s)
         self.interval_s = float(interval_s)

@@ -74,7 +74,7 @@ def test_grid_axes_like_the_paper_and_bad_grids():
     a = grid_axis(10, 1000, 20, "A")
     assert a.size == 20 and a[0] == 10 and a[-1] == 1000 and np.allclose(np.diff(a), 990 / 19)
     assert np.allclose(grid_axis(10, 1000, 3, "A", "log"), [10, 100, 1000])
-    for args, msg in [((10, 1000, 0, "A"), "positive integer"), ((0, 1000, 4, "A"), "> 0"),
+    for args, msg in [((10, 1000, 0, "A"), "integer >= 1"), ((0, 1000, 4, "A"), "> 0"),
                       ((0.2, 0.01, 4, "B"), "low < high"), ((0.01, 0.2, 1, "B"), "size 1"),
                       ((-0.1, 0.2, 4, "B"), "> 0"), ((10, 100, 4, "A", "cubic"), "spacing")]:
         with pytest.raises(CalibrationError, match=msg):

@@ -110,7 +110,7 @@ def test_unknown_names_and_bad_policies_are_named(tmp_path):
     world.env_overrides["observation_frame"] = "egocentric"  # its options no longer give its input size
     with pytest.raises(PolicyError, match="expects observations of size"):
         crowd_v0.parallel_env(**SCENARIO, controlled=[0], background_policy=world)
-    for key, bad, what in (("n_rays", -1, "n_rays must be a finite integer >= 0"),
+    for key, bad, what in (("n_rays", -1, "n_rays must be an integer >= 0"),
                            ("heading_target", "sideways", "heading_target must be 'intent' or 'desired_direction'"),
                            ("observation_frame", "polar", "observation_frame must be one of")):
         odd = FilePolicy(_policy_file(tmp_path))

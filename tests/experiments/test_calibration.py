@@ -250,7 +250,7 @@ def test_cli_grid_end_to_end_and_errors(tmp_path, capsys):
     run_file = next((out / "runs").glob("*.json"))
     mtime = run_file.stat().st_mtime_ns
     assert cli.main(argv) == 0 and run_file.stat().st_mtime_ns == mtime  # resumed: nothing rerun
-    bad = [(["--A-values", "-1", "5"], "> 0"), (["--grid-size", "0", "4"], "positive integer"),
+    bad = [(["--A-values", "-1", "5"], "> 0"), (["--grid-size", "0", "4"], "integer >= 1"),
            (["--A-range", "10", "100"], "do not combine"),
            (["--kn", "1000"], "different configuration"),
            (["--backend", "ray", "--address", f"127.0.0.1:{_closed_port()}", "--connect-timeout", "1"],

@@ -2,7 +2,6 @@
 soak's high-pressure phase reduced to a few seconds (the full one: ``crowd-soak``, its pressure
 phase, ``crowd_env.experiments.soak.pressure_soak``).
 """
-import time
 
 import numpy as np
 import pytest
@@ -64,7 +63,6 @@ def test_reduced_pressure_soak():
     and longer runs 1.26 mm), and it is high pressure: contacts carrying force join more than 100
     pedestrians (17 was the environment soak's largest cluster), and the pushing cases need the large
     (sparse / interior point) solvers."""
-    t0 = time.perf_counter()
     r = pressure_soak(720_000)
     assert r["cases"] == [c.name for c in PRESSURE_CASES] and r["agent_steps"] >= 720_000
     assert r["violations"] == {} and r["n_violations"] == 0, "\n".join(r["examples"])
@@ -76,7 +74,6 @@ def test_reduced_pressure_soak():
         assert case["fallback_solves"] == 0, name
     assert r["per_case"]["room_push"]["large_solves"] > 0 and r["per_case"]["bottleneck_push"]["large_solves"] > 0
     assert r["max_impact_energy_increase_j"] <= 1e-9 and r["max_projection_energy_increase_j"] <= 1e-9
-    assert time.perf_counter() - t0 < 60
 
 
 def _closest_pair(state):

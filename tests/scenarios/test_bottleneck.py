@@ -91,7 +91,7 @@ def test_bottleneck_seeds():
     (dict(width_m=-1.0), ScenarioError, "width_m must be a positive"),
     (dict(channel_length_m=0.0), ScenarioError, "channel_length_m must be a positive"),
     (dict(initial_density_per_m2=float("nan")), ScenarioError, "initial_density_per_m2"),
-    (dict(n_pedestrians=0), ScenarioError, "n_pedestrians must be a positive integer"),
+    (dict(n_pedestrians=0), ScenarioError, "n_pedestrians must be an integer >= 1"),
     (dict(n_pedestrians=2.5), ScenarioError, "n_pedestrians"),
     (dict(n_pedestrians=60, n_sections=2), ScenarioError, "more pedestrians than fit"),
     (dict(initial_density_per_m2=5.0), ScenarioError, "more pedestrians than fit in the holding area"),

@@ -29,6 +29,7 @@ import numpy as np
 from ...analysis.calibration import CalibrationError
 from ...analysis.experiment import ExperimentTable, seyfried_2009
 from ...analysis.targets import TargetWeights, required_cases, target_error
+from ...core.checks import check_integer
 from ..backends import execute
 from ..bottleneck import run_one
 from ..store import RunStore
@@ -226,8 +227,7 @@ def optimise(out, config: dict, free, widths_m, sizes, seeds, backend, *, x0: di
 
     if method not in METHODS:
         raise CalibrationError(f"unknown method {method!r}; choose one of {METHODS}")
-    if isinstance(max_evaluations, bool) or int(max_evaluations) != max_evaluations or max_evaluations < 1:
-        raise CalibrationError(f"max_evaluations must be a positive integer, got {max_evaluations!r}")
+    check_integer("max_evaluations", max_evaluations, error=CalibrationError, minimum=1, whole_floats=True)
     names, lo, hi, z0 = _check_free(free, x0, bounds)
     evaluator = PointEvaluator(out, config, widths_m, sizes, seeds, backend, reference=reference,
                                range_weight=range_weight, run_fn=run_fn, incomplete=incomplete, objective=objective,

@@ -9,7 +9,6 @@ evaluation reads only the runs, so the same test judges crowd_env and JuPedSim a
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 
@@ -19,6 +18,7 @@ import shapely
 from crowd_env.errors import InputError, NotFoundError
 
 from ...analysis.trajectories import Trajectories
+from ...core.checks import check_number
 from ...core.presets import DEFAULT_PRESET, get_preset
 from ...walking.agent import SocialForceAgent
 from ..recording import record_run
@@ -218,17 +218,18 @@ def exit_times_s(trajectories: Trajectories, left, end_time_s: float) -> np.ndar
 
 
 def run_crowd_env(scenario, *, seed: int, max_time_s: float, params=None,
-                  frame_rate_per_s: float = FRAME_RATE_PER_S) -> BackendRun:
-    """Run ``scenario`` with the calibrated agent (default preset) and record it: a :class:`BackendRun`."""
-    if not (isinstance(max_time_s, (int, float)) and math.isfinite(max_time_s) and max_time_s > 0):
-        raise InputError(f"max_time_s must be a positive number, got {max_time_s!r}")
+                  frame_rate_per_s: float = FRAME_RATE_PER_S, checkpoint=None) -> BackendRun:
+    """Run ``scenario`` with the calibrated agent (default preset) and record it: a :class:`BackendRun`.
+    ``checkpoint``: a :class:`~crowd_env.experiments.runner.RunCheckpoint` (long runs: kept every so often,
+    resumed after a killed process)."""
+    check_number("max_time_s", max_time_s, error=InputError, positive=True)
     params = get_preset(DEFAULT_PRESET).params() if params is None else params
     t0 = time.perf_counter()
     state = scenario.make_state(rng=np.random.default_rng(seed))
     result, traj = record_run(scenario, SocialForceAgent(scenario.navigation()), params, state=state,
                               frame_rate_per_s=frame_rate_per_s, max_time_s=max_time_s, line=None, density_areas=(),
-                              lane_area=None)
-    wall = time.perf_counter() - t0
+                              lane_area=None, checkpoint=checkpoint)
+    wall = time.perf_counter() - t0 + (checkpoint.resumed_wall_s if checkpoint is not None else 0.0)
     exits = exit_times_s(traj, ~state.active, result.simulated_time_s)
     complete = not bool(state.active.any())
     return BackendRun("crowd_env", scenario.name, traj, exits, float(result.min_gap_m),

@@ -87,6 +87,7 @@ from scipy.spatial import cKDTree
 from crowd_env.errors import InputError, MissingDependencyError, NotFoundError
 
 from ...analysis.trajectories import Trajectories, steps_per_frame
+from ...core.checks import check_number
 from ...walking.navigation import DestinationNavigation, NavigationField, RigidlyMovedNavigation
 from .base import FRAME_RATE_PER_S, BackendRun, exit_times_s, outside_distance_m
 
@@ -354,8 +355,7 @@ def run_jupedsim(scenario, model: str, *, seed: int, max_time_s: float, frame_ra
     """Run ``scenario`` in JuPedSim with ``model`` ("cfsm" or "sfm") and the pedestrians crowd_env draws with
     ``seed``, recorded at ``frame_rate_per_s``, until everybody left or ``max_time_s``: a
     :class:`~crowd_env.experiments.rimea.base.BackendRun` with backend ``"jupedsim_<model>"``."""
-    if not (isinstance(max_time_s, (int, float)) and math.isfinite(max_time_s) and max_time_s > 0):
-        raise InputError(f"max_time_s must be a positive number, got {max_time_s!r}")
+    check_number("max_time_s", max_time_s, error=InputError, positive=True)
     t0 = time.perf_counter()
     state = scenario.make_state(rng=np.random.default_rng(seed))
     setup = build_simulation(scenario, state, model, dt_s=dt_s)

@@ -20,6 +20,7 @@ from crowd_env.errors import InputError, MissingDependencyError
 
 from ...analysis.trajectories import Trajectories
 from .. import tables
+from ..runner import RunCheckpoint
 from ..store import write_json_atomic
 from .base import OVERLAP_LIMIT_M, BackendRun, Verdict, run_crowd_env, select_tests
 
@@ -229,7 +230,11 @@ def run_suite(numbers=None, *, quick: bool = False, jupedsim: bool = False, seed
                 path = run_path(out_dir, test.number, name, backend) if out_dir is not None else None
                 runs[name] = load_run(path, settings) if resume else None
                 if runs[name] is None:
-                    runs[name] = run(sc, seed=seed, max_time_s=test.max_time_s(quick))
+                    extra = {}
+                    if path is not None and backend == "crowd_env":  # hour-long runs: kept every 10 min
+                        extra["checkpoint"] = RunCheckpoint(path + ".checkpoint.pkl", json.dumps(settings, sort_keys=True),
+                                                            resume=resume)
+                    runs[name] = run(sc, seed=seed, max_time_s=test.max_time_s(quick), **extra)
                     if path is not None:
                         save_run(runs[name], path, settings)
                 elif progress is not None:
