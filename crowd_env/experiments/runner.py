@@ -67,13 +67,15 @@ class RunCheckpoint:
     settings, version) goes on from it, and its result is the uninterrupted run's to the last bit
     (``tests/experiments/test_checkpoint.py``), its wall time the sum of both parts; a checkpoint with
     another key is ignored with a :class:`RuntimeWarning` and overwritten. The file is removed once the
-    run is over. It is a pickle: load only checkpoints you wrote. ``resumed_wall_s``: after the run, the
-    wall time its kept part had taken (0 when it started afresh)."""
+    run is over (with ``remove_when_done``; else by the caller, e.g. once it has kept the run's result,
+    :meth:`remove`). It is a pickle: load only checkpoints you wrote. ``resumed_wall_s``: after the run,
+    the wall time its kept part had taken (0 when it started afresh)."""
 
     path: str
     key: str
     every_s: float = CHECKPOINT_EVERY_S
     resume: bool = True
+    remove_when_done: bool = True
     resumed_wall_s: float = field(default=0.0, init=False)
 
     def __post_init__(self):
@@ -461,7 +463,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     n_left = int(np.count_nonzero(~state.active))
     complete = not (state.active & ~passed).any()  # nobody left who has not passed
     n_measured = int(measures.counts[COUNT_STEPS])
-    if checkpoint is not None:
+    if checkpoint is not None and checkpoint.remove_when_done:
         checkpoint.remove()
     return RunResult(
         n_pedestrians=state.n, width_m=width_m, seed=scenario.seed, n_steps=sim.step_count,

@@ -63,6 +63,13 @@ def test_a_killed_run_resumes_to_the_last_bit(tmp_path, compiled):
     _same(resumed, whole)
     assert cp.resumed_wall_s > 0.0 and resumed[0].wall_time_s >= cp.resumed_wall_s
     assert not (tmp_path / "run.checkpoint.pkl").exists()  # removed once the run is over
+    with pytest.raises(Killed):
+        _run(RunCheckpoint(path, key="k", every_s=0.0), kill_after_calls=2, compiled=compiled)
+    kept_by_caller = RunCheckpoint(path, key="k", every_s=0.0, remove_when_done=False)
+    _same(_run(kept_by_caller), whole)
+    assert (tmp_path / "run.checkpoint.pkl").exists()  # the caller removes it once it has kept the result
+    kept_by_caller.remove()
+    assert not (tmp_path / "run.checkpoint.pkl").exists()
 
 
 def test_another_runs_checkpoint_is_not_resumed(tmp_path):
@@ -96,7 +103,7 @@ def test_rimea_suite_keeps_checkpoints_beside_its_runs(tmp_path, monkeypatch):
     for resume in (False, True):
         with pytest.raises(Killed):
             suite.run_suite(["1"], quick=True, out_dir=str(tmp_path), resume=resume, progress=None)
-    assert [c.resume for c in seen] == [False, True]
+    assert [c.resume for c in seen] == [False, True] and not any(c.remove_when_done for c in seen)
     assert seen[0].path == suite.run_path(str(tmp_path), "1", next(iter(_variants())), "crowd_env") + ".checkpoint.pkl"
     assert json.loads(seen[0].key)["test"] == "1" and seen[0].key == seen[1].key
 

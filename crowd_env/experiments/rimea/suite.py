@@ -233,10 +233,12 @@ def run_suite(numbers=None, *, quick: bool = False, jupedsim: bool = False, seed
                     extra = {}
                     if path is not None and backend == "crowd_env":  # hour-long runs: kept every 10 min
                         extra["checkpoint"] = RunCheckpoint(path + ".checkpoint.pkl", json.dumps(settings, sort_keys=True),
-                                                            resume=resume)
+                                                            resume=resume, remove_when_done=False)
                     runs[name] = run(sc, seed=seed, max_time_s=test.max_time_s(quick), **extra)
                     if path is not None:
                         save_run(runs[name], path, settings)
+                    if extra:  # the run is kept: its checkpoint is not needed any more
+                        extra["checkpoint"].remove()
                 elif progress is not None:
                     progress(f"RiMEA {test.number} {backend} {name}: kept run read from {path}")
             runs_by_backend[backend] = runs
