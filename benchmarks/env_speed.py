@@ -30,9 +30,14 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+import sys  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from timing import time_calls  # noqa: E402
 
 TARGET_ENV_OVER_SIM = 0.5  # the environment's own work per step over the simulator's, at N = 100
 
@@ -50,26 +55,9 @@ def bench(n: int, steps: int, warmup: int, n_neighbors: int, n_rays: int, policy
         from baselines.social_force import SocialForceAgent
 
         agent = SocialForceAgent(env.navigation)
-    sim_time = [0.0]
-    step = env.sim.step
-
-    def timed_step(*a, **k):  # measure the simulator's share
-        t = time.perf_counter()
-        out = step(*a, **k)
-        sim_time[0] += time.perf_counter() - t
-        return out
-
-    env.sim.step = timed_step
-    obs_time = [0.0]
-    observe = env._observer.observe
-
-    def timed_observe(*a, **k):  # the compiled observation pass's share (part of the environment's own work)
-        t = time.perf_counter()
-        out = observe(*a, **k)
-        obs_time[0] += time.perf_counter() - t
-        return out
-
-    env._observer.observe = timed_observe
+    sim_time, obs_time = [0.0], [0.0]
+    time_calls(env.sim, "step", sim_time)  # the simulator's share
+    time_calls(env._observer, "observe", obs_time)  # the compiled observation pass's (part of the env's own work)
     total = 0.0
     agent_steps = 0
     done = 0

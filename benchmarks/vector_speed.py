@@ -37,9 +37,14 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+import sys  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from timing import time_calls  # noqa: E402
 
 SPEED_M_S = 1.3
 DIAMETER_M = 0.4  # l of the speed rule: the gap below which a pedestrian stops
@@ -123,19 +128,6 @@ def bench_pettingzoo(n: int, k: int, steps: int, warmup: int, policy: str) -> fl
     return agent_steps / total
 
 
-def _timed(obj, name: str, clock: list) -> None:
-    """Wrap ``obj.name`` so that its calls add their wall time to ``clock[0]``."""
-    inner = getattr(obj, name)
-
-    def timed(*a, **kw):
-        t = time.perf_counter()
-        out = inner(*a, **kw)
-        clock[0] += time.perf_counter() - t
-        return out
-
-    setattr(obj, name, timed)
-
-
 def bench_vector(n: int, k: int, steps: int, warmup: int, policy: str, workers: int = 1) -> tuple:
     """Agent-steps/s of one vector environment of the K copies, and (with one worker: the copies live
     in this process) the seconds per agent-step of its simulator steps and of its observation passes
@@ -149,8 +141,8 @@ def bench_vector(n: int, k: int, steps: int, warmup: int, policy: str, workers: 
         layout = vec.envs[0].observation_layout
         if workers == 1:
             for e in vec.envs:
-                _timed(e.sim, "step", sim_clock)  # reset() makes a new simulator: a copy that resets is untimed
-                _timed(e._observer, "observe", obs_clock)
+                time_calls(e.sim, "step", sim_clock)  # reset() makes a new simulator: a copy that resets is untimed
+                time_calls(e._observer, "observe", obs_clock)
         total, agent_steps = 0.0, 0
         for s in range(warmup + steps):
             actions = act(obs, layout, policy)
