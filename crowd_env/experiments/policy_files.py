@@ -27,6 +27,8 @@ import numpy as np
 
 from crowd_env.errors import PolicyError
 
+from .store import write_npz_atomic
+
 __all__ = ["POLICY_FILE_FORMAT", "OUTPUTS", "ACTIVATIONS", "MLPPolicyFile", "save_policy_file", "load_policy_file",
            "from_sb3", "from_torchrl"]
 
@@ -108,17 +110,14 @@ class MLPPolicyFile:
 
 
 def save_policy_file(policy: MLPPolicyFile, path: str) -> str:
-    """Write ``policy`` to ``path`` (``.npz``, compressed, written under a temporary name and renamed)."""
+    """Write ``policy`` to ``path`` (``.npz``, compressed, written atomically: :func:`~.store.write_npz_atomic`)."""
     meta = {"format": POLICY_FILE_FORMAT, "activation": policy.activation, "output": policy.output,
             "n_layers": len(policy.weights), "env_config": policy.env_config, "meta": policy.meta}
     arrays = {"low": policy.low, "high": policy.high, "obs_mean": policy.obs_mean, "obs_std": policy.obs_std}
     for i, (w, b) in enumerate(zip(policy.weights, policy.biases)):
         arrays[f"w{i}"] = w.astype(np.float32)
         arrays[f"b{i}"] = b.astype(np.float32)
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    tmp = path + ".tmp.npz"
-    np.savez_compressed(tmp, meta=np.array(json.dumps(meta)), **arrays)
-    os.replace(tmp, path)
+    write_npz_atomic(path, meta, **arrays)
     return path
 
 

@@ -24,13 +24,17 @@ from __future__ import annotations
 from crowd_env.errors import RunStoreError
 
 import hashlib
+import io
 import json
 import os
 from pathlib import Path
 
+import numpy as np
+
 from ..analysis.trajectories import trajectory_frame_rate
 
 __all__ = ["RunStoreError", "RunStore", "config_hash", "normalise_record", "run_key", "task_key", "write_atomic", "write_json_atomic",
+           "write_npz_atomic",
            "CONFIG_NAME", "LAYOUTS"]
 
 CONFIG_NAME = "config.json"
@@ -92,6 +96,16 @@ def write_json_atomic(path, value) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     write_atomic(path, json.dumps(value, indent=1))
+
+
+def write_npz_atomic(path, meta: dict, **arrays) -> None:
+    """``arrays`` and ``meta`` (as a JSON string under the key ``meta``) in a compressed ``.npz`` at ``path``,
+    its folder made if needed, written atomically (:func:`write_atomic`)."""
+    buffer = io.BytesIO()
+    np.savez_compressed(buffer, meta=np.array(json.dumps(meta)), **arrays)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, buffer.getvalue())
 
 
 def _config_difference(old: dict, config: dict) -> list:

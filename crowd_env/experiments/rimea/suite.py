@@ -21,7 +21,7 @@ from crowd_env.errors import InputError, MissingDependencyError
 from ...analysis.trajectories import Trajectories
 from .. import tables
 from ..runner import RunCheckpoint
-from ..store import write_json_atomic
+from ..store import write_json_atomic, write_npz_atomic
 from .base import OVERLAP_LIMIT_M, BackendRun, Verdict, run_crowd_env, select_tests
 
 __all__ = ["TestResult", "run_suite", "load_test_result", "test_result_path", "run_path", "save_run", "load_run",
@@ -165,15 +165,12 @@ def run_path(out_dir, number: str, variant: str, backend: str) -> str:
 
 def save_run(run: BackendRun, path: str, settings: dict) -> None:
     """Keep ``run`` at ``path`` (compressed arrays and a JSON header with ``settings``), written atomically."""
-    os.makedirs(os.path.dirname(path), exist_ok=True)
     t = run.trajectories
     meta = {"settings": settings, "backend": run.backend, "scenario_name": run.scenario_name,
             "min_gap_m": run.min_gap_m, "outside_m": run.outside_m, "complete": run.complete, "stalled": run.stalled,
             "wall_time_s": run.wall_time_s, "max_time_s": run.max_time_s, "frame_rate_per_s": t.frame_rate_per_s}
-    tmp = path + ".tmp.npz"
-    np.savez_compressed(tmp, meta=np.array(json.dumps(meta)), frame=t.frame, id=t.id, x_m=t.x_m, y_m=t.y_m,
-                        heading_rad=t.heading_rad, exit_time_s=run.exit_time_s)
-    os.replace(tmp, path)
+    write_npz_atomic(path, meta, frame=t.frame, id=t.id, x_m=t.x_m, y_m=t.y_m, heading_rad=t.heading_rad,
+                     exit_time_s=run.exit_time_s)
 
 
 def load_run(path: str, settings: dict):
