@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..analysis.flow import MeasurementLine, specific_flow
-from ..core.checks import check_number
+from ..core.checks import check_integer, check_number
 from ..core.params import ModelParams
 from ..core.polygons import pack_polygons
 from ..core.presets import DEFAULT_PRESET, get_preset
@@ -392,10 +392,9 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     :class:`RunResult`; its flows are nan unless the run is complete (module docstring).
     """
     params = get_preset(DEFAULT_PRESET).params() if params is None else params
-    if int(record_every) < 1:
-        raise InputError(f"record_every must be a whole number of steps >= 1, got {record_every!r}")
-    if int(chunk_steps) < 1:
-        raise InputError(f"chunk_steps must be >= 1, got {chunk_steps!r}")
+    record_every = check_integer("record_every", record_every, error=InputError, minimum=1)
+    chunk_steps = check_integer("chunk_steps", chunk_steps, error=InputError, minimum=1)
+    max_time_s = check_number("max_time_s", max_time_s, error=InputError, positive=True)
     state = scenario.make_state(rng=rng) if state is None else state
     sim = scenario.make_simulator(state, params)  # with the scenario's destinations, if any
     width_m = scenario.metadata.get("width_m") if width_m is None else width_m
@@ -424,7 +423,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
             t_saved = time.perf_counter()
         python_step = True
         if kernel_tuples is not None and sim.fused_ready():
-            steps = min(int(chunk_steps), n_steps_max - done)
+            steps = min(chunk_steps, n_steps_max - done)
             measures.room_for(steps)
             status, k, clock, rounds = rollout_steps(steps, sim.time_s, sim.step_count, *kernel_tuples, *measures.measure_arguments(),
                                              *stall.kernel_arguments, measures.counts, measures.scalars)

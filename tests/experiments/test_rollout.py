@@ -138,7 +138,11 @@ def test_rollout_falls_back_where_it_has_no_compiled_form():
 
     assert Slower(nav).compiled(10) is None
     assert SocialForceAgent(nav).compiled(10) is not None
-    with pytest.raises(ValueError, match="chunk_steps"):
-        run_scenario(scenario, SocialForceAgent(nav), chunk_steps=0)
-    with pytest.raises(ValueError, match="record_every"):
-        run_scenario(scenario, SocialForceAgent(nav), record_every=0)
+    for bad in (0, 2.5, "10", True):  # a fraction of a step is refused, not rounded down
+        with pytest.raises(ValueError, match="chunk_steps must be an integer >= 1"):
+            run_scenario(scenario, SocialForceAgent(nav), chunk_steps=bad)
+        with pytest.raises(ValueError, match="record_every must be an integer >= 1"):
+            run_scenario(scenario, SocialForceAgent(nav), record_every=bad)
+    for bad in (0.0, -1.0, float("nan"), float("inf"), "60"):  # no run of zero or negative length passes as complete
+        with pytest.raises(ValueError, match="max_time_s must be a positive finite number"):
+            run_scenario(scenario, SocialForceAgent(nav), max_time_s=bad)
