@@ -26,13 +26,13 @@ from __future__ import annotations
 from crowd_env.errors import InputError, MissingDependencyError, MissingFileError, NotFoundError, TrajectoryFormatError
 
 import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import shapely
 
+from ..core.checks import check_number
 from .recorder import TrajectoryRecorder
 
 __all__ = ["TrajectoryFormatError", "Trajectories", "steps_per_frame", "write_geometry",
@@ -52,13 +52,7 @@ def _pedpy():
 
 
 def _check_frame_rate(frame_rate_per_s, what: str = "frame_rate_per_s") -> float:
-    try:
-        fps = float(frame_rate_per_s)
-    except (TypeError, ValueError):
-        raise TrajectoryFormatError(f"{what} must be a number, got {frame_rate_per_s!r}") from None
-    if not (math.isfinite(fps) and fps > 0):
-        raise TrajectoryFormatError(f"{what} must be a positive finite number, got {frame_rate_per_s!r}")
-    return fps
+    return check_number(what, frame_rate_per_s, error=TrajectoryFormatError, positive=True)
 
 
 @dataclass(frozen=True, eq=False)
@@ -401,8 +395,7 @@ def fundamental_diagram_data(traj_data, measurement_area, speed_window_s: float 
     pedpy = _pedpy()
     if isinstance(traj_data, Trajectories):
         traj_data = traj_data.to_pedpy()
-    if not (math.isfinite(speed_window_s) and speed_window_s > 0):
-        raise InputError(f"speed_window_s must be > 0, got {speed_window_s!r}")
+    check_number("speed_window_s", speed_window_s, error=InputError, positive=True)
     frame_step = max(1, int(round(0.5 * speed_window_s * traj_data.frame_rate)))
     speed = pedpy.compute_individual_speed(traj_data=traj_data, frame_step=frame_step,
                                            speed_calculation=pedpy.SpeedCalculation.BORDER_SINGLE_SIDED)

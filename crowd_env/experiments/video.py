@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis.trajectories import Trajectories, geometry_paths, read_geometry
-from ..core.checks import check_integer
+from ..core.checks import check_integer, check_number
 from ..core.params import PedestrianDefaults
 from ..envs.rendering import ContactPercussions, CrowdRenderer
 from ..errors import InputError, MissingDependencyError, MissingFileError, NotFoundError, PolicyError
@@ -105,13 +105,8 @@ def check_video_path(path) -> Path:
 
 
 def _check_fps(fps) -> float:
-    try:
-        value = float(fps)
-    except (TypeError, ValueError):
-        raise InputError(f"fps must be a number of video frames per second, got {fps!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise InputError(f"fps must be a positive number of video frames per second, got {fps!r}")
-    return value
+    """Video frames per second: a positive finite number."""
+    return check_number("fps", fps, error=InputError, positive=True)
 
 
 def _check_quality(quality) -> float:
@@ -137,9 +132,7 @@ def frame_stride(step_s: float, fps=None, every=None, *, gif: bool = False) -> t
     simulated seconds; see the module docstring for the rules. Raises
     :class:`~crowd_env.errors.InputError` for ``fps`` <= 0, ``every`` < 1, an ``fps`` alone that is not
     1/(k × step) for a whole k, and (``gif``) an fps that does not divide 100."""
-    step_s = float(step_s)
-    if not (math.isfinite(step_s) and step_s > 0):
-        raise InputError(f"the step must be a positive number of seconds, got {step_s!r}")
+    step_s = check_number("step_s", step_s, error=InputError, positive=True)
     fps = None if fps is None else _check_fps(fps)
     every = None if every is None else _check_every(every)
     if every is None and fps is None:
@@ -327,8 +320,7 @@ def record_rollout(policy, path, scenario="seyfried_bottleneck", seed: int = 0, 
         fps = _check_fps(fps)
     if every is not None:
         every = _check_every(every)
-    if not (isinstance(max_time_s, (int, float)) and math.isfinite(max_time_s) and max_time_s > 0):
-        raise InputError(f"max_time_s must be a positive number of simulated seconds, got {max_time_s!r}")
+    check_number("max_time_s", max_time_s, error=InputError, positive=True)
     pol = policy_from_spec(policy, resolver)
     spec = scenario if isinstance(scenario, ScenarioSpec) else ScenarioSpec(scenario, scenario_options)
     name = getattr(pol, "name", type(pol).__name__)
@@ -396,12 +388,10 @@ def record_trajectory_file(trajectory_path, path, *, geometry=None, fps=None, ev
     path = check_video_path(path)
     fps = None if fps is None else _check_fps(fps)
     every = None if every is None else _check_every(every)
-    if max_time_s is not None and not (isinstance(max_time_s, (int, float)) and math.isfinite(max_time_s)
-                                       and max_time_s >= 0):
-        raise InputError(f"max_time_s must be a number of simulated seconds >= 0, got {max_time_s!r}")
+    if max_time_s is not None:
+        check_number("max_time_s", max_time_s, error=InputError, minimum=0.0, suffix=" or None")
     radius = PedestrianDefaults().radius_m if radius_m is None else radius_m
-    if not (isinstance(radius, (int, float)) and math.isfinite(radius) and radius > 0):
-        raise InputError(f"radius_m must be a positive number of metres, got {radius_m!r}")
+    check_number("radius_m", radius, error=InputError, positive=True)
     traj = Trajectories.read_txt(trajectory_path)
     if geometry is None:
         geometry = geometry_path_for(trajectory_path)

@@ -35,6 +35,7 @@ from crowd_env.analysis.trajectories import (Trajectories, TrajectoryFormatError
 from crowd_env.cli.fundamental_diagram import main as fundamental_diagram  # noqa: E402
 from crowd_env.cli.reproduce_bottleneck import main as reproduce  # noqa: E402
 from crowd_env.core import ModelParams  # noqa: E402
+from crowd_env.errors import InputError  # noqa: E402
 from crowd_env.experiments.recording import record_run  # noqa: E402
 from crowd_env.experiments.runner import run_scenario  # noqa: E402
 from crowd_env.scenarios import make_scenario  # noqa: E402
@@ -192,6 +193,9 @@ def test_fundamental_diagram_data_and_cli(run, loaded, tmp_path):
     traj_data, geometry = loaded
     d = fundamental_diagram_data(traj_data, pedpy_measurement_area(geometry, "inside"))
     assert d["frame"].size > 100 and np.all(d["density_per_m2"] > 0)
+    for bad in (0.0, -0.4, float("nan"), "0.4"):
+        with pytest.raises(InputError, match="speed_window_s must be a positive finite number"):
+            fundamental_diagram_data(traj_data, pedpy_measurement_area(geometry, "inside"), speed_window_s=bad)
     np.testing.assert_allclose(d["specific_flow_per_m_s"], d["density_per_m2"] * d["speed_m_s"])
     # speeds from PedPy (±0.2 s window) vs a numpy central difference on the interior frames
     x = dict(zip(zip(traj.id.tolist(), traj.frame.tolist()), zip(traj.x_m, traj.y_m)))
@@ -287,8 +291,9 @@ def test_bad_input_gives_clear_errors(tmp_path, run):
             Trajectories.read_txt(_write(tmp_path / f"bad{k}.txt", text))
     with pytest.raises(TrajectoryFormatError, match="non-finite position"):
         Trajectories([0], [0], [np.nan], [0.0], None, 25.0)
-    with pytest.raises(TrajectoryFormatError, match="frame_rate_per_s must be a positive"):
-        Trajectories([0], [0], [0.0], [0.0], None, -1)
+    for bad in (-1, 0.0, float("nan"), "25", True):  # a string or bool is not read as a frame rate
+        with pytest.raises(TrajectoryFormatError, match="frame_rate_per_s must be a positive finite number"):
+            Trajectories([0], [0], [0.0], [0.0], None, bad)
     # PedPy itself refuses a file without a frame rate: ours always carry one
     with pytest.raises(pedpy.PedPyValueError, match="Frame rate"):
         pedpy.load_trajectory_from_txt(trajectory_file=tmp_path / "a.txt")

@@ -230,6 +230,12 @@ def test_frame_stride_rules():
     assert frame_stride(0.01, fps=50, every=4) == (4, pytest.approx(50.0))  # twice real time
     with pytest.raises(InputError, match="every"):
         frame_stride(0.01, every=1.5)
+    for bad in (0, -25.0, float("inf"), "25", True):  # not coerced: "25" was read as 25 before
+        with pytest.raises(InputError, match="fps must be a positive finite number"):
+            frame_stride(0.01, fps=bad)
+    for bad in (0.0, float("nan"), "0.01"):
+        with pytest.raises(InputError, match="step_s must be a positive finite number"):
+            frame_stride(bad)
 
 
 @pytest.fixture
