@@ -117,6 +117,79 @@ def _interior_point_fails(monkeypatch):
                         lambda vel, mass, c_a, *args, **kwargs: (np.zeros(c_a.shape[0]), 60, STATUS_MAX_ITER))
 
 
+def test_interior_point_backs_off_to_piqp_after_misses_and_resets_after_a_success(monkeypatch):
+    """With PIQP installed, a miss of the interior point method (forced here) sends the next
+    ipm_skip_after_miss large projections to PIQP first, twice as many after each further miss, up to
+    ipm_skip_max; a success resets the back-off. Every projection stays exact; nothing reaches the last
+    resorts."""
+    pytest.importorskip("piqp")
+    vel, mass, con = _chain(10)
+    v_exact, _ = _dense(vel, mass, con)
+    real_ipm = cascade_module.project_gaps_interior_point
+    fail = [True]
+
+    def ipm(vel, mass, c_a, *args, **kwargs):
+        if fail[0]:
+            return np.zeros(c_a.shape[0]), 60, STATUS_MAX_ITER
+        return real_ipm(vel, mass, c_a, *args, **kwargs)
+
+    monkeypatch.setattr(cascade_module, "project_gaps_interior_point", ipm)
+    cascade = SolverCascade(max_dense_projection_rows=2, alm_newton_budget=0, ipm_skip_after_miss=2,
+                            ipm_skip_max=4)
+    step = [0]
+
+    def tries(count):
+        out = []
+        for k in range(count):
+            before = cascade.n_ipm_projections
+            v = vel.copy()
+            step[0] += 10  # far apart: no working set from an earlier step
+            cascade.project(v, mass, con, H, step[0], _keys(vel, con))
+            np.testing.assert_allclose(v, v_exact, atol=1e-8)
+            if cascade.n_ipm_projections > before:
+                out.append(k)
+        return out
+
+    assert tries(11) == [0, 3, 8]  # 2 projections skipped, then 4 (the cap)
+    assert cascade.n_piqp_projections == 11 and cascade.n_fallback_solves == 0
+    fail[0] = False
+    assert tries(4) == [2, 3]  # the back-off runs out, the next try converges, and so does every one after
+    assert cascade.n_piqp_projections == 11 + 2
+    fail[0] = True
+    assert tries(4) == [0, 3]  # the success reset the back-off to 2
+    assert cascade.n_fallback_solves == 0
+
+
+def test_piqp_miss_while_the_interior_point_method_is_skipped_tries_it_before_the_last_resorts(monkeypatch):
+    pytest.importorskip("piqp")
+    vel, mass, con = _chain(10)
+    v_exact, _ = _dense(vel, mass, con)
+    cascade = SolverCascade(max_dense_projection_rows=2, alm_newton_budget=0)
+    cascade._skip_ipm = 3  # as after a miss
+    monkeypatch.setattr(cascade_module, "project_gaps_ipm", lambda vel, mass, c_a, *args: (np.zeros(c_a.shape[0]), False))
+    v = vel.copy()
+    cascade.project(v, mass, con, H, 0, _keys(vel, con))
+    np.testing.assert_allclose(v, v_exact, atol=1e-8)
+    assert cascade.n_piqp_projections == 1 and cascade.n_ipm_projections == 1 and cascade.n_fallback_solves == 0
+    assert cascade._skip_ipm == 2
+
+
+def test_a_cascade_pickled_before_the_interior_point_back_off_existed_loads_with_its_defaults():
+    """Checkpoints of long runs pickle the cascade; one written by an earlier version lacks the back-off."""
+    import pickle
+
+    old = SolverCascade()
+    for name in ("ipm_skip_after_miss", "ipm_skip_max", "_skip_ipm", "_ipm_backoff"):
+        del old.__dict__[name]
+    old.n_piqp_projections = 616
+    back = pickle.loads(pickle.dumps(old))
+    assert (back.ipm_skip_after_miss, back.ipm_skip_max, back._skip_ipm, back._ipm_backoff) == (
+        cascade_module.IPM_SKIP_AFTER_MISS, cascade_module.IPM_SKIP_MAX, 0, cascade_module.IPM_SKIP_AFTER_MISS)
+    assert back.n_piqp_projections == 616
+    custom = pickle.loads(pickle.dumps(SolverCascade(ipm_skip_max=7)))
+    assert custom.ipm_skip_max == 7  # what was pickled wins over the defaults
+
+
 def test_missing_piqp_is_skipped_and_counted_and_the_answer_stays_exact(monkeypatch):
     vel, mass, con = _chain(8)
     v_exact, _ = _dense(vel, mass, con)

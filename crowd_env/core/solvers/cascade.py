@@ -34,8 +34,14 @@ Projection (:meth:`SolverCascade.project`):
    started, when the previous step also had a large projection, on a working set (that projection's
    active contacts and the candidates whose slack is below ``working_set_slack_m_s``, from its
    percussions: :func:`~crowd_env.core.solvers.large_projection.project_gaps_working_set`);
-4. should that fail (not seen in practice): PIQP (:func:`~crowd_env.core.solvers.external.project_gaps_ipm`),
-   then :func:`project_gaps_large` (sparse pivoting, Clarabel, and a polish).
+4. should that fail: PIQP (:func:`~crowd_env.core.solvers.external.project_gaps_ipm`), then
+   :func:`project_gaps_large` (sparse pivoting, Clarabel, and a polish). The interior point method
+   misses on jams of tens of thousands of candidates pressed together (RiMEA test 4 at 5 P/m²: 30 000
+   candidates, no convergence within its 60 iterations, 253 needed, where PIQP takes about 1 s): with
+   PIQP installed, a miss skips it for the next ``ipm_skip_after_miss`` large projections, which go to
+   PIQP first, twice as many after each further miss in a row (up to ``ipm_skip_max``); a success
+   resets that, as for the augmented Lagrangian. Should PIQP miss while the interior point method is
+   skipped, the latter is tried before the last resorts.
 
 The Simulator's fused step runs the first method of each list only (both compiled into one call); it
 asks :meth:`SolverCascade.dense_only` whether a step may go that way, and hands the step to the staged
@@ -73,6 +79,10 @@ ALM_WARM_NEWTON_BUDGET = 10  # the same from the multipliers of an earlier proje
 # jam that stays too large for it costs a wasted try only every ALM_SKIP_MAX projections).
 ALM_SKIP_AFTER_MISS = 10
 ALM_SKIP_MAX = 160
+# The same back-off for the interior point method (working set and full) when PIQP is installed: after a
+# miss the next IPM_SKIP_AFTER_MISS large projections go to PIQP first, doubling up to IPM_SKIP_MAX.
+IPM_SKIP_AFTER_MISS = 10
+IPM_SKIP_MAX = 160
 # The interior point method's working set after a large projection in the previous step: that step's
 # active contacts and every candidate whose slack at the current velocities is below this (m/s). A
 # smaller threshold makes each solve smaller but needs a second solve more often
@@ -96,7 +106,7 @@ class SolverCascade:
     Counters (cumulative): ``n_sparse_solves`` impact clusters and projections beyond the dense limits;
     ``n_fallback_solves`` impact clusters handed to Clarabel and projections handed to
     :func:`project_gaps_large`; ``n_alm_newton_steps`` Newton steps of the augmented Lagrangian;
-    ``n_ipm_projections`` large projections given to the interior point method;
+    ``n_ipm_projections`` large projections given to the interior point method (not those it skips);
     ``n_working_set_solves`` its solves on a working set; ``n_piqp_projections`` projections handed
     to PIQP; ``n_skipped_solvers`` times a missing optional solver was skipped.
     """
@@ -105,6 +115,7 @@ class SolverCascade:
                  max_dense_projection_rows: int = MAX_DENSE_PROJECTION_ROWS,
                  alm_newton_budget: int = ALM_NEWTON_BUDGET, alm_warm_newton_budget: int = ALM_WARM_NEWTON_BUDGET,
                  alm_skip_after_miss: int = ALM_SKIP_AFTER_MISS, alm_skip_max: int = ALM_SKIP_MAX,
+                 ipm_skip_after_miss: int = IPM_SKIP_AFTER_MISS, ipm_skip_max: int = IPM_SKIP_MAX,
                  working_set_slack_m_s: float = WORKING_SET_SLACK_M_S, reference: bool = False,
                  external_solvers=None):
         self.max_dense_rows = max_dense_rows
@@ -114,6 +125,8 @@ class SolverCascade:
         self.alm_warm_newton_budget = alm_warm_newton_budget
         self.alm_skip_after_miss = alm_skip_after_miss
         self.alm_skip_max = alm_skip_max
+        self.ipm_skip_after_miss = ipm_skip_after_miss
+        self.ipm_skip_max = ipm_skip_max
         self.working_set_slack_m_s = working_set_slack_m_s
         self.reference = bool(reference)
         self.external_solvers = installed_solvers() if external_solvers is None else frozenset(external_solvers)
@@ -128,9 +141,17 @@ class SolverCascade:
         self._large_step = -2  # step of the last large projection
         self._skip_alm = 0  # large projections left before the augmented Lagrangian is tried again
         self._alm_backoff = alm_skip_after_miss  # what the next miss sets _skip_alm to
+        self._skip_ipm = 0  # large projections left before the interior point method is tried again first
+        self._ipm_backoff = ipm_skip_after_miss  # what the next miss sets _skip_ipm to
         self._active_keys = np.zeros(0, np.int64)  # contacts active in the last large projection (contact_keys)
         self._active_lam = np.zeros(0)  # their percussions
         self._active_keys_step = -2  # the step they belong to
+
+    def __setstate__(self, state: dict) -> None:
+        """Unpickle (a run's checkpoint); a cascade pickled before the interior point method's back-off
+        existed gets its defaults, so that an hours-long run goes on with the current code."""
+        self.__dict__.update({"ipm_skip_after_miss": IPM_SKIP_AFTER_MISS, "ipm_skip_max": IPM_SKIP_MAX,
+                              "_skip_ipm": 0, "_ipm_backoff": IPM_SKIP_AFTER_MISS, **state})
 
     # ------------------------------------------------------------------ the dense path
     def _large_recently(self, step: int) -> bool:
@@ -230,6 +251,38 @@ class SolverCascade:
             self._skip_alm = self._alm_backoff
             self._alm_backoff = min(2 * self._alm_backoff, self.alm_skip_max)
         self._skip_alm -= 1
+        piqp = "piqp" in self.external_solvers
+        skipped = piqp and self._skip_ipm > 0
+        if skipped:
+            self._skip_ipm -= 1
+        else:
+            lam_p = self._interior_point(args, vel, c_a, c_b, con, h, keys)
+            if lam_p is not None:
+                self._ipm_backoff = self.ipm_skip_after_miss
+                return lam_p
+            if piqp:  # it missed: PIQP goes first for a while
+                self._skip_ipm = self._ipm_backoff
+                self._ipm_backoff = min(2 * self._ipm_backoff, self.ipm_skip_max)
+        if piqp:
+            self.n_piqp_projections += 1
+            lam_p, ok = project_gaps_ipm(*args)
+            if ok:
+                return lam_p
+            if skipped:  # PIQP missed where the interior point method was skipped: it comes before the last resorts
+                lam_p = self._interior_point(args, vel, c_a, c_b, con, h, keys)
+                if lam_p is not None:
+                    return lam_p
+        else:
+            self.n_skipped_solvers += 1
+        # The interior point methods failed: pivoting, Clarabel and its polish.
+        self.n_fallback_solves += 1
+        lam_p, _ = project_gaps_large(*args, clarabel="clarabel" in self.external_solvers)
+        return lam_p
+
+    def _interior_point(self, args, vel, c_a, c_b, con, h, keys):
+        """The package's interior point projection (``args`` those of :meth:`_project_large`'s solvers), on
+        the working set of :meth:`_working_set` first when there is one; its percussions, or None when it
+        does not converge (``vel`` left alone)."""
         self.n_ipm_projections += 1
         start = self._working_set(vel, c_a, c_b, con, h, keys)
         if start is not None:
@@ -239,20 +292,7 @@ class SolverCascade:
             if status == STATUS_OK:
                 return lam_p
         lam_p, _, status = project_gaps_interior_point(*args)
-        if status == STATUS_OK:
-            return lam_p
-        # Not seen in practice: PIQP (a proximal interior point method), if installed.
-        if "piqp" in self.external_solvers:
-            self.n_piqp_projections += 1
-            lam_p, ok = project_gaps_ipm(*args)
-            if ok:
-                return lam_p
-        else:
-            self.n_skipped_solvers += 1
-        # The interior point methods failed (not seen in practice): pivoting, Clarabel and its polish.
-        self.n_fallback_solves += 1
-        lam_p, _ = project_gaps_large(*args, clarabel="clarabel" in self.external_solvers)
-        return lam_p
+        return lam_p if status == STATUS_OK else None
 
     def _working_set(self, vel, c_a, c_b, con, h, keys):
         """The interior point method's first working set and start: ``(working, z0)`` for
