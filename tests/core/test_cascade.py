@@ -118,10 +118,10 @@ def _interior_point_fails(monkeypatch):
 
 
 def test_interior_point_backs_off_to_piqp_after_misses_and_resets_after_a_success(monkeypatch):
-    """With PIQP installed, a miss of the interior point method (forced here) sends the next
-    ipm_skip_after_miss large projections to PIQP first, twice as many after each further miss, up to
-    ipm_skip_max; a success resets the back-off. Every projection stays exact; nothing reaches the last
-    resorts."""
+    """With PIQP installed, a miss of the interior point method (forced here) has it tried first again
+    ipm_skip_after_miss large projections later (PIQP first in between), twice as many after each further
+    miss, up to ipm_skip_max, as the augmented Lagrangian's back-off; a success resets it. Every
+    projection stays exact; nothing reaches the last resorts."""
     pytest.importorskip("piqp")
     vel, mass, con = _chain(10)
     v_exact, _ = _dense(vel, mass, con)
@@ -150,13 +150,13 @@ def test_interior_point_backs_off_to_piqp_after_misses_and_resets_after_a_succes
                 out.append(k)
         return out
 
-    assert tries(11) == [0, 3, 8]  # 2 projections skipped, then 4 (the cap)
+    assert tries(11) == [0, 2, 6, 10]  # tried again 2, then 4 (the cap) projections later, as the ALM is
     assert cascade.n_piqp_projections == 11 and cascade.n_fallback_solves == 0
     fail[0] = False
-    assert tries(4) == [2, 3]  # the back-off runs out, the next try converges, and so does every one after
-    assert cascade.n_piqp_projections == 11 + 2
+    assert tries(6) == [3, 4, 5]  # the back-off runs out, the next try converges, and so does every one after
+    assert cascade.n_piqp_projections == 11 + 3
     fail[0] = True
-    assert tries(4) == [0, 3]  # the success reset the back-off to 2
+    assert tries(4) == [0, 2]  # the success reset the back-off to 2
     assert cascade.n_fallback_solves == 0
 
 

@@ -27,9 +27,10 @@ Projection (:meth:`SolverCascade.project`):
 2. otherwise the whole projection, on the pedestrians some candidate touches, by the augmented
    Lagrangian (:func:`~crowd_env.core.solvers.large_projection.project_gaps_alm`) within
    ``alm_newton_budget`` Newton steps (``alm_warm_newton_budget`` first from the multipliers of an
-   earlier projection in the same step, when a re-detection added candidates). A miss from zero skips
-   it for the next ``alm_skip_after_miss`` large projections, twice as many after each further miss in
-   a row (up to ``alm_skip_max``); a success from zero resets that;
+   earlier projection in the same step, when a re-detection added candidates). A miss from zero puts it
+   off: it is tried again ``alm_skip_after_miss`` large projections later (the ones between go straight
+   on), twice as many after each further miss in a row (up to ``alm_skip_max``); a success from zero
+   resets that;
 3. the interior point method (:func:`~crowd_env.core.solvers.large_projection.project_gaps_interior_point`),
    started, when the previous step also had a large projection, on a working set (that projection's
    active contacts and the candidates whose slack is below ``working_set_slack_m_s``, from its
@@ -38,9 +39,9 @@ Projection (:meth:`SolverCascade.project`):
    :func:`project_gaps_large` (sparse pivoting, Clarabel, and a polish). The interior point method
    misses on jams of tens of thousands of candidates pressed together (RiMEA test 4 at 5 P/m²: 30 000
    candidates, no convergence within its 60 iterations, 253 needed, where PIQP takes about 1 s): with
-   PIQP installed, a miss skips it for the next ``ipm_skip_after_miss`` large projections, which go to
-   PIQP first, twice as many after each further miss in a row (up to ``ipm_skip_max``); a success
-   resets that, as for the augmented Lagrangian. Should PIQP miss while the interior point method is
+   PIQP installed, a miss puts it off in the same way: it is tried first again ``ipm_skip_after_miss``
+   large projections later (the ones between go to PIQP first), twice as many after each further miss
+   in a row (up to ``ipm_skip_max``); a success resets that. Should PIQP miss while the interior point method is
    skipped, the latter is tried before the last resorts.
 
 The Simulator's fused step runs the first method of each list only (both compiled into one call); it
@@ -74,13 +75,15 @@ from .status import STATUS_OK, STATUS_TOO_LARGE
 
 ALM_NEWTON_BUDGET = 30  # Newton steps given to project_gaps_alm before the interior point method (their break-even)
 ALM_WARM_NEWTON_BUDGET = 10  # the same from the multipliers of an earlier projection in the step
-# After the augmented Lagrangian misses from zero, the next ALM_SKIP_AFTER_MISS large projections go to
-# the interior point method directly; each further miss in a row doubles that, up to ALM_SKIP_MAX (a
-# jam that stays too large for it costs a wasted try only every ALM_SKIP_MAX projections).
+# After the augmented Lagrangian misses from zero it is tried again ALM_SKIP_AFTER_MISS large projections
+# later (those between go to the interior point method directly); each further miss in a row doubles
+# that, up to ALM_SKIP_MAX (a jam that stays too large for it costs a wasted try only every ALM_SKIP_MAX
+# projections).
 ALM_SKIP_AFTER_MISS = 10
 ALM_SKIP_MAX = 160
 # The same back-off for the interior point method (working set and full) when PIQP is installed: after a
-# miss the next IPM_SKIP_AFTER_MISS large projections go to PIQP first, doubling up to IPM_SKIP_MAX.
+# miss it is tried first again IPM_SKIP_AFTER_MISS large projections later (PIQP goes first in those
+# between), doubling up to IPM_SKIP_MAX.
 IPM_SKIP_AFTER_MISS = 10
 IPM_SKIP_MAX = 160
 # The interior point method's working set after a large projection in the previous step: that step's
@@ -141,8 +144,8 @@ class SolverCascade:
         self._large_step = -2  # step of the last large projection
         self._skip_alm = 0  # large projections left before the augmented Lagrangian is tried again
         self._alm_backoff = alm_skip_after_miss  # what the next miss sets _skip_alm to
-        self._skip_ipm = 0  # large projections left before the interior point method is tried again first
-        self._ipm_backoff = ipm_skip_after_miss  # what the next miss sets _skip_ipm to
+        self._skip_ipm = 0  # large projections left in which PIQP goes before the interior point method
+        self._ipm_backoff = ipm_skip_after_miss  # how many projections later a miss has it tried again
         self._active_keys = np.zeros(0, np.int64)  # contacts active in the last large projection (contact_keys)
         self._active_lam = np.zeros(0)  # their percussions
         self._active_keys_step = -2  # the step they belong to
@@ -260,8 +263,8 @@ class SolverCascade:
             if lam_p is not None:
                 self._ipm_backoff = self.ipm_skip_after_miss
                 return lam_p
-            if piqp:  # it missed: PIQP goes first for a while
-                self._skip_ipm = self._ipm_backoff
+            if piqp:  # it missed: PIQP goes first until it is tried again _ipm_backoff projections later
+                self._skip_ipm = self._ipm_backoff - 1
                 self._ipm_backoff = min(2 * self._ipm_backoff, self.ipm_skip_max)
         if piqp:
             self.n_piqp_projections += 1
