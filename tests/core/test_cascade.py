@@ -73,10 +73,25 @@ def test_too_large_projection_goes_large_and_keeps_the_next_step_off_the_dense_p
     assert cascade.n_sparse_solves == 2
 
 
+def _count_tries(cascade, counter, count, step, vel, mass, con, v_exact):
+    """Run ``count`` large projections of the chain (10 steps apart: no working set from an earlier one),
+    each exact; return those (0-based) in which ``cascade.<counter>`` rose, i.e. the method was tried."""
+    out = []
+    for k in range(count):
+        before = getattr(cascade, counter)
+        v = vel.copy()
+        step[0] += 10
+        cascade.project(v, mass, con, H, step[0], _keys(vel, con))
+        np.testing.assert_allclose(v, v_exact, atol=1e-8)
+        if getattr(cascade, counter) > before:
+            out.append(k)
+    return out
+
+
 def test_augmented_lagrangian_backs_off_after_misses_and_resets_after_a_success(monkeypatch):
-    """Misses from zero (forced here) skip the augmented Lagrangian for alm_skip_after_miss large
-    projections, twice as many after each further miss, up to alm_skip_max; the interior point method
-    serves them, exactly. A success from zero resets the back-off."""
+    """A miss from zero (forced here) has the augmented Lagrangian tried again alm_skip_after_miss large
+    projections later, twice as many after each further miss, up to alm_skip_max; the interior point method
+    serves those between, exactly. A success from zero resets the back-off."""
     vel, mass, con = _chain(10)
     v_exact, _ = _dense(vel, mass, con)
     real_alm = cascade_module.project_gaps_alm
@@ -92,18 +107,9 @@ def test_augmented_lagrangian_backs_off_after_misses_and_resets_after_a_success(
     step = [0]
 
     def tries(count):
-        out = []
-        for k in range(count):
-            before = cascade.n_alm_newton_steps
-            v = vel.copy()
-            step[0] += 10  # far apart: no working set from an earlier step
-            cascade.project(v, mass, con, H, step[0], _keys(vel, con))
-            np.testing.assert_allclose(v, v_exact, atol=1e-8)
-            if cascade.n_alm_newton_steps > before:
-                out.append(k)
-        return out
+        return _count_tries(cascade, "n_alm_newton_steps", count, step, vel, mass, con, v_exact)
 
-    assert tries(11) == [0, 2, 6, 10]  # skips of 2, then 4 (the cap)
+    assert tries(11) == [0, 2, 6, 10]  # tried again 2, then 4 (the cap) projections later
     assert cascade.n_ipm_projections == 11 and cascade.n_working_set_solves == 0
     fail[0] = False
     assert tries(6) == [3, 4, 5]  # the next try converges, and so does every one after
@@ -139,16 +145,7 @@ def test_interior_point_backs_off_to_piqp_after_misses_and_resets_after_a_succes
     step = [0]
 
     def tries(count):
-        out = []
-        for k in range(count):
-            before = cascade.n_ipm_projections
-            v = vel.copy()
-            step[0] += 10  # far apart: no working set from an earlier step
-            cascade.project(v, mass, con, H, step[0], _keys(vel, con))
-            np.testing.assert_allclose(v, v_exact, atol=1e-8)
-            if cascade.n_ipm_projections > before:
-                out.append(k)
-        return out
+        return _count_tries(cascade, "n_ipm_projections", count, step, vel, mass, con, v_exact)
 
     assert tries(11) == [0, 2, 6, 10]  # tried again 2, then 4 (the cap) projections later, as the ALM is
     assert cascade.n_piqp_projections == 11 and cascade.n_fallback_solves == 0
