@@ -51,14 +51,29 @@ def test_key_equivalence_step_by_step(scenario):
     assert n_contact_steps > 10  # and collided: the impact and projection paths were exercised
 
 
-def test_social_force_slows_the_flow(scenario):
-    """Social repulsion holds the crowd back: at b = 1 m, N = 60 the flow without it is higher (paper
-    Section 4.1.2, Fig. 9; the paper notes that without it the flow can also drop at other widths
-    through clogging, so only this case is asserted)."""
-    agent = SocialForceAgent(scenario.navigation())
-    with_social = run_scenario(scenario, agent, ModelParams(), max_time_s=120)
-    without = run_scenario(scenario, agent, ModelParams(social_forces=False), max_time_s=120)
-    assert without.specific_flow_per_m_s > 1.03 * with_social.specific_flow_per_m_s
+def test_social_force_slows_the_flow():
+    """Social repulsion holds the crowd back (paper Section 4.1.2): at b = 1 m, N = 60, seeds 0-5, the
+    crowd without it passes faster while it passes (Eq. 22 over the passages made, mean over seeds, more
+    than 10 % above the calibrated crowd's J_s; measured 2.32 against 1.82 1/(m s)), and without it the
+    "more aggressive" crowd also clogs the door for good in some runs (the paper's "clogging
+    phenomenon"; measured: 3 of 6, a stalled run being reported as such, not as a flow) while the
+    crowd with it never does. A single seed decides nothing here: whether one given run clogs without
+    the repulsion changes with the last bits of the arithmetic (seed 0 clogged on one machine and
+    flowed on another)."""
+    with_js, without_js, clogged = [], [], 0
+    for seed in range(6):
+        sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=60, seed=seed,
+                           navigation_clearance_m=0.0)
+        agent = SocialForceAgent(sc.navigation())
+        with_social = run_scenario(sc, agent, ModelParams(), max_time_s=120)
+        without = run_scenario(sc, agent, ModelParams(social_forces=False), max_time_s=120)
+        assert with_social.complete and not with_social.stalled, f"seed {seed}: the calibrated crowd stalled"
+        assert without.complete or without.stalled, f"seed {seed}: ran out of time without a stall"
+        with_js.append(with_social.specific_flow_per_m_s)
+        without_js.append(without.partial_specific_flow_per_m_s)
+        clogged += without.stalled
+    assert np.mean(without_js) > 1.1 * np.mean(with_js), (without_js, with_js)
+    assert 1 <= clogged < 6, clogged
 
 
 def test_reduced_seyfried_n60_b1():
