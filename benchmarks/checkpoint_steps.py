@@ -46,9 +46,10 @@ def run_schedule(path: str, steps: int, ipm_skip_after_miss, clocks: dict) -> di
         kept = pickle.load(fh)
     sim, policy = kept["sim"], kept["policy"]
     cascade = sim.cascade
-    if ipm_skip_after_miss is not None:
+    if ipm_skip_after_miss is not None:  # the schedule from this step on, whatever back-off the kept run was in
         cascade.ipm_skip_after_miss = ipm_skip_after_miss
         cascade._ipm_backoff = ipm_skip_after_miss
+        cascade._skip_ipm = 0
     before = {c: getattr(cascade, c) for c in COUNTERS}
     for clock in clocks.values():
         clock[0] = 0.0
