@@ -35,11 +35,11 @@ along the corridor).
 **Full version** (``quick=False``): width 10 m, back margin 100 m, front margin 200 m (300 m at 4 P/m²), so a
 300 m corridor (400 m at 4 P/m²) of 1500-16 000 pedestrians, densities 0.5, 1, 2, 3, 4, 5 and 6 P/m², 70 s,
 window [10, 70] s. 6 P/m² exceeds hexagonal packing of r = 0.23 m disks (5.46 /m²): the placement fails and
-is reported with its capacity (15 636 disks in 3000 m², 5.21 /m²). Cost on one core: about 2.5 minutes for
-0.5-3 P/m² together, 4 minutes for 4 P/m², and about 3 h for 5 P/m² (a jam of 15 000 disks pressed together,
-the gap projection of about 31 000 candidates every step: 60 s per simulated second while the crowd is loose,
-140-190 s once it is pressed; estimated from a run that reached 32.8 s in 70 min); about 3 h and 2.5-3 GB in
-all. **Quick version**: the same
+is reported with its capacity (15 636 disks in 3000 m², 5.21 /m²). Cost on one core (measured, the run
+of ``docs/validation/rimea/full``): 2.5 minutes for 0.5-3 P/m² together, 4 minutes for 4 P/m², and 93 minutes
+for 5 P/m² (a jam of 15 000 disks pressed together, the gap projection of about 31 000 candidates every step:
+60 s per simulated second while the crowd is loose, 140-190 s while it is pressed, about 50 s once it loosens
+again); 1 h 40 min and at least 2.3 GB in all. **Quick version**: the same
 10 m width, back margin 30 m, front margin 60 m (90 m), densities 0.5, 2, 4 (and 6, to report the placement
 failure), 20 s, window [5, 20] s: 9 s. The measurement is PedPy's (classic density, mean of the individual
 speeds, ±0.2 s, in the area; frames with the area empty count as density 0).
