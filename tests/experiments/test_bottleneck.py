@@ -14,9 +14,14 @@ from crowd_env.experiments.runner import run_scenario
 from crowd_env.scenarios import make_scenario
 
 
+def _bottleneck(seed):
+    """Seyfried's bottleneck at b = 1 m with N = 60, the paper's set-up (no navigation clearance)."""
+    return make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=60, seed=seed, navigation_clearance_m=0.0)
+
+
 @pytest.fixture(scope="module")
 def scenario():
-    return make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=60, seed=0, navigation_clearance_m=0.0)
+    return _bottleneck(0)
 
 
 def test_key_equivalence_step_by_step(scenario):
@@ -62,8 +67,7 @@ def test_social_force_slows_the_flow():
     flowed on another)."""
     with_js, without_js, clogged = [], [], 0
     for seed in range(6):
-        sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=60, seed=seed,
-                           navigation_clearance_m=0.0)
+        sc = _bottleneck(seed)
         agent = SocialForceAgent(sc.navigation())
         with_social = run_scenario(sc, agent, ModelParams(), max_time_s=120)
         without = run_scenario(sc, agent, ModelParams(social_forces=False), max_time_s=120)
@@ -82,7 +86,7 @@ def test_reduced_seyfried_n60_b1():
     notes), everybody evacuated, no overlap beyond 1e-3 m."""
     runs = []
     for seed in range(4):
-        sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=60, seed=seed, navigation_clearance_m=0.0)
+        sc = _bottleneck(seed)
         runs.append(run_scenario(sc, SocialForceAgent(sc.navigation()), ModelParams(), max_time_s=120))
     exp = seyfried_2009()
     js_exp = float(exp.specific_flow_per_m_s[exp.lookup(1.0, 60)[0]])

@@ -7,8 +7,8 @@ import os
 import pytest
 
 from crowd_env.experiments.rimea.suite import OUTSIDE_LIMIT_M, load_test_result
+from tests.conftest import ROOT
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 FULL = os.path.join("docs", "validation", "rimea", "full")
 PAGE = os.path.join(ROOT, "docs", "validation", "rimea.md")
 
