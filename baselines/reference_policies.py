@@ -115,6 +115,12 @@ class SB3Policy(EnvPolicy):
     def __init__(self, model, deterministic: bool = True, name: str | None = None):
         if isinstance(model, (str, os.PathLike)):
             path = os.fspath(model)
+            if not os.path.exists(path) and not os.path.exists(path + ".zip"):  # SB3 would name path + ".zip"
+                from crowd_env.errors import MissingFileError
+
+                raise MissingFileError(f"no saved SB3 model: {path!r} does not exist"
+                                       + ("" if path.endswith(".zip") else f" (nor {path + '.zip'!r})")
+                                       + f" (looked in {os.path.dirname(os.path.abspath(path))})")
             from stable_baselines3 import PPO
 
             algo = PPO

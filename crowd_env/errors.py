@@ -74,6 +74,12 @@ class EnvOptionError(OptionError):
     """Invalid environment option (``crowd_v0.parallel_env(...)``)."""
 
 
+class UnknownOptionError(EnvOptionError, TypeError):
+    """An unknown keyword option of an environment constructor. Its message carries Python's own wording,
+    ``... got an unexpected keyword argument 'name'``, on which ecosystem wrappers act as on the builtin
+    ``TypeError`` (TorchRL's ``GymEnv`` drops its ``frameskip`` argument on it)."""
+
+
 class ActionError(CrowdEnvError, ValueError):
     """An action that is not a finite (2,) velocity intent inside the action space, or for an agent
     that does not exist or is no longer live."""

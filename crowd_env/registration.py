@@ -25,8 +25,12 @@ id                                      environment
                                         :func:`crowd_env.scenarios.polygon.scenario_from_polygon`)
 ======================================  ========================================================
 
-All use decisions every 0.1 s (``frame_skip=10``) and truncate after 60 s (``max_steps=600``);
-keyword arguments of ``gymnasium.make`` override any option (``scenario_options`` as a whole).
+All use decisions every 0.1 s (``frame_skip=10``) and truncate after 60 s (``max_steps=600``, also the
+spec's ``max_episode_steps``); keyword arguments of ``gymnasium.make`` override any option
+(``scenario_options`` as a whole). ``gymnasium.make_vec(id, num_envs)`` builds the native vector environment
+(the ids' ``vector_entry_point``, :func:`crowd_env.envs.vector.gym_vector_env`: slot c is the learner of
+copy c, stepped in arrays, Gymnasium's same-step autoreset); ``vectorization_mode="sync"`` or ``"async"``
+still gives Gymnasium's own vector environments of the single-agent view.
 """
 from __future__ import annotations
 
@@ -37,6 +41,7 @@ import sys
 __all__ = ["ENV_IDS", "register_envs"]
 
 _ENTRY = "crowd_env.envs.gym_single:CrowdSingleAgentEnv"
+_VECTOR_ENTRY = "crowd_env.envs.vector:gym_vector_env"
 _COMMON = {"frame_skip": 10, "max_steps": 600}
 ENV_IDS = {
     "crowd_env/Bottleneck-v0": {"scenario": "seyfried_bottleneck",
@@ -66,7 +71,8 @@ def register_envs() -> None:
 
     for env_id, kwargs in ENV_IDS.items():
         if env_id not in gymnasium.registry:
-            gymnasium.register(id=env_id, entry_point=_ENTRY, kwargs=kwargs)
+            gymnasium.register(id=env_id, entry_point=_ENTRY, vector_entry_point=_VECTOR_ENTRY,
+                               max_episode_steps=kwargs["max_steps"], kwargs=kwargs)
     _done = True
 
 

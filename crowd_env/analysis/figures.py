@@ -215,3 +215,92 @@ def fundamental_diagram_figure(data_by_area: dict, path: Path, title: str | None
         fig.suptitle(title, fontsize=10)
     save_figure(fig, path)
     return Path(path)
+
+
+def fd_sweep_figure(summary: dict, path: Path, title: str | None = None):
+    """The swept fundamental diagram beside the experiments: corridor speed and specific flow against ρ (1/m²)
+    with the Jülich bins and Weidmann's curve, single-file speed against ρ (1/m) with Seyfried's bins and their
+    headway fit. ``summary``: :func:`~crowd_env.experiments.fundamental_diagram.summarise_fd`. Returns the path."""
+    from .fd_reference import SINGLE_FILE_HEADWAY_FIT, juelich_corridor, single_file, weidmann_speed_m_s
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 3, figsize=(13.0, 3.8))
+    jc, sf = juelich_corridor(), single_file()
+    rho = np.linspace(0.2, 5.0, 200)
+    axes[0].errorbar(jc.density, jc.speed_m_s, yerr=jc.spread_m_s, fmt="s", color="k", ms=4, label="Jülich 1.8 m (data)")
+    axes[0].plot(rho, weidmann_speed_m_s(rho), "k--", lw=1, label="Weidmann (1993)")
+    axes[1].plot(jc.density, jc.density * jc.speed_m_s, "s", color="k", ms=4, label="Jülich 1.8 m (data)")
+    axes[1].plot(rho, rho * weidmann_speed_m_s(rho), "k--", lw=1, label="Weidmann (1993)")
+    axes[2].plot(sf.density, sf.speed_m_s, "s", color="k", ms=4, label="Seyfried 2005 (data)")
+    a, b = SINGLE_FILE_HEADWAY_FIT
+    r1 = np.linspace(0.55, 2.0, 100)
+    axes[2].plot(r1, np.clip((1.0 / r1 - a) / b, 0, None), "k--", lw=1, label=f"data fit d = {a} + {b} v")
+    rows = summary.get("corridor", [])
+    if rows:
+        d = np.array([r["density"] for r in rows])
+        v = np.array([r["speed_m_s"] for r in rows])
+        e = np.array([r["speed_sd_m_s"] for r in rows])
+        axes[0].errorbar(d, v, yerr=np.nan_to_num(e), fmt="o-", color="C0", ms=4, label="model (periodic corridor)")
+        axes[1].plot(d, d * v, "o-", color="C0", ms=4, label="model (periodic corridor)")
+    rows = summary.get("single_file", [])
+    if rows:
+        d = np.array([r["density"] for r in rows])
+        v = np.array([r["speed_m_s"] for r in rows])
+        axes[2].plot(d, v, "o-", color="C0", ms=4, label="model (ring)")
+        fa, fb, _ = summary.get("single_file_fit", (np.nan, np.nan, 0))
+        if np.isfinite(fa):
+            axes[2].plot(r1, np.clip((1.0 / r1 - fa) / fb, 0, None), "--", color="C0", lw=1,
+                         label=f"model fit d = {fa:.2f} + {fb:.2f} v")
+    axes[0].set(xlabel="ρ (1/m²)", ylabel="v (m/s)", title="corridor: speed")
+    axes[1].set(xlabel="ρ (1/m²)", ylabel="J_s (1/(m s))", title="corridor: specific flow")
+    axes[2].set(xlabel="ρ (1/m)", ylabel="v (m/s)", title="single file: speed")
+    for ax in axes:
+        ax.set_xlim(left=0)
+        ax.set_ylim(bottom=0)
+        ax.legend(fontsize=7)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    save_figure(fig, path)
+    return Path(path)
+
+
+def candidate_family(changes: dict) -> str:
+    """The family of a candidate point by what it changes: ``vision``, ``social force`` or ``both``."""
+    vision = any(k.startswith("vision_") for k in changes)
+    social = any(k.startswith("social_") for k in changes)
+    return "both" if vision and social else "vision" if vision else "social force" if social else "preset"
+
+
+def candidates_figure(rows: list, path: Path):
+    """The door against the corridor for candidate parameter points (rows of ``crowd-fundamental-diagram
+    --candidates``): J_s at b = 1.0 m against the corridor's speed at 2.62 /m², and against the largest corridor
+    miss, one colour per family (:func:`candidate_family`), the experiment as a star. Points with a stalled door
+    run at 1.0 m are left out (counted in the legend). Returns the path."""
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.0))
+    families = {}
+    for r in rows:
+        door = r["door"].get("1.0", r["door"].get(1.0))
+        corr = r["corridor"].get("2.616", r["corridor"].get(2.616))
+        fam = families.setdefault(candidate_family(r["changes"]) if r.get("preset") == "calibrated"
+                                  else f"preset {r.get('preset')}", {"x": [], "m": [], "y": [], "stalled": 0})
+        if door is None or corr is None or not np.isfinite(door["specific_flow_per_m_s"]):
+            fam["stalled"] += 1
+            continue
+        fam["x"].append(corr["speed_m_s"])
+        fam["m"].append(r["corridor_max_miss_m_s"])
+        fam["y"].append(door["specific_flow_per_m_s"])
+    for k, (name, f) in enumerate(sorted(families.items())):
+        label = name + (f" ({f['stalled']} stalled at 1 m, not shown)" if f["stalled"] else "")
+        axes[0].plot(f["x"], f["y"], "o", color=f"C{k}", ms=5, label=label)
+        axes[1].plot(f["m"], f["y"], "o", color=f"C{k}", ms=5, label=label)
+    axes[0].plot([0.422], [1.901], "k*", ms=14, label="experiments (Jülich corridor, Seyfried door)")
+    axes[1].plot([0.0], [1.901], "k*", ms=14, label="experiments")
+    axes[1].axvline(0.10, color="k", lw=0.8, ls=":")
+    axes[0].set(xlabel="corridor speed at 2.62 /m² (m/s)", ylabel="door J_s at b = 1.0 m, N = 60 (1/(m s))",
+                title="door against corridor")
+    axes[1].set(xlabel="largest corridor speed miss, 0.63-3.10 /m² (m/s)", ylabel="door J_s at b = 1.0 m (1/(m s))",
+                title="door against the whole corridor")
+    for ax in axes:
+        ax.legend(fontsize=7)
+    save_figure(fig, path)
+    return Path(path)

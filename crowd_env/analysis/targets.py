@@ -28,6 +28,32 @@ crowd may be at most 10 % higher and 5 % lower. A point with any incomplete run 
 still inside at the time limit) is a failed point: its objective is :data:`FAILED_POINT_OBJECTIVE`
 plus the fraction of incomplete runs, above any objective of a complete point, so that an optimiser
 moves away from clogs while still telling a nearly-working point from a hopeless one.
+
+The fundamental diagram (issue 36: one walking model for the door, the corridor and the single file). When
+the records hold runs of the fundamental-diagram sweep (:func:`crowd_env.experiments.fundamental_diagram.run_fd_one`,
+recognised by their ``setup`` key, ``corridor`` or ``single_file``), four more terms score them, from seed means
+per (set-up, density) at the shipped bins (:mod:`crowd_env.analysis.fd_reference`; a run at a density that is no
+bin raises):
+
+- ``corridor_fd``: periodic corridor 1.8 m wide, every bin density present from 0.4 to 3.4 /m² (the Jülich
+  bins 0.394-3.364 of Zhang et al. 2011, ``data/juelich_uo_corridor_1.8m_fd.csv``):
+  ``(max(|v − v_exp| − 0.10, 0) / v_exp)²``, mean over bins (known value: the bin's speed ±0.10 m/s, issue 36)
+- ``corridor_monotone``: the same runs, consecutive densities: (max(v_k+1 − v_k − max(v_exp,k+1 − v_exp,k, 0), 0)
+  / v_exp,k+1)², mean over pairs (known value: speed never rising with density, issue 36; a rise is allowed only
+  as far as the experiment's own bins rise, 0.011 m/s from 0.394 to 0.628 /m², so that the bins score 0)
+- ``single_file``: ring 0.7 m wide, the six bins of Seyfried et al. (2005) (``data/single_file_seyfried2005.csv``),
+  as ``corridor_fd`` (known value: the bin's speed ±0.10 m/s)
+- ``headway_fit``: d = a + b v fitted over the single file's pooled samples with v > 0.05 m/s
+  (:func:`crowd_env.analysis.periodic.headway_fit`, the experiment's own fit a = 0.34 m, b = 1.08 s):
+  mean of the squared band misses of a and b (known value: a in [0.28, 0.42] m, b in [0.9, 1.25] s, issue 36);
+  a fit left undefined (fewer than two samples above 0.05 m/s: the file stands) counts a miss of 1 (100 %)
+  for each, :data:`UNDEFINED_FIT_MISS`
+
+The same convention as above (mean squared relative miss, 0 inside the band), weight 1 each by default: a bin
+0.2 m/s off a 1 m/s experiment, 0.1 beyond the band, costs 0.01 / number of bins. Without runs of the sweep the
+four terms are not scored: they stay 0 and are listed in :attr:`TargetScore.unscored`, and the objective is the
+bottleneck's alone, exactly as before (``target_error(records, fd=True)`` demands them instead). A stalled or
+incomplete bottleneck run still makes a failed point whatever the fundamental diagram says.
 """
 from __future__ import annotations
 
@@ -36,12 +62,16 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ..core.checks import check_number
+from . import fd_reference
 from .calibration import CalibrationError, relative_squared_errors
 from .experiment import (FRONT_DENSITY_RANGE_PER_M2, INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RANGE_M_S,
                          SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, WIDTHS_M, ExperimentTable, seyfried_2009)
+from .periodic import headway_fit
 
 __all__ = ["CAPACITY_RANGE", "CAPACITY_SIZES", "CAPACITY_WIDTHS_M", "FAILED_POINT_OBJECTIVE", "TargetScore",
-           "TargetWeights", "band_miss", "required_cases", "target_error"]
+           "TargetWeights", "band_miss", "required_cases", "target_error", "FD_TERMS", "FD_SETUPS",
+           "FD_SPEED_TOLERANCE_M_S", "CORRIDOR_FD_RANGE_PER_M2", "HEADWAY_A_RANGE_M", "HEADWAY_B_RANGE_S",
+           "UNDEFINED_FIT_MISS", "DENSITY_MATCH", "corridor_fd_bins", "single_file_bins", "speed_band_miss", "fd_terms"]
 
 # Stationary discharge rate of the larger crowd over the smaller one, at these widths.
 CAPACITY_SIZES = (60, 120)
@@ -50,11 +80,22 @@ CAPACITY_RANGE = (0.95, 1.10)
 SMALL_GROUP_SIZES = (20, 40)
 REFERENCE_SIZE = 60
 FAILED_POINT_OBJECTIVE = 10.0
+# The fundamental diagram (module docstring): its terms, the set-ups of its runs (a record's ``setup``), the
+# speed tolerance around a bin, the corridor bins scored, the single-file headway bands.
+FD_TERMS = ("corridor_fd", "corridor_monotone", "single_file", "headway_fit")
+FD_SETUPS = ("corridor", "single_file")
+FD_SPEED_TOLERANCE_M_S = 0.10
+CORRIDOR_FD_RANGE_PER_M2 = (0.35, 3.4)  # the Jülich bins "from 0.4 to 3.4 /m²": 0.394 ... 3.364
+HEADWAY_A_RANGE_M = (0.28, 0.42)
+HEADWAY_B_RANGE_S = (0.9, 1.25)
+UNDEFINED_FIT_MISS = 1.0  # relative miss of a and b when the single file gives no fit (nobody moves)
+DENSITY_MATCH = 1e-6  # a run's nominal density is a bin's when within this
 
 
 @dataclass(frozen=True)
 class TargetWeights:
-    """Weights of the terms of :func:`target_error` (all 1: each a squared relative miss)."""
+    """Weights of the terms of :func:`target_error` (all 1: each a squared relative miss). The last four
+    (:data:`FD_TERMS`) weigh the fundamental diagram's terms, scored only from runs of its sweep."""
 
     epsilon_60: float = 1.0
     small_groups: float = 1.0
@@ -63,6 +104,10 @@ class TargetWeights:
     density_inside: float = 1.0
     density_front: float = 1.0
     capacity: float = 1.0
+    corridor_fd: float = 1.0
+    corridor_monotone: float = 1.0
+    single_file: float = 1.0
+    headway_fit: float = 1.0
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -71,14 +116,21 @@ class TargetWeights:
     def as_dict(self) -> dict:
         return {f.name: float(getattr(self, f.name)) for f in fields(self)}
 
+    def bottleneck_dict(self) -> dict:
+        """The weights of the bottleneck's terms only (what a bottleneck-only set-up hashes, as before)."""
+        return {k: v for k, v in self.as_dict().items() if k not in FD_TERMS}
+
 
 @dataclass(frozen=True)
 class TargetScore:
     """Score of one parameter point: ``objective`` = Σ weight · term over :attr:`terms`, or
     :data:`FAILED_POINT_OBJECTIVE` + the incomplete fraction when a run did not complete.
 
-    ``figures`` holds the seed means the terms were computed from, keyed ``"<name> b<b> n<N>"``, and
-    ``capacity_ratio`` the N = 120 / N = 60 stationary rate ratio per width.
+    ``figures`` holds the seed means the terms were computed from, keyed ``"<name> b<b> n<N>"`` (with the
+    fundamental diagram also ``"fd_speed_m_s <setup> rho<density>"``, ``"headway_a_m"``, ``"headway_b_s"``,
+    ``"headway_samples"``), ``capacity_ratio`` the N = 120 / N = 60 stationary rate ratio per width, and
+    ``unscored`` the terms left at 0 because their runs were not given (the fundamental diagram's without
+    runs of its sweep).
     """
 
     objective: float
@@ -89,6 +141,7 @@ class TargetScore:
     failed: bool
     figures: dict
     capacity_ratio: dict
+    unscored: tuple = ()
 
 
 def band_miss(value, low: float, high: float) -> np.ndarray:
@@ -127,6 +180,77 @@ def _seed_mean(groups: dict, b: float, n: int, key: str) -> float:
     return float(v.mean()) if v.size else float("nan")
 
 
+def corridor_fd_bins() -> np.ndarray:
+    """(density 1/m², speed m/s) rows of the Jülich corridor bins that :func:`target_error` scores."""
+    t = fd_reference.juelich_corridor()
+    keep = (t.density >= CORRIDOR_FD_RANGE_PER_M2[0]) & (t.density <= CORRIDOR_FD_RANGE_PER_M2[1])
+    return np.column_stack([t.density[keep], t.speed_m_s[keep]])
+
+
+def single_file_bins() -> np.ndarray:
+    """(density 1/m, speed m/s) rows of the single-file bins that :func:`target_error` scores (all of them)."""
+    t = fd_reference.single_file()
+    return np.column_stack([t.density, t.speed_m_s])
+
+
+def speed_band_miss(speed, reference, tolerance: float = FD_SPEED_TOLERANCE_M_S) -> np.ndarray:
+    """How far ``speed`` lies beyond ``reference`` ± ``tolerance``, relative to ``reference`` (0 inside)."""
+    v = np.asarray(speed, dtype=np.float64)
+    ref = np.asarray(reference, dtype=np.float64)
+    return np.clip(np.abs(v - ref) - tolerance, 0.0, None) / ref
+
+
+def _fd_speeds(records: list, setup: str, bins: np.ndarray) -> tuple:
+    """(densities, bin speeds, model seed-mean speeds) of ``setup`` at the bins its runs were at, in density
+    order; a run at a density that is no bin of ``bins`` raises naming it."""
+    groups: dict = {}
+    for r in records:
+        if r["setup"] != setup:
+            continue
+        d = float(r["density"])
+        k = np.flatnonzero(np.abs(bins[:, 0] - d) <= DENSITY_MATCH)
+        if k.size == 0:
+            raise CalibrationError(f"a {setup} run at density {d:g} is at no shipped bin the objective scores "
+                                   f"({', '.join(f'{x:g}' for x in bins[:, 0])})")
+        if r.get("speed_m_s") is None:
+            raise CalibrationError(f"a {setup} run at density {d:g} has no 'speed_m_s'")
+        groups.setdefault(int(k[0]), []).append(float(r["speed_m_s"]))
+    idx = sorted(groups)
+    return (bins[idx, 0], bins[idx, 1], np.array([np.mean(groups[k]) for k in idx], dtype=np.float64))
+
+
+def fd_terms(records: list) -> tuple:
+    """``(terms, figures)`` of the fundamental diagram (module docstring) from the sweep's run records (each
+    with ``setup``, ``density``, ``speed_m_s``; single-file ones with ``headway_samples_m`` and
+    ``speed_samples_m_s``). Both set-ups must be present."""
+    missing = [s for s in FD_SETUPS if not any(r["setup"] == s for r in records)]
+    if missing:
+        raise CalibrationError(f"the fundamental diagram's terms need runs of every set-up {list(FD_SETUPS)}; "
+                               f"none of {missing}")
+    unknown = sorted({str(r["setup"]) for r in records} - set(FD_SETUPS))
+    if unknown:
+        raise CalibrationError(f"unknown fundamental-diagram set-up(s) {unknown}; known: {list(FD_SETUPS)}")
+    terms, figures = {}, {}
+    rho, v_exp, v = _fd_speeds(records, "corridor", corridor_fd_bins())
+    figures.update({f"fd_speed_m_s corridor rho{d:g}": float(x) for d, x in zip(rho, v)})
+    terms["corridor_fd"] = float(np.mean(speed_band_miss(v, v_exp) ** 2))
+    rises = np.clip(np.diff(v) - np.clip(np.diff(v_exp), 0.0, None), 0.0, None) / v_exp[1:]
+    terms["corridor_monotone"] = float(np.mean(rises ** 2)) if rises.size else 0.0
+    rho, v_exp, v = _fd_speeds(records, "single_file", single_file_bins())
+    figures.update({f"fd_speed_m_s single_file rho{d:g}": float(x) for d, x in zip(rho, v)})
+    terms["single_file"] = float(np.mean(speed_band_miss(v, v_exp) ** 2))
+    single = [r for r in records if r["setup"] == "single_file"]
+    if any("headway_samples_m" not in r or "speed_samples_m_s" not in r for r in single):
+        raise CalibrationError("a single_file run has no headway samples ('headway_samples_m', 'speed_samples_m_s')")
+    a, b, k = headway_fit(np.concatenate([np.asarray(r["headway_samples_m"], dtype=np.float64) for r in single]),
+                          np.concatenate([np.asarray(r["speed_samples_m_s"], dtype=np.float64) for r in single]))
+    miss = (np.array([band_miss(a, *HEADWAY_A_RANGE_M), band_miss(b, *HEADWAY_B_RANGE_S)])
+            if np.isfinite(a) and np.isfinite(b) else np.full(2, UNDEFINED_FIT_MISS))
+    terms["headway_fit"] = float(np.mean(miss ** 2))
+    figures.update({"headway_a_m": a, "headway_b_s": b, "headway_samples": k})
+    return terms, figures
+
+
 def _complete(record: dict) -> bool:
     if "complete" in record:
         return bool(record["complete"])
@@ -134,20 +258,34 @@ def _complete(record: dict) -> bool:
 
 
 def target_error(records: list, *, weights: TargetWeights | None = None,
-                 reference: ExperimentTable | None = None) -> TargetScore:
+                 reference: ExperimentTable | None = None, fd: bool | None = None) -> TargetScore:
     """Score the runs of one parameter point against every target of the module table.
 
     ``records``: the reproduction's run records (``crowd_env.experiments.bottleneck.run_one``) of at
     least the cases of :func:`required_cases` at the widths present for N = 60, any number of seeds
-    (the same for every case: common random numbers). Raises :class:`CalibrationError` naming a
-    missing case or a record without the figures a term needs.
+    (the same for every case: common random numbers), and optionally runs of the fundamental-diagram sweep
+    (records with a ``setup`` key). ``fd``: score the fundamental diagram's terms (True: its runs are
+    required; False: they are left out even when given; None, the default: when any is given). Raises
+    :class:`CalibrationError` naming a missing case or a record without the figures a term needs.
     """
     w = TargetWeights() if weights is None else weights
     ref = seyfried_2009() if reference is None else reference
     if not records:
         raise CalibrationError("no run records given")
-    n_incomplete = sum(not _complete(r) for r in records)
-    n_stalled = sum(bool(r.get("stalled", False)) for r in records)
+    fd_records = [r for r in records if "setup" in r]
+    records = [r for r in records if "setup" not in r]
+    if not records:
+        raise CalibrationError("no bottleneck run records given (only runs of the fundamental-diagram sweep)")
+    scored_fd = bool(fd_records) if fd is None else bool(fd)
+    if scored_fd and not fd_records:
+        raise CalibrationError(f"the fundamental diagram's terms need runs of its sweep (set-ups {list(FD_SETUPS)}); "
+                               f"none given")
+    if not scored_fd:
+        fd_records = []
+    unscored = () if scored_fd else FD_TERMS
+    n_incomplete = sum(not _complete(r) for r in records + fd_records)
+    n_stalled = sum(bool(r.get("stalled", False)) for r in records + fd_records)
+    n_runs = len(records) + len(fd_records)
     groups = _by_case(records)
     widths = sorted(b for (b, n) in groups if n == REFERENCE_SIZE)
     if not widths:
@@ -157,8 +295,8 @@ def target_error(records: list, *, weights: TargetWeights | None = None,
         if (round(b, 6), n) not in groups:
             raise CalibrationError(f"the objective needs runs at b = {b:g} m, N = {n}; none given")
     if n_incomplete:
-        return TargetScore(FAILED_POINT_OBJECTIVE + n_incomplete / len(records), {}, len(records), n_incomplete,
-                           n_stalled, True, {}, {})
+        return TargetScore(FAILED_POINT_OBJECTIVE + n_incomplete / n_runs, {}, n_runs, n_incomplete,
+                           n_stalled, True, {}, {}, unscored)
 
     def mean(b, n, key):
         return _seed_mean(groups, b, n, key)
@@ -183,13 +321,19 @@ def target_error(records: list, *, weights: TargetWeights | None = None,
     ratios = {b: figures[f"stationary_specific_flow_per_m_s b{b:g} n{large_n}"]
               / figures[f"stationary_specific_flow_per_m_s b{b:g} n{small_n}"] for b in cap_widths}
     terms["capacity"] = float(np.mean(band_miss(list(ratios.values()), *CAPACITY_RANGE) ** 2)) if ratios else 0.0
+    if scored_fd:
+        more_terms, more_figures = fd_terms(fd_records)
+        terms.update(more_terms)
+        figures.update(more_figures)
+    else:
+        terms.update({k: 0.0 for k in FD_TERMS})
     bad = sorted(k for k, v in terms.items() if not np.isfinite(v))
     if bad:
         raise CalibrationError(f"objective terms {bad} are undefined (a run without passages in its stationary "
-                               f"window or an empty measurement area)")
+                               f"window, an empty measurement area or a fundamental-diagram run without a speed)")
     wd = w.as_dict()
     objective = float(sum(wd[k] * v for k, v in terms.items()))
-    return TargetScore(objective, terms, len(records), 0, n_stalled, False, figures, ratios)
+    return TargetScore(objective, terms, n_runs, 0, n_stalled, False, figures, ratios, unscored)
 
 
 # --- the issue's acceptance table: every target with its figure and verdict ------------------------
@@ -209,6 +353,7 @@ def target_table(records: list, *, reference: ExperimentTable | None = None) -> 
     from .lanes import pooled_lanes
 
     ref = seyfried_2009() if reference is None else reference
+    records = [r for r in records if "setup" not in r]  # the bottleneck's runs (not the fundamental diagram's)
     complete = [r for r in records if _complete(r)]
     rows = []
     n_stalled = sum(bool(r.get("stalled", False)) for r in records)

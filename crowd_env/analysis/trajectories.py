@@ -303,7 +303,7 @@ def write_geometry(path, geometry, metadata: dict | None = None) -> list:
     The walkable area written is the geometry's navigable area (walkable area united with the exits),
     where every recorded position lies. JSON keys: ``walkable_area_wkt``, ``exits_wkt`` (list),
     ``measurement_lines`` (name -> [[x0, y0], [x1, y1]] in m), ``measurement_areas_wkt`` (name -> WKT),
-    ``name`` and ``metadata``. Returns the paths written.
+    ``name``, ``metadata`` and, for a periodic geometry, ``period_x_m``. Returns the paths written.
     """
     path = Path(path)
     record = {
@@ -314,6 +314,8 @@ def write_geometry(path, geometry, metadata: dict | None = None) -> list:
         "measurement_areas_wkt": {k: _wkt(v) for k, v in geometry.measurement_areas.items()},
         "metadata": dict(metadata or {}),
     }
+    if getattr(geometry, "period_x_m", 0.0):
+        record["period_x_m"] = float(geometry.period_x_m)
     wkt_path = geometry_paths(path)[1]
     for p, text in ((path, json.dumps(record, indent=1)), (wkt_path, record["walkable_area_wkt"] + "\n")):
         tmp = p.with_name(p.name + ".tmp")
@@ -347,7 +349,7 @@ def read_geometry(path):
         return Geometry.from_wkt(record["walkable_area_wkt"], list(record["exits_wkt"]),
                                  measurement_lines=record.get("measurement_lines") or {},
                                  measurement_areas=record.get("measurement_areas_wkt") or {},
-                                 name=record.get("name", "geometry"))
+                                 name=record.get("name", "geometry"), period_x_m=record.get("period_x_m", 0.0))
     except GeometryError as exc:
         raise TrajectoryFormatError(f"{path}: {exc}") from exc
 

@@ -6,7 +6,11 @@ reproduction's (b, N) runs × seeds; writes ``surface.csv``, ``valley.csv`` (for
 ε_T), ``calibration.json`` (best point, fit A = a exp(c B) of the valley beside the paper's
 A = 1501 exp(-7.98 B)) and ``fig10_epsilon_surface.png``.
 ``optimize``: Nelder–Mead (or Powell) on log-parameters over A, B and optionally lambda, tau,
-speed_mean, speed_std, with the same seeds for every candidate; writes ``optimise/optimum.json``.
+speed_mean, speed_std and the vision rule's vision_time_gap_s, vision_jam_gap_m, vision_half_angle_rad,
+vision_body_scale, with the same seeds for every candidate; writes ``optimise/optimum.json``. ``--objective
+targets+fd`` scores every point on the bottleneck's targets and the fundamental diagram at once (the periodic
+corridor's speeds at the Jülich bins, monotone in density, the single file's speeds and headway fit;
+crowd_env.analysis.targets), running the density sweep's runs beside the bottleneck's on the same executor.
 ``targets``: every preset against every target of the experiment (``targets.json``).
 ``landscape``: the objective along one parameter, the others fixed by the preset (e.g. ε_T in λ);
 writes ``landscape_<param>.csv`` and ``.png``.
@@ -21,6 +25,8 @@ Examples::
     crowd-calibrate grid --grid-size 4 4 --seeds 1 --out out/calibration
     crowd-calibrate grid --address 10.0.0.1:6379 --seeds 5 --out out/calibration_fine
     crowd-calibrate optimize --free A B --x0 A=790 B=0.08 --seeds 3 --out out/calibration
+    crowd-calibrate optimize --preset vision --objective targets+fd --free A vision_time_gap_s vision_body_scale \
+        --bounds vision_body_scale=0.3:1.0 --seeds 2 --out out/calibration_fd
 """
 from __future__ import annotations
 
@@ -31,16 +37,19 @@ from pathlib import Path
 
 from ..analysis.calibration import PAPER_VALLEY_FIT, CalibrationError, check_grid_values, grid_axis
 from ..analysis.experiment import ExperimentError, ExperimentTable
-from ..analysis.targets import required_cases
+from ..analysis.targets import TargetWeights, required_cases
 from ..core.params import ParameterError
 from ..core.presets import DEFAULT_PRESET, PRESETS
 from ..experiments.backends import make_backend
 from ..experiments.bottleneck import check_setups
-from ..experiments.calibration import analyse_surface, base_config, evaluate_grid, optimise, write_grid_outputs
+from ..experiments.calibration import (FREE_PARAMETERS, analyse_surface, base_config, evaluate_grid, optimise,
+                                       write_grid_outputs)
 from ..experiments.calibration.grid import check_run_plan
 from ..experiments.calibration.landscape import entry_failed, landscape, write_landscape
 from ..experiments.calibration.optimize import PointEvaluator
 from ..experiments.calibration.targets import preset_targets, write_targets
+from ..experiments.calibration.tasks import FDPlan
+from ..experiments.fundamental_diagram import CORRIDOR_DENSITIES, SINGLE_FILE_DENSITIES
 from ..experiments.store import RunStore
 from .options import add_geometry_arguments, config_of, model_params_from_args
 
@@ -50,6 +59,57 @@ def _name_value(text: str, what: str):
         raise CalibrationError(f"{what} expects NAME=VALUE, got {text!r}")
     name, value = text.split("=", 1)
     return name.strip(), value.strip()
+
+
+OBJECTIVE_HELP = ("'epsilon': ε_T of Eq. 24 (+ --range-weight), the paper's; 'targets': every figure the experiment "
+                  "measured (crowd_env.analysis.targets: N = 60 flows, N = 20/40 range and order, speed and "
+                  "densities, capacity N = 120 vs 60), on N = 20, 40, 60 at --widths and N = 120 at 1.0 and 1.2 m "
+                  "(--sizes is then unused); 'targets+fd': those and the fundamental diagram (periodic corridor "
+                  "speeds at the Jülich bins and monotone, single-file speeds and headway fit), its runs set by the "
+                  "--fd-* options; a point with a stalled run counts as failed")
+
+
+def _add_target_arguments(parser) -> None:
+    """The target objective's weights and the fundamental diagram's runs (optimize, landscape)."""
+    g = parser.add_argument_group("target objective and fundamental diagram (--objective targets / targets+fd)")
+    g.add_argument("--weight", nargs="+", default=[], metavar="NAME=VALUE",
+                   help=f"weights of the target terms (default 1 each): {', '.join(TargetWeights().as_dict())}")
+    g.add_argument("--fd-seeds", type=int, default=None,
+                   help="seeds per fundamental-diagram density: --first-seed.. (default: --seeds; same at every point)")
+    g.add_argument("--fd-densities", type=float, nargs="+", default=list(CORRIDOR_DENSITIES),
+                   help="corridor densities (1/m², shipped Jülich bins; default all from 0.4 to 3.4)")
+    g.add_argument("--fd-single-file-densities", type=float, nargs="+", default=list(SINGLE_FILE_DENSITIES),
+                   help="single-file densities (1/m, shipped bins; default all six)")
+    g.add_argument("--fd-length", type=float, default=20.0, help="length of the periodic strips (m)")
+    g.add_argument("--fd-time", type=float, default=40.0, help="simulated time per fundamental-diagram run (s)")
+    g.add_argument("--fd-transient", type=float, default=15.0, help="time left out before measuring (s)")
+
+
+def _weights(args) -> TargetWeights | None:
+    """--weight NAME=VALUE ... as TargetWeights (None when none is given)."""
+    if not args.weight:
+        return None
+    if args.objective not in ("targets", "targets+fd"):
+        raise CalibrationError("--weight weighs the terms of --objective targets or targets+fd")
+    known = TargetWeights().as_dict()
+    values = {}
+    for text in args.weight:
+        k, v = _name_value(text, "--weight")
+        if k not in known:
+            raise CalibrationError(f"unknown weight {k!r}; choose from {list(known)}")
+        values[k] = float(v)
+    return TargetWeights(**values)
+
+
+def _fd_plan(args) -> FDPlan | None:
+    """The fundamental diagram's runs of each point (None unless --objective targets+fd)."""
+    if args.objective != "targets+fd":
+        return None
+    k = args.seeds if args.fd_seeds is None else args.fd_seeds
+    return FDPlan(seeds=tuple(range(args.first_seed, args.first_seed + k)) if k >= 1 else (),
+                  corridor_densities=tuple(args.fd_densities),
+                  single_file_densities=tuple(args.fd_single_file_densities),
+                  length_m=args.fd_length, max_time_s=args.fd_time, transient_s=args.fd_transient)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -105,18 +165,17 @@ def build_parser() -> argparse.ArgumentParser:
                     help="fit A(B) also through minima at the A grid ends (default: interior ones when >= 2)")
     gp.add_argument("--no-figures", action="store_true")
     op = sub.add_parser("optimize", aliases=["optimise"], parents=[common], help="minimise ε_T (Eq. 25)")
-    op.add_argument("--free", nargs="+", default=["A", "B"], help="free parameters: A B lambda tau speed_mean speed_std")
+    op.add_argument("--free", nargs="+", default=["A", "B"],
+                    help=f"free parameters: {' '.join(FREE_PARAMETERS)} (vision_rays is fixed: --param vision_rays=N)")
     op.add_argument("--x0", nargs="+", default=[], metavar="NAME=VALUE", help="start values, e.g. A=790 B=0.08")
     op.add_argument("--bounds", nargs="+", default=[], metavar="NAME=LOW:HIGH", help="bounds, e.g. A=10:3000")
     op.add_argument("--method", choices=["Nelder-Mead", "Powell"], default="Nelder-Mead")
     op.add_argument("--max-evaluations", type=int, default=60, help="parameter points evaluated at most")
     op.add_argument("--xatol", type=float, default=0.02, help="tolerance on ln A, ln B, ... (0.02 = 2 %%)")
     op.add_argument("--fatol", type=float, default=1e-4, help="tolerance on ε_T")
-    op.add_argument("--objective", choices=["epsilon", "targets"], default="epsilon",
-                    help="'epsilon': ε_T of Eq. 24 (+ --range-weight), the paper's; 'targets': every figure the "
-                         "experiment measured (crowd_env.analysis.targets: N = 60 flows, N = 20/40 range and order, "
-                         "speed and densities, capacity N = 120 vs 60), on N = 20, 40, 60 at --widths and N = 120 "
-                         "at 1.0 and 1.2 m (--sizes is then unused); a point with a stalled run counts as failed")
+    op.add_argument("--objective", choices=["epsilon", "targets", "targets+fd"], default="epsilon",
+                    help=OBJECTIVE_HELP)
+    _add_target_arguments(op)
     tp = sub.add_parser("targets", parents=[common],
                         help="every preset against every target of the experiment (one table; N = 20, 40, 60 at "
                              "--widths and N = 120 at 1.0 and 1.2 m, --seeds seeds each)")
@@ -124,11 +183,11 @@ def build_parser() -> argparse.ArgumentParser:
                     help="presets to compare (default all); runs go to OUT/<preset>/ (resumable)")
     lp = sub.add_parser("landscape", parents=[common],
                         help="the objective along one parameter, the others fixed by the preset (e.g. ε_T in λ)")
-    lp.add_argument("--vary", required=True, choices=["A", "B", "lambda", "tau", "speed_mean", "speed_std"],
-                    help="the parameter to vary")
+    lp.add_argument("--vary", required=True, choices=list(FREE_PARAMETERS), help="the parameter to vary")
     lp.add_argument("--values", type=float, nargs="+", required=True, help="its values (natural units)")
-    lp.add_argument("--objective", choices=["epsilon", "targets"], default="targets",
+    lp.add_argument("--objective", choices=["epsilon", "targets", "targets+fd"], default="targets",
                     help="as optimize (default 'targets': the figures of every target are kept per value)")
+    _add_target_arguments(lp)
     lp.add_argument("--no-figures", action="store_true")
     return ap
 
@@ -147,7 +206,8 @@ def run_landscape(args) -> int:
     with make_backend(args.backend, address=args.address, jobs=args.jobs, connect_timeout_s=args.connect_timeout) as be:
         evaluator = PointEvaluator(args.out, config, args.widths, args.sizes, seeds, be,
                                    reference=_reference(args.reference), range_weight=args.range_weight,
-                                   incomplete=args.incomplete, objective=args.objective)
+                                   incomplete=args.incomplete, objective=args.objective, weights=_weights(args),
+                                   fd_plan=_fd_plan(args))
         entries = landscape(evaluator, args.vary, args.values)
     print(f"{args.vary:>10}  {'objective':>10}  {'ε_T':>10}  failed")
     for e in entries:
@@ -239,8 +299,13 @@ def run(args) -> int:
             if not sep:
                 raise CalibrationError(f"--bounds expects NAME=LOW:HIGH, got {text!r}")
             bounds[k] = (float(lo), float(hi))
-    if args.mode != "grid" and args.objective == "targets":
+    if args.mode != "grid" and args.objective in ("targets", "targets+fd"):
         sizes = sorted({n for _, n in required_cases(widths)})
+    weights = None if args.mode == "grid" else _weights(args)
+    fd_plan = None if args.mode == "grid" else _fd_plan(args)
+    if fd_plan is not None:
+        print(f"each point: {len(required_cases(widths)) * len(seeds)} bottleneck runs + {fd_plan.n_runs} "
+              f"fundamental-diagram runs", file=sys.stderr)
     check_setups(config["geometry"], widths, sizes, seeds[0])  # impossible geometry fails before any worker starts
     RunStore(args.out, config, keyed_by="task")  # a folder of another configuration is refused before anything runs
     meta = {"widths_m": widths, "sizes": sizes, "seeds": seeds, "range_weight": args.range_weight,
@@ -254,7 +319,7 @@ def run(args) -> int:
             res = optimise(args.out, config, args.free, widths, sizes, seeds, be, x0=x0, bounds=bounds,
                            method=args.method, max_evaluations=args.max_evaluations, xatol=args.xatol,
                            fatol=args.fatol, reference=reference, range_weight=args.range_weight,
-                           incomplete=args.incomplete, objective=args.objective)
+                           incomplete=args.incomplete, objective=args.objective, weights=weights, fd_plan=fd_plan)
     if args.mode != "grid":
         shown = ", ".join(f"{k} = {v:.5g}" for k, v in res.best.items())
         print(f"best after {res.n_evaluations} evaluations ({res.n_computed} computed now): {shown}; "

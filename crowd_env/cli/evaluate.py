@@ -3,12 +3,21 @@
 Policies: names the policy resolver knows (``--policy-resolver``, default the shipped baselines'
 ``baselines.reference_policies:as_policy``: ``baseline``, the calibrated social-force model,
 ``random``, ``zero``), import paths ``module:attribute`` of your own policy classes or objects, and any
-number of saved SB3 models (``--model runs/ppo/model.zip``; an ``env_config.json`` next to the first
-model sets the observation layout and decision interval for every policy, so all run the same
-environment). Everything is resolved by import path at run time: ``crowd_env`` imports no policy.
+number of saved SB3 models (``--model runs/ppo/model.zip``). Everything is resolved by import path at run
+time: ``crowd_env`` imports no policy.
+
+Which problem: with ``--model``, every policy is evaluated on the configuration the first model was
+trained on, the ``env_config.json`` beside it (scenario and its options, observation options, decision
+interval, and its episode length as ``--max-time``), so that the returns compare with training; flags given
+explicitly (``--scenario``, ``--scenario-option``, ``--widths``, ``--max-time``, ``--controlled``,
+``--frame-skip``) override it, and ``--no-recorded-config`` ignores it. Without a model, or a model without
+one, the defaults below apply (Seyfried bottleneck, 60 pedestrians, 90 s). The command prints which
+configuration it uses.
+
 Metrics (:mod:`crowd_env.experiments.evaluation`): specific flow J_s (Kabalan et al. 2016, Eq. 22),
 evacuation time, mean speed, number and mean size of the contact percussions, minimum gap, mean
-per-agent return.
+per-agent return: their means over the episodes, then their 95 % intervals (percentile bootstrap of
+the mean over the episodes; rough with few seeds).
 
     crowd-evaluate --seeds 0 1 2 --widths 1.0 1.6 --scenario-option n_pedestrians=20
     crowd-evaluate --model runs/ppo/model.zip --policies baseline random --out runs/eval
@@ -27,11 +36,15 @@ import argparse
 import os
 import sys
 
-from ..experiments.evaluation import (ScenarioSpec, evaluate, format_table, import_object, plot_results,
-                                      resolve_policy, summarize, write_csv)
+from ..experiments.evaluation import (ScenarioSpec, describe_setup, episode_setup, evaluate, format_intervals,
+                                      format_table, import_object, plot_results, recorded_env_config, resolve_policy,
+                                      summarize, write_csv)
 from ..experiments.video import per_policy
 from ..errors import CrowdEnvError, InputError, OptionError, PolicyError, ScenarioError
 from .options import DEFAULT_POLICY_RESOLVER, key_values, policy_env_options
+
+DEFAULT_SCENARIO = "seyfried_bottleneck"
+DEFAULT_MAX_TIME_S = 90.0
 
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="crowd-evaluate", description=__doc__,
@@ -41,14 +54,22 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--model", action="append", default=[], help="saved SB3 PPO model (.zip); repeatable")
     ap.add_argument("--policy-resolver", default=DEFAULT_POLICY_RESOLVER, metavar="MODULE:FUNCTION",
                     help=f"resolve(spec, name=None) -> policy for names and models (default {DEFAULT_POLICY_RESOLVER})")
-    ap.add_argument("--scenario", default="seyfried_bottleneck")
+    ap.add_argument("--no-recorded-config", action="store_true",
+                    help="ignore the env_config.json beside the first --model (default: evaluate on it)")
+    ap.add_argument("--scenario", default=None,
+                    help=f"registered scenario name (default: the model's env_config.json, else {DEFAULT_SCENARIO}); "
+                         "another scenario than the recorded one starts from its own default options")
     ap.add_argument("--scenario-option", action="append", default=[], metavar="KEY=VALUE",
-                    help="scenario option (repeatable, JSON values), e.g. n_pedestrians=20")
+                    help="scenario option (repeatable, JSON values) on top of the recorded or default ones, e.g. "
+                         "n_pedestrians=20")
     ap.add_argument("--widths", type=float, nargs="*", default=None,
                     help="bottleneck widths: one scenario per width (sets width_m)")
-    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    ap.add_argument("--max-time", type=float, default=90.0, help="simulated seconds per episode at most")
-    ap.add_argument("--controlled", default="all", help="'all', a count, a fraction or comma-separated ids")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="episode seeds (default 0 1 2)")
+    ap.add_argument("--max-time", type=float, default=None,
+                    help="simulated seconds per episode at most (default: the model's recorded episode length, "
+                         f"else {DEFAULT_MAX_TIME_S:g})")
+    ap.add_argument("--controlled", default=None,
+                    help="'all', a count, a fraction or comma-separated ids (default: recorded, else all)")
     ap.add_argument("--frame-skip", type=int, default=None, help="decision interval in simulator steps "
                     "(default: the model's env_config.json, else 1)")
     ap.add_argument("--background", default=None, metavar="POLICY",
@@ -65,21 +86,55 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+def evaluation_setup(args) -> tuple:
+    """``(scenarios, env_options, max_time_s, source)`` from the flags: the configuration recorded beside the
+    first ``--model`` (see the module docstring) with the explicit flags on top, or the defaults; ``source``
+    says which, for the printout."""
+    options = key_values(args.scenario_option, "--scenario-option needs key=value")
+    recorded, path = (None, None)
+    if args.model and not args.no_recorded_config:
+        recorded, path = recorded_env_config(args.model[0])
+    if recorded is not None:
+        spec, env_options, max_time = episode_setup(recorded)
+        scenario = spec.scenario if args.scenario in (None, spec.scenario) else args.scenario
+        base = dict(spec.scenario_options or {}) if scenario == spec.scenario else {}
+        flags = [f for f, given in (("--scenario", args.scenario not in (None, spec.scenario)),
+                                    ("--scenario-option", bool(options)), ("--widths", bool(args.widths)),
+                                    ("--max-time", args.max_time is not None),
+                                    ("--controlled", args.controlled is not None),
+                                    ("--frame-skip", args.frame_skip is not None)) if given]
+        source = f"recorded with the model: {path}" + (f", overridden by {' '.join(flags)}" if flags else "")
+        if args.frame_skip is not None:
+            env_options["frame_skip"] = args.frame_skip
+        if args.controlled is not None:
+            env_options["controlled"] = policy_env_options(controlled=args.controlled)["controlled"]
+        if args.max_time is not None or max_time is None:
+            max_time = args.max_time if args.max_time is not None else DEFAULT_MAX_TIME_S
+    else:
+        scenario, base = args.scenario or DEFAULT_SCENARIO, {}
+        env_options = policy_env_options(args.model[0] if args.model else None, args.frame_skip,
+                                         args.controlled or "all")
+        max_time = DEFAULT_MAX_TIME_S if args.max_time is None else args.max_time
+        source = ("the command's defaults and flags" + (" (--no-recorded-config)" if args.no_recorded_config else
+                                                        f" (no env_config.json beside {args.model[0]})" if args.model
+                                                        else ""))
+    options = {**base, **options}
+    if args.widths:
+        scenarios = [ScenarioSpec(scenario, {**options, "width_m": w}) for w in args.widths]
+    else:
+        scenarios = [ScenarioSpec(scenario, options or None)]
+    return scenarios, env_options, max_time, source
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
 
-    env_options = policy_env_options(args.model[0] if args.model else None, args.frame_skip, args.controlled)
-    if args.background is not None:
-        env_options["background_policy"] = args.background
-
     try:
-        options = key_values(args.scenario_option, "--scenario-option needs key=value")
+        scenarios, env_options, max_time, source = evaluation_setup(args)
     except OptionError as exc:
         raise SystemExit(str(exc)) from None
-    if args.widths:
-        scenarios = [ScenarioSpec(args.scenario, {**options, "width_m": w}) for w in args.widths]
-    else:
-        scenarios = [ScenarioSpec(args.scenario, options or None)]
+    if args.background is not None:
+        env_options["background_policy"] = args.background
 
     try:
         resolve = import_object(args.policy_resolver)
@@ -91,7 +146,7 @@ def main(argv=None) -> int:
             p = resolve(path)
             label = p.name if p.name not in policies else os.path.basename(os.path.dirname(os.path.abspath(path)))
             policies[label] = p
-    except (ImportError, ValueError, TypeError) as exc:
+    except (ImportError, ValueError, TypeError, OSError) as exc:  # OSError: a saved model that is not there
         raise SystemExit(f"error: {exc}") from None
     videos = []
     video = None
@@ -102,19 +157,29 @@ def main(argv=None) -> int:
         except CrowdEnvError as exc:
             raise SystemExit(f"error: --video: {exc}") from None
 
-    print(f"environment options: {env_options}; seeds {args.seeds}; at most {args.max_time:g} s simulated")
+    print(f"evaluation configuration: {source}")
+    print(f"  {describe_setup(scenarios, env_options, max_time)}; seeds {args.seeds}")
+    first = recorded_env_config(args.model[0])[0] if args.model else None
+    for path in args.model[1:]:
+        other, other_path = recorded_env_config(path)
+        if other is not None and other != first:
+            print(f"note: {other_path} records another configuration than the first model's; every policy runs on "
+                  "the one above")
     try:
-        results = evaluate(policies, scenarios, args.seeds, env_options=env_options, max_time_s=args.max_time,
+        results = evaluate(policies, scenarios, args.seeds, env_options=env_options, max_time_s=max_time,
                            video=video)
     except (InputError, OptionError, PolicyError, ScenarioError) as exc:  # bad input met at run time
         raise SystemExit(f"error: {exc}") from None
-    table = format_table(summarize(results))
+    rows = summarize(results)
+    table = (format_table(rows) + "\n\n95 % intervals of the means (percentile bootstrap over the episodes; rough "
+             "with few seeds):\n" + format_intervals(rows))
     print()
     print(table)
     os.makedirs(args.out, exist_ok=True)
     write_csv(results, os.path.join(args.out, "results.csv"))
     with open(os.path.join(args.out, "summary.txt"), "w") as fh:
-        fh.write(table + "\n")
+        fh.write(f"evaluation configuration: {source}\n{describe_setup(scenarios, env_options, max_time)}; "
+                 f"seeds {args.seeds}\n\n{table}\n")
     plot_results(results, os.path.join(args.out, "metrics.png"))
     print(f"\nwrote {args.out}/results.csv, summary.txt, metrics.png")
     for rec in videos:

@@ -6,24 +6,47 @@ e.g. from ``crowd-bottleneck --trajectories``) with its geometry JSON. In each m
 PedPy computes the classic density and the mean individual speed per frame; J_s = ρ v. Writes
 ``OUT/fundamental_diagram.csv`` (one row per area and occupied frame) and ``OUT/fundamental_diagram.png``.
 
+With ``--sweep`` it instead sweeps density in the periodic corridor (1.8 m, the Jülich experiment's width) and
+the single-file ring (:mod:`crowd_env.experiments.fundamental_diagram`), prints each density's mean speed beside
+the experiment's, the single file's headway fit d = a + b v, and writes ``OUT/fd_sweep.csv``, ``OUT/fd_sweep.json``
+and ``OUT/fd_sweep.png`` (beside the Jülich corridor bins, Seyfried's single file and Weidmann's curve). Runs are
+kept under ``OUT/runs``: a stopped sweep resumes.
+
 Examples::
 
     crowd-fundamental-diagram --width 1.0 --n 60 --seed 0 --out out/fd
     crowd-fundamental-diagram --trajectory out/bottleneck/trajectories/b1.000_n60_s0.txt --out out/fd
+    crowd-fundamental-diagram --sweep --preset calibrated --seeds 3 --out out/fd-sweep
+    crowd-fundamental-diagram --candidates --preset vision --grid vision_body_scale=0.3,0.5 --out out/fd-candidates
+
+With ``--candidates`` it measures parameter points on the door and the corridor at once (the candidates table of
+docs/validation/fundamental_diagram.md): for each point of ``--grid`` (the product of the values given, on top of
+``--preset`` and ``--set``), Seyfried's bottleneck (N = 60 at 0.8, 1.0, 1.2 m, seeds 0-1: J_s, density in front
+and inside, speed inside) and the periodic corridor's speed at six Jülich bins (seed 0), one line each, appended
+to ``OUT/candidates.jsonl`` as it is done (a point found there is not run again).
 """
 from __future__ import annotations
 
 import argparse
 import csv
+import itertools
+import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from ..analysis.figures import fundamental_diagram_figure
+from ..analysis.figures import candidates_figure, fd_sweep_figure, fundamental_diagram_figure
 from ..analysis.trajectories import (DEFAULT_FRAME_RATE_PER_S, Trajectories, TrajectoryFormatError,
                                      fundamental_diagram_data, pedpy_measurement_area, read_geometry)
+from ..core.params import ParameterError
+from ..core.presets import DEFAULT_PRESET, PRESETS, get_preset
+from ..experiments.backends import execute, make_backend
+from ..experiments.bottleneck import params_dict
+from ..experiments.fundamental_diagram import (CORRIDOR_DENSITIES, SETUPS, SINGLE_FILE_DENSITIES, door_and_corridor,
+                                               fd_tasks, run_fd_one, summarise_fd)
 from ..experiments.recording import record_bottleneck_run
+from ..experiments.store import RunStore, write_json_atomic
 
 CSV_COLUMNS = ["area", "frame", "time_s", "density_per_m2", "speed_m_s", "specific_flow_per_m_s"]
 
@@ -43,7 +66,128 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--areas", nargs="+", help="measurement areas (default: all of the geometry: front, inside)")
     ap.add_argument("--speed-window", type=float, default=0.4, help="time window of the individual speeds (s)")
     ap.add_argument("--out", type=Path, default=Path("out/fundamental_diagram"), help="output folder")
+    sw = ap.add_argument_group("density sweep (--sweep)")
+    sw.add_argument("--sweep", action="store_true", help="sweep density in the periodic corridor and single file")
+    sw.add_argument("--setups", nargs="+", default=list(SETUPS), choices=SETUPS, help="set-ups to sweep")
+    sw.add_argument("--densities", type=float, nargs="+", default=list(CORRIDOR_DENSITIES),
+                    help="corridor densities (1/m²)")
+    sw.add_argument("--single-file-densities", type=float, nargs="+", default=list(SINGLE_FILE_DENSITIES),
+                    help="single-file densities (1/m)")
+    sw.add_argument("--seeds", type=int, default=3, help="seeds per density (0..k-1)")
+    sw.add_argument("--preset", default=DEFAULT_PRESET, choices=sorted(PRESETS), help="model preset")
+    sw.add_argument("--length", type=float, default=20.0, help="length of the periodic strip (m)")
+    sw.add_argument("--sweep-time", type=float, default=40.0, help="simulated time per run (s)")
+    sw.add_argument("--transient", type=float, default=15.0, help="time left out before measuring (s)")
+    sw.add_argument("--backend", default="process", choices=["ray", "process", "serial"], help="executor")
+    sw.add_argument("--jobs", type=int, default=None, help="worker processes (default: the cores)")
+    cd = ap.add_argument_group("door and corridor of parameter points (--candidates)")
+    cd.add_argument("--candidates", action="store_true", help="measure parameter points on the door and corridor")
+    cd.add_argument("--set", nargs="+", default=[], metavar="NAME=VALUE", help="ModelParams fields on top of --preset")
+    cd.add_argument("--grid", nargs="+", default=[], metavar="NAME=V1,V2,...",
+                    help="ModelParams fields to vary (every combination); 'none' stands for None")
     return ap
+
+
+def _value(text: str):
+    """A --set/--grid value: none, true/false, an int, else a float."""
+    low = text.strip().lower()
+    if low == "none":
+        return None
+    if low in ("true", "false"):
+        return low == "true"
+    try:
+        return int(text)
+    except ValueError:
+        return float(text)
+
+
+def _assignments(items, what: str) -> dict:
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name or not value:
+            raise SystemExit(f"error: {what} {item!r}: expected NAME=VALUE")
+        try:
+            out[name] = [_value(v) for v in value.split(",")] if what == "--grid" else _value(value)
+        except ValueError:
+            raise SystemExit(f"error: {what} {item!r}: {value!r} is not a number, none, true or false") from None
+    return out
+
+
+def _candidates(args) -> int:
+    preset = get_preset(args.preset)
+    fixed = _assignments(args.set, "--set")
+    grid = _assignments(args.grid, "--grid")
+    done = {}
+    path = args.out / "candidates.jsonl"
+    if path.exists():
+        for line in path.read_text().splitlines():
+            row = json.loads(line)
+            done[json.dumps([row["preset"], row["changes"]], sort_keys=True)] = row
+    print(f"preset {args.preset} with {fixed or 'no changes'}: J_s at b = 0.8 / 1.0 / 1.2 m (experiment 1.61 / 1.90 / "
+          f"1.97), front / inside density (4-6 / 1.42-1.73 /m²), corridor speed at 0.63 / 1.15 / 1.63 / 2.11 / 2.62 / "
+          f"3.10 /m² (experiment 1.37 / 1.18 / 0.99 / 0.63 / 0.42 / 0.34 m/s), largest miss")
+    for combo in itertools.product(*grid.values()):
+        changes = {**fixed, **dict(zip(grid, combo))}
+        key = json.dumps([args.preset, changes], sort_keys=True)
+        if key not in done:
+            try:
+                params = preset.params(**changes)
+            except ParameterError as exc:
+                raise SystemExit(f"error: {exc}") from None
+            row = {"preset": args.preset, "changes": changes,
+                   **door_and_corridor(params, navigation_clearance_m=preset.navigation_clearance_m)}
+            with open(path, "a") as fh:
+                fh.write(json.dumps(row) + "\n")
+            done[key] = row
+        row = done[key]
+        door, corr = list(row["door"].values()), list(row["corridor"].values())
+        flows = " / ".join(f"{d['specific_flow_per_m_s']:.2f}" for d in door)
+        speeds = " / ".join(f"{c['speed_m_s']:.2f}" for c in corr)
+        front = np.mean([d["density_front_per_m2"] for d in door])
+        inside = np.mean([d["density_inside_per_m2"] for d in door])
+        print(f"{changes}: J_s {flows}, front {front:.1f}, inside {inside:.2f}, corridor {speeds}, "
+              f"miss {row['corridor_max_miss_m_s']:.2f}", flush=True)
+    png = candidates_figure(list(done.values()), args.out / "candidates.png")
+    print(f"figure (every point of {path}): {png}")
+    return 0
+
+
+def _sweep(args) -> int:
+    params = get_preset(args.preset).params()
+    tasks = fd_tasks(args.setups, {"corridor": args.densities, "single_file": args.single_file_densities},
+                     range(args.seeds), params, length_m=args.length, max_time_s=args.sweep_time,
+                     transient_s=args.transient)
+    store = RunStore(args.out, {"kind": "fundamental_diagram_sweep", "preset": args.preset,
+                                "params": params_dict(params)})
+    with make_backend(args.backend, jobs=args.jobs) as backend:
+        failed = execute(tasks, store, backend, run_fd_one, desc="fundamental diagram runs")
+    if failed:
+        raise SystemExit(f"error: {failed} run(s) failed (see {args.out / 'errors.jsonl'}); rerun to retry them")
+    records = [store.load(t) for t in tasks]
+    summary = summarise_fd(records)
+    lines = []
+    for setup, unit in (("corridor", "1/m²"), ("single_file", "1/m")):
+        if not summary[setup]:
+            continue
+        print(f"{setup} ({args.preset}, {args.seeds} seeds): density ({unit}), speed (m/s) ± sd, experiment, "
+              f"difference, specific flow")
+        for r in summary[setup]:
+            print(f"  {r['density']:5.2f}  {r['speed_m_s']:.3f} ± {r['speed_sd_m_s']:.3f}  "
+                  f"{r['experiment_speed_m_s']:.3f}  {r['difference_m_s']:+.3f}  {r['flow']:.3f}")
+            lines.append({"setup": setup, **r})
+    if "single_file_fit" in summary:
+        a, b, k = summary["single_file_fit"]
+        print(f"single file headway fit d = a + b v over {k} samples (v > 0.05 m/s): a = {a:.3f} m, b = {b:.3f} s "
+              f"(experiment: 0.34 m, 1.08 s)")
+    with open(args.out / "fd_sweep.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(lines[0]))
+        w.writeheader()
+        w.writerows(lines)
+    write_json_atomic(args.out / "fd_sweep.json", summary)
+    png = fd_sweep_figure(summary, args.out / "fd_sweep.png", title=f"fundamental diagram, preset {args.preset}")
+    print(f"figure: {png}\ntable: {args.out / 'fd_sweep.csv'}")
+    return 0
 
 
 def _simulate(args):
@@ -75,6 +219,12 @@ def _load(args):
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.sweep and args.candidates:
+        raise SystemExit("error: choose --sweep or --candidates, not both")
+    if args.sweep:
+        return _sweep(args)
+    if args.candidates:
+        return _candidates(args)
     traj, geometry, label = _load(args) if args.trajectory is not None else _simulate(args)
     names = args.areas or sorted(geometry.measurement_areas)
     unknown = [a for a in names if a not in geometry.measurement_areas]

@@ -7,8 +7,8 @@ padding until their copy resets), so every pedestrian's experience trains the sa
 ``black_death_v3`` → ``pettingzoo_env_to_vec_env_v1`` → ``concat_vec_envs_v1`` chain instead.
 
 Outputs in ``--out``: ``model.zip`` (load with ``stable_baselines3.PPO.load`` or evaluate with
-``crowd-evaluate --model``), ``env_config.json`` (the environment options, so that evaluation uses
-the same observation layout and decision interval), ``learning_curve.csv`` / ``.png`` (per-agent
+``crowd-evaluate --model``), ``env_config.json`` (the environment options, so that ``crowd-evaluate
+--model`` evaluates on the problem trained on), ``learning_curve.csv`` / ``.png`` (per-agent
 episode returns against timesteps) and ``summary.json`` with the mean per-agent episode return of a
 uniform random policy and of the trained policy (deterministic) on the same evaluation seeds. The two
 policies come from ``--policy-resolver`` (default: the shipped baselines' ``as_policy``), resolved by
@@ -28,6 +28,9 @@ The default problem is small: 10 pedestrians at the 1 m Seyfried bottleneck, dec
 10 s episodes::
 
     crowd-train-ppo --timesteps 100000 --out runs/ppo_small
+
+While it trains it prints a line at most every ``--progress-every`` seconds: timesteps done, time
+elapsed and left, the mean return of the recent episodes.
 """
 from __future__ import annotations
 
@@ -57,7 +60,9 @@ def main(argv=None) -> int:
     ap.add_argument("--gamma", type=float, default=0.99)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=1, help="torch threads")
-    ap.add_argument("--verbose", type=int, default=0)
+    ap.add_argument("--verbose", type=int, default=0, help="Stable-Baselines3's own logging (0: none, 1: its tables)")
+    ap.add_argument("--progress-every", type=float, default=10.0, metavar="SECONDS",
+                    help="print a progress line (timesteps, time left, recent returns) at most this often (default 10)")
     ap.add_argument("--checkpoint-every", type=int, default=10_000,
                     help="save a checkpoint every this many timesteps (0: only at the end)")
     ap.add_argument("--resume", action="store_true",
@@ -66,6 +71,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.checkpoint_every < 0:
         raise SystemExit("error: --checkpoint-every must be >= 0")
+    if not args.progress_every >= 0:
+        raise SystemExit("error: --progress-every must be >= 0")
     needed = ("torch", "stable_baselines3") + (("supersuit",) if args.vectoriser == "supersuit" else ())
     missing = [name for name in needed if importlib.util.find_spec(name) is None]
     if missing:
@@ -77,7 +84,8 @@ def main(argv=None) -> int:
                         n_steps=args.n_steps, batch_size=args.batch_size, n_epochs=args.n_epochs,
                         learning_rate=args.learning_rate, gamma=args.gamma, eval_seeds=args.eval_seeds,
                         threads=args.threads, verbose=args.verbose, checkpoint_every=args.checkpoint_every,
-                        resume=args.resume, vectoriser=args.vectoriser, workers=args.workers)
+                        resume=args.resume, vectoriser=args.vectoriser, workers=args.workers,
+                        progress=lambda line: print(line, flush=True), progress_every_s=args.progress_every)
     except (TrainingError, EnvOptionError) as exc:
         raise SystemExit(f"error: {exc}") from None
     print(f"mean per-agent episode return: random {summary['random']['mean_return']:.3f} -> trained "

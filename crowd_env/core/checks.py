@@ -8,6 +8,7 @@ argument and repeats the value given, and returns the value converted (``float``
     check_number("dt_s", dt_s, error=ParameterError, positive=True)   # "dt_s must be a positive finite number, got 0"
     check_number("clearance_m", c, error=GeometryError, minimum=0.0)  # "... must be a finite number >= 0, got -1"
     check_integer("workers", w, error=EnvOptionError, minimum=1)       # "workers must be an integer >= 1, got 0"
+    check_seed("seed", s, error=ScenarioError)                         # "seed must be None or an integer >= 0, got 'abc'"
 """
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ import numpy as np
 
 from crowd_env.errors import CrowdEnvError, InputError
 
-__all__ = ["is_number", "is_integer", "check_number", "check_integer"]
+__all__ = ["is_number", "is_integer", "check_number", "check_integer", "check_seed"]
 
 
 def is_integer(value) -> bool:
@@ -64,4 +65,15 @@ def check_integer(name: str, value, *, error: type[Exception], minimum: int | No
     if not (whole and (minimum is None or value >= minimum)):
         rule = "an integer" if minimum is None else f"an integer >= {minimum}"
         raise _error_class(error)(f"{name} must be {rule}, got {value!r}")
+    return int(value)
+
+
+def check_seed(name: str, value, *, error: type[Exception]) -> int | None:
+    """``value`` as a random seed: None (fresh entropy from the operating system) or an ``int`` / NumPy integer
+    >= 0 (what :func:`numpy.random.default_rng` takes as one number); raises ``error`` otherwise, for ``bool``,
+    floats such as 1.5 and strings too, whose own NumPy messages do not name the argument."""
+    if value is None:
+        return None
+    if not (is_integer(value) and value >= 0):
+        raise _error_class(error)(f"{name} must be None or an integer >= 0, got {value!r}")
     return int(value)

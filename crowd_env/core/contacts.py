@@ -13,24 +13,29 @@ is stored row by row in a two-body sparse form that the Frémond solvers of :mod
 Conventions: the normal n points from j to i (from the wall into i); t = e_z × n; the contact
 point lies on the line of centres at ρ_i = d r_i/(r_i + r_j) from i (ρ_i = r_i against a wall), so
 that angular momentum is conserved exactly. Velocities are (u_x, u_y, ω) per body.
+
+Periodic along x (``period_m`` L > 0): every displacement between two bodies (a pair's line of centres, a
+hand link's d = A_i − A_j) is taken to its nearest image (:func:`~crowd_env.core.periodic.minimum_image_dx`),
+so a contact across the seam has the rows of the same contact away from it. Walls are not periodic.
 """
 from __future__ import annotations
 
 import numba as nb
 import numpy as np
 
+from .periodic import minimum_image_dx
 from .segments import wall_proximity
 
 NORMAL, TANGENT, LINK = 0, 1, 2
 
 
 @nb.njit(cache=True)
-def pair_candidates(position, radius, speed, pairs, index, eps_m, dt_s, margin_out):
+def pair_candidates(position, radius, speed, pairs, index, eps_m, dt_s, margin_out, period_m=0.0):
     """Disk-disk candidates among ``pairs`` (rows into ``index``) with gap ≤ ε + 2h(‖u_i‖+‖u_j‖).
 
     ``speed`` (n,): ‖u‖ of each pedestrian of ``index`` (compact rows). Returns
     ``(a, b, gap, nx, ny, d)`` with a, b rows into ``index``; also writes each pedestrian's own
-    margin ε + 2h‖u_i‖ into ``margin_out`` (used for walls).
+    margin ε + 2h‖u_i‖ into ``margin_out`` (used for walls). ``period_m``: nearest images along x.
     """
     n = index.shape[0]
     for k in range(n):
@@ -45,7 +50,7 @@ def pair_candidates(position, radius, speed, pairs, index, eps_m, dt_s, margin_o
         b = pairs[k, 1]
         i = index[a]
         j = index[b]
-        dx = position[i, 0] - position[j, 0]
+        dx = minimum_image_dx(position[i, 0] - position[j, 0], period_m)
         dy = position[i, 1] - position[j, 1]
         d = np.sqrt(dx * dx + dy * dy)
         gap = d - radius[i] - radius[j]
@@ -69,18 +74,18 @@ CONTACT_FIELDS = ("a", "b", "gap", "nx", "ny", "rho_a", "rho_b", "wall")
 
 
 @nb.njit(cache=True)
-def contact_candidates(position, radius, speed, index, pairs, walls, wall_owner, eps_m, dt_s):
+def contact_candidates(position, radius, speed, index, pairs, walls, wall_owner, eps_m, dt_s, period_m=0.0):
     """Candidate contacts (pedestrian pairs, then walls) among the pedestrians ``index``.
 
     ``speed`` (n,) compact ‖u‖; ``pairs`` rows into ``index`` (any superset of the pairs within
-    2 r_max + margins). Returns the arrays of :data:`CONTACT_FIELDS`, one entry per contact: ``a``/``b``
+    2 r_max + margins); ``period_m``: nearest images along x (module docstring). Returns the arrays of :data:`CONTACT_FIELDS`, one entry per contact: ``a``/``b``
     rows into ``index`` (b = -1 for a wall), ``gap`` (m), ``nx``/``ny`` (unit normal from b to a),
     ``rho_a``/``rho_b`` (distances of the contact point from the centres, ρ_i = d r_i/(r_i + r_j),
     ρ = r against a wall), ``wall`` (segment id or -1).
     """
     n = index.shape[0]
     margin = np.empty(n)
-    a, b, gap, nx, ny, d = pair_candidates(position, radius, speed, pairs, index, eps_m, dt_s, margin)
+    a, b, gap, nx, ny, d = pair_candidates(position, radius, speed, pairs, index, eps_m, dt_s, margin, period_m)
     npair = a.shape[0]
     if walls.shape[0]:
         wa, wseg, wgap, wnx, wny, _, _ = wall_proximity(position, radius, index, walls, wall_owner, margin)
@@ -123,7 +128,7 @@ def contact_candidates(position, radius, speed, index, pairs, walls, wall_owner,
     return c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall
 
 
-def detect_contacts(position, radius, velocity, index, pairs, walls, wall_owner, eps_m, dt_s):
+def detect_contacts(position, radius, velocity, index, pairs, walls, wall_owner, eps_m, dt_s, period_m=0.0):
     """:func:`contact_candidates` as a dict keyed by :data:`CONTACT_FIELDS`, from full (N, 2) velocities.
 
     ``pairs`` are rows into ``index`` (e.g. from :func:`~crowd_env.core.neighbors.grid_pairs`).
@@ -132,13 +137,15 @@ def detect_contacts(position, radius, velocity, index, pairs, walls, wall_owner,
     v = np.asarray(velocity, dtype=np.float64)[index]
     speed = np.sqrt(v[:, 0] ** 2 + v[:, 1] ** 2)
     pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
-    arrays = contact_candidates(position, radius, speed, index, pairs, walls, wall_owner, float(eps_m), float(dt_s))
+    arrays = contact_candidates(position, radius, speed, index, pairs, walls, wall_owner, float(eps_m), float(dt_s),
+                                float(period_m))
     return dict(zip(CONTACT_FIELDS, arrays))
 
 
 @nb.njit(cache=True)
-def link_geometry(position, heading, links, offsets):
-    """Shoulder points of hand links (Eq. 2): returns d = A_i − A_j, g_i = A_i − x_i, g_j = A_j − x_j."""
+def link_geometry(position, heading, links, offsets, period_m=0.0):
+    """Shoulder points of hand links (Eq. 2): returns d = A_i − A_j (nearest image along x with ``period_m``),
+    g_i = A_i − x_i, g_j = A_j − x_j."""
     nl = links.shape[0]
     dvec = np.empty((nl, 2))
     gi = np.empty((nl, 2))
@@ -154,13 +161,13 @@ def link_geometry(position, heading, links, offsets):
         gi[l, 1] = si * offsets[l, 0] + ci * offsets[l, 1]
         gj[l, 0] = cj * offsets[l, 2] - sj * offsets[l, 3]
         gj[l, 1] = sj * offsets[l, 2] + cj * offsets[l, 3]
-        dvec[l, 0] = position[i, 0] + gi[l, 0] - position[j, 0] - gj[l, 0]
+        dvec[l, 0] = minimum_image_dx(position[i, 0] + gi[l, 0] - position[j, 0] - gj[l, 0], period_m)
         dvec[l, 1] = position[i, 1] + gi[l, 1] - position[j, 1] - gj[l, 1]
     return dvec, gi, gj
 
 
 @nb.njit(cache=True)
-def active_links(position, heading, active, index, links, offsets):
+def active_links(position, heading, active, index, links, offsets, period_m=0.0):
     """The hand links whose two pedestrians are active, with pedestrians as rows into ``index`` (the
     active ones, ascending), and their :func:`link_geometry`: ``(l_a, l_b, d, g_i, g_j)``."""
     rank = np.full(active.shape[0], -1, np.int64)
@@ -183,7 +190,7 @@ def active_links(position, heading, active, index, links, offsets):
             kept_offsets[q, c] = offsets[keep[q], c]
         l_a[q] = rank[kept[q, 0]]
         l_b[q] = rank[kept[q, 1]]
-    dvec, gi, gj = link_geometry(position, heading, kept, kept_offsets)
+    dvec, gi, gj = link_geometry(position, heading, kept, kept_offsets, period_m)
     return l_a, l_b, dvec, gi, gj
 
 

@@ -4,6 +4,12 @@ The walkable area is the domain Υ of the paper's Section 2.3 with the obstacles
 the areas ∂Υ where the travel time vanishes (Eq. 12) and where pedestrians leave the simulation when
 their centre enters. Walls are the boundary of the walkable area minus the parts lying in or on an
 exit, as ``(S, 4)`` segments (see :mod:`crowd_env.core.segments`), so pedestrians can walk into exits.
+
+A *periodic* geometry (``period_x_m`` L > 0, the periodic corridor) identifies x = 0 with x = L: its walkable
+area spans x ∈ [0, L] with the same cross-section at both ends, it has no exits, and its walls are the
+boundary minus the two seam lines, each wall that reaches the seam prolonged by
+:data:`PERIODIC_WALL_EXTENSION_M` beyond it (so that the side walls of a corridor run from x = −1 m to
+L + 1 m and cover every wrapped position; walls themselves are not periodic).
 """
 from __future__ import annotations
 
@@ -13,6 +19,7 @@ from types import MappingProxyType
 import numba as nb
 import numpy as np
 import shapely
+import shapely.affinity
 from shapely import wkt as shapely_wkt
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
@@ -21,7 +28,9 @@ from shapely.validation import explain_validity
 from .checks import check_number
 from .segments import GeometryError, as_segments, closest_point_on_segment
 
-__all__ = ["Geometry", "Raster", "GeometryError", "as_polygon"]
+__all__ = ["Geometry", "Raster", "GeometryError", "as_polygon", "PERIODIC_WALL_EXTENSION_M"]
+
+PERIODIC_WALL_EXTENSION_M = 1.0  # how far a wall reaching the seam of a periodic geometry runs on beyond it
 
 
 def ring_coordinates(coords, what: str) -> np.ndarray:
@@ -81,6 +90,32 @@ def _lines_to_segments(lines) -> np.ndarray:
     seg = np.hstack([coords[:-1][same], coords[1:][same]])
     length = np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1])
     return np.ascontiguousarray(seg[length > 1e-9])
+
+
+def _periodic_walls(area, period_m: float) -> np.ndarray:
+    """The walls of a walkable area periodic along x with period ``period_m`` (module docstring): its boundary
+    minus the seam lines x = 0 and x = L, the walls ending on the seam prolonged beyond it. Raises
+    :class:`GeometryError` unless the area spans [0, L] with the same cross-section at both ends."""
+    x0, y0, x1, y1 = area.bounds
+    tol = 1e-9 * max(1.0, period_m)
+    if abs(x0) > tol or abs(x1 - period_m) > tol:
+        raise GeometryError(f"a periodic walkable area must span x from 0 to period_x_m = {period_m:g} m, got "
+                            f"x from {x0:.6g} to {x1:.6g} m")
+    seam = [shapely.LineString([(x, y0 - 1.0), (x, y1 + 1.0)]) for x in (0.0, period_m)]
+    left, right = (area.intersection(line) for line in seam)
+    mismatch = shapely.symmetric_difference(left, shapely.affinity.translate(right, -period_m)).length
+    if mismatch > tol:
+        raise GeometryError(f"the walkable area's cross-sections at x = 0 and x = period_x_m = {period_m:g} m differ "
+                            f"({mismatch:.4g} m of them do not match): it is not periodic along x")
+    seg = _lines_to_segments(area.boundary.difference(shapely.MultiLineString(seam)))
+    for k in range(seg.shape[0]):
+        d = seg[k, 2:] - seg[k, :2]
+        d /= np.hypot(d[0], d[1])
+        for end, sign in ((slice(0, 2), -1.0), (slice(2, 4), 1.0)):
+            x = seg[k, end][0]
+            if min(abs(x), abs(x - period_m)) <= tol and d[0] != 0.0:
+                seg[k, end] += sign * PERIODIC_WALL_EXTENSION_M / abs(d[0]) * d
+    return seg
 
 
 @nb.njit(cache=True)
@@ -165,11 +200,13 @@ class Geometry:
     polygon are obstacles. ``obstacles``: polygons subtracted from it. ``exits``: one or more polygons
     where pedestrians leave (each must overlap the walkable area or share a boundary stretch with it).
     ``measurement_lines``: name -> two end points. ``measurement_areas``: name -> polygon (density).
-    Raises :class:`GeometryError` naming the problem.
+    ``period_x_m``: L > 0 makes the geometry periodic along x (module docstring; no exits then, ``exits``
+    empty); 0 (the default) for none. Raises :class:`GeometryError` naming the problem.
     """
 
     def __init__(self, walkable_area, exits, obstacles=(), measurement_lines=None, measurement_areas=None,
-                 name: str = "geometry"):
+                 name: str = "geometry", period_x_m: float = 0.0):
+        period = check_number("period_x_m", period_x_m, error=GeometryError, minimum=0.0)
         area = as_polygon(walkable_area, "walkable area")
         if obstacles is not None and not isinstance(obstacles, (list, tuple)):
             obstacles = [obstacles]
@@ -184,8 +221,11 @@ class Geometry:
         if isinstance(exits, (BaseGeometry, str)):
             exits = [exits]
         exits = list(exits) if exits is not None else []
-        if not exits:
+        if not exits and period == 0.0:
             raise GeometryError("the geometry has no exit: give at least one exit polygon")
+        if exits and period > 0.0:
+            raise GeometryError(f"a periodic geometry (period_x_m = {period:g} m) has no exits: nobody leaves a "
+                                f"periodic corridor; got {len(exits)} exit(s)")
         exit_polys = []
         for k, e in enumerate(exits):
             poly = as_polygon(e, f"exit {k}")
@@ -196,7 +236,9 @@ class Geometry:
                                     f"{poly.distance(area):.4g} m; it must overlap it or share a boundary stretch)")
             exit_polys.append(poly)
         exit_union = shapely.union_all(exit_polys)
-        walls = _lines_to_segments(area.boundary.difference(exit_union))
+        walls = _periodic_walls(area, period) if period > 0.0 else \
+            _lines_to_segments(area.boundary.difference(exit_union))
+        self._period_x_m = period
         self._walls = as_segments(walls) if walls.shape[0] else np.zeros((0, 4))
         self._walls.setflags(write=False)
         self._area = area
@@ -222,19 +264,20 @@ class Geometry:
     # -- constructors -------------------------------------------------------------------------------
     @classmethod
     def from_wkt(cls, walkable_area: str, exits, obstacles=(), measurement_lines=None, measurement_areas=None,
-                 name: str = "geometry") -> "Geometry":
+                 name: str = "geometry", period_x_m: float = 0.0) -> "Geometry":
         """Build from WKT strings (``exits``/``obstacles``: one string or a list of them)."""
         for what, value in (("walkable_area", walkable_area),):
             if not isinstance(value, str):
                 raise GeometryError(f"{what} must be a WKT string, got {type(value).__name__}")
-        return cls(walkable_area, exits, obstacles, measurement_lines, measurement_areas, name)
+        return cls(walkable_area, exits, obstacles, measurement_lines, measurement_areas, name, period_x_m)
 
     @classmethod
     def from_coordinates(cls, walkable_area, exits, obstacles=(), measurement_lines=None, measurement_areas=None,
-                         name: str = "geometry") -> "Geometry":
+                         name: str = "geometry", period_x_m: float = 0.0) -> "Geometry":
         """Build from (K, 2) vertex lists: the walkable outer ring, a list of exit rings, obstacle rings."""
         return cls(np.asarray(walkable_area, dtype=np.float64), [np.asarray(e, dtype=np.float64) for e in exits],
-                   [np.asarray(o, dtype=np.float64) for o in obstacles], measurement_lines, measurement_areas, name)
+                   [np.asarray(o, dtype=np.float64) for o in obstacles], measurement_lines, measurement_areas, name,
+                   period_x_m)
 
     # -- properties ---------------------------------------------------------------------------------
     @property
@@ -255,6 +298,11 @@ class Geometry:
     @property
     def exits(self) -> tuple:
         return self._exits
+
+    @property
+    def period_x_m(self) -> float:
+        """The periodicity L along x in metres (0: not periodic; module docstring)."""
+        return self.__dict__.get("_period_x_m", 0.0)  # geometries pickled before periodicity existed have none
 
     @property
     def exit_area(self):
@@ -289,8 +337,9 @@ class Geometry:
 
     def __repr__(self) -> str:
         b = ", ".join(f"{v:.3g}" for v in self.bounds)
+        period = f", period_x_m={self.period_x_m:g}" if self.period_x_m else ""
         return (f"Geometry({self.name!r}, area={self._area.area:.4g} m², bounds=({b}), walls={self._walls.shape[0]}, "
-                f"exits={len(self._exits)}, lines={list(self._lines)}, areas={list(self._areas)})")
+                f"exits={len(self._exits)}, lines={list(self._lines)}, areas={list(self._areas)}{period})")
 
     # -- queries ------------------------------------------------------------------------------------
     def contains(self, points) -> np.ndarray:

@@ -24,6 +24,14 @@ class ModelParams:
     ``link_dissipation_kg_per_m2`` K_v. Social repulsion (Eq. 16): ``social_strength_n`` A,
     ``social_range_m`` B, ``social_anisotropy`` λ (1 = isotropic), applied between pedestrians whose
     surface gap is below ``social_cutoff_m`` and from walls closer than that.
+
+    Vision (an addition to Kabalan et al., :mod:`crowd_env.walking.vision`): with
+    ``vision_time_gap_s`` T > 0 the calibrated agent walks at v = min(v0, max(0, (f − ``vision_jam_gap_m``)/T))
+    in the direction of a fan of ``vision_rays`` directions within ±``vision_half_angle_rad`` of e_d that
+    brings it closest to its goal, f being the free distance before touching someone or a wall in that
+    direction (Moussaïd, Helbing, Theraulaz 2011; with one ray, the collision-free speed rule of Tordeux,
+    Chraibi, Seyfried 2016); a neighbour blocks a direction within ``vision_body_scale`` κ (r_i + r_j) of its
+    centre. T = 0 (the default) is the paper's model.
     """
 
     dt_s: float = 0.01
@@ -40,6 +48,12 @@ class ModelParams:
     wall_social_strength_n: float | None = None  # None: same A as between pedestrians
     wall_social_range_m: float | None = None  # None: same B as between pedestrians
     social_forces: bool = True
+    vision_time_gap_s: float = 0.0  # T of the vision rule; 0: off (the paper's walking model)
+    vision_jam_gap_m: float = 0.0  # free distance at which the vision rule's speed reaches 0
+    vision_half_angle_rad: float = 0.0  # half-width of the fan of directions (0: along e_d only)
+    vision_rays: int = 1  # directions in the fan (odd: e_d itself is one of them)
+    vision_body_scale: float = 1.0  # κ: a neighbour blocks a direction within κ (r_i + r_j) of its centre
+    vision_body_scale_standing: float | None = None  # κ_0 at rest (κ at the desired speed); None: κ always
     rotation: bool = True  # False: headings frozen (paper Section 4.1.1, "without rotation")
     solver: str = "dual"
     extra: dict = field(default_factory=dict, compare=False, repr=False)
@@ -48,7 +62,8 @@ class ModelParams:
         if self.extra:
             raise ParameterError(f"unknown model parameter(s): {sorted(self.extra)}")
         positive = ("dt_s", "normal_dissipation_kg", "contact_tolerance_m", "social_range_m", "social_cutoff_m")
-        non_negative = ("tangential_dissipation_kg", "link_dissipation_kg_per_m2", "social_strength_n")
+        non_negative = ("tangential_dissipation_kg", "link_dissipation_kg_per_m2", "social_strength_n",
+                        "vision_time_gap_s", "vision_jam_gap_m", "vision_half_angle_rad")
         for name in positive + non_negative:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
@@ -66,6 +81,21 @@ class ModelParams:
             if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating))
                                       or not math.isfinite(value) or value < 0 or (name.endswith("_m") and value == 0)):
                 raise ParameterError(f"{name} must be a positive finite number or None, got {value!r}")
+        if isinstance(self.vision_body_scale, bool) or not isinstance(self.vision_body_scale, (int, float, np.floating)) \
+                or not 0.0 < self.vision_body_scale <= 1.0:
+            raise ParameterError(f"vision_body_scale (kappa) must lie in (0, 1], got {self.vision_body_scale!r}")
+        standing = self.vision_body_scale_standing
+        if standing is not None and (isinstance(standing, bool) or not isinstance(standing, (int, float, np.floating))
+                                     or not 0.0 < standing <= 1.0):
+            raise ParameterError(f"vision_body_scale_standing (kappa_0) must lie in (0, 1] or be None, got {standing!r}")
+        if self.vision_half_angle_rad > math.pi:
+            raise ParameterError(f"vision_half_angle_rad must lie in [0, pi], got {self.vision_half_angle_rad!r}")
+        if isinstance(self.vision_rays, bool) or not isinstance(self.vision_rays, (int, np.integer)) \
+                or self.vision_rays < 1 or self.vision_rays % 2 == 0:
+            raise ParameterError(f"vision_rays must be an odd integer >= 1, got {self.vision_rays!r}")
+        if self.vision_rays > 1 and self.vision_half_angle_rad == 0:
+            raise ParameterError(f"vision_rays = {self.vision_rays} needs vision_half_angle_rad > 0 (a fan of "
+                                 f"directions); with one direction set vision_rays = 1")
         for name in ("social_forces", "rotation"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ParameterError(f"{name} must be True or False, got {getattr(self, name)!r}")

@@ -14,6 +14,10 @@ By default a step runs as one compiled call (:func:`crowd_env.core.step.fused_st
 need a solver beyond the dense ones or a re-detection, and every step of a ``Simulator(profile=True)``
 (which times each stage into ``StepResult.timings_s``), run the same compiled stages one by one from
 Python (:meth:`Simulator._staged_step`).
+
+Periodic along x (``Simulator.period_m`` L > 0, from ``Geometry(period_x_m=L)``): x and x + L are the same
+place; positions are kept in [0, L) and every pedestrian-pedestrian displacement is taken to its nearest image
+(:mod:`crowd_env.core.periodic`), so a contact or a neighbour across the seam is the same as away from it.
 """
 from __future__ import annotations
 
@@ -28,13 +32,16 @@ import numpy as np
 from .contacts import CONTACT_FIELDS, active_links, contact_candidates
 from .neighbors import grid_pairs
 from .params import ModelParams, ParameterError
+from .checks import check_number
+from .periodic import wrap_positions
 from .polygons import PackedPolygons, pack_polygons
 from .segments import as_segments, endpoint_owners, wall_proximity
 from .solvers.cascade import SolverCascade
 from .solvers.graph import contact_keys, gap_residuals
 from .solvers.impact import solve_clusters
-from .state import CrowdState, StateError
-from .step import (FUSED_OK, MAX_REDETECT, compact_bodies, detection_reach, finish_step, first_non_finite, fused_step, grown_margins,
+from .state import CrowdState, StateError, first_overlap, pair_distances
+from .timestep import check_time_step
+from .step import (FUSED_OK, MAX_INPUT_SPEED_M_S, MAX_REDETECT, compact_bodies, detection_reach, finish_step, first_out_of_bound, fused_step, grown_margins,
                    impact_stage, kinetic_energy, leave_at_exits, redetect_candidates, smooth_update, speeds)
 
 
@@ -66,11 +73,16 @@ class Simulator:
     (bool mask); or pass ``walls`` directly and optionally ``exit_test``. ``destination``: None (a
     pedestrian leaves through any exit) or (N,) int indices into ``geometry.exits``, -1 for any exit:
     pedestrian i then leaves only when its centre enters exit ``destination[i]`` (another exit is floor
-    for it; see :class:`~crowd_env.scenarios.Scenario`).
+    for it; see :class:`~crowd_env.scenarios.Scenario`). ``period_m``: the periodicity L along x (module
+    docstring; None: the geometry's ``period_x_m``, 0 without one); it must exceed 2 (2 r_max +
+    ``social_cutoff_m``), so that the nearest image is the only one any interaction reaches. The start
+    positions are brought into [0, L) (in place) and checked for overlaps across the seam.
     """
 
+    period_m = 0.0  # the periodicity along x (set per instance; simulators pickled before it existed have none)
+
     def __init__(self, state: CrowdState, *, geometry=None, walls=None, exit_test=None,
-                 params: ModelParams | None = None, profile: bool = False, destination=None):
+                 params: ModelParams | None = None, profile: bool = False, destination=None, period_m=None):
         if not isinstance(state, CrowdState):
             raise StateError(f"state must be a CrowdState, got {type(state).__name__}")
         self.params = ModelParams() if params is None else params
@@ -85,12 +97,15 @@ class Simulator:
         # The exits as packed polygons for the compiled exit test (a duck-typed geometry without
         # ``exits`` and a bare ``exit_test`` use the callable on the end points instead).
         self._exits = None
-        if geometry is not None and getattr(geometry, "exits", None):
-            self._exits = pack_polygons(geometry.exits)
+        if geometry is not None and getattr(geometry, "exits", None) is not None and \
+                (len(geometry.exits) or getattr(geometry, "period_x_m", 0.0) > 0.0):
+            self._exits = pack_polygons(geometry.exits)  # none at all in a periodic geometry
         self.destination = self._check_destination(destination, state.n)
         self._exit_destination = np.full(state.n, -1, np.int64) if self.destination is None else self.destination
         state.validate()
+        self.period_m = self._check_period(period_m, state)
         self._check_walls(state)
+        check_time_step(state, self.params)  # refuses an unstable dt_s, warns above the safe step (timestep.py)
         self.state = state
         self.time_s = 0.0
         self.step_count = 0
@@ -104,6 +119,32 @@ class Simulator:
         self._pairs_radius = -1.0
         self._index = None
         self._index_key = -1
+
+    def _check_period(self, period_m, state, tolerance_m: float = 1e-9) -> float:
+        """The periodicity L (module docstring) checked against the geometry's and the crowd's size; wraps the
+        start positions into [0, L) and raises :class:`StateError` naming a pair that overlaps across the seam."""
+        own = float(getattr(self.geometry, "period_x_m", 0.0) or 0.0)
+        if period_m is None:
+            period = own
+        else:
+            period = check_number("period_m", period_m, error=ParameterError, minimum=0.0)
+            if own and period != own:
+                raise ParameterError(f"period_m = {period_m!r} differs from the geometry's period_x_m = {own!r}")
+        if period == 0.0:
+            return 0.0
+        idx = np.flatnonzero(state.active)
+        reach = 2.0 * (2.0 * float(state.radius_m.max(initial=0.0)) + float(self.params.social_cutoff_m))
+        if period <= reach:
+            raise ParameterError(f"period_m = {period:g} m must exceed 2 (2 r_max + social_cutoff_m) = {reach:g} m: "
+                                 "the nearest image must be the only one an interaction reaches")
+        wrap_positions(state.position_m, period)
+        pair = first_overlap(state.position_m[idx], state.radius_m[idx], tolerance_m, period)
+        if pair is not None:
+            i, j = int(idx[pair[0]]), int(idx[pair[1]])
+            raise StateError(f"pedestrians {i} and {j} overlap by {pair[2]:.4g} m at start (positions "
+                             f"{state.position_m[i].tolist()} and {state.position_m[j].tolist()}, period {period:g} m "
+                             "along x)")
+        return period
 
     def _check_walls(self, state, tolerance_m: float = 1e-9) -> None:
         """Raise :class:`StateError` naming the pedestrian and the wall when one overlaps a wall."""
@@ -199,7 +240,7 @@ class Simulator:
             self._pairs = None
             self._pairs_radius = -1.0
         if radius_m > self._pairs_radius:
-            self._pairs = grid_pairs(self.state.position_m, self.active_index, float(radius_m))
+            self._pairs = grid_pairs(self.state.position_m, self.active_index, float(radius_m), self.period_m)
             self._pairs_radius = radius_m
         return self._pairs
 
@@ -217,13 +258,40 @@ class Simulator:
                               np.full(idx.shape[0], margin_m))
 
     # ------------------------------------------------------------------ stepping
-    def _check_input(self, name, value, shape):
-        arr = np.ascontiguousarray(value, dtype=np.float64)
+    def _check_input(self, name, value, shape, scale=None, bound=np.inf, unit=""):
+        """``value`` as a contiguous float64 array of ``shape``; raises :class:`InputError` naming ``name``
+        and what was given unless it is an array of numbers of that shape, finite, with every row's norm
+        times ``scale[row]`` (empty: 1) at most ``bound`` (:data:`~crowd_env.core.step.MAX_INPUT_SPEED_M_S`)."""
+        arr = value if isinstance(value, np.ndarray) else None
+        if arr is None:
+            try:
+                arr = np.asarray(value)
+            except (TypeError, ValueError):  # ragged nesting, objects numpy cannot hold in one array
+                arr = None
+        if arr is None or arr.dtype.kind not in "biuf":
+            raise InputError(f"{name} must be an array of numbers of shape {shape} (one row per pedestrian), got "
+                             f"{_describe(value)}")
         if arr.shape != shape:
-            raise InputError(f"{name} must have shape {shape} (one row per pedestrian), got {arr.shape}")
-        if first_non_finite(arr) >= 0:
-            bad = np.flatnonzero(~np.isfinite(arr).reshape(shape[0], -1).all(axis=1))
-            raise InputError(f"{name} is not finite for pedestrian(s) {bad[:10].tolist()}")
+            given = "an array" if isinstance(value, np.ndarray) else f"a {type(value).__name__}"
+            raise InputError(f"{name} must have shape {shape} (one row per pedestrian), got {given} of shape {arr.shape}")
+        arr = np.ascontiguousarray(arr, dtype=np.float64)
+        scale = _EMPTY_1D if scale is None else scale
+        first = first_out_of_bound(arr, scale, bound)
+        if first >= 0:
+            rows = arr.reshape(shape[0], -1)
+            bad = np.flatnonzero(~np.isfinite(rows).all(axis=1))
+            if bad.size:
+                raise InputError(f"{name} is not finite for pedestrian(s) {bad[:10].tolist()}")
+            norm = np.hypot(rows[:, 0], rows[:, 1])
+            limit = bound / scale if scale.shape[0] else np.full(shape[0], bound)
+            bad = np.flatnonzero(norm * (scale if scale.shape[0] else 1.0) > bound)
+            bad = bad if bad.size else np.array([first])  # hypot and the kernel's root may differ in the last bit
+            i = int(first)
+            rule = (f"{bound:g} m/s" if not scale.shape[0] else
+                    f"m u_max / tau = {limit[i]:.4g} {unit} (the force whose speed tau |f| / m is u_max = {bound:g} m/s)")
+            raise InputError(f"{name} of pedestrian {i} has magnitude {norm[i]:.4g} {unit}; the step accepts at most "
+                             f"{rule}, the bound crowd_env.core.step.MAX_INPUT_SPEED_M_S that keeps the contact "
+                             f"detection's rounding below its tolerance (pedestrian(s) over it: {bad[:10].tolist()})")
         return arr
 
     def step(self, intents_m_s, *, desired_heading_rad=None, external_force_n=None) -> StepResult:
@@ -232,13 +300,20 @@ class Simulator:
         ``intents_m_s`` (N, 2): velocity intent of every pedestrian (rows of inactive ones are ignored).
         ``desired_heading_rad`` (N,): θ_d of Eq. 15; by default the direction of the intent (the
         current heading where the intent is zero). ``external_force_n`` (N, 2): added forces.
+
+        Every input must be finite; an intent may be at most
+        :data:`~crowd_env.core.step.MAX_INPUT_SPEED_M_S` (1e3 m/s) in norm and an external force at most
+        m u_max / τ (the force equivalent to such an intent in Eq. 14; 1.66e5 N for m = 83 kg, τ = 0.5 s).
+        Anything else raises :class:`~crowd_env.errors.InputError` naming the argument, the pedestrian and
+        the bound, before the state changes.
         """
         n_all = self.state.n
-        intents = self._check_input("intents_m_s", intents_m_s, (n_all, 2))
+        intents = self._check_input("intents_m_s", intents_m_s, (n_all, 2), bound=MAX_INPUT_SPEED_M_S, unit="m/s")
         theta_d = _EMPTY_1D if desired_heading_rad is None else \
             self._check_input("desired_heading_rad", desired_heading_rad, (n_all,))
         force = _EMPTY_2D if external_force_n is None else \
-            self._check_input("external_force_n", external_force_n, (n_all, 2))
+            self._check_input("external_force_n", external_force_n, (n_all, 2), self.state.tau_s / self.state.mass_kg,
+                              MAX_INPUT_SPEED_M_S, "N")
         inputs = (intents, theta_d, desired_heading_rad is not None, force, external_force_n is not None)
         # The cascade says when the dense solvers alone may serve (not right after a large projection, whose
         # staged step skips the dense projection: the fused step waits too, so fused and staged runs stay
@@ -262,7 +337,7 @@ class Simulator:
             st.inertia_kg_m2, st.tau_s, st.heading_stiffness, st.heading_damping, *inputs, idx, self.walls,
             self._wall_owner, *self._cached_pairs(), *links, p.dt_s, p.contact_tolerance_m, p.normal_dissipation_kg,
             p.tangential_dissipation_kg, p.link_dissipation_kg_per_m2, p.rotation, *self.cascade.impact_limits(),
-            self.cascade.max_dense_projection_rows)
+            self.cascade.max_dense_projection_rows, self.period_m)
         if status != FUSED_OK:
             return None
         self.n_redetections += n_redetect
@@ -295,7 +370,8 @@ class Simulator:
         timings["neighbors"] = t2 - t1
         # 3. contacts
         con = dict(zip(CONTACT_FIELDS, contact_candidates(st.position_m, st.radius_m, speed_star, idx, pairs,
-                                                          self.walls, self._wall_owner, p.contact_tolerance_m, h)))
+                                                          self.walls, self._wall_owner, p.contact_tolerance_m, h,
+                                                          self.period_m)))
         links_a, links_b, dvec, gi, gj = self._active_links(idx)
         mass, inertia = compact_bodies(st.mass_kg, st.inertia_kg_m2, idx)
         t3 = time.perf_counter()
@@ -356,7 +432,7 @@ class Simulator:
         previous = st.position_m[idx]
         min_gap, contacts = finish_step(st.position_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad,
                                         st.radius_m, idx, vel, h, p.rotation, self.walls, con["a"], con["b"],
-                                        con["wall"], p_n, p_t, lam_p, in_impact)
+                                        con["wall"], p_n, p_t, lam_p, in_impact, self.period_m)
         exited = self._leave_at_exits(idx, previous)
         timings["integrate"] = time.perf_counter() - t5
         return self._result(contacts, ke0, ke1, ke2, n_clusters, max_cluster, exited, timings, min_gap)
@@ -399,7 +475,8 @@ class Simulator:
         there is no new one (:func:`~crowd_env.core.step.redetect_candidates`)."""
         p = self.params
         new = redetect_candidates(self.state.position_m, self.state.radius_m, idx, self.walls, self._wall_owner,
-                                  p.contact_tolerance_m, h, r_max, speed, grown, con["a"], con["b"], con["wall"])
+                                  p.contact_tolerance_m, h, r_max, speed, grown, con["a"], con["b"], con["wall"],
+                                  self.period_m)
         if not new[0].shape[0]:
             return None
         return {k: np.concatenate([con[k], v]) for k, v in zip(CONTACT_FIELDS, new)}
@@ -410,7 +487,7 @@ class Simulator:
         st = self.state
         if st.links.shape[0] == 0:
             return _NO_LINKS
-        return active_links(st.position_m, st.heading_rad, st.active, idx, st.links, st.link_offsets_m)
+        return active_links(st.position_m, st.heading_rad, st.active, idx, st.links, st.link_offsets_m, self.period_m)
 
     def min_gap_m(self) -> float:
         """Smallest gap between two active pedestrians or a pedestrian and a wall (negative = overlap)."""
@@ -420,13 +497,23 @@ class Simulator:
         if idx.shape[0] >= 2:
             pairs = self.neighbor_pairs(2.0 * float(st.radius_m[idx].max()) + 0.05)
             if pairs.shape[0]:
-                d = np.linalg.norm(st.position_m[idx[pairs[:, 0]]] - st.position_m[idx[pairs[:, 1]]], axis=1)
+                d = pair_distances(st.position_m, idx[pairs], self.period_m)
                 best = float(np.min(d - st.radius_m[idx[pairs[:, 0]]] - st.radius_m[idx[pairs[:, 1]]]))
         if self.walls.shape[0] and idx.shape[0]:
             _, _, gap, *_ = self.wall_proximity(0.05)
             if gap.shape[0]:
                 best = min(best, float(gap.min()))
         return best
+
+
+def _describe(value) -> str:
+    """What a step input was, for an error message: the array's shape and dtype, or the object's repr (cut)."""
+    if value is None:
+        return "None"
+    if isinstance(value, np.ndarray):
+        return f"an array of shape {value.shape} and dtype {value.dtype}"
+    text = repr(value)
+    return f"{type(value).__name__} {text if len(text) <= 60 else text[:57] + '...'}"
 
 
 _EMPTY_1D = np.zeros(0)

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .neighbors import grid_pairs
+from .periodic import minimum_image_dx
 from .params import ParameterError, PedestrianDefaults
 
 
@@ -164,19 +165,29 @@ class CrowdState:
         return CrowdState(**{k: np.array(v, copy=True) for k, v in self.__dict__.items()})
 
 
-def _all_pairs_within(position_m, radius_m):
+def _all_pairs_within(position_m, radius_m, period_m=0.0):
     position_m = np.ascontiguousarray(position_m, dtype=np.float64)
-    return grid_pairs(position_m, np.arange(position_m.shape[0], dtype=np.int64), float(radius_m))
+    return grid_pairs(position_m, np.arange(position_m.shape[0], dtype=np.int64), float(radius_m), float(period_m))
 
 
-def first_overlap(position_m: np.ndarray, radius_m: np.ndarray, tolerance_m: float = 0.0):
-    """Return ``(i, j, overlap_m)`` of the most overlapping pair, or None when no pair overlaps."""
+def pair_distances(position_m: np.ndarray, pairs: np.ndarray, period_m: float = 0.0) -> np.ndarray:
+    """(P,) centre distances of the ``pairs`` (rows of ``position_m``), at the nearest image along x when
+    ``period_m`` > 0 (:mod:`crowd_env.core.periodic`)."""
+    diff = position_m[pairs[:, 0]] - position_m[pairs[:, 1]]
+    if period_m > 0.0:
+        diff[:, 0] = minimum_image_dx(np.ascontiguousarray(diff[:, 0]), float(period_m))
+    return np.linalg.norm(diff, axis=1)
+
+
+def first_overlap(position_m: np.ndarray, radius_m: np.ndarray, tolerance_m: float = 0.0, period_m: float = 0.0):
+    """Return ``(i, j, overlap_m)`` of the most overlapping pair, or None when no pair overlaps (pairs at their
+    nearest image with ``period_m`` > 0)."""
     if position_m.shape[0] < 2:
         return None
-    pairs = _all_pairs_within(position_m, 2.0 * float(radius_m.max()))
+    pairs = _all_pairs_within(position_m, 2.0 * float(radius_m.max()), period_m)
     if pairs.size == 0:
         return None
-    d = np.linalg.norm(position_m[pairs[:, 0]] - position_m[pairs[:, 1]], axis=1)
+    d = pair_distances(position_m, pairs, period_m)
     overlap = radius_m[pairs[:, 0]] + radius_m[pairs[:, 1]] - d
     k = int(np.argmax(overlap))
     if overlap[k] > tolerance_m:
@@ -184,15 +195,17 @@ def first_overlap(position_m: np.ndarray, radius_m: np.ndarray, tolerance_m: flo
     return None
 
 
-def min_gap_m(position_m: np.ndarray, radius_m: np.ndarray) -> float:
-    """Smallest surface gap between any two pedestrians (negative = overlap); inf for N < 2."""
+def min_gap_m(position_m: np.ndarray, radius_m: np.ndarray, period_m: float = 0.0) -> float:
+    """Smallest surface gap between any two pedestrians (negative = overlap; nearest images with ``period_m``
+    > 0); inf for N < 2."""
     if position_m.shape[0] < 2:
         return float("inf")
-    pairs = _all_pairs_within(position_m, 2.0 * float(radius_m.max()) + 1.0)
+    pairs = _all_pairs_within(position_m, 2.0 * float(radius_m.max()) + 1.0, period_m)
     if pairs.size == 0:
         return float("inf")
-    d = np.linalg.norm(position_m[pairs[:, 0]] - position_m[pairs[:, 1]], axis=1)
+    d = pair_distances(position_m, pairs, period_m)
     return float(np.min(d - radius_m[pairs[:, 0]] - radius_m[pairs[:, 1]]))
 
 
-__all__ = ["CrowdState", "StateError", "ParameterError", "sample_desired_speeds", "first_overlap", "min_gap_m"]
+__all__ = ["CrowdState", "StateError", "ParameterError", "sample_desired_speeds", "first_overlap", "min_gap_m",
+           "pair_distances"]

@@ -32,6 +32,11 @@ stage functions called one by one from Python, timed, with the
 :class:`~crowd_env.core.solvers.cascade.SolverCascade` for large or degenerate problems and the
 re-detection loop. Both paths call the same kernels, so they agree to the last bit
 (``test_fused_and_staged_steps_agree_bitwise``).
+
+Periodic along x (``period_m`` L > 0, the periodic corridor): the neighbour grid, the contact candidates, the
+gap checks and the re-detection take every pedestrian-pedestrian displacement to its nearest image
+(:mod:`crowd_env.core.periodic`), and :func:`commit_step` brings x back into [0, L) after the move. With
+``period_m`` = 0 every stage computes what it computed before, to the bit.
 """
 from __future__ import annotations
 
@@ -41,6 +46,7 @@ import numpy as np
 from .angles import wrap_angle_scalar
 from .contacts import contact_candidates
 from .neighbors import grid_pairs, grid_pairs_around
+from .periodic import minimum_image_dx, wrap_x
 from .polygons import path_meets_polygon
 from .segments import closest_point_on_segment
 from .solvers.dense_projection import PROJECTION_TOL_M_S, project_gaps
@@ -93,14 +99,15 @@ def smooth_update(velocity, angular_velocity, heading, mass, inertia, tau, stiff
 
 
 @nb.njit(cache=True)
-def commit_step(position, velocity, angular_velocity, heading, index, vel, dt_s, rotation):
-    """Stage 6: store the final velocities and advance positions (and headings) by h."""
+def commit_step(position, velocity, angular_velocity, heading, index, vel, dt_s, rotation, period_m=0.0):
+    """Stage 6: store the final velocities and advance positions (and headings) by h; with ``period_m`` L > 0,
+    x is brought back into [0, L)."""
     for k in range(index.shape[0]):
         i = index[k]
         velocity[i, 0] = vel[k, 0]
         velocity[i, 1] = vel[k, 1]
         angular_velocity[i] = vel[k, 2]
-        position[i, 0] += dt_s * vel[k, 0]
+        position[i, 0] = wrap_x(position[i, 0] + dt_s * vel[k, 0], period_m)
         position[i, 1] += dt_s * vel[k, 1]
         if rotation:
             heading[i] = wrap_angle_scalar(heading[i] + dt_s * vel[k, 2])
@@ -138,15 +145,16 @@ def grown_margins(vel, detection_speed, eps_m, dt_s):
 
 
 @nb.njit(cache=True)
-def candidate_gaps_min(position, radius, index, walls, c_a, c_b, c_wall):
-    """Smallest current gap (m) over candidate contacts (inf when there is none)."""
+def candidate_gaps_min(position, radius, index, walls, c_a, c_b, c_wall, period_m=0.0):
+    """Smallest current gap (m) over candidate contacts (inf when there is none; pairs at their nearest
+    image along x with ``period_m``)."""
     best = np.inf
     for c in range(c_a.shape[0]):
         i = index[c_a[c]]
         if c_b[c] >= 0:
             j = index[c_b[c]]
-            g = np.sqrt((position[i, 0] - position[j, 0]) ** 2 + (position[i, 1] - position[j, 1]) ** 2) \
-                - radius[i] - radius[j]
+            g = np.sqrt(minimum_image_dx(position[i, 0] - position[j, 0], period_m) ** 2
+                        + (position[i, 1] - position[j, 1]) ** 2) - radius[i] - radius[j]
         else:
             s = c_wall[c]
             qx, qy, _ = closest_point_on_segment(position[i, 0], position[i, 1], walls[s, 0], walls[s, 1],
@@ -195,6 +203,37 @@ def first_non_finite(arr):
     for k in range(flat.shape[0]):
         if not np.isfinite(flat[k]):
             return k // per_row
+    return -1
+
+
+# The largest speed an input of a step may stand for (m/s): the intent ‖u_int‖, and the speed τ‖f‖/m an
+# external force f is equivalent to in Eq. 14 (u* − u = h/τ (u_int + τ f/m − u)). The contact detection's
+# margins ε + 2h(‖u_i‖ + ‖u_j‖) and the gap projection hold for any finite speed, but their rounding grows
+# with the distance h‖u‖ a body travels in a step (about 1e-16 h‖u‖): on the Seyfried bottleneck intents of
+# 1e8 m/s (2e6 m/s after one step, 2e4 m per step) still left overlaps below 5e-10 m, intents of 1e12 m/s put
+# every centre outside the walls, and above about 1e153 m/s the kinetic energy overflows. 1e3 m/s (10 m per step
+# at h = 0.01 s, 750 times a walker's 1.34 m/s) keeps five orders of magnitude from the first; Simulator.step
+# refuses larger inputs with an InputError naming the argument, the pedestrian and this bound.
+MAX_INPUT_SPEED_M_S = 1.0e3
+
+
+@nb.njit(cache=True)
+def first_out_of_bound(arr, scale, bound):
+    """Row of the first row of a 1-D or 2-D float array with a non-finite entry, or whose Euclidean norm times
+    ``scale[row]`` (``scale`` empty: 1) exceeds ``bound`` (inf: finiteness only); −1 when there is none."""
+    flat = arr.reshape(-1)
+    n = arr.shape[0]
+    per_row = flat.shape[0] // max(n, 1)
+    scaled = scale.shape[0] > 0
+    for r in range(n):
+        ss = 0.0
+        for c in range(per_row):
+            x = flat[r * per_row + c]
+            if not np.isfinite(x):
+                return r
+            ss += x * x
+        if np.sqrt(ss) * (scale[r] if scaled else 1.0) > bound:
+            return r
     return -1
 
 
@@ -272,17 +311,18 @@ def impact_stage(vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho
 
 @nb.njit(cache=True)
 def finish_step(position, velocity, angular_velocity, heading, radius, index, vel, dt_s, rotation, walls,
-                c_a, c_b, c_wall, p_normal, p_tangent, p_projection, in_impact):
+                c_a, c_b, c_wall, p_normal, p_tangent, p_projection, in_impact, period_m=0.0):
     """Stage 6 (before the exit test): :func:`commit_step`, then the smallest gap after the step among the
     candidates (pairs not among them cannot have closed) and the contacts that carried a percussion:
     ``(min_gap, contacts)``, ``contacts`` being :func:`compact_contacts`."""
-    commit_step(position, velocity, angular_velocity, heading, index, vel, dt_s, rotation)
-    min_gap = candidate_gaps_min(position, radius, index, walls, c_a, c_b, c_wall)
+    commit_step(position, velocity, angular_velocity, heading, index, vel, dt_s, rotation, period_m)
+    min_gap = candidate_gaps_min(position, radius, index, walls, c_a, c_b, c_wall, period_m)
     return min_gap, compact_contacts(index, c_a, c_b, c_wall, p_normal, p_tangent, p_projection, in_impact)
 
 
 @nb.njit(cache=True)
-def redetect_candidates(position, radius, index, walls, wall_owner, eps_m, dt_s, r_max, speed, grown, c_a, c_b, c_wall):
+def redetect_candidates(position, radius, index, walls, wall_owner, eps_m, dt_s, r_max, speed, grown, c_a, c_b, c_wall,
+                        period_m=0.0):
     """Stage 5's re-detection: the candidates with margins from the speeds ``speed`` (compact (n,)) that
     the list (``c_a``, ``c_b``, ``c_wall``) lacks, as the arrays of
     :data:`~crowd_env.core.contacts.CONTACT_FIELDS` (rows into ``index``). Only pairs involving a
@@ -295,7 +335,7 @@ def redetect_candidates(position, radius, index, walls, wall_owner, eps_m, dt_s,
     s_max = 0.0
     for k in range(n):
         s_max = max(s_max, speed[k])
-    pairs = grid_pairs_around(position, index, grown, redetection_reach(r_max, eps_m, dt_s, g_max, s_max))
+    pairs = grid_pairs_around(position, index, grown, redetection_reach(r_max, eps_m, dt_s, g_max, s_max), period_m)
     mark = np.zeros(n, np.bool_)
     for k in range(grown.shape[0]):
         mark[grown[k]] = True
@@ -311,7 +351,7 @@ def redetect_candidates(position, radius, index, walls, wall_owner, eps_m, dt_s,
         sub_pairs[p, 0] = row_in_sub[pairs[p, 0]]
         sub_pairs[p, 1] = row_in_sub[pairs[p, 1]]
     a, b, gap, nx, ny, rho_a, rho_b, wall = contact_candidates(position, radius, speed[sub], index[sub], sub_pairs,
-                                                               walls, wall_owner, eps_m, dt_s)
+                                                               walls, wall_owner, eps_m, dt_s, period_m)
     for c in range(a.shape[0]):
         a[c] = sub[a[c]]
         if b[c] >= 0:
@@ -330,8 +370,9 @@ def redetect_candidates(position, radius, index, walls, wall_owner, eps_m, dt_s,
 def fused_step(position, radius, velocity, angular_velocity, heading, mass_all, inertia_all, tau, stiffness,
                damping, intents, theta_d, has_theta_d, force, has_force, index, walls, wall_owner,
                cached_pairs, cached_radius_m, l_a, l_b, dvec, gi, gj, dt_s, eps_m, k_n, k_tg, k_v, rotation,
-               max_dense_rows, max_dense_bodies, max_projection_rows):
-    """The stages 1-6 (but the exit test) in one compiled call, with the dense solvers only (module docstring).
+               max_dense_rows, max_dense_bodies, max_projection_rows, period_m=0.0):
+    """The stages 1-6 (but the exit test) in one compiled call, with the dense solvers only (module docstring;
+    ``period_m``: the periodicity along x, 0 for none).
 
     Returns ``(status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetections)``,
     ``contacts`` being :func:`compact_contacts`. With ``status != FUSED_OK`` nothing was written and the caller must run
@@ -342,9 +383,9 @@ def fused_step(position, radius, velocity, angular_velocity, heading, mass_all, 
     vel = smooth_update(velocity, angular_velocity, heading, mass_all, inertia_all, tau, stiffness, damping,
                         intents, theta_d, has_theta_d, force, has_force, index, dt_s, rotation)
     speed_star, r_max, reach = detection_reach(vel, radius, index, eps_m, dt_s)
-    pairs = cached_pairs if reach <= cached_radius_m else grid_pairs(position, index, reach)
+    pairs = cached_pairs if reach <= cached_radius_m else grid_pairs(position, index, reach, period_m)
     c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall = contact_candidates(
-        position, radius, speed_star, index, pairs, walls, wall_owner, eps_m, dt_s)
+        position, radius, speed_star, index, pairs, walls, wall_owner, eps_m, dt_s, period_m)
     mass, inertia = compact_bodies(mass_all, inertia_all, index)
     ke0, p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = impact_stage(
         vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, l_a, l_b, dvec, gi, gj,
@@ -364,7 +405,8 @@ def fused_step(position, radius, velocity, angular_velocity, heading, mass_all, 
         if grown.shape[0]:
             det_speed = np.maximum(det_speed, speeds(vel))
             na, nb_, ngap, nnx, nny, nra, nrb, nwall = redetect_candidates(
-                position, radius, index, walls, wall_owner, eps_m, dt_s, r_max, det_speed, grown, c_a, c_b, c_wall)
+                position, radius, index, walls, wall_owner, eps_m, dt_s, r_max, det_speed, grown, c_a, c_b, c_wall,
+                period_m)
             extra = na.shape[0]
             if extra:
                 c_a = np.concatenate((c_a, na))
@@ -391,5 +433,5 @@ def fused_step(position, radius, velocity, angular_velocity, heading, mass_all, 
         have_lam = True
     ke2 = kinetic_energy(vel, mass, inertia)
     min_gap, contacts = finish_step(position, velocity, angular_velocity, heading, radius, index, vel, dt_s,
-                                    rotation, walls, c_a, c_b, c_wall, p_n, p_t, lam_p, in_impact)
+                                    rotation, walls, c_a, c_b, c_wall, p_n, p_t, lam_p, in_impact, period_m)
     return FUSED_OK, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect

@@ -92,7 +92,7 @@ class ObservingBackground:
     zero (the environment overwrites its agents' rows)."""
 
     def __init__(self, policy, options: dict, *, navigation, walls, background_mask: np.ndarray, dt_s: float,
-                 velocity_bound_m_s: float, travel_time_bound_s: float):
+                 velocity_bound_m_s: float, travel_time_bound_s: float, period_m: float = 0.0):
         self.policy = policy
         self.options = dict(options)
         self.frame_skip = int(options["frame_skip"])
@@ -103,7 +103,7 @@ class ObservingBackground:
                                            neighbor_radius_m=float(options["neighbor_radius_m"]),
                                            ray_range_m=float(options["ray_range_m"]),
                                            velocity_bound_m_s=velocity_bound_m_s, travel_time_bound_s=travel_time_bound_s,
-                                           frame=options["observation_frame"])
+                                           frame=options["observation_frame"], period_m=period_m)
         want = getattr(policy, "obs_dim", None)  # checked when the policy says
         if want is not None and int(want) != self.observer.size:
             raise PolicyError(f"background policy {getattr(policy, 'name', policy)!r} expects observations of size "

@@ -83,7 +83,9 @@ Episode end
     destinations, e.g. ``corridor_bidirectional``; another exit is floor for it) leaves: its agent
     gets ``terminations[a] = True`` on that step (with its final observation) and is removed from
     ``agents``. Observations and rewards use each agent's own destination field. After ``max_steps`` environment
-    steps every live agent is truncated. ``step({})`` with no live agent returns five empty dicts
+    steps every live agent is truncated. A periodic scenario (``periodic_corridor``: no exits) ends that way
+    only; its travel time falls along the walking direction and jumps by L/V at the seam, so the progress
+    T_before − T_after is taken to its nearest image modulo L/V (a crossing earns the distance walked). ``step({})`` with no live agent returns five empty dicts
     (SuperSuit's ``black_death_v3`` relies on it); ``step_background()`` then moves the pedestrians
     still on the floor on (the background policy's), for measuring the whole crowd when only some
     pedestrians are agents. ``reset(options=...)`` ignores its options.
@@ -105,7 +107,7 @@ Decision interval
 """
 from __future__ import annotations
 
-from crowd_env.errors import ActionError, EnvStateError, PolicyError, EnvOptionError
+from crowd_env.errors import ActionError, EnvStateError, PolicyError, EnvOptionError, UnknownOptionError
 
 import inspect
 import math
@@ -121,8 +123,10 @@ from pettingzoo.utils.conversions import parallel_to_aec
 from ..core.params import ModelParams, ParameterError
 from ..core.presets import DEFAULT_PRESET, get_preset
 from ..core.simulator import Simulator
+from ..core.periodic import minimum_image_dx
+from ..core.step import MAX_INPUT_SPEED_M_S
 from ..core.angles import direction_angles_rad
-from ..core.checks import check_integer, check_number
+from ..core.checks import check_integer, check_number, check_seed
 from ..scenarios import Scenario, make_scenario, scenario_options as _scenario_option_defaults
 from ..walking.agent import SocialForceAgent, desired_direction, hold_waiting
 from .background import OBSERVATION_POLICY_OPTIONS, ObservingBackground, is_observation_policy, load_named_background
@@ -130,8 +134,9 @@ from .observations import OBSERVATION_FIELDS, ObservationBuilder, check_frame, t
 from .rewards import DefaultReward
 from .state import GlobalStateBuilder
 
-__all__ = ["CrowdParallelEnv", "parallel_env", "env", "EnvOptionError", "ResetOptionsWarning", "ENV_OPTIONS",
-           "OBSERVATION_FIELDS", "DEFAULT_ACTION_MAX_M_S", "default_background_policy", "agent_id", "decisions_for_time"]
+__all__ = ["CrowdParallelEnv", "parallel_env", "env", "EnvOptionError", "UnknownOptionError", "ResetOptionsWarning",
+           "ENV_OPTIONS", "OPTION_ALIASES", "resolve_options", "unknown_options_message", "OBSERVATION_FIELDS",
+           "DEFAULT_ACTION_MAX_M_S", "default_background_policy", "agent_id", "decisions_for_time"]
 
 DEFAULT_ACTION_MAX_M_S = 2.5
 DEFAULT_EPISODE_TIME_S = 60.0
@@ -166,6 +171,17 @@ def _count(name, value, minimum=0):
     return check_integer(name, value, error=EnvOptionError, minimum=minimum)
 
 
+def _action_max(name, value) -> float:
+    """a_max, positive and small enough that an action's norm (up to a_max √2) stays within the core's bound on
+    intents (:data:`~crowd_env.core.step.MAX_INPUT_SPEED_M_S`)."""
+    a = _positive_number(name, value)
+    if a * math.sqrt(2.0) > MAX_INPUT_SPEED_M_S:
+        raise EnvOptionError(f"{name} must be at most {MAX_INPUT_SPEED_M_S / math.sqrt(2.0):.6g} m/s (an action's norm, "
+                             f"up to {name} x sqrt(2), must stay within the core's bound on intents "
+                             f"crowd_env.core.step.MAX_INPUT_SPEED_M_S = {MAX_INPUT_SPEED_M_S:g} m/s), got {value!r}")
+    return a
+
+
 def _check_heading_target(name, value) -> str:
     if value not in ("intent", "desired_direction"):
         raise EnvOptionError(f"{name} must be 'intent' or 'desired_direction', got {value!r}")
@@ -174,7 +190,7 @@ def _check_heading_target(name, value) -> str:
 
 _OPTION_CHECKS = {  # the options an observation policy depends on (OBSERVATION_POLICY_OPTIONS), checked
     "frame_skip": lambda n, v: _count(n, v, minimum=1),
-    "action_max_m_s": _positive_number,
+    "action_max_m_s": _action_max,
     "n_neighbors": _count,
     "n_rays": _count,
     "neighbor_radius_m": _positive_number,
@@ -264,8 +280,9 @@ class CrowdParallelEnv(ParallelEnv):
       override the preset's. The preset's navigation clearance applies to the bottleneck scenarios
       through their factory defaults (the radius), not here: pass ``navigation_clearance_m`` in
       ``scenario_options`` to change it.
-    - ``max_steps``: environment steps before truncation (default: 60 s of simulated time).
-    - ``action_max_m_s``: a_max of the action Box (default 2.5 m/s).
+    - ``max_steps``: environment steps before truncation (default: 60 s of simulated time);
+      :func:`parallel_env` and :func:`env` also take it as ``max_cycles``, PettingZoo's name.
+    - ``action_max_m_s``: a_max of the action Box (default 2.5 m/s; at most 1e3/√2 m/s, the core's bound on intents).
     - ``n_neighbors`` (k, default 6), ``neighbor_radius_m`` (4 m), ``n_rays`` (R, default 8),
       ``ray_range_m`` (5 m): observation settings.
     - ``reward_fn``: ``reward_fn(env, agent_ids, info) -> rewards`` (default :class:`DefaultReward`).
@@ -375,7 +392,8 @@ class CrowdParallelEnv(ParallelEnv):
         self._observer = ObservationBuilder(self.navigation, scenario.geometry.walls, n_neighbors=self.n_neighbors,
                                             n_rays=self.n_rays, neighbor_radius_m=neighbor_radius_m,
                                             ray_range_m=ray_range_m, velocity_bound_m_s=self.velocity_bound_m_s,
-                                            travel_time_bound_s=t_bound, frame=self.observation_frame)
+                                            travel_time_bound_s=t_bound, frame=self.observation_frame,
+                                            period_m=scenario.geometry.period_x_m)
         self.observation_layout = dict(self._observer.layout)
         if observing:  # a learned background: observed and acting with its own options, checked as ours are
             options = _observation_options({k: background_policy.env_overrides.get(k, ENV_DEFAULTS[k])
@@ -383,7 +401,8 @@ class CrowdParallelEnv(ParallelEnv):
             self._background_policy = ObservingBackground(
                 background_policy, options, navigation=self.navigation, walls=scenario.geometry.walls,
                 background_mask=self._background_mask, dt_s=self.params.dt_s,
-                velocity_bound_m_s=self.velocity_bound_m_s, travel_time_bound_s=t_bound)
+                velocity_bound_m_s=self.velocity_bound_m_s, travel_time_bound_s=t_bound,
+                period_m=scenario.geometry.period_x_m)
         self._state_builder = GlobalStateBuilder(self.navigation, scenario.geometry, self._controlled_mask,
                                                  frame=self.observation_frame,
                                                  velocity_bound_m_s=self.velocity_bound_m_s, travel_time_bound_s=t_bound)
@@ -402,6 +421,7 @@ class CrowdParallelEnv(ParallelEnv):
         self._steps = 0
         self._agent_index = np.zeros(0, np.int64)
         self._travel_time = np.full(n, np.nan)
+        self._progress_period_s = _travel_time_period_s(self.navigation, scenario.geometry.period_x_m)
         self._renderer = None
         self.substep_hooks = []
         self._percussions = None
@@ -439,6 +459,16 @@ class CrowdParallelEnv(ParallelEnv):
         return str(p) if len(p) <= 8 else f"[{', '.join(p[:4])}, ..., {p[-1]}] ({len(p)})"
 
     # ------------------------------------------------------------------ read-only views
+    @property
+    def max_cycles(self) -> int:
+        """PettingZoo's name of :attr:`max_steps` (environment steps before every live agent is truncated);
+        setting it sets ``max_steps``, as PettingZoo's ``parallel_api_test`` does."""
+        return self.max_steps
+
+    @max_cycles.setter
+    def max_cycles(self, value) -> None:
+        self.max_steps = _count("max_cycles", value, minimum=1)
+
     @property
     def sim(self) -> Simulator:
         """The current :class:`~crowd_env.core.simulator.Simulator` (None before the first reset)."""
@@ -528,6 +558,7 @@ class CrowdParallelEnv(ParallelEnv):
             keys = sorted(options) if isinstance(options, dict) else options
             warnings.warn(f"reset() ignores its options {keys!r}; pass environment options to parallel_env(...) / "
                           "env(...) or gymnasium.make(...)", ResetOptionsWarning, stacklevel=2)
+        seed = check_seed("seed", seed, error=EnvOptionError)
         if seed is not None:
             self._rng = np.random.default_rng(seed)
         elif self._rng is None:
@@ -552,7 +583,7 @@ class CrowdParallelEnv(ParallelEnv):
             self._background_policy = default_background_policy(self._scenario)
         self._steps = 0
         if self._percussions is not None:
-            self._percussions.take()  # nothing of the last episode on the first frame
+            self._percussions.clear()  # nothing of the last episode on the first frame
         self.agents = self.possible_agents[:]
         self._agent_index = self._controlled_index.copy()
         obs, travel = self._observer.build(state, self._agent_index)
@@ -686,6 +717,8 @@ class CrowdParallelEnv(ParallelEnv):
         by_intent = self.heading_target == "intent"
         theta_c = _NO_ANGLES
         hooks = self.substep_hooks
+        if self._percussions is not None:  # frames show this step's contacts only (crowd_env.envs.rendering)
+            self._percussions.clear()
         update = getattr(self.navigation, "update", None)  # route choice: re-chosen from the crowd each step
         for _ in range(self.frame_skip):
             if update is not None:
@@ -713,6 +746,8 @@ class CrowdParallelEnv(ParallelEnv):
         obs, t_after, speed = self._observer.observe(st, idx_c)
         progress, perc_c, contacts_c, exited, truncated, n_done = _step_arrays(
             st.active, idx_c, t_before, t_after, self._travel_time, percussion, contacts, self._steps >= self.max_steps)
+        if self._progress_period_s > 0.0:  # periodic corridor: T jumps by L/V at the seam (module docstring)
+            progress = minimum_image_dx(progress, self._progress_period_s)
         info = {"agent_index": idx_c.copy(), "progress_s": progress, "travel_time_before_s": t_before,
                 "travel_time_s": t_after, "contact_percussion_kg_m_s": perc_c, "n_contacts": contacts_c,
                 "speed_m_s": speed, "exited": exited, "dt_s": self.dt_s}
@@ -772,7 +807,7 @@ class CrowdParallelEnv(ParallelEnv):
 
             self._renderer = CrowdRenderer(self._scenario.geometry, self._controlled_mask, self.render_mode,
                                            fps=self.metadata["render_fps"])
-        return self._renderer.draw(self._sim.state, self._sim.time_s, len(self.agents), contacts=self._percussions.take())
+        return self._renderer.draw(self._sim.state, self._sim.time_s, len(self.agents), contacts=self._percussions.peek())
 
     def close(self):
         if self._renderer is not None:
@@ -823,6 +858,18 @@ def _add_contacts(percussion, contacts, contact_i, contact_j, percussion_normal)
             percussion[p] += part[p]
 
 
+def _travel_time_period_s(navigation, period_m: float) -> float:
+    """L / V, the jump of the travel time of ``navigation`` across the seam of a geometry periodic with period L
+    (0 when it is not periodic); its fields must share one wavefront speed V."""
+    if not period_m:
+        return 0.0
+    fields = navigation.fields.values() if hasattr(navigation, "fields") else [navigation]
+    speeds = {float(getattr(f, "speed_m_s", 1.0)) for f in fields}
+    if len(speeds) != 1:
+        raise EnvOptionError(f"a periodic scenario's navigation fields must share one speed_m_s, got {sorted(speeds)}")
+    return float(period_m) / speeds.pop()
+
+
 @nb.njit(cache=True)
 def _step_arrays(active, idx_c, t_before, t_after, travel_time, percussion, contacts, at_limit):
     """The agents' step arrays: progress T_before − T_after, their percussions and contact counts,
@@ -859,16 +906,44 @@ ENV_DEFAULTS = {p.name: p.default for p in inspect.signature(CrowdParallelEnv.__
 ENV_OPTIONS = tuple(ENV_DEFAULTS)
 
 
-def _check_options(options: dict) -> None:
-    unknown = sorted(set(options) - set(ENV_OPTIONS))
+# Other names of options, as the ecosystem spells them: PettingZoo's environments call the episode length
+# in environment steps ``max_cycles``.
+OPTION_ALIASES = {"max_cycles": "max_steps"}
+
+
+def unknown_options_message(unknown, known, what: str, call: str) -> str:
+    """The message of :class:`~crowd_env.errors.UnknownOptionError` for the unknown keyword options ``unknown``
+    of ``call`` (e.g. ``"crowd_v0.parallel_env"``): it names them and the ``known`` ones, in Python's own
+    wording for the first (``got an unexpected keyword argument 'name'``, which wrappers such as TorchRL's
+    ``GymEnv`` act on)."""
+    unknown = sorted(unknown)
+    return (f"unknown option(s) {unknown} for {what}: {call}() got an unexpected keyword argument {unknown[0]!r}; "
+            f"known: {list(known)}")
+
+
+def resolve_options(options: dict, what: str = "crowd_v0", call: str = "crowd_v0.parallel_env",
+                    extra=()) -> dict:
+    """``options`` with the aliases of :data:`OPTION_ALIASES` renamed (``max_cycles`` -> ``max_steps``; giving
+    both raises); unknown options (not in :data:`ENV_OPTIONS` or ``extra``) raise
+    :class:`~crowd_env.errors.UnknownOptionError`."""
+    options = dict(options)
+    for alias, name in OPTION_ALIASES.items():
+        if alias in options:
+            if name in options:
+                raise EnvOptionError(f"give {name} or its PettingZoo name {alias}, not both (got {name}="
+                                     f"{options[name]!r} and {alias}={options[alias]!r})")
+            options[name] = options.pop(alias)
+    known = list(ENV_OPTIONS) + [k for k in extra if k not in ENV_OPTIONS]
+    unknown = set(options) - set(known)
     if unknown:
-        raise EnvOptionError(f"unknown option(s) {unknown} for crowd_v0; known: {list(ENV_OPTIONS)}")
+        raise UnknownOptionError(unknown_options_message(unknown, known + list(OPTION_ALIASES), what, call))
+    return options
 
 
 def parallel_env(**options) -> CrowdParallelEnv:
-    """The PettingZoo parallel environment; options as in :class:`CrowdParallelEnv` (unknown ones raise)."""
-    _check_options(options)
-    return CrowdParallelEnv(**options)
+    """The PettingZoo parallel environment; options as in :class:`CrowdParallelEnv` (unknown ones raise
+    :class:`~crowd_env.errors.UnknownOptionError`), and ``max_cycles``, PettingZoo's name of ``max_steps``."""
+    return CrowdParallelEnv(**resolve_options(options))
 
 
 def env(**options):

@@ -4,7 +4,10 @@ The learner is one pedestrian (``learner``, default ``"ped_0"``) of a :class:`Cr
 with ``controlled=[learner]``; every other pedestrian follows the background policy (the calibrated
 social-force agent by default). Observation and action spaces are the learner's; the episode
 terminates when the learner leaves through an exit and is truncated at ``max_steps``. All other
-options go to :class:`~crowd_env.envs.crowd_v0.CrowdParallelEnv` (``controlled`` is fixed here).
+options go to :class:`~crowd_env.envs.crowd_v0.CrowdParallelEnv` (``controlled`` is fixed here; ``max_cycles``
+is taken for ``max_steps``); an unknown one raises :class:`~crowd_env.errors.UnknownOptionError`, a
+``TypeError`` in Python's wording, so TorchRL's ``GymEnv`` drops its ``frameskip`` argument on it as for any
+Gymnasium environment.
 """
 from __future__ import annotations
 
@@ -12,7 +15,8 @@ from crowd_env.errors import EnvStateError
 
 import gymnasium
 
-from .crowd_v0 import ENV_OPTIONS, CrowdParallelEnv, EnvOptionError
+from ..core.checks import check_seed
+from .crowd_v0 import CrowdParallelEnv, EnvOptionError, resolve_options
 
 __all__ = ["CrowdSingleAgentEnv"]
 
@@ -26,10 +30,7 @@ class CrowdSingleAgentEnv(gymnasium.Env):
         if "controlled" in options:
             raise EnvOptionError("the single-agent view controls exactly one pedestrian: pass learner=..., not "
                                  "controlled=...")
-        unknown = sorted(set(options) - set(ENV_OPTIONS))
-        if unknown:
-            known = sorted((set(ENV_OPTIONS) - {"controlled", "render_mode"}) | {"learner", "render_mode"})
-            raise EnvOptionError(f"unknown option(s) {unknown}; known: {known}")
+        options = resolve_options(options, "CrowdSingleAgentEnv", "CrowdSingleAgentEnv.__init__")
         self.parallel = CrowdParallelEnv(controlled=[learner], render_mode=render_mode, **options)
         self.learner = self.parallel.possible_agents[0]
         self.observation_space = self.parallel.observation_space(self.learner)
@@ -38,6 +39,7 @@ class CrowdSingleAgentEnv(gymnasium.Env):
         self.metadata = {**type(self).metadata, "render_fps": self.parallel.metadata["render_fps"]}
 
     def reset(self, *, seed=None, options=None):
+        seed = check_seed("seed", seed, error=EnvOptionError)
         super().reset(seed=seed)
         inner = seed if seed is not None else int(self.np_random.integers(0, 2**31 - 1))
         obs, infos = self.parallel.reset(seed=inner, options=options)

@@ -53,6 +53,7 @@ import numpy as np
 from crowd_env.errors import EnvOptionError
 
 from ..core.neighbors import grid_k_nearest
+from ..core.periodic import minimum_image_dx
 from ..walking.navigation import NavigationField, sample_bilinear
 
 __all__ = ["FRAMES", "OBSERVATION_FIELDS", "EGOCENTRIC_OBSERVATION_FIELDS", "ObservationField", "observation_fields",
@@ -149,11 +150,13 @@ class ObservationBuilder:
     ``navigation``: a field with ``sample(points) -> (e_d, T)``, or ``sample(points, index)`` when its
     ``per_pedestrian`` attribute is true (per-pedestrian destinations); ``walls``: (S, 4) segments.
     ``velocity_bound_m_s`` and ``travel_time_bound_s`` only set the declared bounds of the space;
-    ``frame``: one of :data:`FRAMES`.
+    ``frame``: one of :data:`FRAMES`; ``period_m``: the periodicity along x of the simulation
+    (``Simulator.period_m``; neighbours and their offsets at the nearest image; 0: none).
     """
 
     def __init__(self, navigation, walls, *, n_neighbors: int, n_rays: int, neighbor_radius_m: float,
-                 ray_range_m: float, velocity_bound_m_s: float, travel_time_bound_s: float, frame: str = "world"):
+                 ray_range_m: float, velocity_bound_m_s: float, travel_time_bound_s: float, frame: str = "world",
+                 period_m: float = 0.0):
         self.frame = check_frame(frame)
         self.navigation = navigation
         self.walls = np.ascontiguousarray(walls, dtype=np.float64).reshape(-1, 4)
@@ -190,7 +193,7 @@ class ObservationBuilder:
                ("velocity", "heading", "desired_direction", "travel_time", "neighbors", "neighbor_mask", "wall_rays")}
         self._ints = np.array([self.n_neighbors, self.n_rays, self.frame == "world", self._grid is not None,
                                *col.values()], np.int64)
-        self._floats = np.array([self.neighbor_radius_m, self.ray_range_m], np.float64)
+        self._floats = np.array([self.neighbor_radius_m, self.ray_range_m, float(period_m)], np.float64)
 
     def build(self, state, index: np.ndarray):
         """Observations ``(m, D)`` float32 of pedestrians ``index`` (global indices, exited ones allowed),
@@ -258,7 +261,7 @@ def _observe(position, velocity, heading, active, index, grid_xyh, grid_t, grid_
         if bad >= 0:
             return bad
     act = np.flatnonzero(active)
-    near = grid_k_nearest(position, act, index, k, floats[0])  # (m, 0) at once for k = 0
+    near = grid_k_nearest(position, act, index, k, floats[0], floats[2])  # (m, 0) at once for k = 0
     ray_range = floats[1]
     dxs = np.empty(n_rays)
     dys = np.empty(n_rays)
@@ -293,7 +296,7 @@ def _observe(position, velocity, heading, active, index, grid_xyh, grid_t, grid_
             dx = dy = du = dv = 0.0
             if r >= 0:
                 g = act[r]
-                dx = position[g, 0] - position[i, 0]
+                dx = minimum_image_dx(position[g, 0] - position[i, 0], floats[2])
                 dy = position[g, 1] - position[i, 1]
                 du = velocity[g, 0] - velocity[i, 0]
                 dv = velocity[g, 1] - velocity[i, 1]

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..core.checks import check_integer, check_number
+from ..core.periodic import minimum_image_dx
 
 __all__ = ["CrowdRenderer", "ContactPercussions", "contact_segments", "CONTROLLED_COLOR", "BACKGROUND_COLOR",
            "PERCUSSION_CMAP"]
@@ -52,7 +53,11 @@ class ContactPercussions:
     wall segment w (j = −1, as in :class:`~crowd_env.core.simulator.StepResult`).
 
     :meth:`take` returns ``(i, j, wall, percussion)`` arrays (‖P_n‖ summed, kg m/s) for
-    :meth:`CrowdRenderer.draw_frame` and starts a new sum. :meth:`add` takes one step's arrays directly.
+    :meth:`CrowdRenderer.draw_frame` and starts a new sum (:meth:`peek` keeps it, :meth:`clear` only starts
+    it). :meth:`add` takes one step's arrays directly. The environment clears its own at the start of every
+    environment step, so ``env.render()`` shows the contacts of the last step only, drawn between the
+    positions at its end (older contacts, drawn between the current positions of pedestrians that have
+    since moved apart, would be long lines across the floor).
     """
 
     def __init__(self):
@@ -67,9 +72,19 @@ class ContactPercussions:
                                np.where(j < 0, np.asarray(contact_wall, dtype=np.int64), -1)])
         self._parts.append((ijw, np.abs(np.asarray(percussion_normal, dtype=np.float64))))
 
+    def clear(self) -> None:
+        """Forget the contacts collected so far (a new sum starts)."""
+        self._parts = []
+
     def take(self) -> tuple:
         """``(i, j, wall, percussion)`` of the contacts since the last call (empty arrays when none); resets."""
-        parts, self._parts = self._parts, []
+        summed = self.peek()
+        self.clear()
+        return summed
+
+    def peek(self) -> tuple:
+        """What :meth:`take` would return, without starting a new sum."""
+        parts = self._parts
         ijw = np.concatenate([a for a, _ in parts]).reshape(-1, 3) if parts else np.zeros((0, 3), np.int64)
         p = np.concatenate([b for _, b in parts]) if parts else np.zeros(0)
         keep = p > 0.0
@@ -79,11 +94,12 @@ class ContactPercussions:
         return keys[:, 0], keys[:, 1], keys[:, 2], total
 
 
-def contact_segments(position_m, active, walls, contacts) -> tuple:
+def contact_segments(position_m, active, walls, contacts, period_m: float = 0.0) -> tuple:
     """End points ``(K, 2, 2)`` and percussions ``(K,)`` of the contact lines: centre to centre for a pair,
     centre to the closest point of wall segment ``walls[w]`` ((S, 4) rows x0 y0 x1 y1) for j = −1.
     ``contacts``: ``(i, j, wall, percussion)`` arrays (:meth:`ContactPercussions.take`). Contacts of a
-    pedestrian no longer ``active`` (it left during the frame) are left out."""
+    pedestrian no longer ``active`` (it left during the frame) are left out. ``period_m`` > 0 (a periodic
+    corridor): a pair across the seam is drawn from i to the nearest image of j."""
     i, j, w, p = (np.asarray(a) for a in contacts)
     if not (i.shape == j.shape == w.shape == p.shape and i.ndim == 1):
         raise InputError(f"contacts must be four equal-length 1-D arrays (i, j, wall, percussion), got shapes "
@@ -104,6 +120,8 @@ def contact_segments(position_m, active, walls, contacts) -> tuple:
     i, j, w, p = i[keep], j[keep], w[keep], p[keep].astype(np.float64)
     a = pos[i]
     b = pos[np.maximum(j, 0)].copy()
+    if period_m > 0.0:
+        b[:, 0] = a[:, 0] + minimum_image_dx(np.ascontiguousarray(b[:, 0] - a[:, 0]), float(period_m))
     on_wall = j < 0
     if on_wall.any():
         seg = walls[w[on_wall]]
@@ -239,7 +257,8 @@ class CrowdRenderer:
         if contacts is None:
             self.contacts.set_segments(np.zeros((0, 2, 2)))
         else:
-            segs, p = contact_segments(pos, active, self.geometry.walls, contacts)
+            segs, p = contact_segments(pos, active, self.geometry.walls, contacts,
+                                       getattr(self.geometry, "period_x_m", 0.0))
             level = np.minimum(p / self.percussion_scale_kg_m_s, 1.0)
             self.contacts.set_segments(segs)
             self.contacts.set_color(self._cmap(0.3 + 0.7 * level))

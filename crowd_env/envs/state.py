@@ -51,8 +51,11 @@ def state_size(n_pedestrians: int, n_exits: int) -> int:
 
 def scenario_frame(geometry) -> tuple:
     """``(origin (2,), cos φ, sin φ)`` of the scenario frame: origin at the walkable area's centroid, x axis
-    at angle φ towards the first exit's centre (φ = 0 when the two coincide)."""
+    at angle φ towards the first exit's centre (φ = 0 when the two coincide, or without exits: a periodic
+    corridor's frame is its own axes centred on it)."""
     origin = np.array(geometry.walkable_area.centroid.coords[0], dtype=np.float64)
+    if not geometry.exits:
+        return origin, 1.0, 0.0
     d = np.array(geometry.exits[0].centroid.coords[0], dtype=np.float64) - origin
     norm = float(np.hypot(d[0], d[1]))
     if norm < 1e-9:
@@ -74,7 +77,7 @@ class GlobalStateBuilder:
         self.navigation = navigation
         self.controlled = np.asarray(controlled_mask, dtype=bool).copy()
         n = self.controlled.shape[0]
-        exits = np.array([e.centroid.coords[0] for e in geometry.exits], dtype=np.float64)
+        exits = np.array([e.centroid.coords[0] for e in geometry.exits], dtype=np.float64).reshape(-1, 2)
         if self.frame == "world":
             self.origin, self.cos, self.sin = np.zeros(2), 1.0, 0.0
         else:

@@ -43,12 +43,14 @@ Worker processes (``workers=W``):
     (``tests/envs/test_vector.py``). The copies must pickle (module-level reward and background
     functions). An exception while stepping a group (group 0's too) is raised as
     :class:`~crowd_env.errors.WorkerError` with the traceback in its message (the original exception as
-    its ``__cause__``); a worker that dies is a ``WorkerError`` too, never a hang; after
-    either, the vector environment refuses further use. :meth:`CrowdVectorEnv.close` stops the
-    workers. With workers, ``envs`` are unstepped templates (every group, group 0 included, steps copies of
-    them): read or change the live copies
-    through :meth:`~CrowdVectorEnv.call`, :meth:`~CrowdVectorEnv.get_attr`,
-    :meth:`~CrowdVectorEnv.set_attr`, :meth:`~CrowdVectorEnv.state` and :meth:`~CrowdVectorEnv.render`.
+    its ``__cause__``); a worker that dies is a ``WorkerError`` too, never a hang (while starting as well);
+    after either, the vector environment refuses further use. With ``"spawn"`` and ``"forkserver"`` each
+    worker imports the main module (the user's script) again, so a script must make the vector environment
+    under ``if __name__ == "__main__":``; one that does not fails at once with a ``WorkerError`` that says
+    so. :meth:`CrowdVectorEnv.close` stops the workers. With workers, ``envs`` are unstepped templates
+    (every group, group 0 included, steps copies of them): read or change the live copies through
+    :meth:`~CrowdVectorEnv.call`, :meth:`~CrowdVectorEnv.get_attr`, :meth:`~CrowdVectorEnv.set_attr`,
+    :meth:`~CrowdVectorEnv.state` and :meth:`~CrowdVectorEnv.render`.
 """
 from __future__ import annotations
 
@@ -64,13 +66,25 @@ from gymnasium.vector.utils import batch_space
 
 from crowd_env.errors import ActionError, EnvOptionError, EnvStateError, WorkerError
 
-from ..core.checks import check_integer
-from .crowd_v0 import CrowdParallelEnv, parallel_env
+from ..core.checks import check_integer, check_seed
+from .crowd_v0 import CrowdParallelEnv, parallel_env, resolve_options
 
-__all__ = ["CrowdVectorEnv", "vector_env", "WorkerError"]
+__all__ = ["CrowdVectorEnv", "vector_env", "gym_vector_env", "WorkerError"]
 
 START_METHODS = ("spawn", "forkserver", "fork")
+START_TIMEOUT_S = 600.0  # a live worker that has not unpickled its copies by then is an error
 _CLOSE_TIMEOUT_S = 10.0
+_GUARD_HINT = ("With start_method 'spawn' or 'forkserver' every worker process imports the main module (your "
+               "script) again before it starts, so a script that makes a vector environment with workers > 1 at its "
+               "top level runs again in each worker and fails there. Put that code under "
+               "`if __name__ == \"__main__\":` (or in a function called from there); see the module docstring of "
+               "crowd_env.envs.vector.")
+
+
+def _importing_main() -> bool:
+    """True in a worker process while it imports the parent's main module (multiprocessing's bootstrapping
+    phase, in which no process may be started)."""
+    return bool(getattr(multiprocessing.current_process(), "_inheriting", False))
 
 
 def _spaces_key(env: CrowdParallelEnv) -> tuple:
@@ -243,10 +257,21 @@ def _group(envs, buffer, n_slots: int, dim: int, lo: int, hi: int):
     return _Copies(envs, out["alive"]), out, [v for k, v in out.items() if k not in ("actions", "alive")]
 
 
-def _worker(conn, envs_pickled: bytes, buffer, n_slots: int, dim: int, lo: int, hi: int) -> None:
-    """Body of a worker process: steps its copies (``envs_pickled``, cloudpickled as the geometry's mapping
-    proxies need; slots ``lo:hi``) on the parent's commands."""
-    copies, out, results = _group(cloudpickle.loads(envs_pickled), buffer, n_slots, dim, lo, hi)
+def _worker(conn, buffer, n_slots: int, dim: int, lo: int, hi: int) -> None:
+    """Body of a worker process: receives its copies through ``conn`` (cloudpickled, as the geometry's mapping
+    proxies need; slots ``lo:hi``), answers ``("ready", None)`` (or ``("error", ...)``), then steps them on
+    the parent's commands."""
+    try:
+        copies, out, results = _group(cloudpickle.loads(conn.recv_bytes()), buffer, n_slots, dim, lo, hi)
+    except (EOFError, KeyboardInterrupt):  # the parent is gone
+        return
+    except Exception as exc:
+        try:
+            conn.send(("error", (traceback.format_exc(), exc)))
+        except Exception:  # the exception itself does not pickle
+            conn.send(("error", (traceback.format_exc(), None)))
+        return
+    conn.send(("ready", None))
     while True:
         try:
             cmd, arg = conn.recv()
@@ -279,7 +304,11 @@ class _Workers:
         self.groups = np.array_split(np.arange(len(envs)), workers)
         self.conns, self.procs = [None], [None]  # index w: worker w's pipe and process (none for group 0)
         self.broken = None
+        if _importing_main():
+            raise EnvOptionError(f"a vector environment with workers > 1 was made while a {start_method!r} worker "
+                                 f"process was importing the main module: {_GUARD_HINT}")
         try:
+            payloads = {}
             for w, g in enumerate(self.groups):
                 lo, hi = int(g[0]) * n_agents, (int(g[-1]) + 1) * n_agents
                 try:
@@ -289,7 +318,11 @@ class _Workers:
                         continue
                     parent, child = ctx.Pipe()
                     try:
-                        proc = ctx.Process(target=_worker, args=(child, group, self.buffer, n_slots, dim, lo, hi),
+                        # The copies go through the pipe after the start, not as arguments: Process.start()
+                        # writes its arguments into the child with the child's read end still open in this
+                        # process, so a child that dies before reading them (a script without the
+                        # ``__main__`` guard) would block start() for ever.
+                        proc = ctx.Process(target=_worker, args=(child, self.buffer, n_slots, dim, lo, hi),
                                            daemon=True, name=f"crowd-vector-worker-{w}")
                         proc.start()
                     finally:
@@ -300,9 +333,36 @@ class _Workers:
                                          "background_policy)") from exc
                 self.conns.append(parent)
                 self.procs.append(proc)
+                payloads[w] = group
+            for w, group in payloads.items():
+                try:
+                    self.conns[w].send_bytes(group)
+                except (BrokenPipeError, ConnectionError, OSError):
+                    pass  # it died: _await_start says how
+            for w in payloads:
+                self._await_start(w)
         except BaseException:
             self.close()
             raise
+
+    def _await_start(self, w: int) -> None:
+        """Wait for worker ``w``'s ``ready``; a worker that dies, raises or is silent for
+        :data:`START_TIMEOUT_S` is a :class:`WorkerError` (never a hang)."""
+        conn, proc = self.conns[w], self.procs[w]
+        ready = wait([conn, proc.sentinel], timeout=START_TIMEOUT_S)
+        if not ready:
+            raise WorkerError(f"{self._where(w)} did not start within {START_TIMEOUT_S:g} s")
+        try:
+            if conn not in ready and not conn.poll():
+                raise EOFError
+            status, payload = conn.recv()
+        except (EOFError, OSError):
+            proc.join(_CLOSE_TIMEOUT_S)
+            raise WorkerError(f"{self._where(w)} died while starting (exit code {proc.exitcode}; its own error is "
+                              f"on its stderr, above). The usual cause: {_GUARD_HINT}") from None
+        if status == "error":
+            error = self._error(w, *payload)
+            raise error
 
     def _where(self, w: int) -> str:
         g = self.groups[w]
@@ -450,10 +510,11 @@ class CrowdVectorEnv(VectorEnv):
         """Reset every copy; returns ``(observations (K A, D), infos)``. ``seed``: an int
         s (copy c gets s + c), a list of K ints or None (continue each copy's stream)."""
         self._check_usable("reset()")
-        if seed is None or isinstance(seed, (int, np.integer)):
-            seeds = [None if seed is None else int(seed) + c for c in range(self.n_copies)]
+        if seed is None or not isinstance(seed, (list, tuple, np.ndarray)):
+            seed = check_seed("seed", seed, error=EnvOptionError)
+            seeds = [None if seed is None else seed + c for c in range(self.n_copies)]
         else:
-            seeds = list(seed)
+            seeds = [check_seed(f"seed[{c}]", s, error=EnvOptionError) for c, s in enumerate(seed)]
             if len(seeds) != self.n_copies:
                 raise EnvOptionError(f"reset(seed=...) needs one seed per copy ({self.n_copies}), got {len(seeds)}")
         if self._pool is None:
@@ -582,3 +643,23 @@ def vector_env(copies: int = 1, *, workers: int = 1, start_method: str = "spawn"
     _check_workers(workers, int(copies))
     return CrowdVectorEnv([parallel_env(**options) for _ in range(int(copies))], workers=workers,
                           start_method=start_method)
+
+
+def gym_vector_env(num_envs: int = 1, *, learner="ped_0", max_episode_steps=None, **options) -> CrowdVectorEnv:
+    """The vector entry point of the Gymnasium ids (:mod:`crowd_env.registration`), which
+    ``gymnasium.make_vec(id, num_envs)`` calls: ``num_envs`` copies of the single-agent view's environment
+    (:class:`~crowd_env.envs.gym_single.CrowdSingleAgentEnv`: pedestrian ``learner`` controlled, the others on
+    the background policy), so that slot c is copy c's learner, seeded ``seed + c`` as Gymnasium's own vector
+    environments seed theirs. ``max_episode_steps`` (Gymnasium's time limit; ``make_vec`` passes the spec's)
+    truncates at the smaller of it and ``max_steps``, as ``gymnasium.make``'s ``TimeLimit`` does. Other options
+    (``workers`` and ``start_method`` too) as in :func:`vector_env`."""
+    if "controlled" in options:
+        raise EnvOptionError("the Gymnasium ids control exactly one pedestrian per copy: pass learner=..., not "
+                             "controlled=...")
+    options = resolve_options(options, "the crowd_env Gymnasium ids", "gymnasium.make_vec",
+                              extra=("workers", "start_method"))
+    if max_episode_steps is not None:
+        check_integer("max_episode_steps", max_episode_steps, error=EnvOptionError, minimum=1)
+        steps = options.get("max_steps")
+        options["max_steps"] = int(max_episode_steps) if steps is None else min(int(steps), int(max_episode_steps))
+    return vector_env(num_envs, controlled=[learner], **options)

@@ -16,6 +16,7 @@ from crowd_env.errors import SetupError, SweepError
 
 import csv
 import dataclasses
+import io
 from pathlib import Path
 
 import numpy as np
@@ -31,10 +32,10 @@ from ..walking.agent import SocialForceAgent
 from .backends import ProcessBackend, SerialBackend, execute
 from .recording import record_run
 from .runner import STALL_SPEED_M_S, STALL_WINDOW_S, run_scenario
-from .store import RunStore, config_hash, normalise_record
+from .store import RunStore, check_record, config_hash, normalise_record, write_atomic
 
 __all__ = ["GEOMETRY_OPTIONS", "LANE_BIN_M", "RESULT_COLUMNS", "SetupError", "SweepError", "model_params",
-           "params_dict", "bottleneck_config", "check_setups", "run_one", "run_sweep", "write_results",
+           "params_dict", "bottleneck_config", "check_setups", "check_records", "SUMMARY_FIELDS", "run_one", "run_sweep", "write_results",
            "summarise", "write_summary", "flow_fit"]
 
 GEOMETRY_OPTIONS = {  # command-line flag -> seyfried_bottleneck option, with the Seyfried defaults
@@ -46,6 +47,12 @@ GEOMETRY_OPTIONS = {  # command-line flag -> seyfried_bottleneck option, with th
     "radius": ("radius_m", 0.23),
 }
 LANE_BIN_M = 0.01  # Kabalan Section 4.2
+
+# What the results table and the summary read from a run record without a default (older records lack the
+# speed and the stationary flow, read with one); a record also needs ``complete`` or, saved before the stall
+# rule, ``n_passages`` / ``n_evacuated`` (crowd_env.experiments.store.check_record).
+SUMMARY_FIELDS = ("width_m", "n_pedestrians", "seed", "specific_flow_per_m_s", "flow_per_s", "n_evacuated", "min_gap_m",
+                  "density_front_per_m2", "density_inside_per_m2")
 
 RESULT_COLUMNS = ["width_m", "n_pedestrians", "seed", "specific_flow_per_m_s", "flow_per_s", "complete", "stalled",
                   "stall_time_s", "partial_specific_flow_per_m_s", "partial_flow_per_s", "simulated_time_s",
@@ -181,16 +188,38 @@ def run_sweep(tasks: list, out: Path, jobs: int, desc: str = "bottleneck runs", 
     if failed:
         logs = sorted({str(s.out / "errors.jsonl") for s in stores.values() if (s.out / "errors.jsonl").exists()})
         raise SweepError(f"{failed} run(s) failed (see {', '.join(logs)}); rerun to retry them")
-    return [store_of(t).load(t) for t in tasks]
+    records = [store_of(t).load(t) for t in tasks]
+    check_records(records, [store_of(t).path(t) for t in tasks])  # a stored file lacking a field, named
+    return records
+
+
+def check_records(records: list, sources=None) -> None:
+    """Raise :class:`~crowd_env.errors.RunStoreError` naming the first record that lacks one of
+    :data:`SUMMARY_FIELDS` (what the results table and the summary read) and what it lacks
+    (:func:`~crowd_env.experiments.store.check_record`): by ``sources[k]`` (its file) when given, else by
+    its place in ``records`` and its b, N, seed."""
+    for k, r in enumerate(records):
+        label = f"records[{k}]" if sources is None else str(sources[k])
+        if sources is None and isinstance(r, dict) and any(key in r for key in ("width_m", "n_pedestrians", "seed")):
+            label += f" (b = {r.get('width_m')}, N = {r.get('n_pedestrians')}, seed {r.get('seed')})"
+        check_record(r, label, SUMMARY_FIELDS)
+
+
+def _write_csv(path: Path, fieldnames: list, rows, **options) -> None:
+    """``rows`` (dicts) as CSV at ``path``, written atomically (a killed run never leaves half a table)."""
+    buffer = io.StringIO(newline="")
+    w = csv.DictWriter(buffer, fieldnames=fieldnames, **options)
+    w.writeheader()
+    w.writerows(rows)
+    write_atomic(path, buffer.getvalue())
 
 
 def write_results(records: list, out: Path) -> None:
-    """``out/results.csv``: one row per run (:data:`RESULT_COLUMNS`)."""
-    with open(Path(out) / "results.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=RESULT_COLUMNS, extrasaction="ignore")
-        w.writeheader()
-        for r in sorted(records, key=lambda r: (r["n_pedestrians"], r["width_m"], r["seed"])):
-            w.writerow(r)
+    """``out/results.csv``: one row per run (:data:`RESULT_COLUMNS`), written atomically once every record
+    has been checked (:func:`check_records`: a record lacking a field leaves the file as it was)."""
+    check_records(records)
+    rows = sorted(records, key=lambda r: (r["n_pedestrians"], r["width_m"], r["seed"]))
+    _write_csv(Path(out) / "results.csv", RESULT_COLUMNS, rows, extrasaction="ignore")
 
 
 def _finite_mean(values) -> float:
@@ -207,6 +236,7 @@ def summarise(records: list) -> list:
     ``runs`` counts all, ``complete`` / ``stalled`` / ``incomplete`` (not complete, not stalled: people
     left at the time limit) count each kind. ``min_gap_m`` is over all runs.
     """
+    check_records(records)
     exp = seyfried_2009()
     groups: dict = {}
     for r in map(normalise_record, records):
@@ -240,12 +270,11 @@ def summarise(records: list) -> list:
 
 
 def write_summary(rows: list, out: Path) -> Path:
-    """``out/summary.csv``: the rows of :func:`summarise`."""
+    """``out/summary.csv``: the rows of :func:`summarise`, written atomically."""
+    if not rows:
+        raise SetupError(f"no summary rows to write into {Path(out) / 'summary.csv'} (no runs)")
     path = Path(out) / "summary.csv"
-    with open(path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    _write_csv(path, list(rows[0]), rows)
     return path
 
 

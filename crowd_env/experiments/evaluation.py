@@ -45,7 +45,9 @@ from crowd_env.errors import PolicyError
 
 import csv
 import importlib
+import json
 import math
+import os
 import time
 from dataclasses import asdict, dataclass, field, fields
 
@@ -54,12 +56,14 @@ import shapely
 from scipy.spatial import cKDTree
 
 from ..analysis.flow import MeasurementLine, PassageCounter, specific_flow
+from ..core.params import ModelParams
 from ..envs.crowd_v0 import CrowdParallelEnv, decisions_for_time
 from . import tables
 from .runner import StallDetector
 
 __all__ = ["DEFAULT_POLICY_RESOLVER", "EpisodeMetrics", "ScenarioSpec", "import_object", "resolve_policy", "run_episode", "evaluate", "summarize",
-           "format_table", "write_csv", "plot_results", "METRICS"]
+           "format_table", "write_csv", "plot_results", "METRICS", "ENV_CONFIG_FILE", "recorded_env_config",
+           "episode_setup", "describe_setup", "confidence_interval", "format_intervals"]
 
 # Names and saved models are turned into policies by the shipped baselines, reached by import path so that
 # crowd_env never imports baselines.
@@ -122,6 +126,44 @@ class ScenarioSpec:
         if self.scenario_options:
             out["scenario_options"] = dict(self.scenario_options)
         return out
+
+
+ENV_CONFIG_FILE = "env_config.json"  # written by the training commands beside the trained policy
+
+
+def recorded_env_config(model_path) -> tuple:
+    """``(env_config, path)``: the environment options a policy was trained with, from the
+    :data:`ENV_CONFIG_FILE` beside the saved model ``model_path`` (a file such as ``runs/ppo/model.zip``, or
+    a run folder), or ``(None, None)`` when there is none."""
+    folder = os.fspath(model_path)
+    if not os.path.isdir(folder):
+        folder = os.path.dirname(os.path.abspath(folder))
+    path = os.path.join(folder, ENV_CONFIG_FILE)
+    if not os.path.exists(path):
+        return None, None
+    with open(path) as fh:
+        return json.load(fh), path
+
+
+def episode_setup(env_config: dict) -> tuple:
+    """``(ScenarioSpec, env_options, max_time_s)`` of the episodes an ``env_config`` (the options of
+    :func:`crowd_env.envs.crowd_v0.parallel_env`, as the training commands record them) describes: its
+    scenario and options, every other option but ``max_steps``, and ``max_steps`` as simulated time
+    (``max_steps × frame_skip × dt``), which :func:`run_episode` takes."""
+    params = env_config.get("params")
+    dt = ModelParams.from_dict(params).dt_s if isinstance(params, dict) and params else ModelParams().dt_s
+    frame_skip = env_config.get("frame_skip") or 1
+    steps = env_config.get("max_steps")
+    max_time = steps * frame_skip * dt if steps else None
+    opts = {k: v for k, v in env_config.items() if k not in ("scenario", "scenario_options", "max_steps")}
+    spec = ScenarioSpec(env_config.get("scenario", "seyfried_bottleneck"), env_config.get("scenario_options"))
+    return spec, opts, max_time
+
+
+def describe_setup(scenarios, env_options: dict, max_time_s: float) -> str:
+    """One line naming the scenarios, the environment options and the episode length of an evaluation."""
+    names = ", ".join(s.label if isinstance(s, ScenarioSpec) else str(s) for s in scenarios)
+    return f"scenario {names}; environment options {env_options}; at most {max_time_s:g} s simulated per episode"
 
 
 def import_object(path: str):
@@ -352,7 +394,8 @@ def evaluate(policies, scenarios=("seyfried_bottleneck",), seeds=(0, 1, 2), *, e
 
 
 def summarize(results) -> list:
-    """Mean (and std) of every metric per (scenario, policy), in first-seen order."""
+    """Mean (and std, and the 95 % interval of the mean: ``_ci_low``, ``_ci_high``, :func:`confidence_interval`)
+    of every metric per (scenario, policy), in first-seen order."""
     groups: dict = {}
     for r in results:
         groups.setdefault((r.scenario, r.policy), []).append(r)
@@ -367,8 +410,28 @@ def summarize(results) -> list:
             row[key] = float(finite.mean()) if finite.size else float("nan")
             row[key + "_std"] = float(finite.std()) if finite.size > 1 else float("nan")
             row[key + "_n"] = int(finite.size)
+            row[key + "_ci_low"], row[key + "_ci_high"] = confidence_interval(finite)
         rows.append(row)
     return rows
+
+
+def confidence_interval(values, *, confidence: float = 0.95, n_resamples: int = 2000, seed: int = 0) -> tuple:
+    """``(low, high)``: the percentile bootstrap interval of the mean of the finite ``values`` (episodes
+    resampled with replacement, ``n_resamples`` times, a fixed ``seed`` so that tables are reproducible);
+    ``(mean, mean)`` for one value, NaN for none. With a handful of episodes the interval is rough (and
+    narrower than the truth): evaluate more seeds for a firm one."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return float("nan"), float("nan")
+    mean = float(v.mean())
+    if v.size == 1:
+        return mean, mean
+    rng = np.random.default_rng(seed)
+    means = v[rng.integers(0, v.size, (n_resamples, v.size))].mean(axis=1)
+    alpha = (1.0 - confidence) / 2.0
+    lo, hi = np.quantile(means, [alpha, 1.0 - alpha])
+    return float(min(lo, mean)), float(max(hi, mean))
 
 
 def format_table(rows) -> str:
@@ -386,6 +449,21 @@ def format_table(rows) -> str:
             if k < n:
                 s += f" [{k}/{n}]"
             cells.append(s)
+        lines.append(cells)
+    return tables.format_table(head, lines, align="<<" + ">" * (len(head) - 2))
+
+
+def format_intervals(rows) -> str:
+    """The 95 % intervals of :func:`summarize`'s means (:func:`confidence_interval`, a percentile bootstrap over
+    the episodes), one table laid out as :func:`format_table`'s."""
+    head = ["scenario", "policy", "episodes"] + [label for _, label in METRICS]
+    lines = []
+    for row in rows:
+        cells = [row["scenario"], row["policy"], str(row["n_episodes"])]
+        for key, _ in METRICS:
+            lo, hi = row[key + "_ci_low"], row[key + "_ci_high"]
+            digits = 0 if key == "n_percussions" else 4 if key == "min_gap_m" else 3
+            cells.append("nan" if not (np.isfinite(lo) and np.isfinite(hi)) else f"{lo:.{digits}f}..{hi:.{digits}f}")
         lines.append(cells)
     return tables.format_table(head, lines, align="<<" + ">" * (len(head) - 2))
 

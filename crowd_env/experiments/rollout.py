@@ -16,7 +16,8 @@ in compiled code, over
 
 It returns to Python when the steps asked for are done, when nobody is left, when the crowd stalled, or
 when the next step needs the Python path (``ROLLOUT_PYTHON_STEP``: an impact cluster or projection
-beyond the dense solvers, or an input the Python path must reject with its error); the
+beyond the dense solvers, or an input the Python path must reject with its error: not finite, or an
+intent beyond :data:`~crowd_env.core.step.MAX_INPUT_SPEED_M_S`); the
 runner then runs that one step through ``policy(sim)`` and ``Simulator.step`` (the staged path and the
 solver cascade) and :func:`measure_step`, and goes on compiled. Both paths call the same kernels in the
 same order, so a run is the same to the last bit either way (``tests/experiments/test_rollout.py``,
@@ -28,8 +29,9 @@ import numba as nb
 import numpy as np
 
 from ..analysis.flow import crossing_alpha
+from ..core.periodic import minimum_image_dx
 from ..core.polygons import point_in_interior
-from ..core.step import FUSED_OK, first_non_finite, fused_step, leave_at_exits
+from ..core.step import FUSED_OK, MAX_INPUT_SPEED_M_S, first_non_finite, first_out_of_bound, fused_step, leave_at_exits
 from ..core.contacts import active_links
 from ..walking.agent import AGENT_OK, agent_step
 
@@ -103,9 +105,11 @@ def stall_update(ring, state, window_steps, window_s, speed_m_s, dt_s, time_s, v
 def measure_step(position, velocity, heading, active, premovement, index, previous, n_exited, t_prev_s, time_s, step_count,
                  step_min_gap_m, line, has_line, passed, cross_ids, cross_times, areas, area_size_m2, lane_area,
                  density, speed, lateral, record_every, frame_time_s, frame_position, frame_heading, frame_active,
-                 stall_ring, stall_state, stall_window_steps, stall_window_s, stall_speed_m_s, dt_s, counts, scalars):
+                 stall_ring, stall_state, stall_window_steps, stall_window_s, stall_speed_m_s, dt_s, counts, scalars,
+                 period_m=0.0):
     """The runner's measurement of one step that moved the pedestrians ``index`` (active before it) from
-    ``previous`` (compact) to ``position``, from ``t_prev_s`` to ``time_s``. In place:
+    ``previous`` (compact) to ``position``, from ``t_prev_s`` to ``time_s`` (with ``period_m`` L > 0 the move
+    is the nearest image of the displacement, so a step across the seam crosses no line between). In place:
 
     - first passages of the measurement line (``line`` = (a, t, normal) of
       :class:`~crowd_env.analysis.flow.MeasurementLine`; time interpolated within the step, Eq. 22) into
@@ -123,7 +127,10 @@ def measure_step(position, velocity, heading, active, premovement, index, previo
         a, t, normal = line
         for k in range(index.shape[0]):
             i = index[k]
-            alpha = crossing_alpha(previous[k, 0], previous[k, 1], position[i, 0], position[i, 1], a, t, normal)
+            x1 = position[i, 0]
+            if period_m > 0.0:
+                x1 = previous[k, 0] + minimum_image_dx(x1 - previous[k, 0], period_m)
+            alpha = crossing_alpha(previous[k, 0], previous[k, 1], x1, position[i, 1], a, t, normal)
             if not np.isnan(alpha) and not passed[i]:
                 passed[i] = True
                 cross_ids[counts[COUNT_PASSED]] = i
@@ -178,12 +185,13 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, model, agent, li
     updated in place."""
     (position, radius, velocity, angular_velocity, heading, mass, inertia, tau, stiffness, damping, desired_speed,
      active, links, link_offsets, premovement) = bodies
-    walls, wall_owner, exits, exit_destination = world
+    walls, wall_owner, exits, exit_destination, period_m = world
     (dt_s, eps_m, k_n, k_tg, k_v, rotation, max_dense_rows, max_dense_bodies, max_projection_rows) = model
     (origin_m, resolution_m, travel_time, direction, field_of, social, strength_n, range_m, anisotropy, cutoff_m,
-     wall_strength_n, wall_range_m) = agent
+     wall_strength_n, wall_range_m, vision) = agent
     exit_vertices, exit_ring_start, exit_ring_owner, exit_boxes = exits
     no_force = np.zeros((0, 2))
+    no_scale = np.zeros(0)
     done = 0
     n_redetect = 0
     while done < max_steps:
@@ -201,11 +209,12 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, model, agent, li
                 n += 1
         status, intents, theta_d, pairs, pair_radius = agent_step(
             position, radius, index, origin_m, resolution_m, travel_time, direction, field_of, desired_speed, tau,
-            mass, heading, walls, wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n,
-            wall_range_m, premovement, time_s)
-        if status != AGENT_OK or first_non_finite(intents) >= 0 or first_non_finite(theta_d) >= 0:
+            mass, heading, velocity, walls, wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n,
+            wall_range_m, premovement, time_s, vision, period_m)
+        if status != AGENT_OK or first_out_of_bound(intents, no_scale, MAX_INPUT_SPEED_M_S) >= 0 or \
+                first_non_finite(theta_d) >= 0:
             return ROLLOUT_PYTHON_STEP, done, time_s, n_redetect
-        l_a, l_b, dvec, gi, gj = active_links(position, heading, active, index, links, link_offsets)
+        l_a, l_b, dvec, gi, gj = active_links(position, heading, active, index, links, link_offsets, period_m)
         previous = np.empty((n, 2))
         for k in range(n):
             previous[k, 0] = position[index[k], 0]
@@ -213,7 +222,7 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, model, agent, li
         fused, _, _, _, _, _, _, min_gap, rounds = fused_step(
             position, radius, velocity, angular_velocity, heading, mass, inertia, tau, stiffness, damping, intents,
             theta_d, True, no_force, False, index, walls, wall_owner, pairs, pair_radius, l_a, l_b, dvec, gi, gj,
-            dt_s, eps_m, k_n, k_tg, k_v, rotation, max_dense_rows, max_dense_bodies, max_projection_rows)
+            dt_s, eps_m, k_n, k_tg, k_v, rotation, max_dense_rows, max_dense_bodies, max_projection_rows, period_m)
         if fused != FUSED_OK:
             return ROLLOUT_PYTHON_STEP, done, time_s, n_redetect
         n_redetect += rounds
@@ -228,6 +237,6 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, model, agent, li
                         step_count, min_gap, line, has_line, passed, cross_ids, cross_times, areas, area_size_m2,
                         lane_area, density, speed, lateral, record_every, frame_time_s, frame_position, frame_heading,
                         frame_active, stall_ring, stall_state, stall_window_steps, stall_window_s, stall_speed_m_s,
-                        dt_s, counts, scalars):
+                        dt_s, counts, scalars, period_m):
             return ROLLOUT_STALLED, done, time_s, n_redetect
     return ROLLOUT_LIMIT, done, time_s, n_redetect

@@ -31,10 +31,10 @@ from ..core.checks import check_integer, check_number
 from ..core.params import ModelParams
 from ..core.polygons import pack_polygons
 from ..core.presets import DEFAULT_PRESET, get_preset
-from ..walking.agent import SocialForceAgent
+from ..walking.agent import SocialForceAgent, vision_parameters
 from .store import write_atomic
 from .rollout import (COUNT_FRAMES, COUNT_LATERAL, COUNT_PASSED, COUNT_STEPS, ROLLOUT_CHUNK_STEPS, ROLLOUT_PYTHON_STEP,
-                      SCALAR_LAST_EXIT_S, SCALAR_MIN_GAP_M, STALL_LAST_PROGRESS_S, STALL_STALLED, STALL_TIME_S,
+                      SCALAR_LAST_EXIT_S, SCALAR_MIN_GAP_M, STALL_LAST_PROGRESS_S, STALL_N, STALL_STALLED, STALL_TIME_S,
                       measure_step, rollout_steps, stall_update)
 
 # Stationary phase for densities: between the passages of these fractions of the pedestrians (the
@@ -54,6 +54,14 @@ STALL_WINDOW_S = 20.0
 STALL_SPEED_M_S = 0.05
 
 CHECKPOINT_EVERY_S = 600.0  # wall seconds between two checkpoints of a long run (RunCheckpoint)
+
+# The most steps run_scenario takes on by default (its ``step_limit``): 1e5 s of simulated time at the paper's
+# h = 0.01 s, far beyond any scenario here, but a run of 300 s at h = 1e-6 s (3e8 steps, hours to days) or
+# 1e-9 s is refused at once with the count, instead of running for ever.
+MAX_RUN_STEPS = 10_000_000
+# Rows the per-step series (densities, speeds) and the stall rule's window start with; they grow (doubling)
+# with the steps actually run, never to max_time_s / dt_s at once.
+SERIES_START_ROWS = 4096
 
 
 @dataclass
@@ -228,7 +236,8 @@ class StallDetector:
         self.speed_m_s = check_number("stall speed_m_s", speed_m_s, error=InputError, minimum=0.0)
         self.dt_s = float(dt_s)
         self.window_steps = 0 if window_s is None else max(1, int(round(self.window_s / self.dt_s)))
-        self.ring = np.zeros(max(self.window_steps, 1))  # per-step mean speeds of the window
+        # per-step mean speeds of the window; grown by room_for up to window_steps as steps are run
+        self.ring = np.zeros(max(min(self.window_steps, SERIES_START_ROWS), 1))
         self.state = np.zeros(5)  # the STALL_* slots of crowd_env.experiments.rollout
         self.state[STALL_LAST_PROGRESS_S] = float(start_s)
         self.state[STALL_TIME_S] = np.nan
@@ -253,9 +262,19 @@ class StallDetector:
         return self.ring, self.state, self.window_steps, (np.inf if self.window_s is None else self.window_s), \
             self.speed_m_s
 
+    def room_for(self, steps: int) -> None:
+        """A window ring with room for ``steps`` more steps (it fills from slot 0 until it holds
+        ``window_steps`` speeds, then wraps): grown, keeping what it holds, up to ``window_steps``."""
+        need = min(self.window_steps, int(self.state[STALL_N]) + int(steps))
+        if need > self.ring.shape[0]:
+            ring = np.zeros(min(self.window_steps, max(need, 2 * self.ring.shape[0])))
+            ring[:self.ring.shape[0]] = self.ring
+            self.ring = ring
+
     def update(self, time_s: float, velocity, remaining, progressed: bool) -> bool:
         """Record one step: ``remaining`` (N,) bool flags the pedestrians left, ``progressed`` says whether
         someone crossed the line or left during it. Returns True when the run is stalled (from then on)."""
+        self.room_for(1)
         return stall_update(*self.kernel_arguments, self.dt_s, float(time_s),
                             np.ascontiguousarray(velocity, dtype=np.float64), np.asarray(remaining, dtype=bool),
                             bool(progressed))
@@ -291,8 +310,9 @@ class _RunMeasures:
         self.passed = np.zeros(n, dtype=bool)
         self.cross_ids = np.zeros(n, np.int64)
         self.cross_times = np.zeros(n)
-        self.density = np.zeros((n_steps_max, len(self.area_names)))
-        self.speed = np.zeros((n_steps_max, len(self.area_names)))
+        rows = min(int(n_steps_max), SERIES_START_ROWS)  # grown by room_for with the steps run
+        self.density = np.zeros((rows, len(self.area_names)))
+        self.speed = np.zeros((rows, len(self.area_names)))
         self.n = n
         self.lateral_chunks = []
         self.lateral = np.zeros(0)
@@ -305,7 +325,13 @@ class _RunMeasures:
         self.frame_active = np.zeros((0, n), dtype=bool)
 
     def room_for(self, steps: int) -> None:
-        """Room in the lateral and frame buffers for ``steps`` more steps (keeps what they hold)."""
+        """Room in the per-step series, the lateral and the frame buffers for ``steps`` more steps (keeps what
+        they hold)."""
+        rows = int(self.counts[COUNT_STEPS]) + steps
+        if rows > self.density.shape[0]:
+            grown = max(rows, 2 * self.density.shape[0])
+            self.density = np.concatenate([self.density, np.zeros((grown - self.density.shape[0], self.density.shape[1]))])
+            self.speed = np.concatenate([self.speed, np.zeros((grown - self.speed.shape[0], self.speed.shape[1]))])
         need = self.counts[COUNT_LATERAL] + steps * self.n
         if need > self.lateral.shape[0]:
             self.lateral_chunks.append(self.lateral[:self.counts[COUNT_LATERAL]].copy())
@@ -352,13 +378,14 @@ def _compiled_tuples(sim, agent_nav) -> tuple:
     bodies = (st.position_m, st.radius_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad, st.mass_kg,
               st.inertia_kg_m2, st.tau_s, st.heading_stiffness, st.heading_damping, st.desired_speed_m_s, st.active,
               st.links, st.link_offsets_m, st.premovement_s)
-    world = (sim.walls, sim.wall_owner, sim.exit_polygons.arrays, sim.exit_destination)
+    world = (sim.walls, sim.wall_owner, sim.exit_polygons.arrays, sim.exit_destination, sim.period_m)
     max_rows, max_bodies = sim.cascade.impact_limits()
     model = (p.dt_s, p.contact_tolerance_m, p.normal_dissipation_kg, p.tangential_dissipation_kg,
              p.link_dissipation_kg_per_m2, p.rotation, max_rows, max_bodies, sim.cascade.max_dense_projection_rows)
     agent = (agent_nav.origin_m, agent_nav.resolution_m, agent_nav.travel_time_s, agent_nav.direction,
              agent_nav.field_of, bool(p.social_forces), float(p.social_strength_n), float(p.social_range_m),
-             float(p.social_anisotropy), float(p.social_cutoff_m), float(p.wall_strength_n), float(p.wall_range_m))
+             float(p.social_anisotropy), float(p.social_cutoff_m), float(p.wall_strength_n), float(p.wall_range_m),
+             vision_parameters(p))
     return bodies, world, model, agent
 
 
@@ -374,13 +401,16 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
                  width_m: float | None = None, state=None, rng=None, progress=None,
                  stall_window_s: float | None = STALL_WINDOW_S, stall_speed_m_s: float = STALL_SPEED_M_S,
                  compiled: bool = True, recorder=None, record_every: int = 1,
-                 chunk_steps: int = ROLLOUT_CHUNK_STEPS, checkpoint: RunCheckpoint | None = None) -> RunResult:
+                 chunk_steps: int = ROLLOUT_CHUNK_STEPS, checkpoint: RunCheckpoint | None = None,
+                 step_limit: int = MAX_RUN_STEPS) -> RunResult:
     """Simulate ``scenario`` driven by ``policy(sim) -> (intents, desired_heading)`` until all leave, the
     time limit ``max_time_s``, or a stall.
 
     ``width_m``: the bottleneck width used in J_s = N/(Δt b) (Eq. 22); defaults to the scenario's
     ``metadata['width_m']``. ``stall_window_s`` / ``stall_speed_m_s``: the stall rule of
-    :class:`StallDetector` (None switches it off); a stalled run stops at once with ``stalled`` set.
+    :class:`StallDetector` (None switches it off); a stalled run stops at once with ``stalled`` set. A periodic
+    scenario (``sim.period_m`` > 0: no exits, nobody leaves) runs without the rule to ``max_time_s``: a crowd
+    standing still there is a point of the fundamental diagram (speed 0), not a failed run.
     ``compiled``: when ``policy`` is the calibrated agent (:class:`~crowd_env.walking.agent.SocialForceAgent`
     with a compiled navigation), run the steps in compiled chunks of up to ``chunk_steps``
     (:mod:`crowd_env.experiments.rollout`; the same result to the last bit as ``compiled=False``, which
@@ -388,20 +418,29 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     :class:`~crowd_env.analysis.recorder.TrajectoryRecorder` that gets the state every ``record_every``-th
     step (at t = step · h). ``progress(sim)`` is called after every step run from Python and after every
     compiled chunk. ``checkpoint``: a :class:`RunCheckpoint` that keeps the run every so often and resumes
-    a kept one (then ``state`` and ``recorder`` are brought to the kept run's, in place). Returns a
-    :class:`RunResult`; its flows are nan unless the run is complete (module docstring).
+    a kept one (then ``state`` and ``recorder`` are brought to the kept run's, in place). ``step_limit``:
+    a run whose ``max_time_s`` / ``dt_s`` exceeds it is refused at once (:data:`MAX_RUN_STEPS`); the
+    buffers grow with the steps run. Returns a :class:`RunResult`; its flows are nan unless the run is
+    complete (module docstring).
     """
     params = get_preset(DEFAULT_PRESET).params() if params is None else params
     record_every = check_integer("record_every", record_every, error=InputError, minimum=1)
     chunk_steps = check_integer("chunk_steps", chunk_steps, error=InputError, minimum=1)
     max_time_s = check_number("max_time_s", max_time_s, error=InputError, positive=True)
+    step_limit = check_integer("step_limit", step_limit, error=InputError, minimum=1)
+    if round(max_time_s / params.dt_s) > step_limit:
+        raise InputError(f"max_time_s = {max_time_s:g} s at dt_s = {params.dt_s:g} s needs up to "
+                         f"{round(max_time_s / params.dt_s):,} steps, more than step_limit = {step_limit:,} "
+                         f"(default crowd_env.experiments.runner.MAX_RUN_STEPS); shorten max_time_s, take a larger "
+                         f"dt_s (the paper's 0.01 s), or pass a larger step_limit")
     state = scenario.make_state(rng=rng) if state is None else state
     sim = scenario.make_simulator(state, params)  # with the scenario's destinations, if any
     width_m = scenario.metadata.get("width_m") if width_m is None else width_m
     n_steps_max = int(round(max_time_s / params.dt_s))
     measures = _RunMeasures(scenario, state.n, n_steps_max, line, density_areas, lane_area, sim.min_gap_m(),
                             record_every if recorder is not None else 0)
-    stall = StallDetector(params.dt_s, stall_window_s, stall_speed_m_s, start_s=sim.time_s)
+    stall = StallDetector(params.dt_s, None if sim.period_m > 0.0 else stall_window_s, stall_speed_m_s,
+                          start_s=sim.time_s)
     done, wall_before_s = 0, 0.0
     kept = checkpoint.load() if checkpoint is not None else None
     if kept is not None:  # go on from the kept run: the caller's state and recorder become its own
@@ -425,6 +464,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
         if kernel_tuples is not None and sim.fused_ready():
             steps = min(chunk_steps, n_steps_max - done)
             measures.room_for(steps)
+            stall.room_for(steps)
             status, k, clock, rounds = rollout_steps(steps, sim.time_s, sim.step_count, *kernel_tuples, *measures.measure_arguments(),
                                              *stall.kernel_arguments, measures.counts, measures.scalars)
             sim.advanced(k, clock, rounds)
@@ -436,6 +476,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
         if not python_step:
             continue
         measures.room_for(1)
+        stall.room_for(1)
         idx = sim.active_index
         previous = state.position_m[idx]
         intents, heading = policy(sim)
@@ -445,7 +486,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
                      previous,
                      result.exited.shape[0], t_prev, sim.time_s, sim.step_count, result.min_gap_m,
                      *measures.measure_arguments(), *stall.kernel_arguments, params.dt_s, measures.counts,
-                     measures.scalars)
+                     measures.scalars, sim.period_m)
         done += 1
         measures.pass_frames(recorder)
         if progress is not None:

@@ -186,10 +186,10 @@ class InvariantChecker:
             self._flag("non_finite", sim, f"pedestrian(s) {idx[~finite][:10].tolist()}")
             return  # the geometric checks below are meaningless on NaN
         # pedestrian pairs
-        overlap = -min_gap_m(pos, rad)
+        overlap = -min_gap_m(pos, rad, sim.period_m)  # across the seam of a periodic corridor too
         self.max_overlap_m = max(self.max_overlap_m, overlap)
         if overlap > self.overlap_tolerance_m:
-            pair = first_overlap(pos, rad, self.overlap_tolerance_m)  # None when no pair is within 2 r
+            pair = first_overlap(pos, rad, self.overlap_tolerance_m, sim.period_m)  # None when no pair is within 2 r
             who = f"pedestrians {idx[pair[0]]} and {idx[pair[1]]}" if pair is not None else "two pedestrians"
             self._flag("pedestrian_overlap", sim, f"{who} overlap by {overlap:.3g} m")
         # walls

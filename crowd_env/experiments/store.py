@@ -32,9 +32,10 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis.trajectories import trajectory_frame_rate
+from ..core.checks import is_integer, is_number
 
-__all__ = ["RunStoreError", "RunStore", "config_hash", "normalise_record", "run_key", "task_key", "write_atomic", "write_json_atomic",
-           "write_npz_atomic",
+__all__ = ["RunStoreError", "RunStore", "config_hash", "normalise_record", "check_record", "run_key", "task_key",
+           "write_atomic", "write_json_atomic", "write_npz_atomic",
            "CONFIG_NAME", "LAYOUTS"]
 
 CONFIG_NAME = "config.json"
@@ -59,11 +60,33 @@ def task_key(task: dict) -> str:
             f"_s{task['seed']}_{config_hash(task)}")
 
 
-def normalise_record(record: dict) -> dict:
+def check_record(record, source: str, fields=("n_pedestrians",)) -> None:
+    """Raise :class:`RunStoreError` naming ``source`` (the file, or which record) and what is missing unless
+    ``record`` is a dict with every key of ``fields`` and ``complete`` (or, from before the stall rule,
+    ``n_passages`` / ``n_evacuated``), its counts integers. The store checks the keys every record needs
+    (:func:`normalise_record`'s); a consumer passes the keys it reads (e.g.
+    :data:`crowd_env.experiments.bottleneck.SUMMARY_FIELDS`)."""
+    if not isinstance(record, dict):
+        raise RunStoreError(f"{source}: a run record must be a JSON object (dict), got {type(record).__name__}")
+    missing = [k for k in fields if k not in record]
+    if "complete" not in record and "n_passages" not in record and "n_evacuated" not in record:
+        missing.append("complete (or n_passages / n_evacuated, in a record from before the stall rule)")
+    if missing:
+        raise RunStoreError(f"{source}: the run record lacks {missing} (a stored run: delete its file to rerun it)")
+    for key in ("n_pedestrians", "n_passages", "n_evacuated"):
+        value = record.get(key, 0)
+        if not (is_integer(value) or (is_number(value) and float(value).is_integer())):
+            raise RunStoreError(f"{source}: the run record's {key} must be an integer, got {value!r}")
+
+
+def normalise_record(record: dict, source: str = "run record") -> dict:
     """A run record in today's form (``complete``, ``stalled``, partial flows), also from a record saved
     before the stall rule existed (those ran to the time limit and stored the partial J_s of an
     incomplete run as its J_s): there ``complete`` = all N passed, ``stalled`` = False (not known), and
-    an incomplete run's J_s / J move to ``partial_*`` (nan in their place). Returns a new dict."""
+    an incomplete run's J_s / J move to ``partial_*`` (nan in their place). Returns a new dict. A record
+    without ``n_pedestrians`` or any of ``complete`` / ``n_passages`` / ``n_evacuated`` raises
+    :class:`RunStoreError` naming ``source`` (:func:`check_record`)."""
+    check_record(record, source)
     r = dict(record)
     if "complete" not in r:
         n_passed = r.get("n_passages", r.get("n_evacuated"))
@@ -185,6 +208,8 @@ class RunStore:
         return dict(task, trajectory_stem=str(self.trajectory_stem(task)))
 
     def save(self, task: dict, record: dict) -> None:
+        """Store ``record`` (:func:`check_record` first: nothing is written for an incomplete record)."""
+        check_record(record, f"{self.path(task)} (not written)")
         payload = record if self.keyed_by == "run" else {"task": task, "record": record}
         write_atomic(self.path(task), json.dumps(payload))
 
@@ -198,11 +223,14 @@ class RunStore:
             data = json.loads(path.read_text())
         except (json.JSONDecodeError, OSError) as exc:
             raise RunStoreError(f"{path}: unreadable run record ({exc}); delete it to rerun that run") from None
-        if self.keyed_by == "run":
-            return normalise_record(data)
-        if data.get("task") != task:
-            raise RunStoreError(f"{path} holds a different task than its name says; delete it to rerun that run")
-        return normalise_record(data["record"])
+        if self.keyed_by == "task":
+            if not isinstance(data, dict) or "record" not in data:
+                raise RunStoreError(f"{path}: not a stored task (a JSON object with 'task' and 'record'); delete it "
+                                    f"to rerun that run")
+            if data.get("task") != task:
+                raise RunStoreError(f"{path} holds a different task than its name says; delete it to rerun that run")
+            data = data["record"]
+        return normalise_record(data, str(path))
 
     def log_error(self, task: dict, message: str) -> None:
         """Append a failed run to ``OUT/errors.jsonl`` (fsync'ed); the next sweep retries it."""

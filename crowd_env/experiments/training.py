@@ -25,13 +25,12 @@ import warnings
 
 import numpy as np
 
-from ..core.params import ModelParams
 from ..envs import crowd_v0
-from .evaluation import ScenarioSpec, run_episode
+from .evaluation import ENV_CONFIG_FILE, episode_setup, run_episode
 from .store import write_json_atomic
 
 __all__ = ["DEFAULT_SCENARIO_OPTIONS", "SharedPolicy", "TrainingError", "make_vec_env", "mean_return", "read_checkpoints",
-           "save_checkpoint", "check_resume", "begin_run", "evaluate_trained", "train", "write_curve"]
+           "save_checkpoint", "check_resume", "begin_run", "evaluate_trained", "train", "write_curve", "progress_line"]
 
 DEFAULT_SCENARIO_OPTIONS = {"width_m": 1.0, "n_pedestrians": 10}
 VECTORISERS = ("native", "supersuit")
@@ -91,10 +90,7 @@ class SharedPolicy:
 
 def mean_return(policy, env_config: dict, seeds) -> dict:
     """Mean per-agent episode return (and evacuated fraction) of ``policy`` over ``seeds``."""
-    dt = ModelParams.from_dict(env_config["params"]).dt_s if env_config.get("params") else ModelParams().dt_s
-    max_time = env_config["max_steps"] * env_config.get("frame_skip", 1) * dt
-    opts = {k: v for k, v in env_config.items() if k not in ("scenario", "scenario_options", "max_steps")}
-    spec = ScenarioSpec(env_config["scenario"], env_config.get("scenario_options"))
+    spec, opts, max_time = episode_setup(env_config)  # the episodes the policy is trained on
     runs = [run_episode(policy, spec, s, env_options=opts, max_time_s=max_time) for s in seeds]
     return {"mean_return": float(np.mean([r.mean_return for r in runs])),
             "std_return": float(np.std([r.mean_return for r in runs])),
@@ -150,7 +146,7 @@ def check_resume(out: str, env_config: dict, resume: bool) -> list:
     if entries and not resume:
         raise TrainingError(f"{out} holds checkpoints (latest at {entries[-1]['timesteps']} timesteps): pass "
                             "--resume to continue that run, or choose another --out")
-    path = os.path.join(out, "env_config.json")
+    path = os.path.join(out, ENV_CONFIG_FILE)
     if resume and entries and os.path.exists(path):
         with open(path) as fh:
             old = json.load(fh)
@@ -167,7 +163,7 @@ def begin_run(out: str, env_config: dict, *, resume: bool, resolve, eval_seeds, 
     when a run resumes with the same seeds). Returns ``(checkpoint entries, random policy's mean_return dict)``."""
     os.makedirs(out, exist_ok=True)
     entries = check_resume(out, env_config, resume)
-    with open(os.path.join(out, "env_config.json"), "w") as fh:
+    with open(os.path.join(out, ENV_CONFIG_FILE), "w") as fh:
         json.dump(env_config, fh, indent=2)
     random_path = os.path.join(out, "random_eval.json")
     before = None
@@ -197,7 +193,8 @@ def _report(what: str, result: dict, progress) -> None:
 def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0, copies: int = 2, n_steps: int = 256,
           batch_size: int = 512, n_epochs: int = 10, learning_rate: float = 3e-4, gamma: float = 0.99,
           eval_seeds=(1000, 1001, 1002), threads: int = 1, verbose: int = 0, checkpoint_every: int = 10_000,
-          resume: bool = False, vectoriser: str = "native", workers: int = 1, progress=print) -> dict:
+          resume: bool = False, vectoriser: str = "native", workers: int = 1, progress=print,
+          progress_every_s: float = 10.0) -> dict:
     """Train, save and evaluate; returns the summary dict (also written to ``out/summary.json``).
 
     ``resolve(spec, name=None) -> policy`` makes the policies the summary compares
@@ -208,6 +205,10 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
     ``resume`` continues from the latest one up to ``timesteps`` in all (see the module docstring).
     ``vectoriser``: ``"native"`` or ``"supersuit"`` (see the module docstring); ``workers``: processes that
     step the native vectoriser's copies (:func:`~crowd_env.envs.vector.vector_env`).
+
+    ``progress(line)`` gets the random policy's score, then while training one line at the end of a rollout
+    at most every ``progress_every_s`` seconds (:func:`progress_line`: timesteps done, elapsed and estimated
+    remaining time, the mean return of the recent episodes), then the trained policy's score.
     """
     import torch
     from stable_baselines3 import PPO
@@ -231,6 +232,25 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
                 ep = info.get("episode")
                 if ep is not None:
                     curve.append((self.num_timesteps, float(ep["r"]), int(ep["l"])))
+            return True
+
+    class Progress(BaseCallback):
+        """A line through ``progress`` after a rollout, at most every ``progress_every_s`` seconds."""
+
+        def _on_training_start(self) -> None:
+            self.t0 = self.last = time.perf_counter()
+            self.t_start = int(self.model.num_timesteps)
+            progress(f"training PPO: {int(self.model.num_timesteps)} -> {int(timesteps)} timesteps (agent steps), "
+                     f"{self.training_env.num_envs} agent slots, a line every {progress_every_s:g} s")
+
+        def _on_rollout_end(self) -> None:
+            now = time.perf_counter()
+            if now - self.last >= progress_every_s:
+                self.last = now
+                progress(progress_line(int(self.model.num_timesteps), int(timesteps), self.t_start, now - self.t0,
+                                       [c[1] for c in curve[-100:]]))
+
+        def _on_step(self) -> bool:
             return True
 
     class Checkpoint(BaseCallback):
@@ -268,7 +288,8 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
     remaining = int(timesteps) - int(model.num_timesteps)
     try:
         if remaining > 0:  # with reset_num_timesteps=False SB3 counts total_timesteps on top of num_timesteps
-            model.learn(total_timesteps=remaining, callback=[Curve(), Checkpoint()], reset_num_timesteps=not entries)
+            model.learn(total_timesteps=remaining, callback=[Curve(), Checkpoint(), Progress()],
+                        reset_num_timesteps=not entries)
         train_s = time.perf_counter() - t1
         model.save(os.path.join(out, "model.zip"))
     finally:
@@ -285,6 +306,16 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
     with open(os.path.join(out, "summary.json"), "w") as fh:
         json.dump(summary, fh, indent=2)
     return summary
+
+
+def progress_line(done: int, total: int, start: int, elapsed_s: float, recent_returns) -> str:
+    """``"  t / T timesteps (p %), E s elapsed, about R s left; mean per-agent episode return of the last k
+    episodes: r"``, the remaining time from the rate since ``start`` timesteps."""
+    rate = (done - start) / elapsed_s if elapsed_s > 0 and done > start else 0.0
+    left = f"about {max(total - done, 0) / rate:.0f} s left" if rate > 0 else "remaining time not known yet"
+    ret = (f"; mean per-agent episode return of the last {len(recent_returns)} episodes {np.mean(recent_returns):.3f}"
+           if len(recent_returns) else "; no episode finished yet")
+    return f"  {done} / {total} timesteps ({100 * min(done / max(total, 1), 1.0):.0f} %), {elapsed_s:.0f} s, {left}{ret}"
 
 
 def write_curve(curve, out: str, random_return: float, trained_return: float) -> None:

@@ -3,7 +3,8 @@
 Importing this package registers the built-in scenarios: "seyfried_bottleneck" (alias "bottleneck"),
 "bottleneck_groups" (hand-holding pairs and triples in the bottleneck crowd), "corridor_bidirectional"
 (alias "corridor"; two groups with opposite destinations), "room_pillar" (room evacuation with a
-pillar before the door), "corner_90" (alias "corner"; L-shaped corridor) and "polygon" (alias
+pillar before the door), "corner_90" (alias "corner"; L-shaped corridor), "periodic_corridor" (a strip
+periodic along x, no exits: the fundamental diagram's instrument) and "polygon" (alias
 "custom"; any user geometry from coordinates or WKT), and the set-ups of the RiMEA verification tests
 ("rimea_<test>_<name>", :mod:`crowd_env.scenarios.rimea`).
 """
@@ -13,6 +14,7 @@ from .bottleneck import bottleneck_geometry, seyfried_bottleneck
 from .corner import corner_90
 from .corridor import corridor_bidirectional
 from .groups import bottleneck_groups
+from .periodic_corridor import periodic_corridor
 from .polygon import scenario_from_polygon
 from .demographics import RIMEA_ADULTS, WEIDMANN_SPEEDS_BY_AGE_M_S, desired_speeds_for_ages
 from .rimea import rimea_scenario
@@ -21,5 +23,5 @@ from .room import room_pillar
 __all__ = ["Scenario", "ScenarioError", "list_scenarios", "make_scenario", "place_pedestrians", "register_scenario",
            "scenario_options", "form_groups", "door_exit", "check_clearance", "bottleneck_geometry",
            "seyfried_bottleneck", "bottleneck_groups", "corridor_bidirectional", "room_pillar", "corner_90",
-           "scenario_from_polygon", "rimea_scenario", "desired_speeds_for_ages", "RIMEA_ADULTS",
+           "scenario_from_polygon", "periodic_corridor", "rimea_scenario", "desired_speeds_for_ages", "RIMEA_ADULTS",
            "WEIDMANN_SPEEDS_BY_AGE_M_S"]

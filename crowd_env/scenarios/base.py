@@ -19,7 +19,7 @@ import shapely
 import shapely.affinity
 from scipy.spatial import cKDTree
 
-from ..core.checks import check_integer, check_number, is_integer
+from ..core.checks import check_integer, check_number, check_seed, is_integer
 from ..core.geometry import Geometry, as_polygon
 from ..walking.navigation import DestinationNavigation, NavigationField, RigidlyMovedNavigation
 from ..walking.route_choice import QuickestExitNavigation
@@ -289,6 +289,9 @@ class Scenario:
         quantities (link shoulders), pedestrian parameters and destinations stay. Its navigation is this
         one's field moved along (:class:`~crowd_env.walking.navigation.RigidlyMovedNavigation`), not solved
         anew, so the two are the same task to rounding: e.g. a corridor running north from one running east."""
+        if self.geometry.period_x_m:
+            raise ScenarioError(f"scenario {self.name!r} is periodic along x (period_x_m = {self.geometry.period_x_m:g} m) "
+                                "and cannot be moved: its periodicity is tied to the x axis")
         phi = float(rotation_rad)
         t = np.asarray(translation_m, dtype=np.float64).reshape(-1)
         if not math.isfinite(phi) or t.shape != (2,) or not np.isfinite(t).all():
@@ -345,7 +348,7 @@ class Scenario:
                     i = int(np.argmin(gap))
                     raise ScenarioError(f"pedestrian {i} at {pos[i].tolist()} overlaps a wall by {-gap[i]:.4g} m "
                                         f"(radius {r[i]:.4g} m)")
-            pair = first_overlap(pos, r, 1e-9)
+            pair = first_overlap(pos, r, 1e-9, self.geometry.period_x_m)  # across the seam of a periodic one too
             if pair is not None:
                 i, j, overlap = pair
                 raise ScenarioError(f"pedestrians {i} and {j} overlap by {overlap:.4g} m at start "
@@ -654,11 +657,14 @@ def _lookup(name: str):
 
 
 def make_scenario(name: str, **options) -> Scenario:
-    """Build the registered scenario ``name``; unknown names or options raise listing the known ones."""
+    """Build the registered scenario ``name``; unknown names or options raise listing the known ones, and a
+    ``seed`` that is not None or an integer >= 0 raises :class:`ScenarioError` naming it."""
     factory = _lookup(name)
     params = inspect.signature(factory).parameters
     if not any(p.kind == p.VAR_KEYWORD for p in params.values()):
         unknown = sorted(set(options) - set(params))
         if unknown:
             raise ScenarioError(f"unknown option(s) {unknown} for scenario {name!r}; known: {sorted(params)}")
+    if "seed" in options:
+        options["seed"] = check_seed("seed", options["seed"], error=ScenarioError)
     return factory(**options)

@@ -29,7 +29,7 @@ from shapely.geometry.base import BaseGeometry
 
 from ..core.geometry import Geometry, GeometryError, as_polygon, ring_coordinates
 from ..walking.navigation import NavigationField
-from .base import (Scenario, ScenarioError, check_clearance, check_count, check_positive, door_exit,
+from .base import (Scenario, ScenarioError, check_clearance, check_count, check_positive, door_exit, door_widths_m,
                    place_pedestrians, register_scenario)
 
 __all__ = ["scenario_from_polygon", "walkable_polygon", "exit_polygons"]
@@ -129,6 +129,7 @@ def scenario_from_polygon(walkable_area, exits, spawn_area, n_pedestrians: int, 
         raise ScenarioError(f"the spawn area must lie inside the walkable area: {outside:.4g} m² of its "
                             f"{spawn.area:.4g} m² lie outside (beyond the boundary, in a hole or a wall)")
     clearance = check_clearance(navigation_clearance_m, radius_m)
+    _check_doors_passable(geometry, radius_m, clearance, exit_names)
     _check_exits_reachable(geometry, spawn, navigation_resolution_m, clearance)
     try:
         position = place_pedestrians(spawn, n, radius_m, np.random.default_rng(seed), density_per_m2=density_per_m2)
@@ -142,10 +143,45 @@ def scenario_from_polygon(walkable_area, exits, spawn_area, n_pedestrians: int, 
                     destination=destination, exit_names=exit_names)
 
 
+def _check_doors_passable(geometry: Geometry, radius_m: float, clearance_m: float, exit_names=None) -> None:
+    """Raise :class:`GeometryError` naming every exit behind a door (an exit outside the walkable area, on a
+    stretch of its boundary) that is no wider than 2 max(radius_m, clearance_m): a disk cannot pass it, and
+    the eikonal field, solved for the disk centres (``navigation_clearance_m``), has no node in it to start
+    from; as the bottleneck scenarios refuse a channel no wider than a pedestrian."""
+    need = 2.0 * max(float(radius_m), float(clearance_m))
+    area = geometry.walkable_area
+    names = list(exit_names) if exit_names is not None and len(exit_names) == len(geometry.exits) else None
+    narrow = []
+    for k, (poly, width) in enumerate(zip(geometry.exits, door_widths_m(geometry))):
+        if poly.intersection(area).area > 1e-9 or width > need:
+            continue  # an exit inside the walkable area (no door), or a door wide enough
+        door = poly.intersection(area.boundary)
+        ends = np.asarray(shapely.get_coordinates(door))
+        label = f"exit {k}" + (f" ({names[k]!r})" if names is not None else "")
+        where = (f", the door from ({ends[0, 0]:g}, {ends[0, 1]:g}) to ({ends[-1, 0]:g}, {ends[-1, 1]:g}),"
+                 if ends.shape[0] >= 2 else "")
+        narrow.append(f"{label}{where} is {width:.4g} m wide")
+    if narrow:
+        raise GeometryError(f"{'; '.join(narrow)}: a pedestrian of radius {radius_m:g} m needs a door wider than "
+                            f"{need:.4g} m (2 x max(radius_m, navigation_clearance_m) = 2 x "
+                            f"max({radius_m:g}, {clearance_m:g})) to pass, so nobody can reach "
+                            f"{'it' if len(narrow) == 1 else 'them'}; widen the door(s) or make the pedestrians "
+                            "smaller (radius_m)")
+
+
 def _check_exits_reachable(geometry: Geometry, spawn, resolution_m: float, clearance_m: float) -> None:
     """Raise :class:`ScenarioError` naming the first exit that no path of a disk centre (the eikonal grid,
     4-connected as fast marching) joins to the spawn area."""
-    field = NavigationField.cached(geometry, resolution_m, clearance_m=clearance_m)
+    try:
+        field = NavigationField.cached(geometry, resolution_m, clearance_m=clearance_m)
+    except GeometryError as exc:
+        widths = ", ".join(f"exit {k} {w:.4g} m" for k, w in enumerate(door_widths_m(geometry)))
+        raise GeometryError(f"no exit can be reached on the navigation grid (navigation_resolution_m = "
+                            f"{resolution_m:g} m) by the centre of a pedestrian kept {clearance_m:g} m "
+                            f"(navigation_clearance_m) from the walls: the exits' openings ({widths} wide) leave "
+                            f"no grid node {clearance_m:g} m from both their sides; widen them beyond "
+                            f"{2 * clearance_m:.4g} m by a grid cell or more, or give a finer navigation_resolution_m "
+                            f"({exc})") from exc
     nodes = field.raster.node_points()
     walkable = field.walkable
     labels, _ = ndimage.label(walkable)

@@ -21,6 +21,7 @@ from ..core.angles import direction_angles_rad
 from ..core.neighbors import grid_pairs
 from .navigation import DestinationNavigation, NavigationField, sample_bilinear
 from .social_force import social_repulsion, total_social_forces
+from .vision import vision_reach_m, vision_walk
 
 # agent_step's status: the intents are ready, or a pedestrian's e_d is undefined (outside the grid, not
 # finite, or unreachable): the caller must take the Python path, which raises naming it.
@@ -45,16 +46,21 @@ def hold_waiting(intents, theta_d, heading, premovement_s, time_s, index):
 
 
 @nb.njit(cache=True)
-def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, heading, pairs, walls, wall_owner,
-                     social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n, wall_range_m, premovement_s,
-                     time_s):
-    """u_int = ‖u_d‖ e_d + (τ/m) Σ f_social (Eq. 14, 16) and θ_d = angle of e_d, in one compiled call.
+def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, heading, velocity, pairs, walls,
+                     wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n, wall_range_m, premovement_s,
+                     time_s, vision, period_m=0.0):
+    """u_int = ‖u_d‖ e_d + (τ/m) Σ f_social (Eq. 14, 16) and θ_d = angle of e_d, in one compiled call (with
+    vision: u_int = v e(α*) + (τ/m) Σ f_social and θ_d = α*).
 
     ``index`` (n,) active pedestrians, ``e_d`` (n, 2) their desired directions (Eq. 13), ``pairs``
     rows into ``index``. Returns full (N, 2) intents (zero for inactive rows) and (N,) desired
     headings (the current heading for inactive rows). The forces are :func:`social_repulsion`'s
     compiled core, :func:`~crowd_env.walking.social_force.total_social_forces`. Pedestrians whose
-    premovement time has not come at ``time_s`` stand still (:func:`hold_waiting`).
+    premovement time has not come at ``time_s`` stand still (:func:`hold_waiting`). ``vision``
+    ``(T, l, half-angle, rays, κ, κ_0)`` (:func:`vision_parameters`): with T > 0 the speed and direction of the
+    driving term are :func:`~crowd_env.walking.vision.vision_walk`'s (``pairs`` must then reach 2 r_max +
+    :func:`~crowd_env.walking.vision.vision_reach_m`), and θ_d is the walking direction's angle.
+    ``period_m``: the simulation's periodicity along x (``Simulator.period_m``; 0: none).
     """
     n = index.shape[0]
     intents = np.zeros((position.shape[0], 2))
@@ -68,13 +74,21 @@ def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, hea
             pos[k, 1] = position[index[k], 1]
             rad[k] = radius[index[k]]
         total_social_forces(pos, rad, e_d, pairs, np.arange(n), walls, wall_owner, strength_n, range_m, anisotropy,
-                            cutoff_m, wall_strength_n, wall_range_m, force)
-    angles = direction_angles_rad(e_d)
+                            cutoff_m, wall_strength_n, wall_range_m, force, period_m)
+    if vision[0] > 0.0:  # the walking speed and direction of vision instead of ‖u_d‖ and e_d
+        speed, walk = vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, walls, period_m,
+                                  vision[0], vision[1], vision[2], vision[3], vision[4], vision[5])
+    else:
+        speed = np.empty(n)
+        for k in range(n):
+            speed[k] = desired_speed[index[k]]
+        walk = e_d
+    angles = direction_angles_rad(walk)
     for k in range(n):
         i = index[k]
         scale = tau[i] / mass[i]
-        intents[i, 0] = desired_speed[i] * e_d[k, 0] + scale * force[k, 0]
-        intents[i, 1] = desired_speed[i] * e_d[k, 1] + scale * force[k, 1]
+        intents[i, 0] = speed[k] * walk[k, 0] + scale * force[k, 0]
+        intents[i, 1] = speed[k] * walk[k, 1] + scale * force[k, 1]
         theta_d[i] = angles[k]
     hold_waiting(intents, theta_d, heading, premovement_s, time_s, index)
     return intents, theta_d
@@ -152,9 +166,28 @@ def sample_directions(position, index, origin_m, resolution_m, travel_time, dire
 
 
 @nb.njit(cache=True)
+def pair_reach_m(desired_speed, index, social, cutoff_m, vision):
+    """How far beyond 2 r_max the agent needs its neighbour pairs: the social cut-off, vision's horizon
+    (:func:`~crowd_env.walking.vision.vision_reach_m`), the larger of the two; −1 when it needs none."""
+    reach = cutoff_m if social else -1.0
+    if vision[0] > 0.0:
+        reach = max(reach, vision_reach_m(desired_speed, index, vision[0], vision[1]))
+    return reach
+
+
+def vision_parameters(params) -> tuple:
+    """``(T, l, half-angle, rays, κ, κ_0)`` of :class:`~crowd_env.core.params.ModelParams` ``params`` for the
+    kernels (κ_0 = κ when ``vision_body_scale_standing`` is None)."""
+    standing = params.vision_body_scale if params.vision_body_scale_standing is None \
+        else params.vision_body_scale_standing
+    return (float(params.vision_time_gap_s), float(params.vision_jam_gap_m), float(params.vision_half_angle_rad),
+            int(params.vision_rays), float(params.vision_body_scale), float(standing))
+
+
+@nb.njit(cache=True)
 def agent_step(position, radius, index, origin_m, resolution_m, travel_time, direction, field_of, desired_speed, tau,
-               mass, heading, walls, wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n,
-               wall_range_m, premovement_s, time_s):
+               mass, heading, velocity, walls, wall_owner, social, strength_n, range_m, anisotropy, cutoff_m,
+               wall_strength_n, wall_range_m, premovement_s, time_s, vision, period_m=0.0):
     """One decision of :class:`SocialForceAgent` in compiled code, exactly as its ``__call__``: e_d from the
     fields (:func:`sample_directions`), the neighbour pairs within 2 r_max + cut-off (the ones
     ``Simulator.neighbor_pairs`` would build, which the step may reuse) and :func:`baseline_intents`.
@@ -166,15 +199,16 @@ def agent_step(position, radius, index, origin_m, resolution_m, travel_time, dir
         return AGENT_BAD_DIRECTION, np.zeros((position.shape[0], 2)), heading.copy(), no_pairs, -1.0
     pairs = no_pairs
     pair_radius = -1.0
-    if social:
+    reach = pair_reach_m(desired_speed, index, social, cutoff_m, vision)
+    if reach >= 0.0:
         r_max = 0.0
         for k in range(n):
             r_max = max(r_max, radius[index[k]])
-        pair_radius = 2.0 * r_max + cutoff_m
-        pairs = grid_pairs(position, index, pair_radius)
-    intents, theta_d = baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, heading, pairs, walls,
-                                        wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n,
-                                        wall_range_m, premovement_s, time_s)
+        pair_radius = 2.0 * r_max + reach
+        pairs = grid_pairs(position, index, pair_radius, period_m)
+    intents, theta_d = baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, heading, velocity,
+                                        pairs, walls, wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n,
+                                        wall_range_m, premovement_s, time_s, vision, period_m)
     return AGENT_OK, intents, theta_d, pairs, pair_radius
 
 
@@ -215,7 +249,7 @@ class SocialForceAgent:
         pos = st.position_m[idx]
         radius = st.radius_m[idx]
         pairs = sim.neighbor_pairs(2.0 * float(radius.max()) + p.social_cutoff_m) if idx.size else np.zeros((0, 2), np.int64)
-        return social_repulsion(pos, radius, e_d, pairs, sim.walls, sim.wall_owner, p)
+        return social_repulsion(pos, radius, e_d, pairs, sim.walls, sim.wall_owner, p, period_m=sim.period_m)
 
     def compiled(self, n_pedestrians: int) -> CompiledNavigation | None:
         """The agent's navigation for :func:`agent_step` (None: this agent has no compiled form, e.g. a
@@ -235,10 +269,12 @@ class SocialForceAgent:
         if update is not None:
             update(sim)
         e_d = self.desired_direction(sim, idx)
-        pairs = sim.neighbor_pairs(2.0 * float(st.radius_m[idx].max()) + p.social_cutoff_m) if p.social_forces \
+        vision = vision_parameters(p)
+        reach = pair_reach_m(st.desired_speed_m_s, idx, bool(p.social_forces), float(p.social_cutoff_m), vision)
+        pairs = sim.neighbor_pairs(2.0 * float(st.radius_m[idx].max()) + reach) if reach >= 0.0 \
             else np.zeros((0, 2), np.int64)
         return baseline_intents(st.position_m, st.radius_m, idx, e_d, st.desired_speed_m_s, st.tau_s, st.mass_kg,
-                                st.heading_rad, pairs, sim.walls, sim.wall_owner, p.social_forces,
+                                st.heading_rad, st.velocity_m_s, pairs, sim.walls, sim.wall_owner, p.social_forces,
                                 float(p.social_strength_n), float(p.social_range_m), float(p.social_anisotropy),
                                 float(p.social_cutoff_m), float(p.wall_strength_n), float(p.wall_range_m),
-                                st.premovement_s, float(sim.time_s))
+                                st.premovement_s, float(sim.time_s), vision, sim.period_m)

@@ -349,6 +349,35 @@ class NavigationField:
             cls._cache.popitem(last=False)
         return field
 
+    @classmethod
+    def uniform(cls, geometry: Geometry, direction, resolution_m: float = 0.05,
+                speed_m_s: float = 1.0) -> "NavigationField":
+        """A field without fast marching: the same e_d = ``direction`` ((2,), normalised) at every node and
+        T = (max p·e_d − p·e_d)/V over the grid, which decreases along e_d. The navigation along the axis
+        of a periodic corridor (no exits: T is only a potential that falls in the walking direction and
+        jumps at the seam). On the grid of :meth:`Geometry.rasterize`, so compiled code samples it like any
+        field (:func:`~crowd_env.walking.agent.compile_navigation`)."""
+        if not isinstance(geometry, Geometry):
+            raise GeometryError(f"NavigationField needs a Geometry, got {type(geometry).__name__}")
+        e = np.asarray(direction, dtype=np.float64).reshape(-1)
+        norm = float(np.hypot(*e)) if e.shape == (2,) and np.isfinite(e).all() else 0.0
+        if norm <= 0.0:
+            raise GeometryError(f"direction must be a finite non-zero (2,) vector, got {direction!r}")
+        field = cls.__new__(cls)
+        field.speed_m_s = check_number("speed_m_s", speed_m_s, error=GeometryError, positive=True)
+        field.geometry, field.wall_slowdown, field.clearance_m, field.exits = geometry, None, 0.0, None
+        raster = field.raster = geometry.rasterize(resolution_m)
+        field.resolution_m, field.origin_m, field.walkable = raster.resolution_m, raster.origin_m, raster.walkable
+        e = e / norm
+        along = (raster.node_points() @ e).reshape(raster.shape)
+        travel = (along.max() - along) / field.speed_m_s
+        grid = np.broadcast_to(e, (*raster.shape, 2)).copy()
+        field.reachable = np.ones(raster.shape, dtype=bool)
+        for arr in (travel, grid, field.reachable):
+            arr.setflags(write=False)
+        field.travel_time_s_grid, field.direction_grid = travel, grid
+        return field
+
     @property
     def max_travel_time_s(self) -> float:
         """Largest finite travel time on the grid (s)."""

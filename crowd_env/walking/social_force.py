@@ -18,7 +18,9 @@ wall's closest point, n the wall's normal into the pedestrian, and its own stren
 Neighbour pairs come from the simulator's cell grid (:mod:`crowd_env.core.neighbors`), pedestrian/wall
 pairs from :func:`crowd_env.core.segments.wall_proximity`; pairs whose surface gap exceeds ``cutoff_m``
 contribute nothing. The simulator itself never calls this module: the calibrated agent
-(:mod:`crowd_env.walking.agent`) adds these forces to its velocity intent.
+(:mod:`crowd_env.walking.agent`) adds these forces to its velocity intent. In a periodic simulation
+(``period_m`` L > 0) the displacement between two pedestrians is taken to its nearest image along x
+(:func:`~crowd_env.core.periodic.minimum_image_dx`); walls are not periodic.
 """
 from __future__ import annotations
 
@@ -27,6 +29,7 @@ from crowd_env.errors import InputError
 import numba as nb
 import numpy as np
 
+from ..core.periodic import minimum_image_dx
 from ..core.segments import as_segments, closest_point_on_segment, wall_proximity
 
 _TINY_M = 1e-12  # centre distances below this have no defined direction: the pair is skipped
@@ -50,16 +53,18 @@ def _anisotropy_weight(ex, ey, ux, uy, anisotropy):
 
 
 @nb.njit(cache=True)
-def social_forces(position, radius, desired_direction, pairs, strength_n, range_m, anisotropy, cutoff_m, out):
+def social_forces(position, radius, desired_direction, pairs, strength_n, range_m, anisotropy, cutoff_m, out,
+                  period_m=0.0):
     """Accumulate pedestrian-pedestrian repulsion (Eq. 16) into ``out`` (N, 2), in newtons.
 
     ``pairs`` (P, 2) int: unordered index pairs (i, j); each contributes f_ij to i and f_ji to j.
-    Pairs with surface gap d_ij - R_ij > ``cutoff_m`` or coincident centres are skipped.
+    Pairs with surface gap d_ij - R_ij > ``cutoff_m`` or coincident centres are skipped. ``period_m`` L > 0:
+    x is periodic (nearest images).
     """
     for p in range(pairs.shape[0]):
         i = pairs[p, 0]
         j = pairs[p, 1]
-        dx = position[i, 0] - position[j, 0]  # from j to i
+        dx = minimum_image_dx(position[i, 0] - position[j, 0], period_m)  # from j to i
         dy = position[i, 1] - position[j, 1]
         d = np.sqrt(dx * dx + dy * dy)
         gap = d - radius[i] - radius[j]
@@ -116,10 +121,11 @@ def wall_forces_within(position, radius, desired_direction, index, segments, own
 
 @nb.njit(cache=True)
 def total_social_forces(position, radius, desired_direction, pairs, index, segments, owner, strength_n, range_m,
-                        anisotropy, cutoff_m, wall_strength_n, wall_range_m, out):
+                        anisotropy, cutoff_m, wall_strength_n, wall_range_m, out, period_m=0.0):
     """Compiled core of :func:`social_repulsion` (Eq. 16 between the ``pairs`` and from the walls near
-    pedestrians ``index``), accumulated into ``out``; also called from other compiled code."""
-    social_forces(position, radius, desired_direction, pairs, strength_n, range_m, anisotropy, cutoff_m, out)
+    pedestrians ``index``), accumulated into ``out``; also called from other compiled code. ``period_m``:
+    the periodicity along x of the pedestrians' displacements (0: none)."""
+    social_forces(position, radius, desired_direction, pairs, strength_n, range_m, anisotropy, cutoff_m, out, period_m)
     return wall_forces_within(position, radius, desired_direction, index, segments, owner, wall_strength_n,
                               wall_range_m, anisotropy, cutoff_m, out)
 
@@ -137,12 +143,14 @@ def wall_repulsion(position, radius, desired_direction, segments, owner, strengt
                               float(range_m), float(anisotropy), float(cutoff_m), out)
 
 
-def social_repulsion(position, radius, desired_direction, pairs, segments, owner, params, index=None, out=None):
+def social_repulsion(position, radius, desired_direction, pairs, segments, owner, params, index=None, out=None,
+                     period_m: float = 0.0):
     """Total social force (N, 2) in newtons from pedestrians and walls with :class:`ModelParams` ``params``.
 
     Uses ``social_strength_n``/``social_range_m`` between pedestrians, ``wall_strength_n``/
     ``wall_range_m`` for walls, ``social_anisotropy`` and ``social_cutoff_m`` for both. ``pairs`` must
     only hold pedestrians that should interact (e.g. active ones); ``index`` restricts wall queries.
+    ``period_m``: the periodicity along x (``Simulator.period_m``; 0: none).
     """
     n = position.shape[0]
     if out is None:
@@ -158,7 +166,7 @@ def social_repulsion(position, radius, desired_direction, pairs, segments, owner
     return total_social_forces(position, radius, desired_direction, pairs, index, segments, owner,
                                float(params.social_strength_n), float(params.social_range_m),
                                float(params.social_anisotropy), float(params.social_cutoff_m),
-                               float(params.wall_strength_n), float(params.wall_range_m), out)
+                               float(params.wall_strength_n), float(params.wall_range_m), out, float(period_m))
 
 
 def social_forces_dense_reference(position, radius, desired_direction, segments, strength_n, range_m, anisotropy,

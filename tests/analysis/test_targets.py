@@ -82,3 +82,103 @@ def test_missing_cases_and_figures_are_named():
         target_error([r for r in _records() if r["n_pedestrians"] != 60])
     with pytest.raises(CalibrationError, match="capacity widths"):
         required_cases((0.8, 0.9))
+
+
+# --- the fundamental diagram's terms (issue 36, item 4) ----------------------------------------------------
+
+def _fd_records(corridor_shift=0.0, single_shift=0.0, corridor_speeds=None, a=0.34, b=1.08, seeds=(0, 1)):
+    """Sweep records at every scored bin: the bin's speed + shift (or ``corridor_speeds``), seeds scattering
+    ±0.01 around; a single file on the line d = a + b v."""
+    from crowd_env.analysis.targets import corridor_fd_bins, single_file_bins
+
+    out = []
+    for setup, bins, shift in (("corridor", corridor_fd_bins(), corridor_shift),
+                               ("single_file", single_file_bins(), single_shift)):
+        for k, (rho, v) in enumerate(bins):
+            if setup == "corridor" and corridor_speeds is not None:
+                v, shift = corridor_speeds[k], 0.0
+            for j, s in enumerate(seeds):
+                r = {"setup": setup, "density": float(rho), "seed": s, "n_pedestrians": 20, "complete": True,
+                     "stalled": False, "speed_m_s": v + shift + 0.01 * (1 if j % 2 else -1)}
+                if setup == "single_file":
+                    speeds = np.linspace(0.1, 1.2, 12)
+                    r.update(headway_samples_m=(a + b * speeds).tolist(), speed_samples_m_s=speeds.tolist())
+                out.append(r)
+    return out
+
+
+def test_a_model_on_every_bin_scores_zero_and_bottleneck_only_leaves_the_fd_terms_unscored():
+    from crowd_env.analysis.targets import FD_TERMS
+
+    e = target_error(_records() + _fd_records())
+    assert not e.failed and e.unscored == () and e.objective == pytest.approx(0.0, abs=1e-12)
+    assert all(e.terms[k] == pytest.approx(0.0, abs=1e-12) for k in FD_TERMS)
+    assert e.figures["headway_a_m"] == pytest.approx(0.34) and e.figures["headway_b_s"] == pytest.approx(1.08)
+    e = target_error(_records())
+    assert e.unscored == FD_TERMS and all(e.terms[k] == 0.0 for k in FD_TERMS)
+    with pytest.raises(CalibrationError, match="need runs of its sweep"):
+        target_error(_records(), fd=True)
+    assert target_error(_records() + _fd_records(corridor_shift=1.0), fd=False).objective == pytest.approx(0.0)
+    # within the ±0.10 m/s band: no miss
+    assert target_error(_records() + _fd_records(corridor_shift=0.085, single_shift=-0.085)).objective == \
+        pytest.approx(0.0, abs=1e-12)
+
+
+def test_a_miss_of_0_2_m_s_costs_its_squared_relative_excess():
+    from crowd_env.analysis.targets import corridor_fd_bins, single_file_bins
+
+    e = target_error(_records() + _fd_records(corridor_shift=0.2, single_shift=-0.2))
+    v_c, v_s = corridor_fd_bins()[:, 1], single_file_bins()[:, 1]
+    assert e.terms["corridor_fd"] == pytest.approx(np.mean((0.1 / v_c) ** 2))
+    assert e.terms["single_file"] == pytest.approx(np.mean((0.1 / v_s) ** 2))
+    assert e.terms["corridor_monotone"] == pytest.approx(0.0, abs=1e-12)  # the shifted bins still fall
+    assert e.objective == pytest.approx(e.terms["corridor_fd"] + e.terms["single_file"])
+    w = TargetWeights(corridor_fd=2.0, single_file=0.0)
+    assert target_error(_records() + _fd_records(corridor_shift=0.2, single_shift=-0.2), weights=w).objective == \
+        pytest.approx(2.0 * e.terms["corridor_fd"])
+
+
+def test_speed_rising_with_density_is_penalised():
+    from crowd_env.analysis.targets import corridor_fd_bins
+
+    bins = corridor_fd_bins()
+    speeds = bins[:, 1].copy()
+    speeds[-2] -= 0.09  # 3.101 /m²: 0.245 and 3.364 /m²: 0.423, both inside the band, rising by 0.178
+    speeds[-1] += 0.09
+    e = target_error(_records() + _fd_records(corridor_speeds=speeds))
+    rise = speeds[-1] - speeds[-2]
+    assert e.terms["corridor_fd"] == pytest.approx(0.0, abs=1e-12)
+    assert e.terms["corridor_monotone"] == pytest.approx((rise / bins[-1, 1]) ** 2 / (len(bins) - 1))
+    assert e.objective == pytest.approx(e.terms["corridor_monotone"])
+
+
+def test_a_headway_fit_outside_its_band_is_penalised():
+    from crowd_env.analysis.targets import HEADWAY_A_RANGE_M, HEADWAY_B_RANGE_S, UNDEFINED_FIT_MISS
+
+    e = target_error(_records() + _fd_records(a=0.5, b=1.5))
+    expected = 0.5 * ((0.5 / HEADWAY_A_RANGE_M[1] - 1) ** 2 + (1.5 / HEADWAY_B_RANGE_S[1] - 1) ** 2)
+    assert e.terms["headway_fit"] == pytest.approx(expected)
+    assert target_error(_records() + _fd_records(a=0.2, b=1.0)).terms["headway_fit"] == \
+        pytest.approx(0.5 * (0.2 / 0.28 - 1) ** 2)
+    assert target_error(_records() + _fd_records(a=0.30, b=1.2)).terms["headway_fit"] == 0.0  # inside both bands
+    standing = _fd_records()
+    for r in standing:
+        if r["setup"] == "single_file":
+            r["speed_samples_m_s"] = [0.0] * len(r["speed_samples_m_s"])  # nobody moves: no fit
+    assert target_error(_records() + standing).terms["headway_fit"] == pytest.approx(UNDEFINED_FIT_MISS ** 2)
+
+
+def test_a_stalled_bottleneck_run_still_fails_the_point_and_sweep_errors_are_named():
+    recs = _records()
+    recs[3] = dict(recs[3], n_evacuated=recs[3]["n_pedestrians"] - 5, stalled=True)
+    fd = _fd_records()
+    e = target_error(recs + fd)
+    assert e.failed and e.n_incomplete == 1 and e.objective == pytest.approx(FAILED_POINT_OBJECTIVE + 1 / len(recs + fd))
+    with pytest.raises(CalibrationError, match="no shipped bin"):
+        target_error(_records() + [dict(fd[0], density=1.0)] + fd[1:])
+    with pytest.raises(CalibrationError, match="every set-up"):
+        target_error(_records() + [r for r in fd if r["setup"] == "corridor"])
+    with pytest.raises(CalibrationError, match="headway samples"):
+        target_error(_records() + [{k: v for k, v in r.items() if k != "headway_samples_m"} for r in fd])
+    with pytest.raises(CalibrationError, match="no bottleneck run"):
+        target_error(fd)

@@ -1,10 +1,11 @@
 """The shared argument checks: what counts as a number, the message form, and the callers' error classes."""
 import math
+import re
 
 import numpy as np
 import pytest
 
-from crowd_env.core.checks import check_integer, check_number, is_integer, is_number
+from crowd_env.core.checks import check_integer, check_number, check_seed, is_integer, is_number
 from crowd_env.errors import EnvOptionError, GeometryError, InputError, ScenarioError
 
 
@@ -69,3 +70,18 @@ def test_callers_raise_their_own_error_class():
         crowd_v0.parallel_env(frame_skip=2.0)
     with pytest.raises(EnvOptionError, match=r"action_max_m_s must be a positive finite number, got nan"):
         crowd_v0.parallel_env(action_max_m_s=float("nan"))
+
+
+@pytest.mark.parametrize("value", ["abc", 1.5, 1.0, -1, True, np.bool_(True), np.float64(2.0), [1, 2], math.nan])
+def test_check_seed_refuses_what_default_rng_would_refuse_or_misread_naming_the_argument(value):
+    """Issue 37, item 8: numpy's own messages ("SeedSequence expects int ...", "expected non-negative
+    integer") do not name the argument; True was read as 1."""
+    with pytest.raises(ScenarioError, match=rf"^seed must be None or an integer >= 0, got {re.escape(repr(value))}$"):
+        check_seed("seed", value, error=ScenarioError)
+
+
+def test_check_seed_accepts_none_and_non_negative_integers():
+    assert check_seed("seed", None, error=EnvOptionError) is None
+    assert check_seed("seed", 0, error=EnvOptionError) == 0
+    value = check_seed("seed", np.int64(2**40), error=EnvOptionError)
+    assert value == 2**40 and type(value) is int

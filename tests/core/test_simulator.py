@@ -416,6 +416,7 @@ def test_step_min_gap_matches_the_independent_check():
     assert checked > 100
 
 
+@pytest.mark.filterwarnings("ignore::crowd_env.core.timestep.TimeStepWarning")  # tau = h on purpose
 def test_fast_pedestrian_cannot_step_over_a_thin_exit():
     """The exit test follows each centre's path within the step: a 1 cm deep exit crossed at 10 m/s
     (10 cm per step) still removes the pedestrian, and one passing beside the exit does not leave."""
@@ -424,7 +425,7 @@ def test_fast_pedestrian_cannot_step_over_a_thin_exit():
     from crowd_env.core.geometry import Geometry
 
     geom = Geometry(sbox(0, 0, 6, 4), exits=[sbox(5.99, 1, 6.0, 3)])
-    st = CrowdState.create([[5.5, 2.0], [3.0, 0.5]], radius_m=0.23, tau_s=1e-9)
+    st = CrowdState.create([[5.5, 2.0], [3.0, 0.5]], radius_m=0.23, tau_s=0.01)  # tau = h: u* = u_int
     sim = Simulator(st, geometry=geom, params=ModelParams(rotation=False))
     left_at = None
     for k in range(20):

@@ -485,7 +485,7 @@ def test_registration_is_lazy_and_complete():
 
 
 def test_render_shows_the_contact_percussions_of_the_last_step():
-    """env.render() draws the percussions of the sub-steps since the previous frame (crowd_env.envs.rendering)."""
+    """env.render() draws the percussions of the last environment step's sub-steps (crowd_env.envs.rendering)."""
     env = crowd_v0.parallel_env(scenario="seyfried_bottleneck", scenario_options={"width_m": 0.8, "n_pedestrians": 20},
                                 frame_skip=5, render_mode="rgb_array")
     obs, _ = env.reset(seed=0)
@@ -501,4 +501,137 @@ def test_render_shows_the_contact_percussions_of_the_last_step():
     without = env._renderer.draw(env.sim.state, env.sim.time_s, len(env.agents))  # same state, no percussions
     assert with_contacts.shape == without.shape
     assert (np.abs(with_contacts.astype(int) - without.astype(int)).sum(axis=2) > 60).sum() > 20
-    np.testing.assert_array_equal(env.render(), without)  # taken: the next frame has none until the next step
+    np.testing.assert_array_equal(env.render(), with_contacts)  # the same step, the same frame
+    env.reset(seed=1)
+    np.testing.assert_array_equal(env.render()[:5], env._renderer.draw(env.sim.state, env.sim.time_s, 20)[:5])
+
+
+@pytest.mark.parametrize("seed", ["abc", 1.5, -1, True])
+def test_reset_refuses_a_bad_seed_naming_it(seed):
+    """Issue 37, item 8: ``reset(seed="abc" / 1.5 / -1)`` raised numpy's messages, which do not name the seed."""
+    from crowd_env.envs.vector import vector_env
+
+    env = small_env()
+    with pytest.raises(EnvOptionError, match=r"^seed must be None or an integer >= 0, got "):
+        env.reset(seed=seed)
+    single = CrowdSingleAgentEnv(scenario_options={"n_pedestrians": 12}, frame_skip=10, max_steps=30)
+    with pytest.raises(EnvOptionError, match=r"^seed must be None or an integer >= 0, got "):
+        single.reset(seed=seed)
+    vec = vector_env(2, **SMALL)
+    try:
+        with pytest.raises(EnvOptionError, match=r"^seed must be None or an integer >= 0, got "):
+            vec.reset(seed=seed)
+        with pytest.raises(EnvOptionError, match=r"^seed\[1\] must be None or an integer >= 0, got "):
+            vec.reset(seed=[0, seed])
+    finally:
+        vec.close()
+    obs, _ = env.reset(seed=np.int64(7))  # a NumPy integer is a seed
+    assert obs
+
+
+def test_action_max_beyond_the_cores_bound_on_intents_is_refused_when_made():
+    """An action's norm (up to a_max √2) must stay within crowd_env.core.step.MAX_INPUT_SPEED_M_S, which
+    Simulator.step enforces (issue 37, item 6): the environment says so when made, not at its first step."""
+    from crowd_env.core.step import MAX_INPUT_SPEED_M_S
+
+    limit = MAX_INPUT_SPEED_M_S / np.sqrt(2.0)
+    small_env(action_max_m_s=0.999 * limit)
+    with pytest.raises(EnvOptionError, match=r"action_max_m_s must be at most 707\.107 m/s .*MAX_INPUT_SPEED_M_S"):
+        small_env(action_max_m_s=1.001 * limit)
+
+
+def test_render_after_several_steps_draws_only_the_last_steps_contacts():
+    """Regression (issue 37): contacts summed over every step since the previous render() were drawn between
+    the current positions, lines of 3-4 m across the room. A frame shows the last environment step's
+    contacts only, between pedestrians that touch (or a pedestrian and a wall), and render() twice shows the
+    same frame."""
+    from crowd_env.envs.rendering import contact_segments
+
+    env = crowd_v0.parallel_env(scenario="seyfried_bottleneck", scenario_options={"width_m": 0.8, "n_pedestrians": 20},
+                                frame_skip=5, render_mode="rgb_array")
+    obs, _ = env.reset(seed=0)
+    ed = env.observation_layout["desired_direction"]
+    env.render()
+    pushed = 0
+    for _ in range(200):  # no render() meanwhile: many steps of contacts
+        obs, _, _, _, infos = env.step({a: np.clip(2.4 * obs[a][ed], -2.5, 2.5) for a in env.agents})
+        pushed += sum(i["contact_percussion_kg_m_s"] > 0 for i in infos.values()) > 0
+        if pushed >= 40 and sum(i["contact_percussion_kg_m_s"] for i in infos.values()) > 5.0:
+            break
+    else:
+        pytest.fail("not enough contact in 200 steps of a crowd pushing into a 0.8 m bottleneck")
+    st = env.sim.state
+    contacts = env._percussions.peek()
+    assert len(contacts[0]) > 0
+    segs, _ = contact_segments(st.position_m, st.active, env.geometry.walls, contacts)
+    lengths = np.hypot(*(segs[:, 1] - segs[:, 0]).T)
+    assert lengths.max() < 2.0 * st.radius_m.max() + 0.05  # touching now (within one step's travel), not 3-4 m
+    first = env.render()
+    np.testing.assert_array_equal(env.render(), first)
+
+
+def test_unknown_options_are_type_errors_in_pythons_wording():
+    from crowd_env.errors import UnknownOptionError
+
+    for make in (crowd_v0.parallel_env, crowd_v0.env, CrowdSingleAgentEnv):
+        with pytest.raises(UnknownOptionError, match=r"unexpected keyword argument 'frameskip'") as info:
+            make(frameskip=4)
+        assert isinstance(info.value, TypeError) and isinstance(info.value, EnvOptionError)
+        assert "unknown option(s) ['frameskip']" in str(info.value)
+
+
+def test_torchrl_gym_env_makes_the_registered_ids():
+    """Regression (issue 37): TorchRL passes frameskip and drops it only on Python's standard TypeError."""
+    torchrl_envs = pytest.importorskip("torchrl.envs")
+    env = torchrl_envs.GymEnv("crowd_env/BottleneckSmall-v0", frame_skip=2, scenario_options={"n_pedestrians": 6})
+    td = env.rollout(3)
+    assert td["next", "observation"].shape == (3, env.observation_spec["observation"].shape[-1])
+    env.close()
+
+
+def test_registered_ids_have_a_time_limit_and_the_native_vector_entry_point():
+    """Regression (issue 37): spec.max_episode_steps was None and make_vec(vector_entry_point) failed."""
+    spec = gymnasium.spec("crowd_env/BottleneckSmall-v0")
+    assert spec.max_episode_steps == spec.kwargs["max_steps"] == 600
+    from crowd_env.envs.vector import CrowdVectorEnv
+
+    vec = gymnasium.make_vec("crowd_env/BottleneckSmall-v0", num_envs=3, vectorization_mode="vector_entry_point",
+                             scenario_options={"n_pedestrians": 6}, max_steps=4)
+    assert isinstance(vec, CrowdVectorEnv) and vec.num_envs == 3 and vec.spec.id == "crowd_env/BottleneckSmall-v0"
+    obs, _ = vec.reset(seed=5)
+    single = gymnasium.make("crowd_env/BottleneckSmall-v0", scenario_options={"n_pedestrians": 6}, max_steps=4)
+    for c in range(3):  # slot c is the learner of copy c, seeded seed + c as gymnasium's vector envs do
+        np.testing.assert_array_equal(obs[c], single.reset(seed=5 + c)[0])
+    for t in range(4):
+        obs, rewards, terminated, truncated, infos = vec.step(np.zeros((3, 2), np.float32))
+    assert truncated.all() and not terminated.any()  # max_steps=4, as the single view
+    vec.close()
+    # gymnasium's time limit caps max_steps (the smaller one truncates), as TimeLimit does for make()
+    vec = gymnasium.make_vec("crowd_env/BottleneckSmall-v0", num_envs=2, scenario_options={"n_pedestrians": 6},
+                             max_episode_steps=2)
+    assert isinstance(vec, CrowdVectorEnv) and vec.get_attr("max_steps") == (2, 2)
+    vec.close()
+    sync = gymnasium.make_vec("crowd_env/BottleneckSmall-v0", num_envs=2, vectorization_mode="sync",
+                              scenario_options={"n_pedestrians": 6})
+    assert isinstance(sync, gymnasium.vector.SyncVectorEnv)
+    sync.close()
+
+
+def test_max_cycles_is_pettingzoos_name_of_max_steps():
+    """Regression (issue 37): PettingZoo's max_cycles was an unknown option."""
+    options = {k: v for k, v in SMALL.items() if k != "max_steps"}
+    env = crowd_v0.parallel_env(max_cycles=3, **options)
+    assert env.max_steps == env.max_cycles == 3
+    obs, _ = env.reset(seed=0)
+    for _ in range(3):
+        assert env.agents
+        obs, _, term, trunc, _ = env.step({a: np.zeros(2, np.float32) for a in env.agents})
+    assert not env.agents and all(trunc.values()) and not any(term.values())
+    parallel_api_test(env, num_cycles=7)  # PettingZoo's test sets env.max_cycles itself
+    assert env.max_steps == 7
+    aec = crowd_v0.env(max_cycles=3, **options)
+    assert aec.unwrapped.max_steps == 3
+    api_test(aec, num_cycles=10)
+    assert CrowdSingleAgentEnv(max_cycles=5, scenario_options={"n_pedestrians": 6}).parallel.max_steps == 5
+    with pytest.raises(EnvOptionError, match="max_steps or its PettingZoo name max_cycles, not both"):
+        crowd_v0.parallel_env(max_cycles=3, max_steps=4)

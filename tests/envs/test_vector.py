@@ -243,3 +243,59 @@ def test_sb3_view_with_workers():
     assert vec.get_attr("max_steps") == [100] * 4 + [50] * 4
     assert vec.env_method("__getattribute__", "n_pedestrians", indices=[1, 6]) == [5, 5]
     vec.close()
+
+
+def test_a_script_without_the_main_guard_fails_fast_saying_what_to_do(tmp_path):
+    """Regression (issue 37): vector_env(..., workers=2) at a script's top level blocked for ever in
+    Process.start(): the spawned worker re-runs the script, fails there and never reads its arguments. Now the
+    parent raises WorkerError at once, and both errors name the ``__main__`` guard."""
+    import subprocess
+    import sys
+    import time
+
+    script = tmp_path / "unguarded.py"
+    script.write_text("from crowd_env.envs.vector import vector_env\n"
+                      f"vec = vector_env(2, workers=2, **{OPTIONS!r})\n"
+                      "print('started')\n")
+    t0 = time.perf_counter()
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert time.perf_counter() - t0 < 60
+    assert out.returncode != 0 and "started" not in out.stdout
+    assert "crowd_env.errors.WorkerError: worker 1" in out.stderr and "died while starting" in out.stderr
+    assert 'if __name__ == "__main__":' in out.stderr.split("WorkerError")[-1]
+    # the worker's own error says the same (it made the vector environment while importing the script)
+    assert "was made while a 'spawn' worker process was importing the main module" in out.stderr
+
+    guarded = tmp_path / "guarded.py"
+    guarded.write_text("from crowd_env.envs.vector import vector_env\n"
+                       "if __name__ == '__main__':\n"
+                       f"    vec = vector_env(2, workers=2, **{OPTIONS!r})\n"
+                       "    vec.reset(seed=0)\n"
+                       "    vec.close()\n"
+                       "    print('started')\n")
+    out = subprocess.run([sys.executable, str(guarded)], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert out.returncode == 0 and "started" in out.stdout, out.stderr
+
+
+def test_a_worker_that_cannot_load_its_copies_is_a_worker_error_at_start():
+    """Start-up waits for each worker's 'ready': a worker whose copies fail to load reports it with its
+    traceback, as a WorkerError of the constructor, instead of dying before the first step."""
+    envs = [crowd_v0.parallel_env(**OPTIONS) for _ in range(2)]
+    envs[1].extra = _LoadsInTheParentOnly()  # copy 1 goes to worker 1
+    with pytest.raises(WorkerError, match=r"worker 1 \(pid \d+, copies 1\.\.1\) raised RuntimeError: no copies "
+                                          r"here") as info:
+        CrowdVectorEnv(envs, workers=2)
+    assert "_loads_in_the_parent_only" in str(info.value)
+
+
+class _LoadsInTheParentOnly:
+    def __reduce__(self):
+        return _loads_in_the_parent_only, ()
+
+
+def _loads_in_the_parent_only():
+    import multiprocessing
+
+    if multiprocessing.parent_process() is not None:
+        raise RuntimeError("no copies here")
+    return _LoadsInTheParentOnly()

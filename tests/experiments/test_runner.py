@@ -44,3 +44,91 @@ def test_speed_and_stationary_flow_windows():
                     n_evacuated=1, evacuation_time_s=0.1, crossing_times_s=np.array([0.05]), flow_per_s=np.nan,
                     specific_flow_per_m_s=np.nan, min_gap_m=0.0, speed_m_s={"inside": np.ones(10)})
     assert np.isnan(one.stationary_specific_flow_per_m_s()) and np.isnan(one.mean_speed_m_s("inside"))
+
+
+# ---------------------------------------------------------------- issue 37, item 9: steps and buffers
+def _small_bottleneck():
+    from crowd_env.scenarios import make_scenario
+
+    return make_scenario("seyfried_bottleneck", n_pedestrians=10, seed=1)
+
+
+@pytest.mark.parametrize("dt_s, count", [(1e-9, "300,000,000,000"), (1e-6, "300,000,000")])
+def test_run_needing_more_steps_than_the_limit_is_refused_with_the_count(dt_s, count):
+    """dt_s = 1e-9 tried to allocate 4.37 TiB (series sized by max_time / dt); 1e-6 ran for ever."""
+    from crowd_env.core import ModelParams
+    from crowd_env.errors import InputError
+    from crowd_env.experiments.runner import run_scenario
+    from crowd_env.walking.agent import SocialForceAgent
+
+    sc = _small_bottleneck()
+    with pytest.raises(InputError, match=rf"max_time_s = 300 s at dt_s = {dt_s:g} s needs up to {count} steps, more "
+                                         rf"than step_limit = 10,000,000 .*MAX_RUN_STEPS.*pass a larger step_limit"):
+        run_scenario(sc, SocialForceAgent(sc.navigation()), ModelParams(dt_s=dt_s), max_time_s=300.0)
+    with pytest.raises(InputError, match=r"needs up to 10 steps, more than step_limit = 5"):
+        run_scenario(sc, SocialForceAgent(sc.navigation()), ModelParams(), max_time_s=0.1, step_limit=5)
+
+
+def test_series_grow_with_the_steps_run_not_with_max_time():
+    """A run allowed 1e5 s (1e7 steps: 320 MB of density and speed series at once before) that ends after
+    about 20 s holds only what it used, and gives the same record as with series that start tiny."""
+    import tracemalloc
+
+    import crowd_env.experiments.runner as runner
+    from crowd_env.core import ModelParams
+    from crowd_env.walking.agent import SocialForceAgent
+
+    sc = _small_bottleneck()
+
+    def run(**kw):
+        return runner.run_scenario(sc, SocialForceAgent(sc.navigation()), ModelParams(), **kw)
+
+    run(max_time_s=1.0)  # compile first: tracemalloc below sees the run's arrays only
+    tracemalloc.start()
+    try:
+        long = run(max_time_s=1e5)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert long.complete and long.n_steps < 5000
+    assert peak < 30e6, f"peak {peak / 1e6:.1f} MB"
+    old = runner.SERIES_START_ROWS
+    runner.SERIES_START_ROWS = 3  # grow many times, in the compiled chunks and in Python steps
+    try:
+        for compiled in (True, False):
+            small = run(max_time_s=1e5, compiled=compiled, chunk_steps=257)
+            assert small.n_steps == long.n_steps
+            np.testing.assert_array_equal(small.crossing_times_s, long.crossing_times_s)
+            for name in long.density_per_m2:
+                np.testing.assert_array_equal(small.density_per_m2[name], long.density_per_m2[name])
+                np.testing.assert_array_equal(small.speed_m_s[name], long.speed_m_s[name])
+                assert long.density_per_m2[name].shape == (long.n_steps,)
+            np.testing.assert_array_equal(small.lateral_positions_m, long.lateral_positions_m)
+    finally:
+        runner.SERIES_START_ROWS = old
+
+
+def test_stall_window_grows_with_the_steps_and_decides_as_a_full_one():
+    """The stall rule's window held window_s / dt_s speeds at once (2e10 at dt_s = 1e-9, 160 GB); it now grows
+    with the steps recorded, and stalls at the same step as one allocated in full."""
+    import crowd_env.experiments.runner as runner
+
+    assert runner.StallDetector(1e-9).ring.nbytes <= 8 * runner.SERIES_START_ROWS
+    rng = np.random.default_rng(0)
+    speeds = np.abs(rng.normal(0.02, 0.05, 400))
+    progress = rng.random(400) < 0.01
+    outcomes = []
+    old = runner.SERIES_START_ROWS
+    try:
+        for rows in (1000, 2):
+            runner.SERIES_START_ROWS = rows
+            stall = runner.StallDetector(0.01, window_s=1.0, speed_m_s=0.05)
+            stalled = []
+            for k in range(400):
+                velocity = np.array([[speeds[k], 0.0], [speeds[k], 0.0]])
+                stalled.append(stall.update(0.01 * (k + 1), velocity, np.array([True, True]), bool(progress[k])))
+            outcomes.append((stalled, stall.stall_time_s, stall.ring.shape[0]))
+    finally:
+        runner.SERIES_START_ROWS = old
+    assert outcomes[0][0] == outcomes[1][0] and outcomes[0][1] == outcomes[1][1]
+    assert any(outcomes[0][0]) and outcomes[1][2] == 100  # grown to the window's 100 steps, no further

@@ -101,3 +101,20 @@ def test_new_scenarios_are_registered_with_seeds():
     for name in ("corridor_bidirectional", "room_pillar", "corner_90", "bottleneck_groups", "polygon"):
         assert name in list_scenarios()
         assert "seed" in scenario_options(name)
+
+
+@pytest.mark.parametrize("seed", ["abc", 1.5, -1, True])
+def test_make_scenario_refuses_a_bad_seed_naming_it(seed):
+    """Issue 37, item 8: these raised numpy's messages, which do not name the seed (True was taken as 1)."""
+    with pytest.raises(ScenarioError, match=r"^seed must be None or an integer >= 0, got "):
+        make_scenario("seyfried_bottleneck", n_pedestrians=10, seed=seed)
+    with pytest.raises(ScenarioError, match=r"^seed must be None or an integer >= 0"):
+        make_scenario("polygon", walkable_area=[(0, 0), (8, 0), (8, 6), (0, 6)], exits=[[(8, 2.5), (8, 3.5)]],
+                      spawn_area=[(0, 0), (3, 0), (3, 6), (0, 6)], n_pedestrians=5, seed=seed)
+
+
+def test_make_scenario_seed_as_numpy_integer_is_the_same_scenario():
+    a = make_scenario("seyfried_bottleneck", n_pedestrians=10, seed=np.int64(4))
+    b = make_scenario("seyfried_bottleneck", n_pedestrians=10, seed=4)
+    np.testing.assert_array_equal(a.position_m, b.position_m)
+    assert type(a.seed) is int

@@ -66,3 +66,30 @@ def test_polygon_named_exits_and_destinations():
     assert sc.exit_names == ("left", "right")
     sim = run_baseline(sc, 20.0)
     np.testing.assert_array_equal(exit_of(sc, sim), [0, 1] * 3)
+
+
+def test_polygon_door_narrower_than_a_pedestrian_names_the_exit_its_width_and_the_clearance():
+    """Issue 37, item 7: a 0.3 m door raised fast marching's "phi contains no zero contour"."""
+    room = [(0, 0), (10, 0), (10, 6), (0, 6)]
+    left = [(0, 0), (4, 0), (4, 6), (0, 6)]
+    with pytest.raises(GeometryError, match=r"exit 0, the door from \(10, 2\.9\) to \(10, 3\.2\), is 0\.3 m wide: a "
+                                            r"pedestrian of radius 0\.23 m needs a door wider than 0\.46 m "
+                                            r"\(2 x max\(radius_m, navigation_clearance_m\)"):
+        make_scenario("polygon", walkable_area=room, exits=[[(10, 2.9), (10, 3.2)]], spawn_area=left, n_pedestrians=10)
+    # a named exit is named; every narrow door is listed, a wide one is not
+    with pytest.raises(GeometryError, match=r"exit 1 \('west'\), the door from .* is 0\.4 m wide: .* nobody can "
+                                            r"reach it") as info:
+        make_scenario("polygon", walkable_area=room, exits={"east": [(10, 2.5), (10, 3.5)], "west": [(0, 1), (0, 1.4)]},
+                      spawn_area=left, n_pedestrians=10)
+    assert "exit 0" not in str(info.value)
+    # the clearance counts when it is larger than the radius
+    with pytest.raises(GeometryError, match=r"0\.6 m wide: .* wider than 0\.8 m .* max\(0\.23, 0\.4\)"):
+        make_scenario("polygon", walkable_area=room, exits=[[(10, 2.9), (10, 3.5)]], spawn_area=left,
+                      n_pedestrians=10, navigation_clearance_m=0.4)
+    # wider than a pedestrian but with no grid node between the jambs: the grid and its resolution are named
+    with pytest.raises(GeometryError, match=r"navigation_resolution_m = 0\.05 m.*exit 0 0\.47 m wide.*finer "
+                                            r"navigation_resolution_m"):
+        make_scenario("polygon", walkable_area=room, exits=[[(10, 2.9), (10, 3.37)]], spawn_area=left, n_pedestrians=10)
+    sc = make_scenario("polygon", walkable_area=room, exits=[[(10, 2.9), (10, 3.37)]], spawn_area=left,
+                       n_pedestrians=10, navigation_resolution_m=0.01)
+    assert sc.geometry.exits[0].bounds[1] == pytest.approx(2.9)

@@ -1,4 +1,7 @@
-"""Minimise ε_T (Eq. 25) over (A, B) and optionally λ, τ and the desired-speed mean/std.
+"""Minimise ε_T (Eq. 25) over (A, B) and optionally λ, τ, the desired-speed mean/std and the vision rule's
+parameters, or every target of the experiment (``objective="targets"``), or those and the fundamental diagram
+(``objective="targets+fd"``: the bottleneck's runs plus the density sweep's, scored by the one objective
+:func:`crowd_env.analysis.targets.target_error`).
 
 Method: scipy's derivative-free Nelder–Mead (default) or Powell, on log-parameters (A, B, τ, speeds;
 λ ∈ [0, 1] stays linear) with bounds. Why not Bayesian optimisation: with common random numbers (the
@@ -11,7 +14,8 @@ pedestrians' decisions, so use ``xatol`` of a few percent and start from the gri
 
 Resumable at two levels: every run is stored (:class:`~crowd_env.experiments.store.RunStore`) and every
 evaluated point is appended (fsync) to ``OUT/optimise/evaluations.jsonl``, keyed by its parameter
-values and the evaluation set-up (widths, sizes, seeds, reference, range weight).
+values and the evaluation set-up (widths, sizes, seeds, reference, range weight; with the target objective
+its weights, and with the fundamental diagram its :class:`~crowd_env.experiments.calibration.tasks.FDPlan`).
 """
 from __future__ import annotations
 
@@ -22,6 +26,7 @@ import math
 import os
 import sys
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -32,9 +37,10 @@ from ...analysis.targets import TargetWeights, required_cases, target_error
 from ...core.checks import check_integer
 from ..backends import execute
 from ..bottleneck import run_one
+from ..fundamental_diagram import run_fd_one
 from ..store import RunStore
 from .grid import INCOMPLETE_RULES, check_run_plan, n_stalled_runs, point_error_of, point_tasks
-from .tasks import canonical, make_task
+from .tasks import FDPlan, canonical, make_fd_tasks, make_task, run_calibration_task
 
 FAILED_OBJECTIVE = 1.0e6  # objective of a point whose runs failed (not cached: retried next time)
 
@@ -58,11 +64,19 @@ FREE_PARAMETERS = {
     "tau": FreeParameter("tau_s", "pedestrian", True, (0.05, 3.0), 0.5, 0.2),
     "speed_mean": FreeParameter("desired_speed_mean_m_s", "pedestrian", True, (0.3, 3.0), 1.34, 0.1),
     "speed_std": FreeParameter("desired_speed_std_m_s", "pedestrian", True, (0.01, 1.0), 0.26, 0.3),
+    # the vision rule (crowd_env.walking.vision, an addition to the paper; defaults: the ``vision`` preset's).
+    # vision_rays is an integer: fix it with --param vision_rays=N.
+    "vision_time_gap_s": FreeParameter("vision_time_gap_s", "model", True, (0.05, 5.0), 1.0, 0.3),
+    "vision_jam_gap_m": FreeParameter("vision_jam_gap_m", "model", False, (0.0, 1.0), 0.2, 0.1),
+    "vision_half_angle_rad": FreeParameter("vision_half_angle_rad", "model", False, (0.1, math.pi), 1.309, 0.2),
+    "vision_body_scale": FreeParameter("vision_body_scale", "model", False, (0.1, 1.0), 0.5, 0.1),
 }
 METHODS = ("Nelder-Mead", "Powell")
 # "epsilon": Eq. 24-25 (+ the optional N = 20/40 range penalty), the paper's objective; "targets": every
-# figure the experiment measured (crowd_env.analysis.targets), on the runs of its required_cases.
-OBJECTIVES = ("epsilon", "targets")
+# figure the experiment measured (crowd_env.analysis.targets), on the runs of its required_cases;
+# "targets+fd": those runs plus the fundamental diagram's (an FDPlan), the same objective with its FD terms.
+OBJECTIVES = ("epsilon", "targets", "targets+fd")
+TARGET_OBJECTIVES = ("targets", "targets+fd")
 
 
 @dataclass
@@ -77,13 +91,16 @@ class OptimResult:
 
 
 def _setup_hash(widths, sizes, seeds, reference: ExperimentTable | None, range_weight: float, incomplete: str,
-                objective: str = "epsilon", weights: TargetWeights | None = None) -> str:
+                objective: str = "epsilon", weights: TargetWeights | None = None, fd_plan: FDPlan | None = None) -> str:
     ref = seyfried_2009() if reference is None else reference
     setup = {"widths": widths, "sizes": sizes, "seeds": seeds, "range_weight": float(range_weight),
              "incomplete": incomplete,
              "ref": [ref.width_m.tolist(), ref.n_pedestrians.tolist(), ref.specific_flow_per_m_s.tolist()]}
-    if objective != "epsilon":  # the ε_T set-up keeps the hash it always had (caches stay valid)
-        setup.update(objective=objective, weights=(weights or TargetWeights()).as_dict())
+    w = weights or TargetWeights()
+    if objective == "targets":  # the ε_T and bottleneck-target set-ups keep the hash they always had
+        setup.update(objective=objective, weights=w.bottleneck_dict())
+    elif objective == "targets+fd":
+        setup.update(objective=objective, weights=w.as_dict(), fd=(fd_plan or FDPlan()).as_dict())
     blob = json.dumps(setup, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
@@ -157,30 +174,41 @@ class PointEvaluator:
     ``values``: names of :data:`FREE_PARAMETERS` → natural values, set on top of ``config``'s model. The
     entry (objective, ε_T, terms or ε_j, stall counts) is cached in ``OUT/optimise/evaluations.jsonl``
     under the set-up hash; a point whose runs raised is not cached (retried next time).
+
+    ``objective="targets+fd"``: each point also runs the fundamental diagram of ``fd_plan`` (default: every
+    shipped bin, the bottleneck's ``seeds``) with ``fd_run_fn``; all its runs go to the one executor and store.
     """
 
     def __init__(self, out, config: dict, widths_m, sizes, seeds, backend, *, reference: ExperimentTable | None = None,
                  range_weight: float = 0.0, run_fn=run_one, incomplete: str = "bound", objective: str = "epsilon",
-                 weights: TargetWeights | None = None):
+                 weights: TargetWeights | None = None, fd_plan: FDPlan | None = None, fd_run_fn=run_fd_one):
         if incomplete not in INCOMPLETE_RULES:
             raise CalibrationError(f"incomplete must be one of {INCOMPLETE_RULES}, got {incomplete!r}")
         if objective not in OBJECTIVES:
             raise CalibrationError(f"unknown objective {objective!r}; choose one of {OBJECTIVES}")
         self.widths_m, sizes, self.seeds = check_run_plan(widths_m, sizes, seeds)
-        if objective == "targets":
+        if objective in TARGET_OBJECTIVES:
             sizes = sorted({n for _, n in required_cases(self.widths_m)})
+        self.fd_plan = None
+        if objective == "targets+fd":
+            self.fd_plan = FDPlan(seeds=tuple(self.seeds)) if fd_plan is None else fd_plan
+            make_fd_tasks(config, {}, {}, self.fd_plan)  # a configuration the sweep cannot run fails before any run
+            run_fn = partial(run_calibration_task, run_fn=run_fn, fd_run_fn=fd_run_fn)
         self.sizes, self.config, self.backend, self.run_fn = sizes, config, backend, run_fn
         self.reference, self.range_weight, self.incomplete = reference, range_weight, incomplete
         self.objective, self.weights = objective, weights
         self.store = RunStore(out, config, keyed_by="task")
         self.cache = EvaluationCache(Path(out) / "optimise" / "evaluations.jsonl",
                                      _setup_hash(self.widths_m, sizes, self.seeds, reference, range_weight, incomplete,
-                                                 objective, weights))
+                                                 objective, weights, self.fd_plan))
         self.n_computed = 0  # points that needed runs in this object's life
 
     def tasks(self, values: dict) -> list:
         model = {FREE_PARAMETERS[n].field: v for n, v in values.items() if FREE_PARAMETERS[n].target == "model"}
         ped = {FREE_PARAMETERS[n].field: v for n, v in values.items() if FREE_PARAMETERS[n].target == "pedestrian"}
+        if self.objective == "targets+fd":
+            return (target_tasks(self.config, model, ped, self.widths_m, self.seeds)
+                    + make_fd_tasks(self.config, model, ped, self.fd_plan))
         if self.objective == "targets":
             return target_tasks(self.config, model, ped, self.widths_m, self.seeds)
         return point_tasks(self.config, model, ped, self.widths_m, self.sizes, self.seeds)
@@ -199,8 +227,9 @@ class PointEvaluator:
         if failed:
             return {"values": values, "objective": FAILED_OBJECTIVE, "epsilon_total": float("nan"), "failed_runs": failed}
         records = [self.store.load(t) for t in tasks]
-        if self.objective == "targets":
-            entry = target_entry(values, target_error(records, weights=self.weights, reference=self.reference))
+        if self.objective in TARGET_OBJECTIVES:
+            entry = target_entry(values, target_error(records, weights=self.weights, reference=self.reference,
+                                                      fd=self.objective == "targets+fd"))
         else:
             e = point_error_of(tasks, records, self.reference, self.range_weight, self.incomplete)
             entry = {"values": values, "objective": e.objective, "epsilon_total": e.epsilon_total,
@@ -215,10 +244,13 @@ def optimise(out, config: dict, free, widths_m, sizes, seeds, backend, *, x0: di
              bounds: dict | None = None, method: str = "Nelder-Mead", max_evaluations: int = 60,
              xatol: float = 0.02, fatol: float = 1e-4, reference: ExperimentTable | None = None,
              range_weight: float = 0.0, run_fn=run_one, verbose: bool = True, incomplete: str = "bound",
-             objective: str = "epsilon", weights: TargetWeights | None = None) -> OptimResult:
+             objective: str = "epsilon", weights: TargetWeights | None = None, fd_plan: FDPlan | None = None,
+             fd_run_fn=run_fd_one) -> OptimResult:
     """argmin ε_T (+ range_weight × N = 20/40 range penalty) over the ``free`` parameters (Eq. 25), or, with
     ``objective="targets"``, argmin of :func:`crowd_env.analysis.targets.target_error` (``weights``) on the
-    runs of :func:`~crowd_env.analysis.targets.required_cases` at ``widths_m`` (``sizes`` is then unused).
+    runs of :func:`~crowd_env.analysis.targets.required_cases` at ``widths_m`` (``sizes`` is then unused), or,
+    with ``objective="targets+fd"``, the same objective on those runs plus the fundamental diagram's of
+    ``fd_plan`` (:class:`PointEvaluator`).
 
     ``free``: names in :data:`FREE_PARAMETERS`; ``x0``/``bounds``: per-name start values and bounds in
     natural units. All candidates use the same ``seeds`` (common random numbers).
@@ -231,7 +263,7 @@ def optimise(out, config: dict, free, widths_m, sizes, seeds, backend, *, x0: di
     names, lo, hi, z0 = _check_free(free, x0, bounds)
     evaluator = PointEvaluator(out, config, widths_m, sizes, seeds, backend, reference=reference,
                                range_weight=range_weight, run_fn=run_fn, incomplete=incomplete, objective=objective,
-                               weights=weights)
+                               weights=weights, fd_plan=fd_plan, fd_run_fn=fd_run_fn)
     history = []
 
     def values_of(z) -> dict:
@@ -273,9 +305,11 @@ def target_tasks(config: dict, model: dict, pedestrian: dict, widths_m, seeds) -
 
 
 def target_entry(values: dict, e) -> dict:
-    """An evaluation record of the target objective (``e``: a :class:`~crowd_env.analysis.targets.TargetScore`)."""
+    """An evaluation record of the target objective (``e``: a :class:`~crowd_env.analysis.targets.TargetScore`);
+    its ``terms`` are the scored ones (without the fundamental diagram's when its runs were not part of it)."""
     return {"values": values, "objective": e.objective, "epsilon_total": e.terms.get("epsilon_60", float("nan")),
-            "terms": e.terms, "n_incomplete": e.n_incomplete, "n_stalled": e.n_stalled, "failed_point": e.failed,
+            "terms": {k: v for k, v in e.terms.items() if k not in e.unscored}, "n_incomplete": e.n_incomplete,
+            "n_stalled": e.n_stalled, "failed_point": e.failed,
             "capacity_ratio": {f"{b:g}": v for b, v in e.capacity_ratio.items()}, "figures": e.figures}
 
 

@@ -43,5 +43,6 @@ def write_targets(path, seeds, widths_m, tables: dict, scores: dict) -> Path:
     path = Path(path)
     path.write_text(json.dumps({"seeds": seeds, "widths_m": widths_m, "tables": tables,
                                 "objective": {n: e.objective for n, e in scores.items()},
-                                "terms": {n: e.terms for n, e in scores.items()}}, indent=2))
+                                "terms": {n: {k: v for k, v in e.terms.items() if k not in e.unscored}
+                                          for n, e in scores.items()}}, indent=2))
     return path

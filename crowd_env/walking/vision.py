@@ -1,0 +1,206 @@
+"""Vision: a density-speed relation for the calibrated agent (an addition to Kabalan et al. 2016).
+
+The paper's walker always wants its desired speed v0 along e_d (Eq. 14); in a homogeneous crowd its
+short-range social force (Eq. 16) cancels, so it walks at v0 however dense the crowd is. Real people keep a
+distance that grows with their speed (single file: d ≈ 0.34 m + 1.08 s · v, Seyfried et al. 2005) and
+steer into gaps. Vision adds both, after the heuristics of Moussaïd, Helbing & Theraulaz (2011, PNAS
+108:6884) in the form of the collision-free speed model of Tordeux, Chraibi & Seyfried (2016):
+
+- the *free distance* f_i(α) is how far pedestrian i can move from where it stands in direction α before
+  its centre comes within κ (r_i + r_j) of another pedestrian's centre (the others where they are now) or its
+  disk touches a wall, capped at the horizon H_i = l + T v0_i, beyond which nothing changes the choice.
+  κ = ``vision_body_scale`` = 1 sees the others as the disks the contacts use; κ < 1 lets a walker pass a
+  neighbour whose centre is off its line by more than κ (r_i + r_j): the zipper of Hoogendoorn & Daamen
+  (2005), where successive lanes in a bottleneck overlap by part of a body width (the contacts still keep
+  the full disks apart). With ``vision_body_scale_standing`` κ_0 > κ the reach shrinks with the walker's own
+  speed, κ_i = κ_0 + (κ − κ_0) min(1, ‖u_i‖/v0_i): people sway sideways most when slow and walk narrower
+  when fast (the speed-dependent body of the generalised centrifugal force model, Chraibi, Seyfried &
+  Schadschneider 2010);
+- the walking direction α_i* is, among ``vision_rays`` directions spread evenly over ±``vision_half_angle_rad``
+  round e_d, the one whose free walk brings i closest to a point H_i ahead along e_d (Moussaïd's
+  heuristic 1): d(α)² = H² + f(α)² − 2 H f(α) cos(α − α_d); ties go to the direction closest to e_d;
+- the walking speed is v_i = min(v0_i, max(0, (f_i(α*) − l)/T)) (heuristic 2; the collision-free speed
+  rule), T = ``vision_time_gap_s``, l = ``vision_jam_gap_m``.
+
+The agent's intent then reads u_int = v_i e(α_i*) + (τ/m) Σ f_social, and its heading target θ_d = α_i*.
+With T = 0 vision is off and the agent is the paper's; with one ray only the speed changes (the speed rule
+of the collision-free speed model along e_d). The rule lives in the calibrated agent's intents only:
+learned agents choose their own velocities, and the core's Frémond contacts are unchanged.
+"""
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from ..core.periodic import minimum_image_dx
+
+__all__ = ["vision_reach_m", "vision_walk", "ray_circle_distance", "free_distances"]
+
+
+@nb.njit(cache=True, inline="always")
+def ray_circle_distance(ox, oy, dx, dy, cx, cy, radius):
+    """Distance t ≥ 0 along the unit ray (o, d) to the first point within ``radius`` of c; 0 when o is already
+    within it and the ray does not lead away from c (a touching pair blocks the way into it); inf if never."""
+    wx = cx - ox
+    wy = cy - oy
+    along = wx * dx + wy * dy
+    dist2 = wx * wx + wy * wy
+    r2 = radius * radius
+    if dist2 <= r2:
+        return 0.0 if along > 0.0 else np.inf
+    if along <= 0.0:
+        return np.inf
+    perp2 = dist2 - along * along
+    if perp2 >= r2:
+        return np.inf
+    return along - np.sqrt(r2 - perp2)
+
+
+@nb.njit(cache=True, inline="always")
+def _ray_capsule_distance(ox, oy, dx, dy, x0, y0, x1, y1, radius):
+    """Distance along the unit ray (o, d) until a disk of ``radius`` centred on the ray touches the segment
+    (x0, y0)-(x1, y1): the ray against the capsule of the segment (its two end circles and two sides)."""
+    best = min(ray_circle_distance(ox, oy, dx, dy, x0, y0, radius),
+               ray_circle_distance(ox, oy, dx, dy, x1, y1, radius))
+    ex = x1 - x0
+    ey = y1 - y0
+    length = np.sqrt(ex * ex + ey * ey)
+    if length == 0.0:
+        return best
+    nx = -ey / length
+    ny = ex / length
+    # signed distance of the origin from the segment's line, and its rate along the ray
+    h = (ox - x0) * nx + (oy - y0) * ny
+    rate = dx * nx + dy * ny
+    u0 = ((ox - x0) * ex + (oy - y0) * ey) / (length * length)
+    if abs(h) <= radius:  # already touching the side's line: blocked only when within the segment, moving in
+        if 0.0 <= u0 <= 1.0 and h * rate < 0.0:
+            return 0.0
+        return best
+    if h * rate >= 0.0:
+        return best
+    t = (abs(h) - radius) / abs(rate)
+    u = ((ox + t * dx - x0) * ex + (oy + t * dy - y0) * ey) / (length * length)
+    if 0.0 <= u <= 1.0 and t < best:
+        best = t
+    return best
+
+
+@nb.njit(cache=True)
+def free_distances(position, radius, index, rows, angles, neighbours, neighbour_start, walls, period_m, horizon,
+                   body_scale):
+    """f(α) of the pedestrians ``rows`` (rows into ``index``), one per angle in ``angles`` (len(rows), K), each
+    capped at its ``horizon`` (len(rows),): the free walk before the centre comes within κ (r_i + r_j) of a
+    neighbour's centre (κ = ``body_scale`` (len(rows),), each walker's own; CSR lists ``neighbours[neighbour_start[k]:neighbour_start[k + 1]]``
+    of rows into ``index``) or the disk touches a wall segment."""
+    m = rows.shape[0]
+    k_rays = angles.shape[1]
+    out = np.empty((m, k_rays))
+    for a in range(m):
+        i = index[rows[a]]
+        ox = position[i, 0]
+        oy = position[i, 1]
+        for q in range(k_rays):
+            dx = np.cos(angles[a, q])
+            dy = np.sin(angles[a, q])
+            best = horizon[a]
+            for p in range(neighbour_start[rows[a]], neighbour_start[rows[a] + 1]):
+                j = index[neighbours[p]]
+                cx = ox + minimum_image_dx(position[j, 0] - ox, period_m)
+                t = ray_circle_distance(ox, oy, dx, dy, cx, position[j, 1], body_scale[a] * (radius[i] + radius[j]))
+                if t < best:
+                    best = t
+            for s in range(walls.shape[0]):
+                t = _ray_capsule_distance(ox, oy, dx, dy, walls[s, 0], walls[s, 1], walls[s, 2], walls[s, 3],
+                                          radius[i])
+                if t < best:
+                    best = t
+            out[a, q] = best
+    return out
+
+
+@nb.njit(cache=True)
+def _neighbour_lists(n, pairs):
+    """CSR adjacency (``neighbours``, ``start``) of ``n`` rows from unordered ``pairs`` (P, 2)."""
+    start = np.zeros(n + 1, np.int64)
+    for p in range(pairs.shape[0]):
+        start[pairs[p, 0] + 1] += 1
+        start[pairs[p, 1] + 1] += 1
+    for k in range(n):
+        start[k + 1] += start[k]
+    fill = start[:-1].copy()
+    neighbours = np.empty(start[n], np.int64)
+    for p in range(pairs.shape[0]):
+        a = pairs[p, 0]
+        b = pairs[p, 1]
+        neighbours[fill[a]] = b
+        fill[a] += 1
+        neighbours[fill[b]] = a
+        fill[b] += 1
+    return neighbours, start
+
+
+@nb.njit(cache=True)
+def vision_reach_m(desired_speed, index, time_gap_s, jam_gap_m):
+    """Largest horizon l + T v0 over the pedestrians ``index``: pairs of centres closer than this + 2 r_max are
+    all vision can see."""
+    v_max = 0.0
+    for k in range(index.shape[0]):
+        v_max = max(v_max, desired_speed[index[k]])
+    return jam_gap_m + time_gap_s * v_max
+
+
+@nb.njit(cache=True)
+def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, walls, period_m, time_gap_s, jam_gap_m,
+                half_angle_rad, n_rays, body_scale, body_scale_standing):
+    """Walking speed (n,) and unit walking direction (n, 2) of the pedestrians ``index`` (module docstring).
+
+    ``e_d`` (n, 2) their desired directions (Eq. 13), ``pairs`` rows into ``index`` of every pair of centres
+    within 2 r_max + :func:`vision_reach_m` (more is harmless). A pedestrian without a desired direction
+    (e_d = 0) gets speed 0 and direction 0. Each walker's κ_i runs from ``body_scale_standing`` κ_0 at rest to
+    ``body_scale`` κ at its desired speed, linearly in its current speed ‖u_i‖ (``velocity`` (N, 2)), and is κ
+    above it: κ_i = κ_0 + (κ − κ_0) min(1, ‖u_i‖ / v0_i)."""
+    n = index.shape[0]
+    speed = np.zeros(n)
+    direction = np.zeros((n, 2))
+    if n == 0:
+        return speed, direction
+    neighbours, start = _neighbour_lists(n, pairs)
+    rows = np.arange(n)
+    angles = np.empty((n, n_rays))
+    horizon = np.empty(n)
+    base = np.empty(n)
+    for k in range(n):
+        base[k] = np.arctan2(e_d[k, 1], e_d[k, 0])
+        horizon[k] = jam_gap_m + time_gap_s * desired_speed[index[k]]
+        for q in range(n_rays):
+            # order: 0, +δ, −δ, +2δ, −2δ, ... so that ties go to the direction closest to e_d
+            step = (q + 1) // 2
+            sign = 1.0 if q % 2 == 1 else -1.0
+            offset = 0.0 if q == 0 else sign * step * half_angle_rad / ((n_rays - 1) // 2)
+            angles[k, q] = base[k] + offset
+    scale = np.empty(n)
+    for k in range(n):
+        i = index[k]
+        u = np.sqrt(velocity[i, 0] ** 2 + velocity[i, 1] ** 2)
+        share = min(1.0, u / desired_speed[i]) if desired_speed[i] > 0.0 else 1.0
+        scale[k] = body_scale_standing + (body_scale - body_scale_standing) * share
+    free = free_distances(position, radius, index, rows, angles, neighbours, start, walls, period_m, horizon, scale)
+    for k in range(n):
+        norm = e_d[k, 0] * e_d[k, 0] + e_d[k, 1] * e_d[k, 1]
+        if norm == 0.0:
+            continue
+        h = horizon[k]
+        best_q = 0
+        best_d2 = np.inf
+        for q in range(n_rays):
+            f = free[k, q]
+            d2 = h * h + f * f - 2.0 * h * f * np.cos(angles[k, q] - base[k])
+            if d2 < best_d2 - 1e-12:
+                best_d2 = d2
+                best_q = q
+        v = (free[k, best_q] - jam_gap_m) / time_gap_s
+        speed[k] = min(desired_speed[index[k]], max(0.0, v))
+        direction[k, 0] = np.cos(angles[k, best_q])
+        direction[k, 1] = np.sin(angles[k, best_q])
+    return speed, direction

@@ -1,0 +1,30 @@
+"""crowd-train-ppo's command line (crowd_env.cli.train_ppo): it shows its progress while it trains. (The
+training itself: tests/experiments/test_training.py.)"""
+import pytest
+
+from crowd_env.experiments.training import progress_line
+
+
+def test_the_command_prints_progress_while_it_trains(tmp_path, capsys):
+    """Regression (issue 37): crowd-train-ppo printed nothing between the random policy's score and the end."""
+    pytest.importorskip("stable_baselines3")
+    from crowd_env.cli.train_ppo import main
+
+    assert main(["--timesteps", "400", "--out", str(tmp_path / "ppo"), "--n-pedestrians", "6", "--max-steps", "20",
+                 "--copies", "1", "--n-steps", "32", "--batch-size", "64", "--n-epochs", "1", "--eval-seeds", "5",
+                 "--checkpoint-every", "0", "--progress-every", "0"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith("training PPO: 0 -> 400 timesteps"))
+    during = [line for line in lines[start + 1:] if "/ 400 timesteps" in line]
+    assert len(during) >= 2  # one per rollout of 6 slots x 32 steps
+    assert lines.index(during[-1]) < next(i for i, line in enumerate(lines) if line.startswith("trained policy"))
+    with pytest.raises(SystemExit, match="--progress-every must be >= 0"):
+        main(["--progress-every", "-1", "--out", str(tmp_path / "other")])
+
+
+def test_progress_line():
+    line = progress_line(5000, 20000, 0, 10.0, [1.0, 2.0])
+    assert line == ("  5000 / 20000 timesteps (25 %), 10 s, about 30 s left; mean per-agent episode return of the "
+                    "last 2 episodes 1.500")
+    assert "remaining time not known yet" in progress_line(0, 100, 0, 0.0, []) and "no episode finished yet" in \
+        progress_line(0, 100, 0, 0.0, [])

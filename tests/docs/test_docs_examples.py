@@ -1,0 +1,80 @@
+"""Every ```python block of the documentation pages (``docs/**/*.md`` and ``README.md``) runs, each as a
+script of its own in a fresh process (a temporary working folder, so relative paths such as ``runs/`` stay
+there), and must exit with 0 within :data:`TIMEOUT_S`. A block that cannot run here on purpose (it needs a
+trained model, a cluster, ...) is preceded by the marker ``<!-- not-run: REASON -->`` on the line before
+its opening fence, and the reason must be given. Budgets in the examples are kept small enough that the
+whole module takes well under a minute on a warm cache.
+
+This is how the pages keep their promises: a snippet that stopped working (an undefined name, a renamed
+option) or a script that hangs (``vector_env(..., workers=2)`` without the ``__main__`` guard) fails here.
+"""
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+PAGES = sorted((ROOT / "docs").rglob("*.md")) + [ROOT / "README.md"]
+TIMEOUT_S = 120
+FENCE = re.compile(r"^(?P<indent>[ \t]*)(?P<ticks>`{3,})(?P<info>[^\n`]*)\n(?P<body>.*?)^(?P=indent)(?P=ticks)[ \t]*$",
+                   re.M | re.S)
+MARKER = re.compile(r"<!--\s*not-run\s*:(?P<reason>(?:(?!-->).)*)-->", re.S)
+MARKER_BEFORE = re.compile(MARKER.pattern + r"\s*$", re.S)  # a marker that ends right before a fence
+
+
+def _blocks(page: Path):
+    """``(line, language, code, not_run_reason or None)`` of each fenced block of ``page``; the reason is that
+    of a ``not-run`` marker right before the fence, blank lines apart ("" when the marker gives none)."""
+    text = page.read_text()
+    for m in FENCE.finditer(text):
+        marker = MARKER_BEFORE.search(text, 0, m.start())
+        lang = m.group("info").strip().split()[0] if m.group("info").strip() else ""
+        body = "\n".join(line[len(m.group("indent")):] for line in m.group("body").splitlines())
+        yield text.count("\n", 0, m.start()) + 1, lang, body, (marker.group("reason").strip() if marker else None)
+
+
+def _python_blocks():
+    for page in PAGES:
+        for line, lang, code, reason in _blocks(page):
+            if lang == "python":
+                yield pytest.param(code, reason, id=f"{page.relative_to(ROOT)}:{line}")
+
+
+BLOCKS = list(_python_blocks())
+
+
+def test_the_pages_have_python_examples_and_every_marker_gives_a_reason():
+    assert len(BLOCKS) >= 6
+    assert sum(p.values[1] is None for p in BLOCKS) >= 5  # most of them run
+    bad = []
+    for page in PAGES:
+        text = page.read_text()
+        for m in MARKER.finditer(text):
+            line = text.count("\n", 0, m.start()) + 1
+            where = f"{page.relative_to(ROOT)}:{line}"
+            if not m.group("reason").strip():
+                bad.append(f"{where}: a not-run marker without a reason")
+            rest = text[m.end():]
+            nxt = re.match(r"\s*\n[ \t]*```python", rest)
+            if nxt is None:
+                bad.append(f"{where}: a not-run marker that is not right before a ```python block")
+    assert not bad, "\n".join(bad)
+
+
+@pytest.mark.parametrize("code, reason", BLOCKS)
+def test_docs_python_block_runs(code, reason, tmp_path):
+    if reason is not None:
+        pytest.skip(f"marked not-run: {reason}")
+    script = tmp_path / "example.py"
+    script.write_text(code)
+    path = os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
+    env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": path}
+    out = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True,
+                         timeout=TIMEOUT_S, env=env)
+    assert out.returncode == 0, (f"the example failed:\n{code}\n--- stdout\n{out.stdout[-3000:]}\n"
+                                 f"--- stderr\n{out.stderr[-5000:]}")

@@ -1,0 +1,131 @@
+"""Vision (crowd_env.walking.vision): the free distance, the speed rule and the choice of direction against
+hand-computed cases, and the agent with vision in compiled and Python stepping alike."""
+import math
+
+import numpy as np
+import pytest
+
+from crowd_env.core.params import ModelParams, ParameterError
+from crowd_env.walking.vision import free_distances, ray_circle_distance, vision_walk
+
+NO_WALLS = np.zeros((0, 4))
+ALL_PAIRS = np.array([[0, 1], [0, 2], [1, 2]], np.int64)
+
+
+def _walk(position, e_d, v0=1.34, T=1.0, l=0.2, half=0.0, rays=1, kappa=1.0, walls=NO_WALLS, pairs=None, radius=0.23,
+          kappa_standing=None, velocity=None):
+    position = np.asarray(position, dtype=float)
+    n = position.shape[0]
+    if pairs is None:
+        pairs = np.array([(i, j) for i in range(n) for j in range(i + 1, n)], np.int64).reshape(-1, 2)
+    velocity = np.zeros((n, 2)) if velocity is None else np.asarray(velocity, dtype=float)
+    return vision_walk(position, np.full(n, radius), np.arange(n), np.asarray(e_d, dtype=float), np.full(n, v0),
+                       velocity, pairs, walls, 0.0, T, l, half, rays, kappa,
+                       kappa if kappa_standing is None else kappa_standing)
+
+
+def test_ray_circle_distance_analytic():
+    # head-on: centre 2 m ahead, R = 0.46 -> 1.54 m; offset 0.3 m laterally -> 2 - sqrt(0.46² - 0.3²)
+    assert ray_circle_distance(0.0, 0.0, 1.0, 0.0, 2.0, 0.0, 0.46) == pytest.approx(1.54)
+    assert ray_circle_distance(0.0, 0.0, 1.0, 0.0, 2.0, 0.3, 0.46) == pytest.approx(2.0 - math.sqrt(0.46**2 - 0.09))
+    assert ray_circle_distance(0.0, 0.0, 1.0, 0.0, 2.0, 0.5, 0.46) == math.inf  # passes beside
+    assert ray_circle_distance(0.0, 0.0, 1.0, 0.0, -2.0, 0.0, 0.46) == math.inf  # behind
+    assert ray_circle_distance(0.0, 0.0, 1.0, 0.0, 0.4, 0.0, 0.46) == 0.0  # touching, walking into it
+    assert ray_circle_distance(0.0, 0.0, 1.0, 0.0, -0.4, 0.0, 0.46) == math.inf  # touching, walking away
+
+
+def test_free_walker_keeps_desired_speed_and_direction():
+    speed, walk = _walk([[0.0, 0.0]], [[0.6, 0.8]], half=1.2, rays=9)
+    assert speed[0] == 1.34
+    np.testing.assert_allclose(walk[0], [0.6, 0.8], atol=1e-15)
+
+
+@pytest.mark.parametrize("gap_m", [0.1, 0.5, 0.9, 1.3])
+def test_follower_speed_is_the_speed_rule(gap_m):
+    # a follower behind a pedestrian straight ahead: v = min(v0, max(0, (f - l)/T)), f = centre distance - 2r
+    centre = 0.46 + gap_m
+    speed, _ = _walk([[0.0, 0.0], [centre, 0.0]], [[1.0, 0.0], [1.0, 0.0]], T=0.8, l=0.2)
+    assert speed[0] == pytest.approx(min(1.34, max(0.0, (gap_m - 0.2) / 0.8)))
+    assert speed[1] == 1.34  # the leader sees nobody ahead
+
+
+def test_body_scale_lets_an_offset_neighbour_pass():
+    # neighbour 1 m ahead and 0.3 m aside: blocks with kappa = 1 (0.3 < 0.46), not with kappa = 0.5 (0.3 > 0.23)
+    pos = [[0.0, 0.0], [1.0, 0.3]]
+    e = [[1.0, 0.0], [1.0, 0.0]]
+    blocked, _ = _walk(pos, e, kappa=1.0)
+    free, _ = _walk(pos, e, kappa=0.5)
+    f = 1.0 - math.sqrt(0.46**2 - 0.09)
+    assert blocked[0] == pytest.approx((f - 0.2) / 1.0)
+    assert free[0] == 1.34
+
+
+def test_body_scale_shrinks_with_the_walkers_own_speed():
+    # kappa_0 = 1 at rest, kappa = 0.5 at the desired speed: the same neighbour (1 m ahead, 0.3 m aside) blocks a
+    # standing walker, not one at its desired speed; at half of it kappa = 0.75 (0.3 < 0.345: blocks)
+    pos = [[0.0, 0.0], [1.0, 0.3]]
+    e = [[1.0, 0.0], [1.0, 0.0]]
+    standing, _ = _walk(pos, e, kappa=0.5, kappa_standing=1.0)
+    walking, _ = _walk(pos, e, kappa=0.5, kappa_standing=1.0, velocity=[[1.34, 0.0], [0.0, 0.0]])
+    half, _ = _walk(pos, e, kappa=0.5, kappa_standing=1.0, velocity=[[0.0, 0.67], [0.0, 0.0]])
+    assert standing[0] == pytest.approx(1.0 - math.sqrt(0.46**2 - 0.09) - 0.2)
+    assert walking[0] == 1.34
+    assert half[0] == pytest.approx(1.0 - math.sqrt(0.345**2 - 0.09) - 0.2)
+
+
+def test_fan_steers_round_a_standing_pedestrian():
+    # somebody 0.8 m straight ahead: along e_d the free distance is 0.34 m; a side ray passes them
+    speed, walk = _walk([[0.0, 0.0], [0.8, 0.0]], [[1.0, 0.0], [0.0, 1.0]], half=math.radians(75), rays=11)
+    angle = math.degrees(math.atan2(walk[0, 1], walk[0, 0]))
+    assert 10.0 < abs(angle) <= 75.0 + 1e-9
+    # the chosen direction's own free distance sets the speed, and it beats walking straight
+    straight, _ = _walk([[0.0, 0.0], [0.8, 0.0]], [[1.0, 0.0], [0.0, 1.0]])
+    assert speed[0] > straight[0]
+
+
+def test_symmetric_tie_goes_to_the_direction_of_e_d():
+    # nothing anywhere: every ray is free, e_d (the first ray) wins exactly
+    _, walk = _walk([[0.0, 0.0]], [[1.0, 0.0]], half=1.0, rays=5)
+    assert walk[0, 1] == 0.0 and walk[0, 0] == 1.0
+
+
+def test_wall_ahead_stops_the_walker():
+    # a wall across the way 1 m ahead: the disk touches it after 1 - r
+    wall = np.array([[1.0, -5.0, 1.0, 5.0]])
+    speed, _ = _walk([[0.0, 0.0]], [[1.0, 0.0]], walls=wall, T=1.0, l=0.2)
+    assert speed[0] == pytest.approx((1.0 - 0.23 - 0.2) / 1.0)
+    free = free_distances(np.zeros((1, 2)), np.full(1, 0.23), np.arange(1), np.arange(1), np.array([[0.0, math.pi]]),
+                          np.zeros(0, np.int64), np.zeros(2, np.int64), wall, 0.0, np.full(1, 5.0), np.ones(1))
+    assert free[0, 0] == pytest.approx(0.77) and free[0, 1] == 5.0
+
+
+def test_vision_parameters_are_checked():
+    with pytest.raises(ParameterError, match="vision_rays"):
+        ModelParams(vision_rays=4)
+    with pytest.raises(ParameterError, match="vision_half_angle_rad"):
+        ModelParams(vision_rays=3)
+    with pytest.raises(ParameterError, match="vision_body_scale"):
+        ModelParams(vision_body_scale=0.0)
+    with pytest.raises(ParameterError, match="vision_body_scale_standing"):
+        ModelParams(vision_body_scale_standing=1.5)
+    with pytest.raises(ParameterError, match="vision_time_gap_s"):
+        ModelParams(vision_time_gap_s=-1.0)
+
+
+def test_compiled_rollout_equals_stepping_with_vision():
+    """The compiled rollout and Python stepping run the same vision walk, to the last bit (trajectories)."""
+    from crowd_env.core.presets import get_preset
+    from crowd_env.experiments.recording import record_run
+    from crowd_env.scenarios import make_scenario
+    from crowd_env.walking.agent import SocialForceAgent
+
+    params = get_preset("vision").params()
+    sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=20, seed=3)
+    ra, ta = record_run(sc, SocialForceAgent(sc.navigation()), params, max_time_s=4.0, compiled=True)
+    rb, tb = record_run(sc, SocialForceAgent(sc.navigation()), params, max_time_s=4.0, compiled=False)
+    assert ra.n_steps == rb.n_steps == 400
+    for key in ("frame", "id", "x_m", "y_m", "heading_rad"):
+        np.testing.assert_array_equal(getattr(ta, key), getattr(tb, key), err_msg=key)
+    # and vision changes the walk: the default preset's trajectories differ
+    rc, tc = record_run(sc, SocialForceAgent(sc.navigation()), get_preset("calibrated").params(), max_time_s=4.0)
+    assert not np.array_equal(tc.x_m, ta.x_m)
