@@ -207,10 +207,15 @@ def fundamental_diagram_figure(data_by_area: dict, path: Path, title: str | None
                 ax.plot(centre, mean, "o-", color=f"C{k}", ms=4, label=f"{name} (binned mean)")
     axes[0].set(xlabel="ρ (1/m²)", ylabel="v (m/s)", title="speed vs density")
     axes[1].set(xlabel="ρ (1/m²)", ylabel="J_s = ρ v (1/(m s))", title="specific flow vs density")
+    return _save_diagram(fig, axes, path, title, legend_size=8)
+
+
+def _save_diagram(fig, axes, path, title, legend_size):
+    """Axes of a fundamental diagram from 0, legends, the title; saved to ``path``, which is returned."""
     for ax in axes:
         ax.set_xlim(left=0)
         ax.set_ylim(bottom=0)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=legend_size)
     if title:
         fig.suptitle(title, fontsize=10)
     save_figure(fig, path)
@@ -253,14 +258,7 @@ def fd_sweep_figure(summary: dict, path: Path, title: str | None = None):
     axes[0].set(xlabel="ρ (1/m²)", ylabel="v (m/s)", title="corridor: speed")
     axes[1].set(xlabel="ρ (1/m²)", ylabel="J_s (1/(m s))", title="corridor: specific flow")
     axes[2].set(xlabel="ρ (1/m)", ylabel="v (m/s)", title="single file: speed")
-    for ax in axes:
-        ax.set_xlim(left=0)
-        ax.set_ylim(bottom=0)
-        ax.legend(fontsize=7)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    save_figure(fig, path)
-    return Path(path)
+    return _save_diagram(fig, axes, path, title, legend_size=7)
 
 
 def candidate_family(changes: dict) -> str:
@@ -282,7 +280,7 @@ def candidates_figure(rows: list, path: Path):
         door = r["door"].get("1.0", r["door"].get(1.0))
         corr = r["corridor"].get("2.616", r["corridor"].get(2.616))
         fam = families.setdefault(candidate_family(r["changes"]) if r.get("preset") == "calibrated"
-                                  else f"preset {r.get('preset')}", {"x": [], "m": [], "y": [], "stalled": 0})
+                                  else f"{r.get('preset')} preset and changes", {"x": [], "m": [], "y": [], "stalled": 0})
         if door is None or corr is None or not np.isfinite(door["specific_flow_per_m_s"]):
             fam["stalled"] += 1
             continue
@@ -301,6 +299,6 @@ def candidates_figure(rows: list, path: Path):
     axes[1].set(xlabel="largest corridor speed miss, 0.63-3.10 /m² (m/s)", ylabel="door J_s at b = 1.0 m (1/(m s))",
                 title="door against the whole corridor")
     for ax in axes:
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=7, loc="lower right")
     save_figure(fig, path)
     return Path(path)

@@ -54,6 +54,7 @@ class ModelParams:
     vision_rays: int = 1  # directions in the fan (odd: e_d itself is one of them)
     vision_body_scale: float = 1.0  # κ: a neighbour blocks a direction within κ (r_i + r_j) of its centre
     vision_body_scale_standing: float | None = None  # κ_0 at rest (κ at the desired speed); None: κ always
+    vision_anticipation: float = 0.0  # w: the others move on at w times their velocity (0: they stand)
     rotation: bool = True  # False: headings frozen (paper Section 4.1.1, "without rotation")
     solver: str = "dual"
     extra: dict = field(default_factory=dict, compare=False, repr=False)
@@ -88,6 +89,9 @@ class ModelParams:
         if standing is not None and (isinstance(standing, bool) or not isinstance(standing, (int, float, np.floating))
                                      or not 0.0 < standing <= 1.0):
             raise ParameterError(f"vision_body_scale_standing (kappa_0) must lie in (0, 1] or be None, got {standing!r}")
+        if isinstance(self.vision_anticipation, bool) or not isinstance(self.vision_anticipation, (int, float, np.floating)) \
+                or not 0.0 <= self.vision_anticipation <= 1.0:
+            raise ParameterError(f"vision_anticipation must lie in [0, 1], got {self.vision_anticipation!r}")
         if self.vision_half_angle_rad > math.pi:
             raise ParameterError(f"vision_half_angle_rad must lie in [0, pi], got {self.vision_half_angle_rad!r}")
         if isinstance(self.vision_rays, bool) or not isinstance(self.vision_rays, (int, np.integer)) \

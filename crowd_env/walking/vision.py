@@ -15,7 +15,8 @@ steer into gaps. Vision adds both, after the heuristics of Moussaïd, Helbing & 
   the full disks apart). With ``vision_body_scale_standing`` κ_0 > κ the reach shrinks with the walker's own
   speed, κ_i = κ_0 + (κ − κ_0) min(1, ‖u_i‖/v0_i): people sway sideways most when slow and walk narrower
   when fast (the speed-dependent body of the generalised centrifugal force model, Chraibi, Seyfried &
-  Schadschneider 2010);
+  Schadschneider 2010); with ``vision_anticipation`` w > 0 the others are not where they stand but move on at
+  w times their current velocity while the walker walks at v0_i (w = 1: Moussaïd's own collision prediction);
 - the walking direction α_i* is, among ``vision_rays`` directions spread evenly over ±``vision_half_angle_rad``
   round e_d, the one whose free walk brings i closest to a point H_i ahead along e_d (Moussaïd's
   heuristic 1): d(α)² = H² + f(α)² − 2 H f(α) cos(α − α_d); ties go to the direction closest to e_d;
@@ -34,7 +35,7 @@ import numpy as np
 
 from ..core.periodic import minimum_image_dx
 
-__all__ = ["vision_reach_m", "vision_walk", "ray_circle_distance", "free_distances"]
+__all__ = ["vision_reach_m", "vision_walk", "ray_circle_distance", "moving_circle_distance", "free_distances"]
 
 
 @nb.njit(cache=True, inline="always")
@@ -54,6 +55,24 @@ def ray_circle_distance(ox, oy, dx, dy, cx, cy, radius):
     if perp2 >= r2:
         return np.inf
     return along - np.sqrt(r2 - perp2)
+
+
+@nb.njit(cache=True, inline="always")
+def moving_circle_distance(qx, qy, ux, uy, dx, dy, speed, radius):
+    """How far a walker starting at the origin can walk along the unit direction d at ``speed`` before a circle
+    of ``radius`` about q, itself moving at velocity u, reaches its centre: speed · t for the first t ≥ 0 with
+    |q + (u − speed d) t| = radius; 0 when already within it and closing in, inf when never."""
+    cx = ux - speed * dx
+    cy = uy - speed * dy
+    closing = qx * cx + qy * cy
+    c0 = qx * qx + qy * qy - radius * radius
+    if c0 <= 0.0:
+        return 0.0 if closing < 0.0 else np.inf
+    a = cx * cx + cy * cy
+    disc = closing * closing - a * c0
+    if a == 0.0 or closing >= 0.0 or disc < 0.0:
+        return np.inf
+    return speed * (-closing - np.sqrt(disc)) / a
 
 
 @nb.njit(cache=True, inline="always")
@@ -88,11 +107,13 @@ def _ray_capsule_distance(ox, oy, dx, dy, x0, y0, x1, y1, radius):
 
 @nb.njit(cache=True)
 def free_distances(position, radius, index, rows, angles, neighbours, neighbour_start, walls, period_m, horizon,
-                   body_scale):
+                   body_scale, velocity, walk_speed, anticipation):
     """f(α) of the pedestrians ``rows`` (rows into ``index``), one per angle in ``angles`` (len(rows), K), each
     capped at its ``horizon`` (len(rows),): the free walk before the centre comes within κ (r_i + r_j) of a
-    neighbour's centre (κ = ``body_scale`` (len(rows),), each walker's own; CSR lists ``neighbours[neighbour_start[k]:neighbour_start[k + 1]]``
-    of rows into ``index``) or the disk touches a wall segment."""
+    neighbour's centre (κ = ``body_scale`` (len(rows),), each walker's own; CSR lists
+    ``neighbours[neighbour_start[k]:neighbour_start[k + 1]]`` of rows into ``index``) or the disk touches a wall
+    segment. With ``anticipation`` w > 0 each neighbour moves on at w times its ``velocity`` (N, 2) while the
+    walker walks at ``walk_speed`` (len(rows),) (:func:`moving_circle_distance`); w = 0: the others stand."""
     m = rows.shape[0]
     k_rays = angles.shape[1]
     out = np.empty((m, k_rays))
@@ -106,8 +127,13 @@ def free_distances(position, radius, index, rows, angles, neighbours, neighbour_
             best = horizon[a]
             for p in range(neighbour_start[rows[a]], neighbour_start[rows[a] + 1]):
                 j = index[neighbours[p]]
-                cx = ox + minimum_image_dx(position[j, 0] - ox, period_m)
-                t = ray_circle_distance(ox, oy, dx, dy, cx, position[j, 1], body_scale[a] * (radius[i] + radius[j]))
+                qx = minimum_image_dx(position[j, 0] - ox, period_m)
+                reach = body_scale[a] * (radius[i] + radius[j])
+                if anticipation > 0.0:
+                    t = moving_circle_distance(qx, position[j, 1] - oy, anticipation * velocity[j, 0],
+                                               anticipation * velocity[j, 1], dx, dy, walk_speed[a], reach)
+                else:
+                    t = ray_circle_distance(ox, oy, dx, dy, ox + qx, position[j, 1], reach)
                 if t < best:
                     best = t
             for s in range(walls.shape[0]):
@@ -152,14 +178,15 @@ def vision_reach_m(desired_speed, index, time_gap_s, jam_gap_m):
 
 @nb.njit(cache=True)
 def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, walls, period_m, time_gap_s, jam_gap_m,
-                half_angle_rad, n_rays, body_scale, body_scale_standing):
+                half_angle_rad, n_rays, body_scale, body_scale_standing, anticipation):
     """Walking speed (n,) and unit walking direction (n, 2) of the pedestrians ``index`` (module docstring).
 
     ``e_d`` (n, 2) their desired directions (Eq. 13), ``pairs`` rows into ``index`` of every pair of centres
     within 2 r_max + :func:`vision_reach_m` (more is harmless). A pedestrian without a desired direction
     (e_d = 0) gets speed 0 and direction 0. Each walker's κ_i runs from ``body_scale_standing`` κ_0 at rest to
     ``body_scale`` κ at its desired speed, linearly in its current speed ‖u_i‖ (``velocity`` (N, 2)), and is κ
-    above it: κ_i = κ_0 + (κ − κ_0) min(1, ‖u_i‖ / v0_i)."""
+    above it: κ_i = κ_0 + (κ − κ_0) min(1, ‖u_i‖ / v0_i). ``anticipation`` w: the others move on at w times their
+    velocity while the walker walks at v0_i (Moussaïd et al.'s collision prediction at w = 1)."""
     n = index.shape[0]
     speed = np.zeros(n)
     direction = np.zeros((n, 2))
@@ -185,7 +212,11 @@ def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, wa
         u = np.sqrt(velocity[i, 0] ** 2 + velocity[i, 1] ** 2)
         share = min(1.0, u / desired_speed[i]) if desired_speed[i] > 0.0 else 1.0
         scale[k] = body_scale_standing + (body_scale - body_scale_standing) * share
-    free = free_distances(position, radius, index, rows, angles, neighbours, start, walls, period_m, horizon, scale)
+    v0 = np.empty(n)
+    for k in range(n):
+        v0[k] = desired_speed[index[k]]
+    free = free_distances(position, radius, index, rows, angles, neighbours, start, walls, period_m, horizon, scale,
+                          velocity, v0, anticipation)
     for k in range(n):
         norm = e_d[k, 0] * e_d[k, 0] + e_d[k, 1] * e_d[k, 1]
         if norm == 0.0:

@@ -13,7 +13,7 @@ ALL_PAIRS = np.array([[0, 1], [0, 2], [1, 2]], np.int64)
 
 
 def _walk(position, e_d, v0=1.34, T=1.0, l=0.2, half=0.0, rays=1, kappa=1.0, walls=NO_WALLS, pairs=None, radius=0.23,
-          kappa_standing=None, velocity=None):
+          kappa_standing=None, velocity=None, anticipation=0.0):
     position = np.asarray(position, dtype=float)
     n = position.shape[0]
     if pairs is None:
@@ -21,7 +21,7 @@ def _walk(position, e_d, v0=1.34, T=1.0, l=0.2, half=0.0, rays=1, kappa=1.0, wal
     velocity = np.zeros((n, 2)) if velocity is None else np.asarray(velocity, dtype=float)
     return vision_walk(position, np.full(n, radius), np.arange(n), np.asarray(e_d, dtype=float), np.full(n, v0),
                        velocity, pairs, walls, 0.0, T, l, half, rays, kappa,
-                       kappa if kappa_standing is None else kappa_standing)
+                       kappa if kappa_standing is None else kappa_standing, anticipation)
 
 
 def test_ray_circle_distance_analytic():
@@ -73,6 +73,26 @@ def test_body_scale_shrinks_with_the_walkers_own_speed():
     assert half[0] == pytest.approx(1.0 - math.sqrt(0.345**2 - 0.09) - 0.2)
 
 
+def test_anticipation_sees_a_leader_walk_on():
+    # leader 1 m ahead walking away at 1.0 m/s, follower's v0 = 1.34: relative closing speed 0.34 m/s (w = 1)
+    pos = [[0.0, 0.0], [1.0, 0.0]]
+    e = [[1.0, 0.0], [1.0, 0.0]]
+    vel = [[0.0, 0.0], [1.0, 0.0]]
+    static, _ = _walk(pos, e, velocity=vel, T=1.0, l=0.2)
+    moving, _ = _walk(pos, e, velocity=vel, T=1.0, l=0.2, anticipation=1.0)
+    half, _ = _walk(pos, e, velocity=vel, T=1.0, l=0.2, anticipation=0.5)
+    assert static[0] == pytest.approx(1.0 - 0.46 - 0.2)
+    # contact after t = (1 - 0.46) / 0.34 s, walking 1.34 t; beyond the horizon l + T v0 = 1.54 m: free
+    assert moving[0] == 1.34
+    t = (1.0 - 0.46) / (1.34 - 0.5)  # the leader at half its speed
+    assert half[0] == pytest.approx(min(1.34, 1.34 * t - 0.2))
+    # a standing leader: the same as without anticipation
+    still, _ = _walk(pos, e, velocity=[[0.0, 0.0], [0.0, 0.0]], anticipation=1.0)
+    assert still[0] == pytest.approx(static[0])
+    with pytest.raises(ParameterError, match="vision_anticipation"):
+        ModelParams(vision_anticipation=2.0)
+
+
 def test_fan_steers_round_a_standing_pedestrian():
     # somebody 0.8 m straight ahead: along e_d the free distance is 0.34 m; a side ray passes them
     speed, walk = _walk([[0.0, 0.0], [0.8, 0.0]], [[1.0, 0.0], [0.0, 1.0]], half=math.radians(75), rays=11)
@@ -95,7 +115,8 @@ def test_wall_ahead_stops_the_walker():
     speed, _ = _walk([[0.0, 0.0]], [[1.0, 0.0]], walls=wall, T=1.0, l=0.2)
     assert speed[0] == pytest.approx((1.0 - 0.23 - 0.2) / 1.0)
     free = free_distances(np.zeros((1, 2)), np.full(1, 0.23), np.arange(1), np.arange(1), np.array([[0.0, math.pi]]),
-                          np.zeros(0, np.int64), np.zeros(2, np.int64), wall, 0.0, np.full(1, 5.0), np.ones(1))
+                          np.zeros(0, np.int64), np.zeros(2, np.int64), wall, 0.0, np.full(1, 5.0), np.ones(1),
+                          np.zeros((1, 2)), np.full(1, 1.34), 0.0)
     assert free[0, 0] == pytest.approx(0.77) and free[0, 1] == 5.0
 
 

@@ -1,0 +1,50 @@
+"""crowd-fundamental-diagram's density sweep and candidates modes: outputs, resumption, refusals."""
+import json
+
+import pytest
+
+from crowd_env.cli.fundamental_diagram import main
+
+
+def test_sweep_writes_the_table_and_figure_and_resumes(tmp_path, capsys):
+    out = tmp_path / "fd"
+    argv = ["--sweep", "--preset", "vision", "--seeds", "1", "--densities", "1.147", "--single-file-densities",
+            "1.119", "--sweep-time", "12", "--transient", "4", "--backend", "serial", "--out", str(out)]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "corridor (vision, 1 seeds)" in text and "single file headway fit" in text
+    assert (out / "fd_sweep.png").stat().st_size > 0
+    rows = (out / "fd_sweep.csv").read_text().splitlines()
+    assert rows[0].startswith("setup,density,nominal_density,speed_m_s") and len(rows) == 3
+    runs = sorted((out / "runs").iterdir())
+    assert len(runs) == 2
+    mtimes = [p.stat().st_mtime_ns for p in runs]
+    assert main(argv) == 0  # resumes: nothing runs again
+    assert [p.stat().st_mtime_ns for p in runs] == mtimes
+    assert capsys.readouterr().out.splitlines()[1] == text.splitlines()[1]
+
+
+def test_candidates_measure_door_and_corridor_and_are_read_back(tmp_path, capsys):
+    out = tmp_path / "cand"
+    argv = ["--candidates", "--preset", "vision", "--grid", "vision_time_gap_s=1.0", "--out", str(out)]
+    assert main(argv) == 0
+    row = json.loads((out / "candidates.jsonl").read_text())
+    assert row["preset"] == "vision" and row["changes"] == {"vision_time_gap_s": 1.0}
+    assert sorted(row["door"]) == ["0.8", "1.0", "1.2"] and len(row["corridor"]) == 6
+    assert all(d["runs"] == 2 for d in row["door"].values())
+    assert (out / "candidates.png").stat().st_size > 0
+    printed = capsys.readouterr().out.splitlines()[-2]
+    assert main(argv) == 0  # the kept point is printed, not run again
+    assert len((out / "candidates.jsonl").read_text().splitlines()) == 1
+    assert capsys.readouterr().out.splitlines()[-2] == printed
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["--sweep", "--candidates"], "not both"),
+    (["--candidates", "--grid", "vision_rays"], "expected NAME=VALUE"),
+    (["--candidates", "--set", "vision_rays=x"], "is not a number"),
+    (["--candidates", "--grid", "vision_rays=2"], "vision_rays must be an odd integer"),
+])
+def test_bad_options_are_refused_naming_them(tmp_path, argv, match):
+    with pytest.raises(SystemExit, match=match):
+        main(argv + ["--out", str(tmp_path / "x")])
