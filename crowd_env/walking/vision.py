@@ -61,7 +61,7 @@ def ray_circle_distance(ox, oy, dx, dy, cx, cy, radius):
 def moving_circle_distance(qx, qy, ux, uy, dx, dy, speed, radius):
     """How far a walker starting at the origin can walk along the unit direction d at ``speed`` before a circle
     of ``radius`` about q, itself moving at velocity u, reaches its centre: speed · t for the first t ≥ 0 with
-    |q + (u − speed d) t| = radius; 0 when already within it and closing in, inf when never."""
+    ``‖q + (u − speed d) t‖ = radius``; 0 when already within it and closing in, inf when never."""
     cx = ux - speed * dx
     cy = uy - speed * dy
     closing = qx * cx + qy * cy
