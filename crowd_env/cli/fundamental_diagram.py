@@ -46,7 +46,8 @@ from ..experiments.bottleneck import params_dict
 from ..experiments.fundamental_diagram import (CORRIDOR_DENSITIES, SETUPS, SINGLE_FILE_DENSITIES, door_and_corridor,
                                                fd_tasks, run_fd_one, summarise_fd)
 from ..experiments.recording import record_bottleneck_run
-from ..experiments.store import RunStore, write_json_atomic
+from ..experiments.store import RunStore, write_csv_atomic, write_json_atomic
+from .options import key_values
 
 CSV_COLUMNS = ["area", "frame", "time_s", "density_per_m2", "speed_m_s", "specific_flow_per_m_s"]
 
@@ -84,33 +85,22 @@ def build_parser() -> argparse.ArgumentParser:
     cd.add_argument("--candidates", action="store_true", help="measure parameter points on the door and corridor")
     cd.add_argument("--set", nargs="+", default=[], metavar="NAME=VALUE", help="ModelParams fields on top of --preset")
     cd.add_argument("--grid", nargs="+", default=[], metavar="NAME=V1,V2,...",
-                    help="ModelParams fields to vary (every combination); 'none' stands for None")
+                    help="ModelParams fields to vary (every combination); values as JSON (null for None)")
     return ap
 
 
-def _value(text: str):
-    """A --set/--grid value: none, true/false, an int, else a float."""
-    low = text.strip().lower()
-    if low == "none":
-        return None
-    if low in ("true", "false"):
-        return low == "true"
-    try:
-        return int(text)
-    except ValueError:
-        return float(text)
-
-
 def _assignments(items, what: str) -> dict:
+    """``--set`` NAME=VALUE or ``--grid`` NAME=V1,V2,... items, each value read by :func:`~crowd_env.cli.options.
+    key_values` (JSON: numbers, true, false, null); ``--grid`` gives a list per name."""
     out = {}
     for item in items:
         name, sep, value = item.partition("=")
         if not sep or not name or not value:
             raise SystemExit(f"error: {what} {item!r}: expected NAME=VALUE")
-        try:
-            out[name] = [_value(v) for v in value.split(",")] if what == "--grid" else _value(value)
-        except ValueError:
-            raise SystemExit(f"error: {what} {item!r}: {value!r} is not a number, none, true or false") from None
+        values = [key_values([f"{name}={v}"], f"{what} expects NAME=VALUE")[name] for v in value.split(",")]
+        if any(isinstance(v, str) for v in values):
+            raise SystemExit(f"error: {what} {item!r}: {value!r} is not a number, null, true or false")
+        out[name] = values if what == "--grid" else values[0]
     return out
 
 
@@ -180,10 +170,7 @@ def _sweep(args) -> int:
         a, b, k = summary["single_file_fit"]
         print(f"single file headway fit d = a + b v over {k} samples (v > 0.05 m/s): a = {a:.3f} m, b = {b:.3f} s "
               f"(experiment: 0.34 m, 1.08 s)")
-    with open(args.out / "fd_sweep.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(lines[0]))
-        w.writeheader()
-        w.writerows(lines)
+    write_csv_atomic(args.out / "fd_sweep.csv", list(lines[0]), lines)
     write_json_atomic(args.out / "fd_sweep.json", summary)
     png = fd_sweep_figure(summary, args.out / "fd_sweep.png", title=f"fundamental diagram, preset {args.preset}")
     print(f"figure: {png}\ntable: {args.out / 'fd_sweep.csv'}")

@@ -16,7 +16,6 @@ from crowd_env.errors import SetupError, SweepError
 
 import csv
 import dataclasses
-import io
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +31,7 @@ from ..walking.agent import SocialForceAgent
 from .backends import ProcessBackend, SerialBackend, execute
 from .recording import record_run
 from .runner import STALL_SPEED_M_S, STALL_WINDOW_S, run_scenario
-from .store import RunStore, check_record, config_hash, normalise_record, write_atomic
+from .store import RunStore, check_record, config_hash, normalise_record, write_csv_atomic
 
 __all__ = ["GEOMETRY_OPTIONS", "LANE_BIN_M", "RESULT_COLUMNS", "SetupError", "SweepError", "model_params",
            "params_dict", "bottleneck_config", "check_setups", "check_records", "SUMMARY_FIELDS", "run_one", "run_sweep", "write_results",
@@ -205,21 +204,12 @@ def check_records(records: list, sources=None) -> None:
         check_record(r, label, SUMMARY_FIELDS)
 
 
-def _write_csv(path: Path, fieldnames: list, rows, **options) -> None:
-    """``rows`` (dicts) as CSV at ``path``, written atomically (a killed run never leaves half a table)."""
-    buffer = io.StringIO(newline="")
-    w = csv.DictWriter(buffer, fieldnames=fieldnames, **options)
-    w.writeheader()
-    w.writerows(rows)
-    write_atomic(path, buffer.getvalue())
-
-
 def write_results(records: list, out: Path) -> None:
     """``out/results.csv``: one row per run (:data:`RESULT_COLUMNS`), written atomically once every record
     has been checked (:func:`check_records`: a record lacking a field leaves the file as it was)."""
     check_records(records)
     rows = sorted(records, key=lambda r: (r["n_pedestrians"], r["width_m"], r["seed"]))
-    _write_csv(Path(out) / "results.csv", RESULT_COLUMNS, rows, extrasaction="ignore")
+    write_csv_atomic(Path(out) / "results.csv", RESULT_COLUMNS, rows, extrasaction="ignore")
 
 
 def _finite_mean(values) -> float:
@@ -274,7 +264,7 @@ def write_summary(rows: list, out: Path) -> Path:
     if not rows:
         raise SetupError(f"no summary rows to write into {Path(out) / 'summary.csv'} (no runs)")
     path = Path(out) / "summary.csv"
-    _write_csv(path, list(rows[0]), rows)
+    write_csv_atomic(path, list(rows[0]), rows)
     return path
 
 

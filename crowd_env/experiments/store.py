@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from crowd_env.errors import RunStoreError
 
+import csv
 import hashlib
 import io
 import json
@@ -35,7 +36,7 @@ from ..analysis.trajectories import trajectory_frame_rate
 from ..core.checks import is_integer, is_number
 
 __all__ = ["RunStoreError", "RunStore", "config_hash", "normalise_record", "check_record", "run_key", "task_key",
-           "write_atomic", "write_json_atomic", "write_npz_atomic",
+           "write_atomic", "write_csv_atomic", "write_json_atomic", "write_npz_atomic",
            "CONFIG_NAME", "LAYOUTS"]
 
 CONFIG_NAME = "config.json"
@@ -119,6 +120,16 @@ def write_json_atomic(path, value) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     write_atomic(path, json.dumps(value, indent=1))
+
+
+def write_csv_atomic(path, fieldnames: list, rows, **options) -> None:
+    """``rows`` (dicts) as CSV at ``path`` under ``fieldnames`` (``options`` go to :class:`csv.DictWriter`), written
+    atomically (:func:`write_atomic`): a killed run never leaves half a table."""
+    buffer = io.StringIO(newline="")
+    w = csv.DictWriter(buffer, fieldnames=fieldnames, **options)
+    w.writeheader()
+    w.writerows(rows)
+    write_atomic(path, buffer.getvalue())
 
 
 def write_npz_atomic(path, meta: dict, **arrays) -> None:
