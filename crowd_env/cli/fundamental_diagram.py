@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..analysis.fd_reference import JUELICH_CORRIDOR_WIDTH_M
 from ..analysis.figures import candidates_figure, fd_sweep_figure, fundamental_diagram_figure
 from ..analysis.trajectories import (DEFAULT_FRAME_RATE_PER_S, Trajectories, TrajectoryFormatError,
                                      fundamental_diagram_data, pedpy_measurement_area, read_geometry)
@@ -46,7 +47,7 @@ from ..experiments.bottleneck import params_dict
 from ..experiments.fundamental_diagram import (CORRIDOR_DENSITIES, SETUPS, SINGLE_FILE_DENSITIES, door_and_corridor,
                                                fd_tasks, run_fd_one, summarise_fd)
 from ..experiments.recording import record_bottleneck_run
-from ..experiments.store import RunStore, write_csv_atomic, write_json_atomic
+from ..experiments.store import RunStore, write_atomic, write_csv_atomic, write_json_atomic
 from .options import key_values
 
 CSV_COLUMNS = ["area", "frame", "time_s", "density_per_m2", "speed_m_s", "specific_flow_per_m_s"]
@@ -77,6 +78,9 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--seeds", type=int, default=3, help="seeds per density (0..k-1)")
     sw.add_argument("--preset", default=DEFAULT_PRESET, choices=sorted(PRESETS), help="model preset")
     sw.add_argument("--length", type=float, default=20.0, help="length of the periodic strip (m)")
+    sw.add_argument("--corridor-width", type=float, default=JUELICH_CORRIDOR_WIDTH_M,
+                    help="width of the periodic corridor (m; default the Jülich experiment's; a door's width measures "
+                         "its channel; the experiment columns stay the 1.8 m corridor's)")
     sw.add_argument("--sweep-time", type=float, default=40.0, help="simulated time per run (s)")
     sw.add_argument("--transient", type=float, default=15.0, help="time left out before measuring (s)")
     sw.add_argument("--backend", default="process", choices=["ray", "process", "serial"], help="executor")
@@ -127,9 +131,8 @@ def _candidates(args) -> int:
                 raise SystemExit(f"error: {exc}") from None
             row = {"preset": args.preset, "changes": changes,
                    **door_and_corridor(params, navigation_clearance_m=preset.navigation_clearance_m)}
-            with open(path, "a") as fh:
-                fh.write(json.dumps(row) + "\n")
             done[key] = row
+            write_atomic(path, "".join(json.dumps(r) + "\n" for r in done.values()))  # never half a line
         row = done[key]
         door, corr = list(row["door"].values()), list(row["corridor"].values())
         flows = " / ".join(f"{d['specific_flow_per_m_s']:.2f}" for d in door)
@@ -147,7 +150,7 @@ def _sweep(args) -> int:
     params = get_preset(args.preset).params()
     tasks = fd_tasks(args.setups, {"corridor": args.densities, "single_file": args.single_file_densities},
                      range(args.seeds), params, length_m=args.length, max_time_s=args.sweep_time,
-                     transient_s=args.transient)
+                     transient_s=args.transient, corridor_width_m=args.corridor_width)
     store = RunStore(args.out, {"kind": "fundamental_diagram_sweep", "preset": args.preset,
                                 "params": params_dict(params)})
     with make_backend(args.backend, jobs=args.jobs) as backend:

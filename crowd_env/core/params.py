@@ -55,6 +55,7 @@ class ModelParams:
     vision_body_scale: float = 1.0  # κ: a neighbour blocks a direction within κ (r_i + r_j) of its centre
     vision_body_scale_standing: float | None = None  # κ_0 at rest (κ at the desired speed); None: κ always
     vision_anticipation: float = 0.0  # w: the others move on at w times their velocity (0: they stand)
+    vision_leader_time_s: float = 0.0  # T_a: the speed rule reads the gap T_a ahead, the leader walking on (0: off)
     rotation: bool = True  # False: headings frozen (paper Section 4.1.1, "without rotation")
     solver: str = "dual"
     extra: dict = field(default_factory=dict, compare=False, repr=False)
@@ -64,7 +65,7 @@ class ModelParams:
             raise ParameterError(f"unknown model parameter(s): {sorted(self.extra)}")
         positive = ("dt_s", "normal_dissipation_kg", "contact_tolerance_m", "social_range_m", "social_cutoff_m")
         non_negative = ("tangential_dissipation_kg", "link_dissipation_kg_per_m2", "social_strength_n",
-                        "vision_time_gap_s", "vision_jam_gap_m", "vision_half_angle_rad")
+                        "vision_time_gap_s", "vision_jam_gap_m", "vision_half_angle_rad", "vision_leader_time_s")
         for name in positive + non_negative:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \

@@ -44,15 +44,22 @@ SINGLE_FILE_DENSITIES = tuple(float(d) for d in single_file().density)
 
 
 def fd_tasks(setups, densities: dict, seeds, params: ModelParams, *, length_m: float = 20.0,
-             max_time_s: float = 40.0, transient_s: float = 15.0) -> list:
-    """Tasks of :func:`run_fd_one`, one per set-up, density of ``densities[setup]`` and seed."""
+             max_time_s: float = 40.0, transient_s: float = 15.0,
+             corridor_width_m: float = JUELICH_CORRIDOR_WIDTH_M) -> list:
+    """Tasks of :func:`run_fd_one`, one per set-up, density of ``densities[setup]`` and seed.
+
+    ``corridor_width_m``: the periodic corridor's width (default the Jülich experiment's 1.8 m; the width of a
+    door's channel measures the channel's own fundamental diagram)."""
     unknown = sorted(set(setups) - set(SETUPS))
     if unknown:
         raise InputError(f"unknown set-up(s) {unknown}; choose among {list(SETUPS)}")
+    if isinstance(corridor_width_m, bool) or not isinstance(corridor_width_m, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(corridor_width_m) or corridor_width_m <= 0:
+        raise InputError(f"corridor_width_m must be a positive finite width in metres, got {corridor_width_m!r}")
     base = {"params": params_dict(params), "length_m": float(length_m),
             "max_time_s": float(max_time_s), "transient_s": float(transient_s)}
-    width = {"corridor": JUELICH_CORRIDOR_WIDTH_M, "single_file": SINGLE_FILE_WIDTH_M}
-    area = {"corridor": length_m * JUELICH_CORRIDOR_WIDTH_M, "single_file": length_m}  # N = round(ρ · area)
+    width = {"corridor": float(corridor_width_m), "single_file": SINGLE_FILE_WIDTH_M}
+    area = {"corridor": length_m * width["corridor"], "single_file": length_m}  # N = round(ρ · area)
     return [dict(base, setup=s, density=float(d), seed=int(seed), width_m=width[s],
                  n_pedestrians=int(round(d * area[s]))) for s in setups for d in densities[s] for seed in seeds]
 

@@ -57,7 +57,7 @@ def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, hea
     headings (the current heading for inactive rows). The forces are :func:`social_repulsion`'s
     compiled core, :func:`~crowd_env.walking.social_force.total_social_forces`. Pedestrians whose
     premovement time has not come at ``time_s`` stand still (:func:`hold_waiting`). ``vision``
-    ``(T, l, half-angle, rays, κ, κ_0, w)`` (:func:`vision_parameters`): with T > 0 the speed and direction of the
+    ``(T, l, half-angle, rays, κ, κ_0, w, T_a)`` (:func:`vision_parameters`): with T > 0 the speed and direction of the
     driving term are :func:`~crowd_env.walking.vision.vision_walk`'s (``pairs`` must then reach 2 r_max +
     :func:`~crowd_env.walking.vision.vision_reach_m`), and θ_d is the walking direction's angle.
     ``period_m``: the simulation's periodicity along x (``Simulator.period_m``; 0: none).
@@ -77,7 +77,8 @@ def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, hea
                             cutoff_m, wall_strength_n, wall_range_m, force, period_m)
     if vision[0] > 0.0:  # the walking speed and direction of vision instead of ‖u_d‖ and e_d
         speed, walk = vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, walls, period_m,
-                                  vision[0], vision[1], vision[2], vision[3], vision[4], vision[5], vision[6])
+                                  vision[0], vision[1], vision[2], vision[3], vision[4], vision[5], vision[6],
+                                  vision[7])
     else:
         speed = np.empty(n)
         for k in range(n):
@@ -176,13 +177,13 @@ def pair_reach_m(desired_speed, index, social, cutoff_m, vision):
 
 
 def vision_parameters(params) -> tuple:
-    """``(T, l, half-angle, rays, κ, κ_0, w)`` of :class:`~crowd_env.core.params.ModelParams` ``params`` for the
-    kernels (κ_0 = κ when ``vision_body_scale_standing`` is None; w the anticipation)."""
+    """``(T, l, half-angle, rays, κ, κ_0, w, T_a)`` of :class:`~crowd_env.core.params.ModelParams` ``params`` for
+    the kernels (κ_0 = κ when ``vision_body_scale_standing`` is None; w the anticipation, T_a the leader time)."""
     standing = params.vision_body_scale if params.vision_body_scale_standing is None \
         else params.vision_body_scale_standing
     return (float(params.vision_time_gap_s), float(params.vision_jam_gap_m), float(params.vision_half_angle_rad),
             int(params.vision_rays), float(params.vision_body_scale), float(standing),
-            float(params.vision_anticipation))
+            float(params.vision_anticipation), float(params.vision_leader_time_s))
 
 
 @nb.njit(cache=True)

@@ -21,7 +21,13 @@ steer into gaps. Vision adds both, after the heuristics of Moussaïd, Helbing & 
   round e_d, the one whose free walk brings i closest to a point H_i ahead along e_d (Moussaïd's
   heuristic 1): d(α)² = H² + f(α)² − 2 H f(α) cos(α − α_d); ties go to the direction closest to e_d;
 - the walking speed is v_i = min(v0_i, max(0, (f_i(α*) − l)/T)) (heuristic 2; the collision-free speed
-  rule), T = ``vision_time_gap_s``, l = ``vision_jam_gap_m``.
+  rule), T = ``vision_time_gap_s``, l = ``vision_jam_gap_m``;
+- with ``vision_leader_time_s`` T_a > 0 a leader pulling away lends its gap ahead: when a neighbour j ends the
+  chosen free walk, f_i(α*) gains T_a max(0, u_l − u_i), u_l and u_i the leader's and the walker's velocities
+  along e(α*): the gap T_a later if both keep their speeds, counted only while it opens (the velocity-difference
+  term of car following: Jiang, Wu & Zhu 2001, Treiber, Hennecke & Helbing 2000). Steady following (u_l = u_i),
+  standing or approaching neighbours and walls are the rule without it, so the homogeneous corridor's
+  distance-speed relation keeps its form; what changes is the start of a queue behind a leader who walks off.
 
 The agent's intent then reads u_int = v_i e(α_i*) + (τ/m) Σ f_social, and its heading target θ_d = α_i*.
 With T = 0 vision is off and the agent is the paper's; with one ray only the speed changes (the speed rule
@@ -113,10 +119,14 @@ def free_distances(position, radius, index, rows, angles, neighbours, neighbour_
     neighbour's centre (κ = ``body_scale`` (len(rows),), each walker's own; CSR lists
     ``neighbours[neighbour_start[k]:neighbour_start[k + 1]]`` of rows into ``index``) or the disk touches a wall
     segment. With ``anticipation`` w > 0 each neighbour moves on at w times its ``velocity`` (N, 2) while the
-    walker walks at ``walk_speed`` (len(rows),) (:func:`moving_circle_distance`); w = 0: the others stand."""
+    walker walks at ``walk_speed`` (len(rows),) (:func:`moving_circle_distance`); w = 0: the others stand.
+
+    Returns f (len(rows), K) and, per ray, the velocity along the ray ``u_j · e(α)`` of the neighbour that ends
+    the free walk (0 when a wall ends it or nothing does before the horizon)."""
     m = rows.shape[0]
     k_rays = angles.shape[1]
     out = np.empty((m, k_rays))
+    leader = np.zeros((m, k_rays))
     for a in range(m):
         i = index[rows[a]]
         ox = position[i, 0]
@@ -136,13 +146,15 @@ def free_distances(position, radius, index, rows, angles, neighbours, neighbour_
                     t = ray_circle_distance(ox, oy, dx, dy, ox + qx, position[j, 1], reach)
                 if t < best:
                     best = t
+                    leader[a, q] = velocity[j, 0] * dx + velocity[j, 1] * dy
             for s in range(walls.shape[0]):
                 t = _ray_capsule_distance(ox, oy, dx, dy, walls[s, 0], walls[s, 1], walls[s, 2], walls[s, 3],
                                           radius[i])
                 if t < best:
                     best = t
+                    leader[a, q] = 0.0
             out[a, q] = best
-    return out
+    return out, leader
 
 
 @nb.njit(cache=True)
@@ -178,7 +190,7 @@ def vision_reach_m(desired_speed, index, time_gap_s, jam_gap_m):
 
 @nb.njit(cache=True)
 def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, walls, period_m, time_gap_s, jam_gap_m,
-                half_angle_rad, n_rays, body_scale, body_scale_standing, anticipation):
+                half_angle_rad, n_rays, body_scale, body_scale_standing, anticipation, leader_time_s):
     """Walking speed (n,) and unit walking direction (n, 2) of the pedestrians ``index`` (module docstring).
 
     ``e_d`` (n, 2) their desired directions (Eq. 13), ``pairs`` rows into ``index`` of every pair of centres
@@ -186,7 +198,10 @@ def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, wa
     (e_d = 0) gets speed 0 and direction 0. Each walker's κ_i runs from ``body_scale_standing`` κ_0 at rest to
     ``body_scale`` κ at its desired speed, linearly in its current speed ‖u_i‖ (``velocity`` (N, 2)), and is κ
     above it: κ_i = κ_0 + (κ − κ_0) min(1, ‖u_i‖ / v0_i). ``anticipation`` w: the others move on at w times their
-    velocity while the walker walks at v0_i (Moussaïd et al.'s collision prediction at w = 1)."""
+    velocity while the walker walks at v0_i (Moussaïd et al.'s collision prediction at w = 1). ``leader_time_s``
+    T_a > 0: a leader pulling away lends its gap ahead, v = (f + T_a max(0, u_l − u_i) − l)/T with u_l the
+    velocity along the chosen direction of the neighbour that ends its free walk (:func:`free_distances`) and
+    u_i the walker's own; steady following (u_l = u_i), standing neighbours and walls are unchanged."""
     n = index.shape[0]
     speed = np.zeros(n)
     direction = np.zeros((n, 2))
@@ -215,8 +230,8 @@ def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, wa
     v0 = np.empty(n)
     for k in range(n):
         v0[k] = desired_speed[index[k]]
-    free = free_distances(position, radius, index, rows, angles, neighbours, start, walls, period_m, horizon, scale,
-                          velocity, v0, anticipation)
+    free, leader = free_distances(position, radius, index, rows, angles, neighbours, start, walls, period_m,
+                                  horizon, scale, velocity, v0, anticipation)
     for k in range(n):
         norm = e_d[k, 0] * e_d[k, 0] + e_d[k, 1] * e_d[k, 1]
         if norm == 0.0:
@@ -230,8 +245,13 @@ def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, wa
             if d2 < best_d2 - 1e-12:
                 best_d2 = d2
                 best_q = q
-        v = (free[k, best_q] - jam_gap_m) / time_gap_s
-        speed[k] = min(desired_speed[index[k]], max(0.0, v))
-        direction[k, 0] = np.cos(angles[k, best_q])
-        direction[k, 1] = np.sin(angles[k, best_q])
+        gap = free[k, best_q] - jam_gap_m
+        ex = np.cos(angles[k, best_q])
+        ey = np.sin(angles[k, best_q])
+        if leader_time_s > 0.0 and free[k, best_q] < h:  # a leader pulling away lends T_a of its relative speed
+            own = velocity[index[k], 0] * ex + velocity[index[k], 1] * ey
+            gap += leader_time_s * max(0.0, leader[k, best_q] - own)
+        speed[k] = min(desired_speed[index[k]], max(0.0, gap / time_gap_s))
+        direction[k, 0] = ex
+        direction[k, 1] = ey
     return speed, direction

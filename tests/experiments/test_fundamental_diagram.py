@@ -53,3 +53,28 @@ def test_reference_tables():
     assert jc.speed_at(1.629) == pytest.approx(0.989) and np.isnan(jc.speed_at(5.0))
     # Weidmann: free speed at low density, zero at the jam density
     assert weidmann_speed_m_s(0.01) == pytest.approx(1.34, abs=1e-6) and weidmann_speed_m_s(5.4) == 0.0
+
+
+def test_corridor_width_sets_the_strip_and_is_checked():
+    params = get_preset("vision").params()
+    (task,) = fd_tasks(["corridor"], {"corridor": [1.6]}, [0], params, corridor_width_m=1.0)
+    assert task["width_m"] == 1.0 and task["n_pedestrians"] == round(1.6 * 20.0 * 1.0)
+    (default,) = fd_tasks(["corridor"], {"corridor": [1.6]}, [0], params)
+    assert default["width_m"] == 1.8
+    from crowd_env.errors import InputError
+    for bad in (0.0, -1.0, float("nan"), True, "1.0"):
+        with pytest.raises(InputError, match="corridor_width_m"):
+            fd_tasks(["corridor"], {"corridor": [1.6]}, [0], params, corridor_width_m=bad)
+
+
+def test_vision_channel_of_a_door_is_slower_than_the_wide_corridor():
+    """The door's deficit located (docs/validation/fundamental_diagram.md, "The door's channel"): at 1.6 /m² the
+    vision crowd walks slower in a periodic channel 1 m wide than in the 1.8 m corridor, where Seyfried's 1 m
+    channel walks faster (0.94-1.22 m/s) than the Jülich corridor (0.99 m/s)."""
+    params = get_preset("vision").params()
+    speed = {}
+    for width in (1.0, 1.8):
+        tasks = fd_tasks(["corridor"], {"corridor": [1.6]}, [0, 1], params, max_time_s=25.0, transient_s=10.0,
+                         corridor_width_m=width)
+        speed[width] = np.mean([run_fd_one(t)["speed_m_s"] for t in tasks])
+    assert speed[1.0] < speed[1.8] - 0.05, speed

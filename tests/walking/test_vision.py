@@ -13,7 +13,7 @@ ALL_PAIRS = np.array([[0, 1], [0, 2], [1, 2]], np.int64)
 
 
 def _walk(position, e_d, v0=1.34, T=1.0, l=0.2, half=0.0, rays=1, kappa=1.0, walls=NO_WALLS, pairs=None, radius=0.23,
-          kappa_standing=None, velocity=None, anticipation=0.0):
+          kappa_standing=None, velocity=None, anticipation=0.0, leader_time=0.0):
     position = np.asarray(position, dtype=float)
     n = position.shape[0]
     if pairs is None:
@@ -21,7 +21,7 @@ def _walk(position, e_d, v0=1.34, T=1.0, l=0.2, half=0.0, rays=1, kappa=1.0, wal
     velocity = np.zeros((n, 2)) if velocity is None else np.asarray(velocity, dtype=float)
     return vision_walk(position, np.full(n, radius), np.arange(n), np.asarray(e_d, dtype=float), np.full(n, v0),
                        velocity, pairs, walls, 0.0, T, l, half, rays, kappa,
-                       kappa if kappa_standing is None else kappa_standing, anticipation)
+                       kappa if kappa_standing is None else kappa_standing, anticipation, leader_time)
 
 
 def test_ray_circle_distance_analytic():
@@ -93,6 +93,32 @@ def test_anticipation_sees_a_leader_walk_on():
         ModelParams(vision_anticipation=2.0)
 
 
+def test_leader_pulling_away_lends_its_gap():
+    # follower at 0.3 m/s, leader 1.2 m ahead pulling away at 1.0 m/s: f = 1.2 - 0.46 = 0.74; with T_a = 0.5 s
+    # the gap gains 0.5 * (1.0 - 0.3) = 0.35 m: v = (0.74 + 0.35 - 0.2) / 1.0
+    pos = [[0.0, 0.0], [1.2, 0.0]]
+    e = [[1.0, 0.0], [1.0, 0.0]]
+    vel = [[0.3, 0.0], [1.0, 0.0]]
+    static, _ = _walk(pos, e, velocity=vel, T=1.0, l=0.2)
+    lent, _ = _walk(pos, e, velocity=vel, T=1.0, l=0.2, leader_time=0.5)
+    assert static[0] == pytest.approx(0.74 - 0.2)
+    assert lent[0] == pytest.approx(0.74 + 0.35 - 0.2)
+    assert lent[1] == 1.34  # the leader sees nobody ahead
+    # steady following (u_l = u_i), a standing or an approaching leader: the rule without T_a, to the bit
+    for v_leader in (0.3, 0.0, -0.8):
+        same, _ = _walk(pos, e, velocity=[[0.3, 0.0], [v_leader, 0.0]], T=1.0, l=0.2, leader_time=0.5)
+        assert same[0] == static[0]
+    # only the velocity along the chosen direction counts: a leader walking sideways lends nothing
+    side, _ = _walk(pos, e, velocity=[[0.3, 0.0], [0.0, 1.0]], T=1.0, l=0.2, leader_time=0.5)
+    assert side[0] == static[0]
+    # a wall ahead is never pulled away
+    wall = np.array([[1.0, -5.0, 1.0, 5.0]])
+    walled, _ = _walk([[0.0, 0.0]], [[1.0, 0.0]], velocity=[[0.3, 0.0]], walls=wall, leader_time=2.0)
+    assert walled[0] == pytest.approx(1.0 - 0.23 - 0.2)
+    with pytest.raises(ParameterError, match="vision_leader_time_s"):
+        ModelParams(vision_leader_time_s=-0.1)
+
+
 def test_fan_steers_round_a_standing_pedestrian():
     # somebody 0.8 m straight ahead: along e_d the free distance is 0.34 m; a side ray passes them
     speed, walk = _walk([[0.0, 0.0], [0.8, 0.0]], [[1.0, 0.0], [0.0, 1.0]], half=math.radians(75), rays=11)
@@ -114,10 +140,11 @@ def test_wall_ahead_stops_the_walker():
     wall = np.array([[1.0, -5.0, 1.0, 5.0]])
     speed, _ = _walk([[0.0, 0.0]], [[1.0, 0.0]], walls=wall, T=1.0, l=0.2)
     assert speed[0] == pytest.approx((1.0 - 0.23 - 0.2) / 1.0)
-    free = free_distances(np.zeros((1, 2)), np.full(1, 0.23), np.arange(1), np.arange(1), np.array([[0.0, math.pi]]),
+    free, leader = free_distances(np.zeros((1, 2)), np.full(1, 0.23), np.arange(1), np.arange(1), np.array([[0.0, math.pi]]),
                           np.zeros(0, np.int64), np.zeros(2, np.int64), wall, 0.0, np.full(1, 5.0), np.ones(1),
                           np.zeros((1, 2)), np.full(1, 1.34), 0.0)
     assert free[0, 0] == pytest.approx(0.77) and free[0, 1] == 5.0
+    assert leader[0, 0] == 0.0 and leader[0, 1] == 0.0
 
 
 def test_vision_parameters_are_checked():
@@ -133,14 +160,15 @@ def test_vision_parameters_are_checked():
         ModelParams(vision_time_gap_s=-1.0)
 
 
-def test_compiled_rollout_equals_stepping_with_vision():
+@pytest.mark.parametrize("leader_time_s", [0.0, 1.0])
+def test_compiled_rollout_equals_stepping_with_vision(leader_time_s):
     """The compiled rollout and Python stepping run the same vision walk, to the last bit (trajectories)."""
     from crowd_env.core.presets import get_preset
     from crowd_env.experiments.recording import record_run
     from crowd_env.scenarios import make_scenario
     from crowd_env.walking.agent import SocialForceAgent
 
-    params = get_preset("vision").params()
+    params = get_preset("vision").params(vision_leader_time_s=leader_time_s)
     sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=20, seed=3)
     ra, ta = record_run(sc, SocialForceAgent(sc.navigation()), params, max_time_s=4.0, compiled=True)
     rb, tb = record_run(sc, SocialForceAgent(sc.navigation()), params, max_time_s=4.0, compiled=False)

@@ -70,6 +70,7 @@ FREE_PARAMETERS = {
     "vision_jam_gap_m": FreeParameter("vision_jam_gap_m", "model", False, (0.0, 1.0), 0.2, 0.1),
     "vision_half_angle_rad": FreeParameter("vision_half_angle_rad", "model", False, (0.1, math.pi), 1.309, 0.2),
     "vision_body_scale": FreeParameter("vision_body_scale", "model", False, (0.1, 1.0), 0.5, 0.1),
+    "vision_leader_time_s": FreeParameter("vision_leader_time_s", "model", False, (0.0, 5.0), 0.0, 0.3),
 }
 METHODS = ("Nelder-Mead", "Powell")
 # "epsilon": Eq. 24-25 (+ the optional N = 20/40 range penalty), the paper's objective; "targets": every
