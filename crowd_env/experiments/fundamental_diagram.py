@@ -25,6 +25,7 @@ from crowd_env.errors import InputError
 
 from ..analysis.fd_reference import JUELICH_CORRIDOR_WIDTH_M, juelich_corridor, single_file
 from ..analysis.periodic import MIN_FIT_SPEED_M_S, headway_fit, trajectory_frames, unwrap_x
+from ..core.checks import check_number
 from ..core.params import ModelParams
 from ..core.periodic import minimum_image_dx
 from .bottleneck import bottleneck_config, params_dict, run_one
@@ -53,12 +54,10 @@ def fd_tasks(setups, densities: dict, seeds, params: ModelParams, *, length_m: f
     unknown = sorted(set(setups) - set(SETUPS))
     if unknown:
         raise InputError(f"unknown set-up(s) {unknown}; choose among {list(SETUPS)}")
-    if isinstance(corridor_width_m, bool) or not isinstance(corridor_width_m, (int, float, np.integer, np.floating)) \
-            or not np.isfinite(corridor_width_m) or corridor_width_m <= 0:
-        raise InputError(f"corridor_width_m must be a positive finite width in metres, got {corridor_width_m!r}")
+    corridor_width_m = check_number("corridor_width_m", corridor_width_m, error=InputError, positive=True)
     base = {"params": params_dict(params), "length_m": float(length_m),
             "max_time_s": float(max_time_s), "transient_s": float(transient_s)}
-    width = {"corridor": float(corridor_width_m), "single_file": SINGLE_FILE_WIDTH_M}
+    width = {"corridor": corridor_width_m, "single_file": SINGLE_FILE_WIDTH_M}
     area = {"corridor": length_m * width["corridor"], "single_file": length_m}  # N = round(ρ · area)
     return [dict(base, setup=s, density=float(d), seed=int(seed), width_m=width[s],
                  n_pedestrians=int(round(d * area[s]))) for s in setups for d in densities[s] for seed in seeds]
