@@ -25,9 +25,10 @@ steer into gaps. Vision adds both, after the heuristics of Moussaïd, Helbing & 
 - with ``vision_leader_time_s`` T_a > 0 a leader pulling away lends its gap ahead: when a neighbour j ends the
   chosen free walk, f_i(α*) gains T_a max(0, u_l − u_i), u_l and u_i the leader's and the walker's velocities
   along e(α*): the gap T_a later if both keep their speeds, counted only while it opens (the velocity-difference
-  term of car following: Jiang, Wu & Zhu 2001, Treiber, Hennecke & Helbing 2000). Steady following (u_l = u_i),
-  standing or approaching neighbours and walls are the rule without it, so the homogeneous corridor's
-  distance-speed relation keeps its form; what changes is the start of a queue behind a leader who walks off.
+  term of car following: Jiang, Wu & Zhu 2001, Treiber, Hennecke & Helbing 2000). Wherever the gap is not
+  opening (u_l ≤ u_i: steady following, a walker moving forward behind a standing or approaching neighbour or a
+  wall) it is the rule without it, so the homogeneous corridor's distance-speed relation keeps its form; what
+  changes is the start of a queue behind a leader who walks off.
 
 The agent's intent then reads u_int = v_i e(α_i*) + (τ/m) Σ f_social, and its heading target θ_d = α_i*.
 With T = 0 vision is off and the agent is the paper's; with one ray only the speed changes (the speed rule
@@ -201,7 +202,7 @@ def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, wa
     velocity while the walker walks at v0_i (Moussaïd et al.'s collision prediction at w = 1). ``leader_time_s``
     T_a > 0: a leader pulling away lends its gap ahead, v = (f + T_a max(0, u_l − u_i) − l)/T with u_l the
     velocity along the chosen direction of the neighbour that ends its free walk (:func:`free_distances`) and
-    u_i the walker's own; steady following (u_l = u_i), standing neighbours and walls are unchanged."""
+    u_i the walker's own (a wall's u_l is 0); where the gap is not opening (u_l ≤ u_i) nothing changes."""
     n = index.shape[0]
     speed = np.zeros(n)
     direction = np.zeros((n, 2))

@@ -111,7 +111,7 @@ def test_leader_pulling_away_lends_its_gap():
     # only the velocity along the chosen direction counts: a leader walking sideways lends nothing
     side, _ = _walk(pos, e, velocity=[[0.3, 0.0], [0.0, 1.0]], T=1.0, l=0.2, leader_time=0.5)
     assert side[0] == static[0]
-    # a wall ahead is never pulled away
+    # a wall ahead of a walker moving forward lends nothing (its u_l is 0)
     wall = np.array([[1.0, -5.0, 1.0, 5.0]])
     walled, _ = _walk([[0.0, 0.0]], [[1.0, 0.0]], velocity=[[0.3, 0.0]], walls=wall, leader_time=2.0)
     assert walled[0] == pytest.approx(1.0 - 0.23 - 0.2)
