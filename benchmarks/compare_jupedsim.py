@@ -68,7 +68,7 @@ def _floor_steps(max_steps, time_s, bodies, world, model, agent):
      active, links, link_offsets, premovement) = bodies
     walls, wall_owner, exits, exit_destination = world
     dt_s, eps_m, k_n, k_tg, k_v, rotation, max_rows, max_bodies, max_projection_rows = model
-    origin, res, tt, dirs, field_of, social, a_n, b_m, lam, cutoff, wa, wb, vision = agent
+    origin, res, tt, dirs, field_of, social, a_n, b_m, lam, cutoff, wa, wb, vision, ttc = agent
     done = 0
     agent_steps = 0
     while done < max_steps:
@@ -77,7 +77,7 @@ def _floor_steps(max_steps, time_s, bodies, world, model, agent):
             break
         status, intents, theta_d, pairs, pair_radius = agent_step(
             position, radius, index, origin, res, tt, dirs, field_of, desired_speed, tau, mass, heading, velocity, walls,
-            wall_owner, social, a_n, b_m, lam, cutoff, wa, wb, premovement, time_s, vision)
+            wall_owner, social, a_n, b_m, lam, cutoff, wa, wb, premovement, time_s, vision, ttc)
         if status != AGENT_OK:
             return done, agent_steps, time_s, False
         l_a, l_b, dvec, gi, gj = active_links(position, heading, active, index, links, link_offsets)

@@ -262,9 +262,12 @@ def fd_sweep_figure(summary: dict, path: Path, title: str | None = None):
 
 
 def candidate_family(changes: dict) -> str:
-    """The family of a candidate point by what it changes: ``vision``, ``social force`` or ``both``."""
+    """The family of a candidate point by what it changes: ``vision``, ``social force``, ``both``, ``time to
+    collision`` (with nothing else), or ``preset`` (nothing)."""
     vision = any(k.startswith("vision_") for k in changes)
     social = any(k.startswith("social_") for k in changes)
+    if any(k.startswith("ttc_") for k in changes):
+        return "time to collision" if not (vision or social) else "time to collision and more"
     return "both" if vision and social else "vision" if vision else "social force" if social else "preset"
 
 

@@ -54,6 +54,11 @@ The same convention as above (mean squared relative miss, 0 inside the band), we
 four terms are not scored: they stay 0 and are listed in :attr:`TargetScore.unscored`, and the objective is the
 bottleneck's alone, exactly as before (``target_error(records, fd=True)`` demands them instead). A stalled or
 incomplete bottleneck run still makes a failed point whatever the fundamental diagram says.
+
+The acceptance table (``crowd-calibrate targets``): :func:`target_table`, one row per target of the bottleneck
+with its figure and verdict, and with the sweep's runs :func:`fd_table`, the fundamental diagram's rows (the
+corridor's speeds at the bins, its flow peak in [1.45, 1.8] 1/(m s) at 1.4-2.0 /m² and its speed never rising,
+the single file's speeds and headway fit: issue 36's targets), from the same seed means and helpers as the terms.
 """
 from __future__ import annotations
 
@@ -66,12 +71,13 @@ from . import fd_reference
 from .calibration import CalibrationError, relative_squared_errors
 from .experiment import (FRONT_DENSITY_RANGE_PER_M2, INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RANGE_M_S,
                          SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, WIDTHS_M, ExperimentTable, seyfried_2009)
-from .periodic import headway_fit
+from .periodic import MIN_FIT_SPEED_M_S, headway_fit
 
 __all__ = ["CAPACITY_RANGE", "CAPACITY_SIZES", "CAPACITY_WIDTHS_M", "FAILED_POINT_OBJECTIVE", "TargetScore",
            "TargetWeights", "band_miss", "required_cases", "target_error", "FD_TERMS", "FD_SETUPS",
            "FD_SPEED_TOLERANCE_M_S", "CORRIDOR_FD_RANGE_PER_M2", "HEADWAY_A_RANGE_M", "HEADWAY_B_RANGE_S",
-           "UNDEFINED_FIT_MISS", "DENSITY_MATCH", "corridor_fd_bins", "single_file_bins", "speed_band_miss", "fd_terms"]
+           "UNDEFINED_FIT_MISS", "DENSITY_MATCH", "corridor_fd_bins", "single_file_bins", "speed_band_miss", "fd_terms",
+           "FD_PEAK_FLOW_RANGE_PER_M_S", "FD_PEAK_DENSITY_RANGE_PER_M2", "FD_ROUNDING_M_S", "fd_table"]
 
 # Stationary discharge rate of the larger crowd over the smaller one, at these widths.
 CAPACITY_SIZES = (60, 120)
@@ -219,10 +225,8 @@ def _fd_speeds(records: list, setup: str, bins: np.ndarray) -> tuple:
     return (bins[idx, 0], bins[idx, 1], np.array([np.mean(groups[k]) for k in idx], dtype=np.float64))
 
 
-def fd_terms(records: list) -> tuple:
-    """``(terms, figures)`` of the fundamental diagram (module docstring) from the sweep's run records (each
-    with ``setup``, ``density``, ``speed_m_s``; single-file ones with ``headway_samples_m`` and
-    ``speed_samples_m_s``). Both set-ups must be present."""
+def _check_fd_setups(records: list) -> None:
+    """Raise unless ``records`` (the sweep's runs) hold every set-up of :data:`FD_SETUPS` and no other."""
     missing = [s for s in FD_SETUPS if not any(r["setup"] == s for r in records)]
     if missing:
         raise CalibrationError(f"the fundamental diagram's terms need runs of every set-up {list(FD_SETUPS)}; "
@@ -230,20 +234,39 @@ def fd_terms(records: list) -> tuple:
     unknown = sorted({str(r["setup"]) for r in records} - set(FD_SETUPS))
     if unknown:
         raise CalibrationError(f"unknown fundamental-diagram set-up(s) {unknown}; known: {list(FD_SETUPS)}")
+
+
+def _excess_rises(v, v_exp) -> np.ndarray:
+    """Per consecutive pair of bins (density order), how far the speed ``v`` rises (m/s) beyond the bins' own
+    rise ``v_exp`` (0 where it falls, or rises no more than the bins do): ``corridor_monotone``'s allowance."""
+    return np.clip(np.diff(v) - np.clip(np.diff(v_exp), 0.0, None), 0.0, None)
+
+
+def _single_file_fit(records: list) -> tuple:
+    """``(a m, b s, samples)`` of d = a + b v over the pooled samples of the single-file runs among ``records``
+    (:func:`crowd_env.analysis.periodic.headway_fit`; nan, nan when undefined). A run without samples raises."""
+    single = [r for r in records if r["setup"] == "single_file"]
+    if any("headway_samples_m" not in r or "speed_samples_m_s" not in r for r in single):
+        raise CalibrationError("a single_file run has no headway samples ('headway_samples_m', 'speed_samples_m_s')")
+    return headway_fit(np.concatenate([np.asarray(r["headway_samples_m"], dtype=np.float64) for r in single]),
+                       np.concatenate([np.asarray(r["speed_samples_m_s"], dtype=np.float64) for r in single]))
+
+
+def fd_terms(records: list) -> tuple:
+    """``(terms, figures)`` of the fundamental diagram (module docstring) from the sweep's run records (each
+    with ``setup``, ``density``, ``speed_m_s``; single-file ones with ``headway_samples_m`` and
+    ``speed_samples_m_s``). Both set-ups must be present."""
+    _check_fd_setups(records)
     terms, figures = {}, {}
     rho, v_exp, v = _fd_speeds(records, "corridor", corridor_fd_bins())
     figures.update({f"fd_speed_m_s corridor rho{d:g}": float(x) for d, x in zip(rho, v)})
     terms["corridor_fd"] = float(np.mean(speed_band_miss(v, v_exp) ** 2))
-    rises = np.clip(np.diff(v) - np.clip(np.diff(v_exp), 0.0, None), 0.0, None) / v_exp[1:]
+    rises = _excess_rises(v, v_exp) / v_exp[1:]
     terms["corridor_monotone"] = float(np.mean(rises ** 2)) if rises.size else 0.0
     rho, v_exp, v = _fd_speeds(records, "single_file", single_file_bins())
     figures.update({f"fd_speed_m_s single_file rho{d:g}": float(x) for d, x in zip(rho, v)})
     terms["single_file"] = float(np.mean(speed_band_miss(v, v_exp) ** 2))
-    single = [r for r in records if r["setup"] == "single_file"]
-    if any("headway_samples_m" not in r or "speed_samples_m_s" not in r for r in single):
-        raise CalibrationError("a single_file run has no headway samples ('headway_samples_m', 'speed_samples_m_s')")
-    a, b, k = headway_fit(np.concatenate([np.asarray(r["headway_samples_m"], dtype=np.float64) for r in single]),
-                          np.concatenate([np.asarray(r["speed_samples_m_s"], dtype=np.float64) for r in single]))
+    a, b, k = _single_file_fit(records)
     miss = (np.array([band_miss(a, *HEADWAY_A_RANGE_M), band_miss(b, *HEADWAY_B_RANGE_S)])
             if np.isfinite(a) and np.isfinite(b) else np.full(2, UNDEFINED_FIT_MISS))
     terms["headway_fit"] = float(np.mean(miss ** 2))
@@ -407,4 +430,82 @@ def target_table(records: list, *, reference: ExperimentTable | None = None) -> 
                      "figure": " / ".join(str(v) for v in lanes.values()),
                      "criterion": "1 at 0.8 m, 2 at >= 1.0 m",
                      "passed": all(lanes[b] == EXPECTED_LANES[b] for b in lanes if b in EXPECTED_LANES)})
+    return rows
+
+
+# --- the fundamental diagram's acceptance rows (issue 36's targets) -----------------------------------------
+
+# The corridor's specific flow ρ·v (bin density × seed-mean speed) peaks inside this band at a density inside
+# the next (issue 36; the Jülich bins themselves peak at 1.61 1/(m s) at 1.629 /m²).
+FD_PEAK_FLOW_RANGE_PER_M_S = (1.45, 1.8)
+FD_PEAK_DENSITY_RANGE_PER_M2 = (1.4, 2.0)
+FD_ROUNDING_M_S = 1e-9  # speed comparisons of the table allow this for the rounding of seed means
+
+
+def _fd_speed_row(label: str, unit: str, rho: np.ndarray, v_exp: np.ndarray, v: np.ndarray) -> dict:
+    """The row "speed within the tolerance of every bin run" (:func:`fd_table`) from :func:`_fd_speeds`'s
+    densities ``rho`` (in ``unit``), bin speeds ``v_exp`` and model speeds ``v``."""
+    within = speed_band_miss(v, v_exp, FD_SPEED_TOLERANCE_M_S + FD_ROUNDING_M_S) == 0.0
+    worst = int(np.argmax(np.abs(v - v_exp)))
+    return {"target": f"{label}: speed at the bins {rho[0]:g}-{rho[-1]:g} {unit}",
+            "figure": f"{int(within.sum())} of {rho.size}, worst {v[worst] - v_exp[worst]:+.2f} m/s at "
+                      f"{rho[worst]:g} {unit}",
+            "criterion": f"each within ±{FD_SPEED_TOLERANCE_M_S:g} m/s", "passed": bool(within.all())}
+
+
+def fd_table(records: list) -> list:
+    """The fundamental diagram's rows of the acceptance table (keys as :func:`target_table`'s: ``target``,
+    ``figure``, ``criterion``, ``passed``) from the sweep's run records among ``records`` (those with a
+    ``setup`` key; both set-ups needed), seed means per (set-up, density) at the shipped bins as
+    :func:`fd_terms` takes them (:mod:`crowd_env.analysis.fd_reference`: the Jülich 1.8 m corridor,
+    ``data/juelich_uo_corridor_1.8m_fd.csv``, and the single file of Seyfried et al. 2005,
+    ``data/single_file_seyfried2005.csv``). The targets are issue 36's:
+
+    - corridor: the speed within ±0.10 m/s (:data:`FD_SPEED_TOLERANCE_M_S`) of every bin run (figure: the bins
+      within, and the largest difference with its density);
+    - corridor: the specific flow ρ·v (bin density × speed) peaking in [1.45, 1.8] 1/(m s)
+      (:data:`FD_PEAK_FLOW_RANGE_PER_M_S`) at a density in [1.4, 2.0] /m² (:data:`FD_PEAK_DENSITY_RANGE_PER_M2`)
+      (figure: the peak and its density);
+    - corridor: the speed never rising with density beyond the bins' own rise, the allowance of
+      ``corridor_monotone`` (figure: the rise of the pair that exceeds it most, or else the largest rise);
+    - single file: the speed within ±0.10 m/s of every bin run (figure as the corridor's);
+    - single file: d = a + b v fitted as for ``headway_fit``, a in [0.28, 0.42] m (:data:`HEADWAY_A_RANGE_M`) and
+      b in [0.9, 1.25] s (:data:`HEADWAY_B_RANGE_S`); no fit (fewer than two samples above the fit's speed floor,
+      or no spread in speed) fails, and the figure says which.
+
+    Speeds are compared allowing :data:`FD_ROUNDING_M_S` for rounding. Raises :class:`CalibrationError` as
+    :func:`fd_terms` does (a set-up missing, a run at no bin, a record without its figures).
+    """
+    records = [r for r in records if "setup" in r]
+    _check_fd_setups(records)
+    rho, v_exp, v = _fd_speeds(records, "corridor", corridor_fd_bins())
+    rows = [_fd_speed_row("corridor 1.8 m", "/m²", rho, v_exp, v)]
+    flow = rho * v
+    k = int(np.argmax(flow))
+    (f_lo, f_hi), (d_lo, d_hi) = FD_PEAK_FLOW_RANGE_PER_M_S, FD_PEAK_DENSITY_RANGE_PER_M2
+    rows.append({"target": "corridor 1.8 m: peak of the specific flow ρ·v",
+                 "figure": f"{flow[k]:.2f} 1/(m s) at {rho[k]:g} /m²",
+                 "criterion": f"{f_lo:g}-{f_hi:g} at {d_lo:g}-{d_hi:g} /m²",
+                 "passed": bool(f_lo <= flow[k] <= f_hi and d_lo <= rho[k] <= d_hi)})
+    excess, rise = _excess_rises(v, v_exp), np.diff(v)
+    if rise.size:
+        j = max(range(rise.size), key=lambda i: (excess[i] > FD_ROUNDING_M_S, excess[i], rise[i]))
+        figure = f"{rise[j]:+.3f} m/s at {rho[j]:g}-{rho[j + 1]:g} /m²" if rise[j] > FD_ROUNDING_M_S else "no rise"
+    else:
+        figure = "one bin: no pair"
+    rows.append({"target": "corridor 1.8 m: speed never rising with density", "figure": figure,
+                 "criterion": "none beyond the bins'", "passed": bool(np.all(excess <= FD_ROUNDING_M_S))})
+    rows.append(_fd_speed_row("single file", "/m", *_fd_speeds(records, "single_file", single_file_bins())))
+    a, b, n = _single_file_fit(records)
+    fitted = bool(np.isfinite(a) and np.isfinite(b))
+    if fitted:
+        figure = f"a = {a:.2f} m, b = {b:.2f} s"
+    elif n < 2:
+        figure = f"no fit: {n} sample(s) above {MIN_FIT_SPEED_M_S:g} m/s"
+    else:
+        figure = "no fit: every speed equal"
+    (a_lo, a_hi), (b_lo, b_hi) = HEADWAY_A_RANGE_M, HEADWAY_B_RANGE_S
+    rows.append({"target": "single file: headway d = a + b v", "figure": figure,
+                 "criterion": f"a [{a_lo:g}, {a_hi:g}] m, b [{b_lo:g}, {b_hi:g}] s",
+                 "passed": fitted and bool(a_lo <= a <= a_hi and b_lo <= b <= b_hi)})
     return rows

@@ -11,7 +11,9 @@ vision_body_scale, with the same seeds for every candidate; writes ``optimise/op
 targets+fd`` scores every point on the bottleneck's targets and the fundamental diagram at once (the periodic
 corridor's speeds at the Jülich bins, monotone in density, the single file's speeds and headway fit;
 crowd_env.analysis.targets), running the density sweep's runs beside the bottleneck's on the same executor.
-``targets``: every preset against every target of the experiment (``targets.json``).
+``targets``: every preset against every target of the experiment (``targets.json``); ``--fd`` adds each
+preset's fundamental-diagram sweep and its rows (the corridor's speeds at the Jülich bins, flow peak and
+monotone speed, the single file's speeds and headway fit) and terms, the ``--fd-*`` options setting its runs.
 ``landscape``: the objective along one parameter, the others fixed by the preset (e.g. ε_T in λ);
 writes ``landscape_<param>.csv`` and ``.png``.
 
@@ -25,6 +27,7 @@ Examples::
     crowd-calibrate grid --grid-size 4 4 --seeds 1 --out out/calibration
     crowd-calibrate grid --address 10.0.0.1:6379 --seeds 5 --out out/calibration_fine
     crowd-calibrate optimize --free A B --x0 A=790 B=0.08 --seeds 3 --out out/calibration
+    crowd-calibrate targets --fd --seeds 10 --backend process --jobs 2 --out out/targets
     crowd-calibrate optimize --preset vision --objective targets+fd --free A vision_time_gap_s vision_body_scale \
         --bounds vision_body_scale=0.3:1.0 --seeds 2 --out out/calibration_fd
 """
@@ -74,6 +77,11 @@ def _add_target_arguments(parser) -> None:
     g = parser.add_argument_group("target objective and fundamental diagram (--objective targets / targets+fd)")
     g.add_argument("--weight", nargs="+", default=[], metavar="NAME=VALUE",
                    help=f"weights of the target terms (default 1 each): {', '.join(TargetWeights().as_dict())}")
+    _add_fd_arguments(g)
+
+
+def _add_fd_arguments(g) -> None:
+    """The fundamental diagram's runs (--fd-*: optimize and landscape with --objective targets+fd, targets --fd)."""
     g.add_argument("--fd-seeds", type=int, default=None,
                    help="seeds per fundamental-diagram density: --first-seed.. (default: --seeds; same at every point)")
     g.add_argument("--fd-densities", type=float, nargs="+", default=list(CORRIDOR_DENSITIES),
@@ -101,9 +109,10 @@ def _weights(args) -> TargetWeights | None:
     return TargetWeights(**values)
 
 
-def _fd_plan(args) -> FDPlan | None:
-    """The fundamental diagram's runs of each point (None unless --objective targets+fd)."""
-    if args.objective != "targets+fd":
+def _fd_plan(args, wanted: bool) -> FDPlan | None:
+    """The fundamental diagram's runs of each point or preset from the --fd-* options (None unless ``wanted``:
+    --objective targets+fd, targets --fd)."""
+    if not wanted:
         return None
     k = args.seeds if args.fd_seeds is None else args.fd_seeds
     return FDPlan(seeds=tuple(range(args.first_seed, args.first_seed + k)) if k >= 1 else (),
@@ -178,9 +187,16 @@ def build_parser() -> argparse.ArgumentParser:
     _add_target_arguments(op)
     tp = sub.add_parser("targets", parents=[common],
                         help="every preset against every target of the experiment (one table; N = 20, 40, 60 at "
-                             "--widths and N = 120 at 1.0 and 1.2 m, --seeds seeds each)")
+                             "--widths and N = 120 at 1.0 and 1.2 m, --seeds seeds each); with --fd also the "
+                             "fundamental diagram's rows (periodic 1.8 m corridor: speeds at the Jülich bins, flow "
+                             "peak, monotone; single file: speeds, headway fit)")
     tp.add_argument("--presets", nargs="+", choices=sorted(PRESETS), default=sorted(PRESETS),
                     help="presets to compare (default all); runs go to OUT/<preset>/ (resumable)")
+    g = tp.add_argument_group("fundamental diagram (--fd)")
+    g.add_argument("--fd", action="store_true",
+                   help="also run each preset's fundamental-diagram sweep (the --fd-* options) and add its rows and "
+                        "terms, as --objective targets+fd scores a point")
+    _add_fd_arguments(g)
     lp = sub.add_parser("landscape", parents=[common],
                         help="the objective along one parameter, the others fixed by the preset (e.g. ε_T in λ)")
     lp.add_argument("--vary", required=True, choices=list(FREE_PARAMETERS), help="the parameter to vary")
@@ -207,7 +223,7 @@ def run_landscape(args) -> int:
         evaluator = PointEvaluator(args.out, config, args.widths, args.sizes, seeds, be,
                                    reference=_reference(args.reference), range_weight=args.range_weight,
                                    incomplete=args.incomplete, objective=args.objective, weights=_weights(args),
-                                   fd_plan=_fd_plan(args))
+                                   fd_plan=_fd_plan(args, args.objective == "targets+fd"))
         entries = landscape(evaluator, args.vary, args.values)
     print(f"{args.vary:>10}  {'objective':>10}  {'ε_T':>10}  failed")
     for e in entries:
@@ -219,7 +235,8 @@ def run_landscape(args) -> int:
 
 
 def run_targets(args) -> int:
-    """``crowd-calibrate targets``: the target table of each preset, side by side (crowd_env.analysis.targets)."""
+    """``crowd-calibrate targets``: the target table of each preset, side by side (crowd_env.analysis.targets);
+    ``--fd``: with the fundamental diagram's rows and terms (:func:`crowd_env.analysis.targets.fd_table`)."""
     seeds = _seeds(args)
     widths, _, seeds = check_run_plan(args.widths, [60], seeds)
     required_cases(widths)  # capacity widths among --widths, or a clear error
@@ -229,9 +246,13 @@ def run_targets(args) -> int:
         params = model_params_from_args(args)
         cfg = config_of(args, params)
         configs[name] = base_config(cfg["geometry"], params, cfg["max_time_s"])
+    fd_plan = _fd_plan(args, args.fd)
     with make_backend(args.backend, address=args.address, jobs=args.jobs, connect_timeout_s=args.connect_timeout) as be:
-        tables, scores = preset_targets(args.out, configs, widths, seeds, be)
+        tables, scores = preset_targets(args.out, configs, widths, seeds, be, fd_plan=fd_plan)
     print(f"every target, {len(seeds)} seed(s) per (b, N); figures are seed means over complete runs")
+    if fd_plan is not None:
+        print(f"fundamental diagram: {len(fd_plan.seeds)} seed(s) per density, {fd_plan.max_time_s:g} s of which the "
+              f"first {fd_plan.transient_s:g} s are left out; figures are seed means per density")
     width = max(len(r["target"]) for t in tables.values() for r in t)
     print(f"{'target':<{width}}  {'criterion':<22}" + "".join(f"  {n:<34}" for n in tables))
     for k, row in enumerate(next(iter(tables.values()))):
@@ -240,7 +261,7 @@ def run_targets(args) -> int:
     print("objective (crowd_env.analysis.targets, lower is better): "
           + ", ".join(f"{n} {e.objective:.4f}" + (" (failed: incomplete runs)" if e.failed else "")
                       for n, e in scores.items()))
-    out = write_targets(args.out / "targets.json", seeds, widths, tables, scores)
+    out = write_targets(args.out / "targets.json", seeds, widths, tables, scores, fd_plan=fd_plan)
     print(f"wrote {out}")
     return 0
 
@@ -302,7 +323,7 @@ def run(args) -> int:
     if args.mode != "grid" and args.objective in ("targets", "targets+fd"):
         sizes = sorted({n for _, n in required_cases(widths)})
     weights = None if args.mode == "grid" else _weights(args)
-    fd_plan = None if args.mode == "grid" else _fd_plan(args)
+    fd_plan = None if args.mode == "grid" else _fd_plan(args, args.objective == "targets+fd")
     if fd_plan is not None:
         print(f"each point: {len(required_cases(widths)) * len(seeds)} bottleneck runs + {fd_plan.n_runs} "
               f"fundamental-diagram runs", file=sys.stderr)

@@ -87,7 +87,8 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--jobs", type=int, default=None, help="worker processes (default: the cores)")
     cd = ap.add_argument_group("door and corridor of parameter points (--candidates)")
     cd.add_argument("--candidates", action="store_true", help="measure parameter points on the door and corridor")
-    cd.add_argument("--set", nargs="+", default=[], metavar="NAME=VALUE", help="ModelParams fields on top of --preset")
+    cd.add_argument("--set", nargs="+", default=[], metavar="NAME=VALUE",
+                    help="ModelParams fields on top of --preset (for --candidates and --sweep)")
     cd.add_argument("--grid", nargs="+", default=[], metavar="NAME=V1,V2,...",
                     help="ModelParams fields to vary (every combination); values as JSON (null for None)")
     return ap
@@ -147,7 +148,7 @@ def _candidates(args) -> int:
 
 
 def _sweep(args) -> int:
-    params = get_preset(args.preset).params()
+    params = get_preset(args.preset).params(**_assignments(args.set, "--set"))
     tasks = fd_tasks(args.setups, {"corridor": args.densities, "single_file": args.single_file_densities},
                      range(args.seeds), params, length_m=args.length, max_time_s=args.sweep_time,
                      transient_s=args.transient, corridor_width_m=args.corridor_width)

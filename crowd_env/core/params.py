@@ -56,6 +56,11 @@ class ModelParams:
     vision_body_scale_standing: float | None = None  # κ_0 at rest (κ at the desired speed); None: κ always
     vision_anticipation: float = 0.0  # w: the others move on at w times their velocity (0: they stand)
     vision_leader_time_s: float = 0.0  # T_a: the speed rule reads the gap T_a ahead, the leader walking on (0: off)
+    # Time-to-collision interaction (Karamouzas, Skinner & Guy 2014; crowd_env.walking.time_to_collision).
+    ttc_strength_m2_s2: float = 0.0  # k per unit mass (the paper's fit 1.5); 0: off (the paper's walking model)
+    ttc_horizon_s: float = 3.0  # τ0, the interaction horizon (the paper's fit)
+    ttc_range_m: float = 3.0  # neighbours whose centres lie within this interact
+    ttc_max_accel_m_s2: float = 5.0  # cap on the force per unit mass (E diverges at contact, τ -> 0)
     rotation: bool = True  # False: headings frozen (paper Section 4.1.1, "without rotation")
     solver: str = "dual"
     extra: dict = field(default_factory=dict, compare=False, repr=False)
@@ -63,9 +68,11 @@ class ModelParams:
     def __post_init__(self) -> None:
         if self.extra:
             raise ParameterError(f"unknown model parameter(s): {sorted(self.extra)}")
-        positive = ("dt_s", "normal_dissipation_kg", "contact_tolerance_m", "social_range_m", "social_cutoff_m")
+        positive = ("dt_s", "normal_dissipation_kg", "contact_tolerance_m", "social_range_m", "social_cutoff_m",
+                    "ttc_horizon_s", "ttc_range_m", "ttc_max_accel_m_s2")
         non_negative = ("tangential_dissipation_kg", "link_dissipation_kg_per_m2", "social_strength_n",
-                        "vision_time_gap_s", "vision_jam_gap_m", "vision_half_angle_rad", "vision_leader_time_s")
+                        "vision_time_gap_s", "vision_jam_gap_m", "vision_half_angle_rad", "vision_leader_time_s",
+                        "ttc_strength_m2_s2")
         for name in positive + non_negative:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \

@@ -188,7 +188,7 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, model, agent, li
     walls, wall_owner, exits, exit_destination, period_m = world
     (dt_s, eps_m, k_n, k_tg, k_v, rotation, max_dense_rows, max_dense_bodies, max_projection_rows) = model
     (origin_m, resolution_m, travel_time, direction, field_of, social, strength_n, range_m, anisotropy, cutoff_m,
-     wall_strength_n, wall_range_m, vision) = agent
+     wall_strength_n, wall_range_m, vision, ttc) = agent
     exit_vertices, exit_ring_start, exit_ring_owner, exit_boxes = exits
     no_force = np.zeros((0, 2))
     no_scale = np.zeros(0)
@@ -210,7 +210,7 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, model, agent, li
         status, intents, theta_d, pairs, pair_radius = agent_step(
             position, radius, index, origin_m, resolution_m, travel_time, direction, field_of, desired_speed, tau,
             mass, heading, velocity, walls, wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n,
-            wall_range_m, premovement, time_s, vision, period_m)
+            wall_range_m, premovement, time_s, vision, ttc, period_m)
         if status != AGENT_OK or first_out_of_bound(intents, no_scale, MAX_INPUT_SPEED_M_S) >= 0 or \
                 first_non_finite(theta_d) >= 0:
             return ROLLOUT_PYTHON_STEP, done, time_s, n_redetect

@@ -31,7 +31,7 @@ from ..core.checks import check_integer, check_number
 from ..core.params import ModelParams
 from ..core.polygons import pack_polygons
 from ..core.presets import DEFAULT_PRESET, get_preset
-from ..walking.agent import SocialForceAgent, vision_parameters
+from ..walking.agent import SocialForceAgent, ttc_parameters, vision_parameters
 from .store import write_atomic
 from .rollout import (COUNT_FRAMES, COUNT_LATERAL, COUNT_PASSED, COUNT_STEPS, ROLLOUT_CHUNK_STEPS, ROLLOUT_PYTHON_STEP,
                       SCALAR_LAST_EXIT_S, SCALAR_MIN_GAP_M, STALL_LAST_PROGRESS_S, STALL_N, STALL_STALLED, STALL_TIME_S,
@@ -385,7 +385,7 @@ def _compiled_tuples(sim, agent_nav) -> tuple:
     agent = (agent_nav.origin_m, agent_nav.resolution_m, agent_nav.travel_time_s, agent_nav.direction,
              agent_nav.field_of, bool(p.social_forces), float(p.social_strength_n), float(p.social_range_m),
              float(p.social_anisotropy), float(p.social_cutoff_m), float(p.wall_strength_n), float(p.wall_range_m),
-             vision_parameters(p))
+             vision_parameters(p), ttc_parameters(p))
     return bodies, world, model, agent
 
 

@@ -21,6 +21,7 @@ from ..core.angles import direction_angles_rad
 from ..core.neighbors import grid_pairs
 from .navigation import DestinationNavigation, NavigationField, sample_bilinear
 from .social_force import social_repulsion, total_social_forces
+from .time_to_collision import total_ttc_accelerations
 from .vision import vision_reach_m, vision_walk
 
 # agent_step's status: the intents are ready, or a pedestrian's e_d is undefined (outside the grid, not
@@ -48,9 +49,9 @@ def hold_waiting(intents, theta_d, heading, premovement_s, time_s, index):
 @nb.njit(cache=True)
 def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, heading, velocity, pairs, walls,
                      wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n, wall_range_m, premovement_s,
-                     time_s, vision, period_m=0.0):
+                     time_s, vision, ttc, period_m=0.0):
     """u_int = ‖u_d‖ e_d + (τ/m) Σ f_social (Eq. 14, 16) and θ_d = angle of e_d, in one compiled call (with
-    vision: u_int = v e(α*) + (τ/m) Σ f_social and θ_d = α*).
+    vision: u_int = v e(α*) + (τ/m) Σ f_social and θ_d = α*; with the time-to-collision interaction, + τ Σ f_ttc/m).
 
     ``index`` (n,) active pedestrians, ``e_d`` (n, 2) their desired directions (Eq. 13), ``pairs``
     rows into ``index``. Returns full (N, 2) intents (zero for inactive rows) and (N,) desired
@@ -59,7 +60,9 @@ def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, hea
     premovement time has not come at ``time_s`` stand still (:func:`hold_waiting`). ``vision``
     ``(T, l, half-angle, rays, κ, κ_0, w, T_a)`` (:func:`vision_parameters`): with T > 0 the speed and direction of the
     driving term are :func:`~crowd_env.walking.vision.vision_walk`'s (``pairs`` must then reach 2 r_max +
-    :func:`~crowd_env.walking.vision.vision_reach_m`), and θ_d is the walking direction's angle.
+    :func:`~crowd_env.walking.vision.vision_reach_m`), and θ_d is the walking direction's angle. ``ttc``
+    ``(k, τ0, range, cap)`` (:func:`ttc_parameters`): with k > 0 the time-to-collision interaction of
+    :mod:`crowd_env.walking.time_to_collision` over ``pairs`` within the range (``pairs`` must reach it).
     ``period_m``: the simulation's periodicity along x (``Simulator.period_m``; 0: none).
     """
     n = index.shape[0]
@@ -91,6 +94,13 @@ def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, hea
         intents[i, 0] = speed[k] * walk[k, 0] + scale * force[k, 0]
         intents[i, 1] = speed[k] * walk[k, 1] + scale * force[k, 1]
         theta_d[i] = angles[k]
+    if ttc[0] > 0.0 and n:  # + τ_i Σ f_ttc / m_i
+        accel = total_ttc_accelerations(position, velocity, radius, index, pairs, period_m, ttc[0], ttc[1], ttc[2],
+                                        ttc[3])
+        for k in range(n):
+            i = index[k]
+            intents[i, 0] += tau[i] * accel[k, 0]
+            intents[i, 1] += tau[i] * accel[k, 1]
     hold_waiting(intents, theta_d, heading, premovement_s, time_s, index)
     return intents, theta_d
 
@@ -167,13 +177,23 @@ def sample_directions(position, index, origin_m, resolution_m, travel_time, dire
 
 
 @nb.njit(cache=True)
-def pair_reach_m(desired_speed, index, social, cutoff_m, vision):
+def pair_reach_m(desired_speed, index, social, cutoff_m, vision, ttc):
     """How far beyond 2 r_max the agent needs its neighbour pairs: the social cut-off, vision's horizon
-    (:func:`~crowd_env.walking.vision.vision_reach_m`), the larger of the two; −1 when it needs none."""
+    (:func:`~crowd_env.walking.vision.vision_reach_m`), the time-to-collision range, the largest of them; −1 when
+    it needs none."""
     reach = cutoff_m if social else -1.0
     if vision[0] > 0.0:
         reach = max(reach, vision_reach_m(desired_speed, index, vision[0], vision[1]))
+    if ttc[0] > 0.0:
+        reach = max(reach, ttc[2])
     return reach
+
+
+def ttc_parameters(params) -> tuple:
+    """``(k, τ0, range, cap)`` of :class:`~crowd_env.core.params.ModelParams` ``params`` for the kernels (the
+    time-to-collision interaction, :mod:`crowd_env.walking.time_to_collision`; k = 0: off)."""
+    return (float(params.ttc_strength_m2_s2), float(params.ttc_horizon_s), float(params.ttc_range_m),
+            float(params.ttc_max_accel_m_s2))
 
 
 def vision_parameters(params) -> tuple:
@@ -189,7 +209,7 @@ def vision_parameters(params) -> tuple:
 @nb.njit(cache=True)
 def agent_step(position, radius, index, origin_m, resolution_m, travel_time, direction, field_of, desired_speed, tau,
                mass, heading, velocity, walls, wall_owner, social, strength_n, range_m, anisotropy, cutoff_m,
-               wall_strength_n, wall_range_m, premovement_s, time_s, vision, period_m=0.0):
+               wall_strength_n, wall_range_m, premovement_s, time_s, vision, ttc, period_m=0.0):
     """One decision of :class:`SocialForceAgent` in compiled code, exactly as its ``__call__``: e_d from the
     fields (:func:`sample_directions`), the neighbour pairs within 2 r_max + cut-off (the ones
     ``Simulator.neighbor_pairs`` would build, which the step may reuse) and :func:`baseline_intents`.
@@ -201,7 +221,7 @@ def agent_step(position, radius, index, origin_m, resolution_m, travel_time, dir
         return AGENT_BAD_DIRECTION, np.zeros((position.shape[0], 2)), heading.copy(), no_pairs, -1.0
     pairs = no_pairs
     pair_radius = -1.0
-    reach = pair_reach_m(desired_speed, index, social, cutoff_m, vision)
+    reach = pair_reach_m(desired_speed, index, social, cutoff_m, vision, ttc)
     if reach >= 0.0:
         r_max = 0.0
         for k in range(n):
@@ -210,7 +230,7 @@ def agent_step(position, radius, index, origin_m, resolution_m, travel_time, dir
         pairs = grid_pairs(position, index, pair_radius, period_m)
     intents, theta_d = baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, heading, velocity,
                                         pairs, walls, wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n,
-                                        wall_range_m, premovement_s, time_s, vision, period_m)
+                                        wall_range_m, premovement_s, time_s, vision, ttc, period_m)
     return AGENT_OK, intents, theta_d, pairs, pair_radius
 
 
@@ -272,11 +292,12 @@ class SocialForceAgent:
             update(sim)
         e_d = self.desired_direction(sim, idx)
         vision = vision_parameters(p)
-        reach = pair_reach_m(st.desired_speed_m_s, idx, bool(p.social_forces), float(p.social_cutoff_m), vision)
+        ttc = ttc_parameters(p)
+        reach = pair_reach_m(st.desired_speed_m_s, idx, bool(p.social_forces), float(p.social_cutoff_m), vision, ttc)
         pairs = sim.neighbor_pairs(2.0 * float(st.radius_m[idx].max()) + reach) if reach >= 0.0 \
             else np.zeros((0, 2), np.int64)
         return baseline_intents(st.position_m, st.radius_m, idx, e_d, st.desired_speed_m_s, st.tau_s, st.mass_kg,
                                 st.heading_rad, st.velocity_m_s, pairs, sim.walls, sim.wall_owner, p.social_forces,
                                 float(p.social_strength_n), float(p.social_range_m), float(p.social_anisotropy),
                                 float(p.social_cutoff_m), float(p.wall_strength_n), float(p.wall_range_m),
-                                st.premovement_s, float(sim.time_s), vision, sim.period_m)
+                                st.premovement_s, float(sim.time_s), vision, ttc, sim.period_m)

@@ -182,3 +182,65 @@ def test_a_stalled_bottleneck_run_still_fails_the_point_and_sweep_errors_are_nam
         target_error(_records() + [{k: v for k, v in r.items() if k != "headway_samples_m"} for r in fd])
     with pytest.raises(CalibrationError, match="no bottleneck run"):
         target_error(fd)
+
+
+# --- the fundamental diagram's rows of the acceptance table (crowd-calibrate targets --fd) ------------------
+
+def test_fd_table_passes_the_experiments_own_bins_with_target_tables_keys():
+    from crowd_env.analysis.targets import fd_table, target_table
+
+    rows = fd_table(_records() + _fd_records())
+    bottleneck = target_table([dict(r, min_gap_m=0.0) for r in _records()])
+    assert [list(r) for r in rows] == [list(bottleneck[0])] * 5  # target_table's keys, in its order
+    assert all(r["passed"] for r in rows), rows
+    by = {r["target"]: r for r in rows}
+    assert by["corridor 1.8 m: speed at the bins 0.394-3.364 /m²"]["figure"].startswith("13 of 13,")
+    assert by["corridor 1.8 m: peak of the specific flow ρ·v"]["figure"] == "1.61 1/(m s) at 1.629 /m²"
+    # the bins' own rise (0.011 m/s from 0.394 to 0.628 /m²) is allowed, as in corridor_monotone
+    assert by["corridor 1.8 m: speed never rising with density"]["figure"] == "+0.011 m/s at 0.394-0.628 /m²"
+    assert by["single file: speed at the bins 0.658-1.847 /m"]["figure"].startswith("6 of 6,")
+    assert by["single file: headway d = a + b v"]["figure"] == "a = 0.34 m, b = 1.08 s"
+    # within the ±0.10 m/s band everywhere: still every row passed
+    assert all(r["passed"] for r in fd_table(_records() + _fd_records(corridor_shift=0.085, single_shift=-0.085)))
+    with pytest.raises(CalibrationError, match="every set-up"):
+        fd_table(_records())
+
+
+def test_fd_table_names_a_bin_off_by_0_2_m_s_a_rise_and_a_peak_outside_its_band():
+    from crowd_env.analysis.targets import corridor_fd_bins, fd_table
+
+    bins = corridor_fd_bins()
+    off = bins[:, 1].copy()
+    off[5] -= 0.2  # 1.629 /m²
+    speed_row = fd_table(_records() + _fd_records(corridor_speeds=off))[0]
+    assert not speed_row["passed"] and speed_row["figure"] == "12 of 13, worst -0.20 m/s at 1.629 /m²"
+    single = fd_table(_records() + _fd_records(single_shift=0.2))[3]
+    assert not single["passed"] and single["figure"].startswith("0 of 6, worst +0.20 m/s at ")
+    rising = bins[:, 1].copy()
+    rising[-2] -= 0.09  # inside the speed band, but 3.101 -> 3.364 /m² now rises by 0.178 m/s
+    rising[-1] += 0.09
+    rows = fd_table(_records() + _fd_records(corridor_speeds=rising))
+    assert rows[0]["passed"] and not rows[2]["passed"]
+    assert rows[2]["figure"] == "+0.178 m/s at 3.101-3.364 /m²"
+    # the peak moved to 2.105 /m² (outside 1.4-2.0), every speed still within ±0.10 m/s and falling
+    peak = bins[:, 1].copy()
+    peak[4:7] -= 0.09  # 1.375, 1.629, 1.873 /m²
+    peak[7] += 0.09  # 2.105 /m²: 0.724 m/s, 1.52 1/(m s)
+    rows = fd_table(_records() + _fd_records(corridor_speeds=peak))
+    assert rows[0]["passed"] and rows[2]["passed"] and not rows[1]["passed"]
+    assert rows[1]["figure"] == f"{2.105 * (0.634 + 0.09):.2f} 1/(m s) at 2.105 /m²"
+
+
+def test_fd_table_gives_back_the_single_files_headway_line_or_says_why_there_is_none():
+    from crowd_env.analysis.targets import fd_table
+
+    row = fd_table(_records() + _fd_records(a=0.30, b=1.2))[4]
+    assert row["passed"] and row["figure"] == "a = 0.30 m, b = 1.20 s"
+    row = fd_table(_records() + _fd_records(a=0.5, b=1.5))[4]
+    assert not row["passed"] and row["figure"] == "a = 0.50 m, b = 1.50 s"
+    standing = _fd_records()
+    for r in standing:
+        if r["setup"] == "single_file":
+            r["speed_samples_m_s"] = [0.0] * len(r["speed_samples_m_s"])
+    row = fd_table(_records() + standing)[4]
+    assert not row["passed"] and row["figure"] == "no fit: 0 sample(s) above 0.05 m/s"

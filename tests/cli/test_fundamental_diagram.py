@@ -24,6 +24,17 @@ def test_sweep_writes_the_table_and_figure_and_resumes(tmp_path, capsys):
     assert capsys.readouterr().out.splitlines()[1] == text.splitlines()[1]
 
 
+def test_sweep_runs_the_preset_with_set_changes(tmp_path, capsys):
+    out = tmp_path / "fd"
+    argv = ["--sweep", "--preset", "vision", "--set", "vision_time_gap_s=0.5", "--setups", "corridor", "--seeds", "1",
+            "--densities", "1.147", "--sweep-time", "4", "--transient", "2", "--backend", "serial", "--out", str(out)]
+    assert main(argv) == 0
+    params = json.loads((out / "config.json").read_text())["params"]
+    assert params["vision_time_gap_s"] == 0.5 and params["vision_rays"] == 11  # the change on top of the preset
+    with pytest.raises(Exception, match="vision_time_gap"):
+        main(argv[:4] + ["vision_time_gap=0.5"] + argv[5:])
+
+
 def test_candidates_measure_door_and_corridor_and_are_read_back(tmp_path, capsys):
     out = tmp_path / "cand"
     argv = ["--candidates", "--preset", "vision", "--grid", "vision_time_gap_s=1.0", "--out", str(out)]

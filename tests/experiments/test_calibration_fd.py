@@ -211,3 +211,41 @@ def test_cli_optimise_with_the_fundamental_diagram_all_real(tmp_path):
     entries = [json.loads(x) for x in lines]
     assert len(entries) == 1 and (entries[0]["failed_point"] or set(FD_TERMS) <= set(entries[0]["terms"]))
     assert len(list((out / "runs").glob("*.json"))) == 8 + 2
+
+
+TARGETS_ARGV = ["targets", "--presets", "calibrated", "--widths", "1.0", "1.2", "--seeds", "1", "--backend", "serial",
+                "--max-time", "40"]
+TARGETS_FD_ARGV = ["--fd", "--fd-densities", "0.394", "1.629", "--fd-single-file-densities", "0.658", "1.399",
+                   "--fd-length", "6", "--fd-time", "4", "--fd-transient", "2"]
+
+
+def test_cli_targets_with_the_fundamental_diagram(tmp_path, capsys):
+    """``crowd-calibrate targets --fd``: a preset's real bottleneck runs (40 s: N = 120 is still walking, a failed
+    point, which keeps this at seconds) and its sweep's, the five rows of the fundamental diagram printed and stored,
+    resumable; without --fd the same folder gives the bottleneck's table alone, from the same runs."""
+    out = tmp_path / "targets"
+    assert cli.main(TARGETS_ARGV + TARGETS_FD_ARGV + ["--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    stored = json.loads((out / "targets.json").read_text())
+    rows = stored["tables"]["calibrated"]
+    fd_rows = rows[-5:]
+    assert [r["target"].split(":")[0] for r in fd_rows] == ["corridor 1.8 m"] * 3 + ["single file"] * 2
+    assert fd_rows[0]["target"] == "corridor 1.8 m: speed at the bins 0.394-1.629 /m²"
+    assert fd_rows[0]["figure"].startswith(("0 of 2,", "1 of 2,", "2 of 2,"))
+    assert fd_rows[3]["target"] == "single file: speed at the bins 0.658-1.399 /m"
+    assert all(r["target"] in printed and r["figure"] in printed for r in fd_rows)
+    assert "fundamental diagram: 1 seed(s) per density" in printed
+    assert stored["fd"]["corridor_densities"] == [0.394, 1.629] and stored["fd"]["max_time_s"] == 4.0
+    runs = [json.loads(p.read_text())["task"] for p in (out / "calibrated" / "runs").glob("*.json")]
+    assert len(runs) == 8 + 4 and sum("setup" in t for t in runs) == 4
+    mtimes = {p: p.stat().st_mtime_ns for p in (out / "calibrated" / "runs").glob("*.json")}
+    assert cli.main(TARGETS_ARGV + TARGETS_FD_ARGV + ["--out", str(out)]) == 0  # resumed: nothing rerun
+    assert {p: p.stat().st_mtime_ns for p in (out / "calibrated" / "runs").glob("*.json")} == mtimes
+    capsys.readouterr()
+    assert cli.main(TARGETS_ARGV + ["--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    plain = json.loads((out / "targets.json").read_text())
+    assert plain["tables"]["calibrated"] == rows[:-5] and "fd" not in plain
+    assert "fundamental diagram" not in printed and "corridor 1.8 m" not in printed
+    with pytest.raises(SystemExit, match="no shipped bins"):
+        cli.main(TARGETS_ARGV + TARGETS_FD_ARGV + ["--fd-densities", "1.0", "--out", str(out)])
