@@ -15,6 +15,11 @@ Two layouts, both of existing output folders:
   ``A<A>_B<B>_b<b>_n<N>_s<seed>_<hash of the task>.json`` holds ``{"task": ..., "record": ...}`` and is
   checked against its task on load.
 
+Model parameters at their :class:`~crowd_env.core.params.ModelParams` default count as absent when configurations
+and tasks are compared and hashed (:func:`canonical`): a folder written before a parameter existed (with the
+parameter off, at its default) stays valid and resumable after it is added, while any value that changes the
+model still differs.
+
 A task with ``trajectory_fps`` is done only when its trajectory file at that frame rate exists too
 (``OUT/trajectories/<key>.txt``, written before the record). Records load normalised
 (:func:`normalise_record`: also records saved before the stall rule).
@@ -34,8 +39,9 @@ import numpy as np
 
 from ..analysis.trajectories import trajectory_frame_rate
 from ..core.checks import is_integer, is_number
+from ..core.params import ModelParams
 
-__all__ = ["RunStoreError", "RunStore", "config_hash", "normalise_record", "check_record", "run_key", "task_key",
+__all__ = ["RunStoreError", "RunStore", "canonical", "config_hash", "normalise_record", "check_record", "run_key", "task_key",
            "write_atomic", "write_csv_atomic", "write_json_atomic", "write_npz_atomic",
            "CONFIG_NAME", "LAYOUTS"]
 
@@ -43,9 +49,24 @@ CONFIG_NAME = "config.json"
 LAYOUTS = ("run", "task")
 
 
+_MODEL_DEFAULTS = {name: value for name, value in vars(ModelParams()).items() if name != "extra"}
+
+
+def canonical(config: dict) -> dict:
+    """``config`` with the entries of its ``params`` dict (model parameters) that equal the
+    :class:`~crowd_env.core.params.ModelParams` default left out: the form configurations and tasks are compared
+    and hashed in, so that adding a parameter (at its default) changes no stored folder."""
+    params = config.get("params") if isinstance(config, dict) else None
+    if not isinstance(params, dict):
+        return config
+    kept = {k: v for k, v in params.items() if not (k in _MODEL_DEFAULTS and v == _MODEL_DEFAULTS[k]
+                                                    and isinstance(v, bool) == isinstance(_MODEL_DEFAULTS[k], bool))}
+    return dict(config, params=kept)
+
+
 def config_hash(config: dict) -> str:
-    """First 16 hex digits of the SHA-256 of ``config`` as sorted-key JSON."""
-    return hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:16]
+    """First 16 hex digits of the SHA-256 of :func:`canonical` ``config`` as sorted-key JSON."""
+    return hashlib.sha256(json.dumps(canonical(config), sort_keys=True).encode()).hexdigest()[:16]
 
 
 def run_key(task: dict) -> str:
@@ -143,6 +164,7 @@ def write_npz_atomic(path, meta: dict, **arrays) -> None:
 
 
 def _config_difference(old: dict, config: dict) -> list:
+    old, config = canonical(old), canonical(config)
     diff = sorted(k for k in set(old) | set(config) if k not in ("params", "geometry") and old.get(k) != config.get(k))
     for part in ("params", "geometry"):
         a, b = old.get(part) or {}, config.get(part) or {}
@@ -238,7 +260,7 @@ class RunStore:
             if not isinstance(data, dict) or "record" not in data:
                 raise RunStoreError(f"{path}: not a stored task (a JSON object with 'task' and 'record'); delete it "
                                     f"to rerun that run")
-            if data.get("task") != task:
+            if canonical(data.get("task")) != canonical(task):
                 raise RunStoreError(f"{path} holds a different task than its name says; delete it to rerun that run")
             data = data["record"]
         return normalise_record(data, str(path))

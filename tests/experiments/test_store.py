@@ -94,3 +94,30 @@ def test_results_and_summary_are_written_atomically(tmp_path):
     assert (tmp_path / "results.csv").read_text() == results
     assert path.read_text() == summary
     assert not list(tmp_path.glob(".*tmp"))
+
+
+def test_a_folder_from_before_a_parameter_existed_stays_valid_and_its_tasks_resolve(tmp_path):
+    """Model parameters at their default count as absent: a config.json or a stored task written before a
+    parameter was added (so without it) matches today's, while any value that changes the model is refused."""
+    from crowd_env.core.params import ModelParams
+    from crowd_env.experiments.bottleneck import params_dict
+    from crowd_env.experiments.store import config_hash, task_key
+
+    params = params_dict(ModelParams(social_strength_n=331.5))
+    newest = "ttc_strength_m2_s2"  # added after folders of runs existed: theirs lack it
+    old_params = {k: v for k, v in params.items() if k != newest}
+    today = {"geometry": {"width_m": 1.0}, "params": params, "max_time_s": 60.0}
+    (tmp_path / "config.json").write_text(json.dumps(dict(today, params=old_params)))
+    RunStore(tmp_path, today)  # accepted
+    task = {"width_m": 1.0, "n_pedestrians": 10, "seed": 0, "params": params}
+    old_task = dict(task, params=old_params)
+    assert task_key(task) == task_key(old_task) and config_hash(today) == config_hash(dict(today, params=old_params))
+    store = RunStore(tmp_path / "t", None, keyed_by="task")
+    store.runs_dir.mkdir(parents=True, exist_ok=True)
+    store.path(old_task).write_text(json.dumps({"task": old_task, "record": _record(n=10)}))
+    assert store.load(task)["n_pedestrians"] == 10  # the old file is today's task
+    changed = dict(today, params=dict(params, social_range_m=0.3))
+    with pytest.raises(RunStoreError, match="params.social_range_m"):
+        RunStore(tmp_path, changed)
+    # a parameter set away from its default is part of the configuration
+    assert config_hash(dict(today, params=dict(params, **{newest: 2.5}))) != config_hash(today)
