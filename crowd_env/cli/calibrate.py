@@ -80,17 +80,27 @@ def _add_target_arguments(parser) -> None:
     _add_fd_arguments(g)
 
 
+# the --fd-* options and their defaults (given without the fundamental diagram's runs they are refused)
+FD_OPTION_DEFAULTS = {"fd_seeds": None, "fd_densities": list(CORRIDOR_DENSITIES),
+                      "fd_single_file_densities": list(SINGLE_FILE_DENSITIES), "fd_length": 20.0, "fd_time": 40.0,
+                      "fd_transient": 15.0}
+
+
 def _add_fd_arguments(g) -> None:
     """The fundamental diagram's runs (--fd-*: optimize and landscape with --objective targets+fd, targets --fd)."""
-    g.add_argument("--fd-seeds", type=int, default=None,
+    g.add_argument("--fd-seeds", type=int, default=FD_OPTION_DEFAULTS["fd_seeds"],
                    help="seeds per fundamental-diagram density: --first-seed.. (default: --seeds; same at every point)")
-    g.add_argument("--fd-densities", type=float, nargs="+", default=list(CORRIDOR_DENSITIES),
+    g.add_argument("--fd-densities", type=float, nargs="+", default=list(FD_OPTION_DEFAULTS["fd_densities"]),
                    help="corridor densities (1/m², shipped Jülich bins; default all from 0.4 to 3.4)")
-    g.add_argument("--fd-single-file-densities", type=float, nargs="+", default=list(SINGLE_FILE_DENSITIES),
+    g.add_argument("--fd-single-file-densities", type=float, nargs="+",
+                   default=list(FD_OPTION_DEFAULTS["fd_single_file_densities"]),
                    help="single-file densities (1/m, shipped bins; default all six)")
-    g.add_argument("--fd-length", type=float, default=20.0, help="length of the periodic strips (m)")
-    g.add_argument("--fd-time", type=float, default=40.0, help="simulated time per fundamental-diagram run (s)")
-    g.add_argument("--fd-transient", type=float, default=15.0, help="time left out before measuring (s)")
+    g.add_argument("--fd-length", type=float, default=FD_OPTION_DEFAULTS["fd_length"],
+                   help="length of the periodic strips (m)")
+    g.add_argument("--fd-time", type=float, default=FD_OPTION_DEFAULTS["fd_time"],
+                   help="simulated time per fundamental-diagram run (s)")
+    g.add_argument("--fd-transient", type=float, default=FD_OPTION_DEFAULTS["fd_transient"],
+                   help="time left out before measuring (s)")
 
 
 def _weights(args) -> TargetWeights | None:
@@ -113,6 +123,11 @@ def _fd_plan(args, wanted: bool) -> FDPlan | None:
     """The fundamental diagram's runs of each point or preset from the --fd-* options (None unless ``wanted``:
     --objective targets+fd, targets --fd)."""
     if not wanted:
+        given = [f"--{name.replace('_', '-')}" for name, default in FD_OPTION_DEFAULTS.items()
+                 if getattr(args, name) != default]
+        if given:
+            raise CalibrationError(f"{', '.join(given)} set(s) the fundamental diagram's runs, which this command "
+                                   f"runs only with --objective targets+fd (optimize, landscape) or --fd (targets)")
         return None
     k = args.seeds if args.fd_seeds is None else args.fd_seeds
     return FDPlan(seeds=tuple(range(args.first_seed, args.first_seed + k)) if k >= 1 else (),

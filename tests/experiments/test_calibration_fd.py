@@ -249,3 +249,15 @@ def test_cli_targets_with_the_fundamental_diagram(tmp_path, capsys):
     assert "fundamental diagram" not in printed and "corridor 1.8 m" not in printed
     with pytest.raises(SystemExit, match="no shipped bins"):
         cli.main(TARGETS_ARGV + TARGETS_FD_ARGV + ["--fd-densities", "1.0", "--out", str(out)])
+
+
+@pytest.mark.parametrize("argv, named", [
+    (TARGETS_ARGV + ["--fd-time", "10"], "--fd-time"),
+    (TARGETS_ARGV + ["--fd-densities", "0.394", "--fd-seeds", "2"], "--fd-seeds, --fd-densities"),
+    (["optimize", "--objective", "targets", "--fd-transient", "5"], "--fd-transient"),
+])
+def test_fd_options_without_the_fundamental_diagrams_runs_are_refused_naming_them(tmp_path, argv, named):
+    """An --fd-* option given where no fundamental-diagram run is made (targets without --fd, an objective without
+    the sweep) is an error naming it, not silently ignored."""
+    with pytest.raises(SystemExit, match=named):
+        cli.main(argv + ["--out", str(tmp_path / "x")])
