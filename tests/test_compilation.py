@@ -39,3 +39,18 @@ def test_cached_kernels_say_nothing_and_the_notice_can_be_silenced(tmp_path):
     quiet = subprocess.run([sys.executable, "-c", "import crowd_env.compilation as c; print(c.announce_compilation())"],
                            capture_output=True, text=True, check=True, env={"CROWD_ENV_QUIET": "1", "PATH": ""})
     assert quiet.stdout.strip() == "None"
+
+
+def test_a_shared_numba_cache_dir_serves_a_second_process(tmp_path):
+    """What docs/validation/calibration.md tells cluster users: NUMBA_CACHE_DIR at one folder, the first process
+    compiles (and says so) and writes the kernels there, the next one loads them from it (and says nothing)."""
+    import os
+
+    code = "from crowd_env.core.angles import direction_angles_rad; import numpy as np; direction_angles_rad(np.zeros((3, 2)))"
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba-cache"))
+    env.pop("CROWD_ENV_QUIET", None)
+    first = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+    assert MESSAGE in first.stderr  # an empty cache folder: compiled here
+    assert any((tmp_path / "numba-cache").rglob("*.nbi"))
+    again = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+    assert MESSAGE not in again.stderr
