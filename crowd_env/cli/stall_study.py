@@ -4,7 +4,8 @@ Runs the Seyfried bottleneck with a large crowd (default b = 1.0 m, N = 180, see
 preset with the runner's stall rule (:class:`crowd_env.experiments.runner.StallDetector`), prints one row per run
 (complete / stalled, when, passages, J_s of complete runs only, smallest gap) and draws
 ``OUT/stall_mechanism.png``: the crowd in front of the entrance at the moment the first `paper` run
-stalls, beside the `calibrated` run of the same seed at the same time, each pedestrian with its
+stalls (or the first run of the first other preset of ``--presets`` that stalls), beside the `calibrated` run
+of the same seed at the same time, each pedestrian with its
 desired direction e_d (Eq. 13) and the social force on it (Eq. 16).
 
 The mechanism it shows: with the point eikonal field (Eq. 11-13 solved for points, preset `paper`),
@@ -59,15 +60,18 @@ def main(argv=None) -> int:
     for p in args.presets:
         sub = [r for r in rows if r["preset"] == p]
         print(f"{p}: {sum(r['stalled'] for r in sub)} of {len(sub)} stalled, {sum(r['complete'] for r in sub)} complete")
-    stalled = [r for r in rows if r["stalled"] and r["preset"] == "paper"]
+    stalled = [r for p in args.presets if p != "calibrated" for r in rows if r["stalled"] and r["preset"] == p]
     if stalled and "calibrated" in args.presets:
-        first = stalled[0]
+        first = stalled[0]  # the first stall of the first preset (in --presets order) that stalls
         t = first["stall_time_s"]
         pair = run_jobs([dict(job, seed=first["seed"], snapshot_s=t)
-                         for job in stall_jobs(("paper", "calibrated"), args.width, args.n, args.corridor_width, 1,
-                                               args.max_time)], min(2, args.jobs))
+                         for job in stall_jobs((first["preset"], "calibrated"), args.width, args.n,
+                                               args.corridor_width, 1, args.max_time)], min(2, args.jobs))
         args.out.mkdir(parents=True, exist_ok=True)
-        print(f"figure: {figure(pair[0], pair[1], args.out / 'stall_mechanism.png')}")
+        title = None if first["preset"] == "paper" else (
+            f"b = {args.width:g} m, N = {args.n}: preset {first['preset']} stalled (left), calibrated at the same "
+            f"time of the same seed (right)")
+        print(f"figure: {figure(pair[0], pair[1], args.out / 'stall_mechanism.png', title)}")
     return 0
 
 

@@ -24,7 +24,8 @@ __all__ = ["stall_run", "stall_jobs", "run_jobs", "figure"]
 def stall_run(job: dict) -> dict:
     """One run of ``job`` (``preset``, ``width_m``, ``n``, ``seed``, ``corridor_width_m``, ``max_time_s``); with
     ``snapshot_s`` also the state at that simulated time (or at the end, if earlier): positions, e_d
-    (Eq. 13), the social force (Eq. 16) and the speeds of the pedestrians left."""
+    (Eq. 13), the social force (Eq. 16), the agent's intent u_int (with vision: v e(α*)) and the speeds of the
+    pedestrians left."""
     preset = get_preset(job["preset"])
     scenario = make_scenario("seyfried_bottleneck", width_m=job["width_m"], n_pedestrians=job["n"], seed=job["seed"],
                              corridor_width_m=job["corridor_width_m"],
@@ -38,7 +39,8 @@ def stall_run(job: dict) -> dict:
             idx = sim.active_index
             e_d = agent.desired_direction(sim, idx)
             snap.update(time_s=sim.time_s, position_m=sim.state.position_m[idx].copy(), e_d=e_d,
-                        force_n=agent.social_force(sim, e_d), speed_m_s=np.linalg.norm(sim.state.velocity_m_s[idx], axis=1))
+                        force_n=agent.social_force(sim, e_d), speed_m_s=np.linalg.norm(sim.state.velocity_m_s[idx], axis=1),
+                        intent_m_s=agent(sim)[0][idx])
         snap["last"] = sim
 
     # The snapshot reads the state after every step: the run goes step by step then (compiled chunks
@@ -51,7 +53,8 @@ def stall_run(job: dict) -> dict:
         e_d = agent.desired_direction(sim, idx) if idx.size else np.zeros((0, 2))
         snap.update(time_s=sim.time_s, position_m=sim.state.position_m[idx].copy(), e_d=e_d,
                     force_n=agent.social_force(sim, e_d) if idx.size else np.zeros((0, 2)),
-                    speed_m_s=np.linalg.norm(sim.state.velocity_m_s[idx], axis=1))
+                    speed_m_s=np.linalg.norm(sim.state.velocity_m_s[idx], axis=1),
+                    intent_m_s=agent(sim)[0][idx] if idx.size else np.zeros((0, 2)))
     snap.pop("last", None)
     return {**job, "complete": r.complete, "stalled": r.stalled, "stall_time_s": r.stall_time_s,
             "n_passed": r.n_passed, "specific_flow_per_m_s": r.specific_flow_per_m_s, "min_gap_m": r.min_gap_m,
@@ -72,9 +75,11 @@ def run_jobs(jobs: list, workers: int) -> list:
         return run_all(jobs, backend, stall_run)
 
 
-def figure(paper: dict, calibrated: dict, path: Path) -> Path:
+def figure(paper: dict, calibrated: dict, path: Path, title: str | None = None) -> Path:
     """The crowd in front of the entrance in two snapshots (:func:`stall_run` with ``snapshot_s``), side by
-    side: each pedestrian with e_d and the social force on it, those at < 5 cm/s in red."""
+    side: each pedestrian with e_d, the social force on it and its intent u_int, those at < 5 cm/s in red.
+    ``paper`` is the stalled run (any preset), ``calibrated`` the comparison; ``title`` the figure's (default:
+    the point-field reading of the `paper` preset's stall)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -91,6 +96,10 @@ def figure(paper: dict, calibrated: dict, path: Path) -> Path:
         ax.quiver(p[:, 0], p[:, 1], e[:, 0], e[:, 1], color="k", scale=18, width=0.004, label="e_d (Eq. 13)")
         ax.quiver(p[:, 0], p[:, 1], f[:, 0], f[:, 1], color="tab:orange", scale=4000, width=0.004,
                   label="social force (Eq. 16)")
+        u = snap.get("intent_m_s")
+        if u is not None:
+            ax.quiver(p[:, 0], p[:, 1], u[:, 0], u[:, 1], color="tab:green", scale=18, width=0.004,
+                      label="intent u_int (m/s)")
         ax.set_xlim(-4.5, 1.5)
         ax.set_ylim(-2.2, 2.2)
         ax.set_aspect("equal")
@@ -100,8 +109,8 @@ def figure(paper: dict, calibrated: dict, path: Path) -> Path:
         ax.set_xlabel("x (m)")
     axes[0].set_ylabel("y (m)")
     axes[0].legend(loc="lower left", fontsize=8)
-    fig.suptitle(f"b = {paper['width_m']:g} m, N = {paper['n']}: the point field aims everyone beside the opening at "
-                 f"its corners (left); the configuration-space field aims past them (right)", fontsize=10)
+    fig.suptitle(title or f"b = {paper['width_m']:g} m, N = {paper['n']}: the point field aims everyone beside the "
+                 f"opening at its corners (left); the configuration-space field aims past them (right)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)
