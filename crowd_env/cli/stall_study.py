@@ -30,6 +30,7 @@ import sys
 from pathlib import Path
 
 from ..core.presets import get_preset
+from .options import key_values
 from ..experiments.stall_study import figure, run_jobs, stall_jobs
 
 
@@ -44,11 +45,14 @@ def main(argv=None) -> int:
     ap.add_argument("--max-time", type=float, default=300.0)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", type=Path, default=Path("out/stalls"))
+    ap.add_argument("--set", nargs="+", default=[], metavar="NAME=VALUE",
+                    help="ModelParams fields on top of every preset (values as JSON: numbers, true, false, null)")
     args = ap.parse_args(argv)
+    changes = key_values(args.set, "--set expects NAME=VALUE")
     for name in args.presets:
-        get_preset(name)  # unknown names fail here, naming the known ones
-    rows = run_jobs(stall_jobs(args.presets, args.width, args.n, args.corridor_width, args.seeds, args.max_time),
-                    args.jobs)
+        get_preset(name).params(**changes)  # unknown presets or parameters fail here, naming them
+    rows = run_jobs(stall_jobs(args.presets, args.width, args.n, args.corridor_width, args.seeds, args.max_time,
+                               changes), args.jobs)
     print(f"b = {args.width:g} m, N = {args.n}, corridor {args.corridor_width:g} m; stall rule: no passage for "
           f"20 s while the mean speed of those left is < 0.05 m/s")
     print(f"{'preset':>12} {'seed':>4} {'result':>10} {'at (s)':>7} {'passed':>7} {'J_s':>6} {'min gap (m)':>12}")
@@ -66,7 +70,7 @@ def main(argv=None) -> int:
         t = first["stall_time_s"]
         pair = run_jobs([dict(job, seed=first["seed"], snapshot_s=t)
                          for job in stall_jobs((first["preset"], "calibrated"), args.width, args.n,
-                                               args.corridor_width, 1, args.max_time)], min(2, args.jobs))
+                                               args.corridor_width, 1, args.max_time, changes)], min(2, args.jobs))
         args.out.mkdir(parents=True, exist_ok=True)
         title = None if first["preset"] == "paper" else (
             f"b = {args.width:g} m, N = {args.n}: preset {first['preset']} stalled (left), calibrated at the same "

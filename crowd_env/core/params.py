@@ -56,6 +56,7 @@ class ModelParams:
     vision_body_scale_standing: float | None = None  # κ_0 at rest (κ at the desired speed); None: κ always
     vision_anticipation: float = 0.0  # w: the others move on at w times their velocity (0: they stand)
     vision_leader_time_s: float = 0.0  # T_a: the speed rule reads the gap T_a ahead, the leader walking on (0: off)
+    vision_right_of_way: bool = False  # True: a neighbour farther from the exit (larger T, Eq. 11) never blocks
     # Time-to-collision interaction (Karamouzas, Skinner & Guy 2014; crowd_env.walking.time_to_collision).
     ttc_strength_m2_s2: float = 0.0  # k per unit mass (the paper's fit 1.5); 0: off (the paper's walking model)
     ttc_horizon_s: float = 3.0  # τ0, the interaction horizon (the paper's fit)
@@ -108,7 +109,7 @@ class ModelParams:
         if self.vision_rays > 1 and self.vision_half_angle_rad == 0:
             raise ParameterError(f"vision_rays = {self.vision_rays} needs vision_half_angle_rad > 0 (a fan of "
                                  f"directions); with one direction set vision_rays = 1")
-        for name in ("social_forces", "rotation"):
+        for name in ("social_forces", "rotation", "vision_right_of_way"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ParameterError(f"{name} must be True or False, got {getattr(self, name)!r}")
         if self.solver not in SOLVERS:

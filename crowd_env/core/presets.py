@@ -18,10 +18,10 @@ unless told otherwise; ``ModelParams()`` itself stays the paper's literal parame
   repelling like pedestrians. For the literal reproduction of Section 4.
 - ``vision``: ``calibrated`` plus vision (:mod:`crowd_env.walking.vision`, an addition to the paper: a speed
   rule from the free distance and a choice of direction among a fan, after Moussaïd et al. 2011 and Tordeux et
-  al. 2016), T = 1 s, l = 0.2 m, ±75° in 11 rays, κ = 0.5, set by hand from the first probes
-  (docs/validation/fundamental_diagram.md): it has a fundamental diagram (corridor and single file within
-  about 0.12 m/s of the experiments) but its bottleneck flows are about a third too low. Not calibrated, not
-  the default.
+  al. 2016), T = 1 s, l = 0.2 m, ±75° in 11 rays, κ = 0.5 and the right of way (a neighbour farther from the
+  exit never blocks), set by hand from probes (docs/validation/fundamental_diagram.md): it has a fundamental
+  diagram (corridor and single file within about 0.17 m/s of the experiments) but its bottleneck flows are about
+  a third too low. Not calibrated, not the default.
 - ``recalibrated``: the paper's ε_T calibration (Eq. 23-24, N = 60 flows only) redone for the
   configuration-space field without wall repulsion: A = 1150 N, B = 0.2 m, λ = 1.
 """
@@ -59,10 +59,11 @@ PRESETS = {
                                       "repel like pedestrians"),
     "vision": Preset("vision", {"social_strength_n": 331.5, "social_range_m": 0.04111, "social_anisotropy": 0.1093,
                                 "wall_social_strength_n": 0.0, "vision_time_gap_s": 1.0, "vision_jam_gap_m": 0.2,
-                                "vision_half_angle_rad": 1.309, "vision_rays": 11, "vision_body_scale": 0.5},
-                     _RADIUS_M, "calibrated + vision (T = 1 s, l = 0.2 m, ±75°, 11 rays, κ = 0.5), chosen by hand "
-                                "from first probes: corridor and single file within about 0.12 m/s, bottleneck "
-                                "flows about a third too low; not calibrated"),
+                                "vision_half_angle_rad": 1.309, "vision_rays": 11, "vision_body_scale": 0.5,
+                                "vision_right_of_way": True},
+                     _RADIUS_M, "calibrated + vision (T = 1 s, l = 0.2 m, ±75°, 11 rays, κ = 0.5, right of way), "
+                                "chosen by hand from probes: corridor and single file within about 0.17 m/s, "
+                                "bottleneck flows about a third too low; not calibrated"),
     "recalibrated": Preset("recalibrated", {"social_strength_n": 1150.0, "social_range_m": 0.2,
                                             "wall_social_strength_n": 0.0}, _RADIUS_M,
                            "ε_T of N = 60 only, configuration-space field, no wall social force, λ = 1"),

@@ -22,7 +22,8 @@ __all__ = ["stall_run", "stall_jobs", "run_jobs", "figure"]
 
 
 def stall_run(job: dict) -> dict:
-    """One run of ``job`` (``preset``, ``width_m``, ``n``, ``seed``, ``corridor_width_m``, ``max_time_s``); with
+    """One run of ``job`` (``preset``, ``width_m``, ``n``, ``seed``, ``corridor_width_m``, ``max_time_s``, and
+    optionally ``changes``: ModelParams fields on top of the preset); with
     ``snapshot_s`` also the state at that simulated time (or at the end, if earlier): positions, e_d
     (Eq. 13), the social force (Eq. 16), the agent's intent u_int (with vision: v e(α*)) and the speeds of the
     pedestrians left."""
@@ -45,8 +46,8 @@ def stall_run(job: dict) -> dict:
 
     # The snapshot reads the state after every step: the run goes step by step then (compiled chunks
     # would pass the snapshot time).
-    r = run_scenario(scenario, agent, preset.params(), max_time_s=job["max_time_s"], progress=capture,
-                     compiled=t_snap is None)
+    r = run_scenario(scenario, agent, preset.params(**job.get("changes", {})), max_time_s=job["max_time_s"],
+                     progress=capture, compiled=t_snap is None)
     if t_snap is not None and "position_m" not in snap:  # the run ended first: its last state
         sim = snap["last"]
         idx = sim.active_index
@@ -62,9 +63,12 @@ def stall_run(job: dict) -> dict:
             "outline_m": np.asarray(scenario.geometry.walkable_area.exterior.coords)}
 
 
-def stall_jobs(presets, width_m: float, n: int, corridor_width_m: float, seeds: int, max_time_s: float) -> list:
-    """One job per preset and seed 0..seeds-1 (the job dicts of :func:`stall_run`)."""
-    base = {"width_m": width_m, "n": n, "corridor_width_m": corridor_width_m, "max_time_s": max_time_s}
+def stall_jobs(presets, width_m: float, n: int, corridor_width_m: float, seeds: int, max_time_s: float,
+               changes: dict | None = None) -> list:
+    """One job per preset and seed 0..seeds-1 (the job dicts of :func:`stall_run`); ``changes``: ModelParams
+    fields on top of every preset."""
+    base = {"width_m": width_m, "n": n, "corridor_width_m": corridor_width_m, "max_time_s": max_time_s,
+            "changes": dict(changes or {})}
     return [dict(base, preset=p, seed=s) for p in presets for s in range(seeds)]
 
 

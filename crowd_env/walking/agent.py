@@ -49,7 +49,7 @@ def hold_waiting(intents, theta_d, heading, premovement_s, time_s, index):
 @nb.njit(cache=True)
 def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, heading, velocity, pairs, walls,
                      wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n, wall_range_m, premovement_s,
-                     time_s, vision, ttc, period_m=0.0):
+                     time_s, vision, ttc, travel_time_s, period_m=0.0):
     """u_int = ‖u_d‖ e_d + (τ/m) Σ f_social (Eq. 14, 16) and θ_d = angle of e_d, in one compiled call (with
     vision: u_int = v e(α*) + (τ/m) Σ f_social and θ_d = α*; with the time-to-collision interaction, + τ Σ f_ttc/m).
 
@@ -60,7 +60,8 @@ def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, hea
     premovement time has not come at ``time_s`` stand still (:func:`hold_waiting`). ``vision``
     ``(T, l, half-angle, rays, κ, κ_0, w, T_a)`` (:func:`vision_parameters`): with T > 0 the speed and direction of the
     driving term are :func:`~crowd_env.walking.vision.vision_walk`'s (``pairs`` must then reach 2 r_max +
-    :func:`~crowd_env.walking.vision.vision_reach_m`), and θ_d is the walking direction's angle. ``ttc``
+    :func:`~crowd_env.walking.vision.vision_reach_m`), and θ_d is the walking direction's angle; with its right of
+    way (``vision[8]`` > 0) ``travel_time_s`` (n,) are the walkers' travel times T (Eq. 11), else unused. ``ttc``
     ``(k, τ0, range, cap)`` (:func:`ttc_parameters`): with k > 0 the time-to-collision interaction of
     :mod:`crowd_env.walking.time_to_collision` over ``pairs`` within the range (``pairs`` must reach it).
     ``period_m``: the simulation's periodicity along x (``Simulator.period_m``; 0: none).
@@ -81,7 +82,7 @@ def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, hea
     if vision[0] > 0.0:  # the walking speed and direction of vision instead of ‖u_d‖ and e_d
         speed, walk = vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, walls, period_m,
                                   vision[0], vision[1], vision[2], vision[3], vision[4], vision[5], vision[6],
-                                  vision[7])
+                                  vision[7], vision[8], travel_time_s)
     else:
         speed = np.empty(n)
         for k in range(n):
@@ -142,9 +143,11 @@ def compile_navigation(navigation, n_pedestrians: int) -> CompiledNavigation | N
 def sample_directions(position, index, origin_m, resolution_m, travel_time, direction, field_of):
     """e_d (Eq. 13) of the pedestrians ``index``, each from its own field, by the same bilinear kernel as
     :meth:`NavigationField.sample` (point by point: the same bits). Returns ``(e_d (n, 2), ok)``; ``ok``
-    is False when a point is outside the grid or not finite, or has no direction (unreachable)."""
+    is False when a point is outside the grid or not finite, or has no direction (unreachable). Also returns the
+    travel times T (n,) of the same samples: ``(e_d, T, ok)``."""
     n = index.shape[0]
     e_d = np.empty((n, 2))
+    times = np.empty(n)
     ok = True
     for f in range(travel_time.shape[0]):
         count = 0
@@ -170,10 +173,11 @@ def sample_directions(position, index, origin_m, resolution_m, travel_time, dire
         for q in range(count):
             e_d[rows[q], 0] = out_dir[q, 0]
             e_d[rows[q], 1] = out_dir[q, 1]
+            times[rows[q]] = out_time[q]
     for k in range(n):
         if not (np.isfinite(e_d[k, 0]) and np.isfinite(e_d[k, 1])):
             ok = False
-    return e_d, ok
+    return e_d, times, ok
 
 
 @nb.njit(cache=True)
@@ -197,13 +201,15 @@ def ttc_parameters(params) -> tuple:
 
 
 def vision_parameters(params) -> tuple:
-    """``(T, l, half-angle, rays, κ, κ_0, w, T_a)`` of :class:`~crowd_env.core.params.ModelParams` ``params`` for
-    the kernels (κ_0 = κ when ``vision_body_scale_standing`` is None; w the anticipation, T_a the leader time)."""
+    """``(T, l, half-angle, rays, κ, κ_0, w, T_a, right of way)`` of :class:`~crowd_env.core.params.ModelParams`
+    ``params`` for the kernels (κ_0 = κ when ``vision_body_scale_standing`` is None; w the anticipation, T_a the
+    leader time, the right of way 1.0 or 0.0)."""
     standing = params.vision_body_scale if params.vision_body_scale_standing is None \
         else params.vision_body_scale_standing
     return (float(params.vision_time_gap_s), float(params.vision_jam_gap_m), float(params.vision_half_angle_rad),
             int(params.vision_rays), float(params.vision_body_scale), float(standing),
-            float(params.vision_anticipation), float(params.vision_leader_time_s))
+            float(params.vision_anticipation), float(params.vision_leader_time_s),
+            1.0 if params.vision_time_gap_s > 0 and params.vision_right_of_way else 0.0)
 
 
 @nb.njit(cache=True)
@@ -216,7 +222,7 @@ def agent_step(position, radius, index, origin_m, resolution_m, travel_time, dir
     Returns ``(status, intents, θ_d, pairs, pair_radius_m)``, ``pair_radius_m`` −1 when no pairs were built."""
     n = index.shape[0]
     no_pairs = np.zeros((0, 2), np.int64)
-    e_d, ok = sample_directions(position, index, origin_m, resolution_m, travel_time, direction, field_of)
+    e_d, times, ok = sample_directions(position, index, origin_m, resolution_m, travel_time, direction, field_of)
     if not ok:
         return AGENT_BAD_DIRECTION, np.zeros((position.shape[0], 2)), heading.copy(), no_pairs, -1.0
     pairs = no_pairs
@@ -230,8 +236,21 @@ def agent_step(position, radius, index, origin_m, resolution_m, travel_time, dir
         pairs = grid_pairs(position, index, pair_radius, period_m)
     intents, theta_d = baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, heading, velocity,
                                         pairs, walls, wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n,
-                                        wall_range_m, premovement_s, time_s, vision, ttc, period_m)
+                                        wall_range_m, premovement_s, time_s, vision, ttc, times, period_m)
     return AGENT_OK, intents, theta_d, pairs, pair_radius
+
+
+def travel_time(navigation, position_m: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """T (Eq. 11), (m,), of pedestrians ``index`` at ``position_m[index]`` from ``navigation``, as
+    :func:`desired_direction` reads e_d: its ``travel_time(points)``, or ``travel_time(points, index)`` for a
+    per-pedestrian navigation; an empty array for a navigation without ``travel_time`` (vision's right of way
+    then reads positions along e_d, :func:`~crowd_env.walking.vision.gives_way`)."""
+    sample = getattr(navigation, "travel_time", None)
+    if sample is None:
+        return np.zeros(0)
+    if getattr(navigation, "per_pedestrian", False):
+        return sample(position_m[index], index)
+    return sample(position_m[index])
 
 
 def desired_direction(navigation, position_m: np.ndarray, index: np.ndarray) -> np.ndarray:
@@ -293,6 +312,7 @@ class SocialForceAgent:
         e_d = self.desired_direction(sim, idx)
         vision = vision_parameters(p)
         ttc = ttc_parameters(p)
+        times = travel_time(self.navigation, st.position_m, idx) if vision[8] > 0.0 else np.zeros(0)
         reach = pair_reach_m(st.desired_speed_m_s, idx, bool(p.social_forces), float(p.social_cutoff_m), vision, ttc)
         pairs = sim.neighbor_pairs(2.0 * float(st.radius_m[idx].max()) + reach) if reach >= 0.0 \
             else np.zeros((0, 2), np.int64)
@@ -300,4 +320,5 @@ class SocialForceAgent:
                                 st.heading_rad, st.velocity_m_s, pairs, sim.walls, sim.wall_owner, p.social_forces,
                                 float(p.social_strength_n), float(p.social_range_m), float(p.social_anisotropy),
                                 float(p.social_cutoff_m), float(p.wall_strength_n), float(p.wall_range_m),
-                                st.premovement_s, float(sim.time_s), vision, ttc, sim.period_m)
+                                st.premovement_s, float(sim.time_s), vision, ttc, np.asarray(times, np.float64),
+                                sim.period_m)

@@ -28,7 +28,14 @@ steer into gaps. Vision adds both, after the heuristics of Moussaïd, Helbing & 
   term of car following: Jiang, Wu & Zhu 2001, Treiber, Hennecke & Helbing 2000). Wherever the gap is not
   opening (u_l ≤ u_i: steady following, a walker moving forward behind a standing or approaching neighbour or a
   wall) it is the rule without it, so the homogeneous corridor's distance-speed relation keeps its form; what
-  changes is the start of a queue behind a leader who walks off.
+  changes is the start of a queue behind a leader who walks off;
+- with ``vision_right_of_way`` a neighbour j farther from the exit than walker i (travel time T_j > T_i, Eq. 11)
+  does not block i's rays: whoever is nearer the exit goes first and the other waits, as people give way to
+  those ahead in a queue. Without it two walkers who want the same spot (beside a door narrower than two bodies,
+  where the field points sideways at the door's axis) each see the other within l and both stand for good. In a
+  periodic world the travel time is the uniform field's potential, which jumps at the seam; there "farther from
+  the exit" is "behind along e_d" by the minimum image, −(x_j − x_i)·e_d,i > 0, the same order for that field
+  (and the same reading serves a navigation without travel times, e.g. circulation round a loop).
 
 The agent's intent then reads u_int = v_i e(α_i*) + (τ/m) Σ f_social, and its heading target θ_d = α_i*.
 With T = 0 vision is off and the agent is the paper's; with one ray only the speed changes (the speed rule
@@ -42,7 +49,8 @@ import numpy as np
 
 from ..core.periodic import minimum_image_dx
 
-__all__ = ["vision_reach_m", "vision_walk", "ray_circle_distance", "moving_circle_distance", "free_distances"]
+__all__ = ["vision_reach_m", "vision_walk", "ray_circle_distance", "moving_circle_distance", "free_distances",
+           "gives_way"]
 
 
 @nb.njit(cache=True, inline="always")
@@ -114,13 +122,16 @@ def _ray_capsule_distance(ox, oy, dx, dy, x0, y0, x1, y1, radius):
 
 @nb.njit(cache=True)
 def free_distances(position, radius, index, rows, angles, neighbours, neighbour_start, walls, period_m, horizon,
-                   body_scale, velocity, walk_speed, anticipation):
+                   body_scale, velocity, walk_speed, anticipation, right_of_way, travel_time_s, e_d):
     """f(α) of the pedestrians ``rows`` (rows into ``index``), one per angle in ``angles`` (len(rows), K), each
     capped at its ``horizon`` (len(rows),): the free walk before the centre comes within κ (r_i + r_j) of a
     neighbour's centre (κ = ``body_scale`` (len(rows),), each walker's own; CSR lists
     ``neighbours[neighbour_start[k]:neighbour_start[k + 1]]`` of rows into ``index``) or the disk touches a wall
     segment. With ``anticipation`` w > 0 each neighbour moves on at w times its ``velocity`` (N, 2) while the
     walker walks at ``walk_speed`` (len(rows),) (:func:`moving_circle_distance`); w = 0: the others stand.
+    ``right_of_way`` 0: everyone blocks; 1: the walkers have the right of way over neighbours farther from the
+    exit by the travel times ``travel_time_s`` (len(index),); 2: over neighbours behind them along their desired
+    directions ``e_d`` (len(index), 2) (:func:`gives_way`).
 
     Returns f (len(rows), K) and, per ray, the velocity along the ray ``u_j · e(α)`` of the neighbour that ends
     the free walk (0 when a wall ends it or nothing does before the horizon)."""
@@ -139,6 +150,11 @@ def free_distances(position, radius, index, rows, angles, neighbours, neighbour_
             for p in range(neighbour_start[rows[a]], neighbour_start[rows[a] + 1]):
                 j = index[neighbours[p]]
                 qx = minimum_image_dx(position[j, 0] - ox, period_m)
+                if right_of_way and gives_way(travel_time_s[neighbours[p]] if right_of_way == 1 else 0.0,
+                                              travel_time_s[rows[a]] if right_of_way == 1 else 0.0, qx,
+                                              position[j, 1] - oy, e_d[rows[a], 0], e_d[rows[a], 1],
+                                              right_of_way == 2):
+                    continue
                 reach = body_scale[a] * (radius[i] + radius[j])
                 if anticipation > 0.0:
                     t = moving_circle_distance(qx, position[j, 1] - oy, anticipation * velocity[j, 0],
@@ -156,6 +172,17 @@ def free_distances(position, radius, index, rows, angles, neighbours, neighbour_
                     leader[a, q] = 0.0
             out[a, q] = best
     return out, leader
+
+
+@nb.njit(cache=True)
+def gives_way(t_j, t_i, dx, dy, ex, ey, by_position):
+    """Neighbour j gives way to walker i (``vision_right_of_way``): j is farther from the exit, T_j > T_i; with
+    ``by_position`` (a periodic world, where T jumps at the seam, or a navigation without travel times) j is
+    behind i along i's desired direction (ex, ey) by the (minimum-image) displacement (dx, dy) = x_j − x_i:
+    −(dx ex + dy ey) > 0."""
+    if by_position:
+        return dx * ex + dy * ey < 0.0
+    return t_j > t_i
 
 
 @nb.njit(cache=True)
@@ -191,7 +218,8 @@ def vision_reach_m(desired_speed, index, time_gap_s, jam_gap_m):
 
 @nb.njit(cache=True)
 def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, walls, period_m, time_gap_s, jam_gap_m,
-                half_angle_rad, n_rays, body_scale, body_scale_standing, anticipation, leader_time_s):
+                half_angle_rad, n_rays, body_scale, body_scale_standing, anticipation, leader_time_s,
+                right_of_way, travel_time_s):
     """Walking speed (n,) and unit walking direction (n, 2) of the pedestrians ``index`` (module docstring).
 
     ``e_d`` (n, 2) their desired directions (Eq. 13), ``pairs`` rows into ``index`` of every pair of centres
@@ -202,7 +230,10 @@ def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, wa
     velocity while the walker walks at v0_i (Moussaïd et al.'s collision prediction at w = 1). ``leader_time_s``
     T_a > 0: a leader pulling away lends its gap ahead, v = (f + T_a max(0, u_l − u_i) − l)/T with u_l the
     velocity along the chosen direction of the neighbour that ends its free walk (:func:`free_distances`) and
-    u_i the walker's own (a wall's u_l is 0); where the gap is not opening (u_l ≤ u_i) nothing changes."""
+    u_i the walker's own (a wall's u_l is 0); where the gap is not opening (u_l ≤ u_i) nothing changes.
+    ``right_of_way`` > 0: the right of way (:func:`gives_way`) by the walkers' travel times ``travel_time_s`` (n,)
+    (Eq. 11), or, in a periodic world or when ``travel_time_s`` is empty (a navigation without travel times), by
+    their positions along e_d; 0: everyone blocks."""
     n = index.shape[0]
     speed = np.zeros(n)
     direction = np.zeros((n, 2))
@@ -210,6 +241,7 @@ def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, wa
         return speed, direction
     neighbours, start = _neighbour_lists(n, pairs)
     rows = np.arange(n)
+    mode = 0 if right_of_way <= 0.0 else (2 if period_m > 0.0 or travel_time_s.shape[0] == 0 else 1)
     angles = np.empty((n, n_rays))
     horizon = np.empty(n)
     base = np.empty(n)
@@ -232,7 +264,7 @@ def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, wa
     for k in range(n):
         v0[k] = desired_speed[index[k]]
     free, leader = free_distances(position, radius, index, rows, angles, neighbours, start, walls, period_m,
-                                  horizon, scale, velocity, v0, anticipation)
+                                  horizon, scale, velocity, v0, anticipation, mode, travel_time_s, e_d)
     for k in range(n):
         norm = e_d[k, 0] * e_d[k, 0] + e_d[k, 1] * e_d[k, 1]
         if norm == 0.0:

@@ -6,22 +6,25 @@ import numpy as np
 import pytest
 
 from crowd_env.core.params import ModelParams, ParameterError
-from crowd_env.walking.vision import free_distances, ray_circle_distance, vision_walk
+from crowd_env.walking.vision import free_distances, gives_way, ray_circle_distance, vision_walk
 
 NO_WALLS = np.zeros((0, 4))
 ALL_PAIRS = np.array([[0, 1], [0, 2], [1, 2]], np.int64)
 
 
 def _walk(position, e_d, v0=1.34, T=1.0, l=0.2, half=0.0, rays=1, kappa=1.0, walls=NO_WALLS, pairs=None, radius=0.23,
-          kappa_standing=None, velocity=None, anticipation=0.0, leader_time=0.0):
+          kappa_standing=None, velocity=None, anticipation=0.0, leader_time=0.0, right_of_way=False, travel_time=None,
+          period_m=0.0):
     position = np.asarray(position, dtype=float)
     n = position.shape[0]
     if pairs is None:
         pairs = np.array([(i, j) for i in range(n) for j in range(i + 1, n)], np.int64).reshape(-1, 2)
     velocity = np.zeros((n, 2)) if velocity is None else np.asarray(velocity, dtype=float)
+    times = np.zeros(0) if travel_time is None else np.asarray(travel_time, dtype=float)
     return vision_walk(position, np.full(n, radius), np.arange(n), np.asarray(e_d, dtype=float), np.full(n, v0),
-                       velocity, pairs, walls, 0.0, T, l, half, rays, kappa,
-                       kappa if kappa_standing is None else kappa_standing, anticipation, leader_time)
+                       velocity, pairs, walls, period_m, T, l, half, rays, kappa,
+                       kappa if kappa_standing is None else kappa_standing, anticipation, leader_time,
+                       1.0 if right_of_way or travel_time is not None else 0.0, times)
 
 
 def test_ray_circle_distance_analytic():
@@ -119,6 +122,43 @@ def test_leader_pulling_away_lends_its_gap():
         ModelParams(vision_leader_time_s=-0.1)
 
 
+def test_right_of_way_lets_the_walker_nearer_the_exit_go_first():
+    # a standoff: two walkers head-on in a strip 0.6 m wide, each within l of the other along every ray
+    strip = np.array([[-5.0, -0.3, 5.0, -0.3], [-5.0, 0.3, 5.0, 0.3]])
+    pos = [[0.0, 0.0], [0.6, 0.0]]
+    e = [[1.0, 0.0], [-1.0, 0.0]]
+    both, _ = _walk(pos, e, T=1.0, l=0.2, half=math.radians(75), rays=11, walls=strip)
+    assert both[0] == 0.0 and both[1] == 0.0  # without the right of way: both stand, for good
+    first, _ = _walk(pos, e, T=1.0, l=0.2, half=math.radians(75), rays=11, walls=strip, travel_time=[1.0, 2.0])
+    assert first[0] == 1.34 and first[1] == 0.0  # the one nearer its exit (smaller T) goes, the other waits
+    # a neighbour ahead (nearer the exit) blocks as before, to the bit; one behind never blocks
+    follow = [[0.0, 0.0], [1.2, 0.0]]
+    ahead, _ = _walk(follow, [[1.0, 0.0], [1.0, 0.0]], T=1.0, l=0.2)
+    ahead_row, _ = _walk(follow, [[1.0, 0.0], [1.0, 0.0]], T=1.0, l=0.2, travel_time=[5.0, 4.0])
+    assert ahead_row[0] == ahead[0] == pytest.approx(1.2 - 0.46 - 0.2)
+    back, _ = _walk([[0.0, 0.0], [-1.2, 0.0]], [[-1.0, 0.0], [-1.0, 0.0]], T=1.0, l=0.2, travel_time=[5.0, 6.0])
+    assert back[0] == 1.34  # the one ahead of it (nearer the exit) walks free
+    with pytest.raises(ParameterError, match="vision_right_of_way"):
+        ModelParams(vision_right_of_way=1)
+
+
+def test_right_of_way_in_a_periodic_world_reads_behind_along_e_d_by_the_minimum_image():
+    # period 10 m: the leader at x = 0.5 is 1.2 m ahead of the follower at x = 9.3 across the seam; the uniform
+    # field's T jumps there (the leader's T is the larger), yet the leader still blocks: behind/ahead is read
+    # along e_d by the minimum image
+    pos = [[9.3, 0.0], [0.5, 0.0]]
+    e = [[1.0, 0.0], [1.0, 0.0]]
+    plain, _ = _walk(pos, e, T=1.0, l=0.2, period_m=10.0)
+    row, _ = _walk(pos, e, T=1.0, l=0.2, period_m=10.0, travel_time=[0.7, 9.5])
+    assert row[0] == plain[0] == pytest.approx(1.2 - 0.46 - 0.2)
+    assert row[1] == 1.34  # the follower, behind the leader, never blocks it
+    assert not gives_way(9.5, 0.7, 1.2, 0.0, 1.0, 0.0, True) and gives_way(0.7, 9.5, -1.2, 0.0, 1.0, 0.0, True)
+    assert gives_way(2.0, 1.0, 0.0, 0.0, 1.0, 0.0, False) and not gives_way(1.0, 2.0, 0.0, 0.0, 1.0, 0.0, False)
+    # a navigation without travel times (circulation round a loop) reads positions along e_d the same way
+    loop, _ = _walk([[0.0, 0.0], [1.2, 0.0]], e, T=1.0, l=0.2, right_of_way=True)
+    assert loop[0] == pytest.approx(1.2 - 0.46 - 0.2) and loop[1] == 1.34
+
+
 def test_fan_steers_round_a_standing_pedestrian():
     # somebody 0.8 m straight ahead: along e_d the free distance is 0.34 m; a side ray passes them
     speed, walk = _walk([[0.0, 0.0], [0.8, 0.0]], [[1.0, 0.0], [0.0, 1.0]], half=math.radians(75), rays=11)
@@ -142,7 +182,7 @@ def test_wall_ahead_stops_the_walker():
     assert speed[0] == pytest.approx((1.0 - 0.23 - 0.2) / 1.0)
     free, leader = free_distances(np.zeros((1, 2)), np.full(1, 0.23), np.arange(1), np.arange(1), np.array([[0.0, math.pi]]),
                           np.zeros(0, np.int64), np.zeros(2, np.int64), wall, 0.0, np.full(1, 5.0), np.ones(1),
-                          np.zeros((1, 2)), np.full(1, 1.34), 0.0)
+                          np.zeros((1, 2)), np.full(1, 1.34), 0.0, 0, np.zeros(0), np.array([[1.0, 0.0]]))
     assert free[0, 0] == pytest.approx(0.77) and free[0, 1] == 5.0
     assert leader[0, 0] == 0.0 and leader[0, 1] == 0.0
 
@@ -160,15 +200,15 @@ def test_vision_parameters_are_checked():
         ModelParams(vision_time_gap_s=-1.0)
 
 
-@pytest.mark.parametrize("leader_time_s", [0.0, 1.0])
-def test_compiled_rollout_equals_stepping_with_vision(leader_time_s):
+@pytest.mark.parametrize("leader_time_s, right_of_way", [(0.0, False), (1.0, True)])
+def test_compiled_rollout_equals_stepping_with_vision(leader_time_s, right_of_way):
     """The compiled rollout and Python stepping run the same vision walk, to the last bit (trajectories)."""
     from crowd_env.core.presets import get_preset
     from crowd_env.experiments.recording import record_run
     from crowd_env.scenarios import make_scenario
     from crowd_env.walking.agent import SocialForceAgent
 
-    params = get_preset("vision").params(vision_leader_time_s=leader_time_s)
+    params = get_preset("vision").params(vision_leader_time_s=leader_time_s, vision_right_of_way=right_of_way)
     sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=20, seed=3)
     ra, ta = record_run(sc, SocialForceAgent(sc.navigation()), params, max_time_s=4.0, compiled=True)
     rb, tb = record_run(sc, SocialForceAgent(sc.navigation()), params, max_time_s=4.0, compiled=False)
