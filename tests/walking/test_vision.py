@@ -202,19 +202,11 @@ def test_vision_parameters_are_checked():
 
 @pytest.mark.parametrize("leader_time_s, right_of_way", [(0.0, False), (1.0, True)])
 def test_compiled_rollout_equals_stepping_with_vision(leader_time_s, right_of_way):
-    """The compiled rollout and Python stepping run the same vision walk, to the last bit (trajectories)."""
+    """The compiled rollout and Python stepping run the same vision walk, to the last bit (trajectories), and it
+    differs from the default preset's."""
     from crowd_env.core.presets import get_preset
-    from crowd_env.experiments.recording import record_run
-    from crowd_env.scenarios import make_scenario
-    from crowd_env.walking.agent import SocialForceAgent
 
-    params = get_preset("vision").params(vision_leader_time_s=leader_time_s, vision_right_of_way=right_of_way)
-    sc = make_scenario("seyfried_bottleneck", width_m=1.0, n_pedestrians=20, seed=3)
-    ra, ta = record_run(sc, SocialForceAgent(sc.navigation()), params, max_time_s=4.0, compiled=True)
-    rb, tb = record_run(sc, SocialForceAgent(sc.navigation()), params, max_time_s=4.0, compiled=False)
-    assert ra.n_steps == rb.n_steps == 400
-    for key in ("frame", "id", "x_m", "y_m", "heading_rad"):
-        np.testing.assert_array_equal(getattr(ta, key), getattr(tb, key), err_msg=key)
-    # and vision changes the walk: the default preset's trajectories differ
-    rc, tc = record_run(sc, SocialForceAgent(sc.navigation()), get_preset("calibrated").params(), max_time_s=4.0)
-    assert not np.array_equal(tc.x_m, ta.x_m)
+    from .rollout_check import assert_rollout_equals_stepping
+
+    assert_rollout_equals_stepping(get_preset("vision").params(vision_leader_time_s=leader_time_s,
+                                                               vision_right_of_way=right_of_way))
