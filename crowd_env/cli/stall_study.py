@@ -19,9 +19,10 @@ configuration-space field (walls inflated by the radius, preset `calibrated`) e_
 points past the corner into the channel, and with λ < 1 the crowd behind does not push its front rows
 into the corners: no arch holds.
 
-Example::
+Examples::
 
     crowd-stall-study --out out/stalls
+    crowd-stall-study --presets vision calibrated --width 0.8 --n 20 --seeds 20 --set vision_right_of_way=false
 """
 from __future__ import annotations
 
