@@ -31,8 +31,8 @@ import sys
 from pathlib import Path
 
 from ..core.presets import get_preset
-from .options import key_values
 from ..experiments.stall_study import figure, run_jobs, stall_jobs
+from .options import key_values
 
 
 def main(argv=None) -> int:

@@ -37,11 +37,7 @@ def stall_run(job: dict) -> dict:
 
     def capture(sim):
         if t_snap is not None and "position_m" not in snap and sim.time_s >= t_snap - 1e-9:
-            idx = sim.active_index
-            e_d = agent.desired_direction(sim, idx)
-            snap.update(time_s=sim.time_s, position_m=sim.state.position_m[idx].copy(), e_d=e_d,
-                        force_n=agent.social_force(sim, e_d), speed_m_s=np.linalg.norm(sim.state.velocity_m_s[idx], axis=1),
-                        intent_m_s=agent(sim)[0][idx])
+            snap.update(_snapshot(agent, sim))
         snap["last"] = sim
 
     # The snapshot reads the state after every step: the run goes step by step then (compiled chunks
@@ -49,18 +45,25 @@ def stall_run(job: dict) -> dict:
     r = run_scenario(scenario, agent, preset.params(**job.get("changes", {})), max_time_s=job["max_time_s"],
                      progress=capture, compiled=t_snap is None)
     if t_snap is not None and "position_m" not in snap:  # the run ended first: its last state
-        sim = snap["last"]
-        idx = sim.active_index
-        e_d = agent.desired_direction(sim, idx) if idx.size else np.zeros((0, 2))
-        snap.update(time_s=sim.time_s, position_m=sim.state.position_m[idx].copy(), e_d=e_d,
-                    force_n=agent.social_force(sim, e_d) if idx.size else np.zeros((0, 2)),
-                    speed_m_s=np.linalg.norm(sim.state.velocity_m_s[idx], axis=1),
-                    intent_m_s=agent(sim)[0][idx] if idx.size else np.zeros((0, 2)))
+        snap.update(_snapshot(agent, snap["last"]))
     snap.pop("last", None)
     return {**job, "complete": r.complete, "stalled": r.stalled, "stall_time_s": r.stall_time_s,
             "n_passed": r.n_passed, "specific_flow_per_m_s": r.specific_flow_per_m_s, "min_gap_m": r.min_gap_m,
             "time_s": r.simulated_time_s, "snapshot": snap or None,
             "outline_m": np.asarray(scenario.geometry.walkable_area.exterior.coords)}
+
+
+def _snapshot(agent, sim) -> dict:
+    """The state of the pedestrians left in ``sim``: positions, e_d (Eq. 13), the social force on them (Eq. 16),
+    their speeds and ``agent``'s intents (empty arrays when nobody is left)."""
+    idx = sim.active_index
+    if idx.size == 0:
+        return {"time_s": sim.time_s, "position_m": np.zeros((0, 2)), "e_d": np.zeros((0, 2)),
+                "force_n": np.zeros((0, 2)), "speed_m_s": np.zeros(0), "intent_m_s": np.zeros((0, 2))}
+    e_d = agent.desired_direction(sim, idx)
+    return {"time_s": sim.time_s, "position_m": sim.state.position_m[idx].copy(), "e_d": e_d,
+            "force_n": agent.social_force(sim, e_d), "speed_m_s": np.linalg.norm(sim.state.velocity_m_s[idx], axis=1),
+            "intent_m_s": agent(sim)[0][idx]}
 
 
 def stall_jobs(presets, width_m: float, n: int, corridor_width_m: float, seeds: int, max_time_s: float,
@@ -79,18 +82,18 @@ def run_jobs(jobs: list, workers: int) -> list:
         return run_all(jobs, backend, stall_run)
 
 
-def figure(paper: dict, calibrated: dict, path: Path, title: str | None = None) -> Path:
+def figure(stalled: dict, reference: dict, path: Path, title: str | None = None) -> Path:
     """The crowd in front of the entrance in two snapshots (:func:`stall_run` with ``snapshot_s``), side by
     side: each pedestrian with e_d, the social force on it and its intent u_int, those at < 5 cm/s in red.
-    ``paper`` is the stalled run (any preset), ``calibrated`` the comparison; ``title`` the figure's (default:
-    the point-field reading of the `paper` preset's stall)."""
+    ``stalled`` is the stalled run (any preset), ``reference`` the comparison (`calibrated`'s, same seed and
+    time); ``title`` the figure's (default: the point-field reading of the `paper` preset's stall)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(12, 5.4), sharey=True)
-    for ax, run in zip(axes, (paper, calibrated)):
+    for ax, run in zip(axes, (stalled, reference)):
         snap = run["snapshot"]
         ax.plot(run["outline_m"][:, 0], run["outline_m"][:, 1], "k-", lw=1.5)
         p, e, f, v = snap["position_m"], snap["e_d"], snap["force_n"], snap["speed_m_s"]
@@ -113,7 +116,7 @@ def figure(paper: dict, calibrated: dict, path: Path, title: str | None = None) 
         ax.set_xlabel("x (m)")
     axes[0].set_ylabel("y (m)")
     axes[0].legend(loc="lower left", fontsize=8)
-    fig.suptitle(title or f"b = {paper['width_m']:g} m, N = {paper['n']}: the point field aims everyone beside the "
+    fig.suptitle(title or f"b = {stalled['width_m']:g} m, N = {stalled['n']}: the point field aims everyone beside the "
                  f"opening at its corners (left); the configuration-space field aims past them (right)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=130)

@@ -246,20 +246,22 @@ def travel_time(navigation, position_m: np.ndarray, index: np.ndarray) -> np.nda
     per-pedestrian navigation; an empty array for a navigation without ``travel_time`` (vision's right of way
     then reads positions along e_d, :func:`~crowd_env.walking.vision.gives_way`)."""
     sample = getattr(navigation, "travel_time", None)
-    if sample is None:
-        return np.zeros(0)
+    return np.zeros(0) if sample is None else _read_navigation(navigation, sample, position_m, index)
+
+
+def _read_navigation(navigation, read, position_m: np.ndarray, index: np.ndarray):
+    """``read`` (a method of ``navigation``) at ``position_m[index]``: ``read(points, index)`` when the
+    navigation's ``per_pedestrian`` attribute is true (each pedestrian's own destination), else ``read(points)``."""
     if getattr(navigation, "per_pedestrian", False):
-        return sample(position_m[index], index)
-    return sample(position_m[index])
+        return read(position_m[index], index)
+    return read(position_m[index])
 
 
 def desired_direction(navigation, position_m: np.ndarray, index: np.ndarray) -> np.ndarray:
     """e_d (Eq. 13), (m, 2), of pedestrians ``index`` at ``position_m[index]`` from ``navigation``: its
     ``direction(points)``, or ``direction(points, index)`` when its ``per_pedestrian`` attribute is true
     (each pedestrian's own destination)."""
-    if getattr(navigation, "per_pedestrian", False):
-        return navigation.direction(position_m[index], index)
-    return navigation.direction(position_m[index])
+    return _read_navigation(navigation, navigation.direction, position_m, index)
 
 
 class SocialForceAgent:

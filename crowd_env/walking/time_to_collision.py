@@ -54,17 +54,14 @@ def time_to_collision_s(x, y, vx, vy, radius_sum_m):
 @nb.njit(cache=True)
 def ttc_acceleration(x, y, vx, vy, radius_sum_m, strength_m2_s2, horizon_s, max_accel_m_s2):
     """f/m on pedestrian i (module docstring), relative position (x, y) = x_i − x_j and velocity (vx, vy) =
-    u_i − u_j; (0, 0) when no collision lies ahead or the disks already touch. Capped at ``max_accel_m_s2``."""
+    u_i − u_j; (0, 0) when no collision lies ahead (τ infinite, :func:`time_to_collision_s`) or the disks already
+    touch (τ = 0). Capped at ``max_accel_m_s2``."""
+    tau = time_to_collision_s(x, y, vx, vy, radius_sum_m)
+    if not 0.0 < tau < np.inf:
+        return 0.0, 0.0
     a = vx * vx + vy * vy
     b = -(x * vx + y * vy)
-    c = x * x + y * y - radius_sum_m * radius_sum_m
-    if c <= 0.0 or a == 0.0 or b <= 0.0:
-        return 0.0, 0.0
-    disc = b * b - a * c
-    if disc <= 0.0:
-        return 0.0, 0.0
-    root = np.sqrt(disc)
-    tau = c / (b + root)
+    root = np.sqrt(b * b - a * (x * x + y * y - radius_sum_m * radius_sum_m))
     scale = strength_m2_s2 * np.exp(-tau / horizon_s) / (a * tau * tau) * (2.0 / tau + 1.0 / horizon_s)
     fx = scale * (-vx + (a * x + b * vx) / root)
     fy = scale * (-vy + (a * y + b * vy) / root)

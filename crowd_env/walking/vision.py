@@ -139,8 +139,10 @@ def free_distances(position, radius, index, rows, angles, neighbours, neighbour_
     k_rays = angles.shape[1]
     out = np.empty((m, k_rays))
     leader = np.zeros((m, k_rays))
+    by_position = right_of_way == 2
     for a in range(m):
         i = index[rows[a]]
+        t_i = travel_time_s[rows[a]] if right_of_way == 1 else 0.0
         ox = position[i, 0]
         oy = position[i, 1]
         for q in range(k_rays):
@@ -150,10 +152,8 @@ def free_distances(position, radius, index, rows, angles, neighbours, neighbour_
             for p in range(neighbour_start[rows[a]], neighbour_start[rows[a] + 1]):
                 j = index[neighbours[p]]
                 qx = minimum_image_dx(position[j, 0] - ox, period_m)
-                if right_of_way and gives_way(travel_time_s[neighbours[p]] if right_of_way == 1 else 0.0,
-                                              travel_time_s[rows[a]] if right_of_way == 1 else 0.0, qx,
-                                              position[j, 1] - oy, e_d[rows[a], 0], e_d[rows[a], 1],
-                                              right_of_way == 2):
+                if right_of_way and gives_way(travel_time_s[neighbours[p]] if right_of_way == 1 else 0.0, t_i, qx,
+                                              position[j, 1] - oy, e_d[rows[a], 0], e_d[rows[a], 1], by_position):
                     continue
                 reach = body_scale[a] * (radius[i] + radius[j])
                 if anticipation > 0.0:
