@@ -17,32 +17,11 @@ import os
 
 import numpy as np
 
+from .policy import EnvPolicy, stack_observations
+from .trained import file_policy, list_trained
+
 __all__ = ["EnvPolicy", "CalibratedPolicy", "RandomPolicy", "ZeroIntentPolicy", "SB3Policy", "CallablePolicy",
            "as_policy", "stack_observations"]
-
-
-def stack_observations(env, observations) -> np.ndarray:
-    """(n_live, D) array of the observations of ``env.agents``, in that order."""
-    agents = env.agents
-    if not agents:
-        return np.zeros((0,) + env.observation_space(env.possible_agents[0]).shape, np.float32)
-    return np.stack([observations[a] for a in agents])
-
-
-class EnvPolicy:
-    """Base class: override :meth:`act` (and :meth:`reset` for state)."""
-
-    name = "policy"
-    env_overrides: dict = {}
-
-    def reset(self, env, seed=None) -> None:
-        pass
-
-    def act(self, env, observations) -> dict:
-        raise NotImplementedError
-
-    def __repr__(self) -> str:
-        return f"{type(self).__name__}({self.name!r})"
 
 
 class CalibratedPolicy(EnvPolicy):
@@ -192,17 +171,15 @@ def as_policy(spec, name: str | None = None) -> EnvPolicy:
             if name:
                 p.name = name
             return p
-        from .trained import file_policy, list_trained  # shipped and saved policy files
-
         p = file_policy(s, name=name)
         if p is not None:
             return p
         if s.endswith(".pt") or os.path.exists(os.path.join(s, "policy.pt")):
-            from crowd_env.experiments.marl import load_policy  # crowd-train-mappo (MAPPO / IPPO)
+            from crowd_env.experiments.training.marl import load_policy  # crowd-train-mappo (MAPPO / IPPO)
 
             return load_policy(s, name=name)
         if os.path.exists(os.path.join(s, "policy.json")):
-            from crowd_env.experiments.rllib import load_policy as load_rllib  # crowd-train-rllib
+            from crowd_env.experiments.training.rllib import load_policy as load_rllib  # crowd-train-rllib
 
             return load_rllib(s, name=name)
         if s.endswith(".zip") or os.path.exists(s) or os.path.exists(s + ".zip"):

@@ -1,7 +1,7 @@
 """Trained reference policies shipped with crowd_env, loadable by name without training.
 
-Each is a :mod:`policy file <crowd_env.experiments.policy_files>` in ``baselines/trained/`` (``<name>.npz``),
-written by ``crowd-benchmark`` (docs/validation/benchmark.md: how each was trained, on which task, and
+Each is a :mod:`policy file <crowd_env.envs.policy_files>` in ``baselines/trained/`` (``<name>.npz``),
+written by ``crowd-reference-results`` (docs/validation/reference_results.md: how each was trained, on which task, and
 how it compares with the calibrated model). A file policy acts with the environment options it was
 trained with (observation layout, decision interval, action bound), which it names in ``env_overrides``
 so the evaluation harness applies them::
@@ -19,31 +19,19 @@ from __future__ import annotations
 
 import os
 
-from crowd_env.envs.background import OBSERVATION_POLICY_OPTIONS
+from crowd_env.envs.background import FileObservationPolicy
 from crowd_env.errors import NotFoundError
-from crowd_env.experiments.policy_files import load_policy_file
 
-from .reference_policies import EnvPolicy, stack_observations
+from .policy import EnvPolicy, stack_observations
 
 __all__ = ["FilePolicy", "TRAINED_DIR", "list_trained", "load_trained", "file_policy", "background_policy"]
 
 TRAINED_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "trained")
 
 
-class FilePolicy(EnvPolicy):
-    """A policy file's MLP shared by all live agents, one batched forward pass per decision."""
-
-    def __init__(self, path: str, name: str | None = None):
-        self.file = load_policy_file(os.fspath(path))
-        self.path = os.fspath(path)
-        self.name = name or os.path.splitext(os.path.basename(self.path))[0]
-        cfg = self.file.env_config  # the options its observation layout, decision interval and action depend on
-        self.env_overrides = {k: cfg[k] for k in OBSERVATION_POLICY_OPTIONS if k in cfg}
-
-    @property
-    def obs_dim(self) -> int:
-        """The size of the observations it acts on."""
-        return self.file.obs_dim
+class FilePolicy(FileObservationPolicy, EnvPolicy):
+    """A policy file's MLP shared by all live agents, one batched forward pass per decision: the environment's
+    :class:`~crowd_env.envs.background.FileObservationPolicy` with the agent interface (:meth:`reset`, :meth:`act`)."""
 
     def reset(self, env, seed=None) -> None:
         have = env.observation_space(env.possible_agents[0]).shape
@@ -55,10 +43,6 @@ class FilePolicy(EnvPolicy):
         if not env.agents:
             return {}
         return dict(zip(env.agents, self.file.actions(stack_observations(env, observations))))
-
-    def actions(self, observations):
-        """Batched actions (n, 2) for observations (n, D), as the vector environments take them."""
-        return self.file.actions(observations)
 
 
 def list_trained() -> list:

@@ -28,9 +28,9 @@ from pathlib import Path
 from crowd_env.cli.options import config_of, model_params_from_args
 from crowd_env.cli.reproduce_bottleneck import build_parser
 from crowd_env.cli.reproduce_bottleneck import main as reproduce
-from crowd_env.experiments.backends import ProcessBackend, execute
-from crowd_env.experiments.bottleneck import run_one
-from crowd_env.experiments.store import RunStore
+from crowd_env.experiments.running.backends import ProcessBackend, execute
+from crowd_env.experiments.validation.bottleneck import run_one
+from crowd_env.experiments.running.store import RunStore
 
 
 def cold_command(jobs: int, preset: str) -> dict:

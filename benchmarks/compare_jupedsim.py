@@ -161,10 +161,10 @@ def run_crowd_env(scenario, state, params):
 
 def run_jupedsim(scenario, state, model: str):
     """JuPedSim's ``model`` ("sfm" or "cfsm") on ``scenario`` with the pedestrians of ``state``, built by the
-    RiMEA suite's JuPedSim backend (:func:`crowd_env.experiments.rimea.jupedsim_backend.build_simulation`:
+    RiMEA suite's JuPedSim backend (:func:`crowd_env.experiments.validation.rimea.jupedsim_backend.build_simulation`:
     the walkable area united with the exit, one exit stage, the same positions, radii 1 µm thinner,
     desired speeds and, for the social force model, masses; JuPedSim's defaults otherwise)."""
-    from crowd_env.experiments.rimea.jupedsim_backend import build_simulation
+    from crowd_env.experiments.validation.rimea.jupedsim_backend import build_simulation
 
     setup = build_simulation(scenario, state, model, dt_s=0.01)
     sim, row_of, radius = setup.sim, setup.row_of, setup.radius_m

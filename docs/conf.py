@@ -27,7 +27,7 @@ source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 myst_enable_extensions = ["dollarmath", "colon_fence", "deflist"]
 myst_heading_anchors = 3
 exclude_patterns = ["_build", "Thumbs.db", ".DS_Store", "validation/rimea/rimea_results.md",  # included by validation/rimea.md
-                    "validation/benchmark/results.md"]  # included by validation/benchmark.md
+                    "validation/reference_results/results.md"]  # included by validation/reference_results.md
 
 autosummary_generate = True
 autodoc_default_options = {"members": True, "undoc-members": False, "show-inheritance": True}

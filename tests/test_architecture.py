@@ -46,3 +46,55 @@ def test_an_upward_import_breaks_a_contract(tmp_path, module, line, contract):
     assert out.returncode != 0, out.stdout
     broken = [ln for ln in out.stdout.splitlines() if ln.endswith("BROKEN")]
     assert any(contract in ln for ln in broken), out.stdout
+
+
+def _import_cycles(root: Path) -> list:
+    """The import cycles (strongly connected components of more than one module, lazy imports included) of
+    crowd_env and baselines as found under ``root``, each a sorted list of module names."""
+    script = r"""
+import json, sys
+import grimp
+sys.setrecursionlimit(100000)
+g = grimp.build_graph("crowd_env", "baselines", include_external_packages=False)
+edges = {m: sorted(g.find_modules_directly_imported_by(m)) for m in sorted(g.modules)}
+index, low, stack, on, cycles = {}, {}, [], set(), []
+def visit(v):
+    index[v] = low[v] = len(index); stack.append(v); on.add(v)
+    for w in edges[v]:
+        if w not in index:
+            visit(w); low[v] = min(low[v], low[w])
+        elif w in on:
+            low[v] = min(low[v], index[w])
+    if low[v] == index[v]:
+        comp = []
+        while True:
+            w = stack.pop(); on.discard(w); comp.append(w)
+            if w == v:
+                break
+        if len(comp) > 1:
+            cycles.append(sorted(comp))
+for v in edges:
+    if v not in index:
+        visit(v)
+print(json.dumps(cycles))
+"""
+    out = subprocess.run([sys.executable, "-c", script], cwd=root, capture_output=True, text=True,
+                         env={"PYTHONPATH": str(root), "PATH": "/usr/bin:/bin"})
+    assert out.returncode == 0, out.stderr
+    import json
+    return json.loads(out.stdout)
+
+
+def test_no_import_cycle_anywhere_in_the_repository():
+    pytest.importorskip("grimp")
+    assert _import_cycles(ROOT) == []
+
+
+def test_a_planted_lazy_import_cycle_is_found(tmp_path):
+    pytest.importorskip("grimp")
+    shutil.copytree(ROOT / "crowd_env", tmp_path / "crowd_env", ignore=shutil.ignore_patterns("__pycache__", "*.nb?"))
+    shutil.copytree(ROOT / "baselines", tmp_path / "baselines", ignore=shutil.ignore_patterns("__pycache__", "*.nb?"))
+    path = tmp_path / "baselines" / "policy.py"  # baselines.trained imports it; make it import trained back
+    path.write_text(path.read_text() + "\n\ndef _probe():\n    from . import trained  # noqa\n")
+    cycles = _import_cycles(tmp_path)
+    assert ["baselines.policy", "baselines.trained"] in cycles

@@ -1,9 +1,7 @@
 """Measurements on simulated (or experimental) trajectories: passages and specific flow (Eq. 22),
-density, lanes, calibration errors (Eq. 23-24), the Seyfried et al. (2009) reference, and trajectories in PedPy's
-formats. Measures only: it runs no simulation (that is :mod:`crowd_env.experiments`) and knows nothing of RL."""
-from .calibration import (CalibrationError, ExponentialFit, PointScore, RangeCheck, Valley, best_grid_point, epsilon_j,
-                          epsilon_total, fit_exponential_valley, in_range_check, point_error, relative_squared_errors,
-                          valley_of_minima)
+density, lanes, the Seyfried et al. (2009) reference, and trajectories in PedPy's
+formats. Measures only: it runs no simulation (that is :mod:`crowd_env.experiments`) and knows nothing of RL. The calibration's errors
+(Eq. 23-24) and objective live with the calibration, in :mod:`crowd_env.experiments.validation.calibration`."""
 from .density import (DensityError, as_polygon, density_in_area, density_time_series, force_balance_jam_density_per_m2,
                       hexagonal_density_per_m2, stationary_mean)
 from .experiment import (DIP_N20_WIDTH_M, GROUP_SIZES, PUBLISHED_SPECIFIC_FLOW_N60_PER_M_S, RESIDUAL_NORM_BY_GROUP,
@@ -15,9 +13,6 @@ from .recorder import RecorderError, TrajectoryRecorder
 from .trajectories import Trajectories, TrajectoryFormatError, export_run, read_geometry, write_geometry
 
 __all__ = [
-    "CalibrationError", "RangeCheck", "epsilon_j", "epsilon_total", "in_range_check", "relative_squared_errors",
-    "ExponentialFit", "PointScore", "Valley", "best_grid_point", "fit_exponential_valley", "point_error",
-    "valley_of_minima",
     "DensityError", "as_polygon", "density_in_area", "density_time_series", "force_balance_jam_density_per_m2",
     "hexagonal_density_per_m2", "stationary_mean",
     "DIP_N20_WIDTH_M", "GROUP_SIZES", "PUBLISHED_SPECIFIC_FLOW_N60_PER_M_S", "RESIDUAL_NORM_BY_GROUP",

@@ -35,7 +35,7 @@ def save_figure(fig, path):
 def bottleneck_figures(records: list, rows: list, out: Path) -> list:
     """Write Figs. 11-14 analogues into ``out``; returns the paths written.
 
-    ``rows``: :func:`crowd_env.experiments.bottleneck.summarise`, whose means are over complete runs
+    ``rows``: :func:`crowd_env.experiments.validation.bottleneck.summarise`, whose means are over complete runs
     only; a width with stalled or otherwise incomplete runs is labelled with their count in Fig. 11, and
     the discharge diagnostic uses complete runs only.
     """
@@ -225,7 +225,7 @@ def _save_diagram(fig, axes, path, title, legend_size):
 def fd_sweep_figure(summary: dict, path: Path, title: str | None = None):
     """The swept fundamental diagram beside the experiments: corridor speed and specific flow against ρ (1/m²)
     with the Jülich bins and Weidmann's curve, single-file speed against ρ (1/m) with Seyfried's bins and their
-    headway fit. ``summary``: :func:`~crowd_env.experiments.fundamental_diagram.summarise_fd`. Returns the path."""
+    headway fit. ``summary``: :func:`~crowd_env.experiments.validation.fundamental_diagram.summarise_fd`. Returns the path."""
     from .fd_reference import SINGLE_FILE_HEADWAY_FIT, juelich_corridor, single_file, weidmann_speed_m_s
     plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(13.0, 3.8))

@@ -4,7 +4,7 @@ Interoperability with PedPy (https://pedpy.readthedocs.io), the Jülich analysis
 
 - :class:`Trajectories` holds long-format rows (frame, id, x, y, heading) at a constant frame rate
   (PedPy's time is ``frame / frame_rate``), e.g. every k-th step of h (25 fps = every 4th step of
-  h = 0.01 s, :func:`steps_per_frame`); :func:`crowd_env.experiments.recording.record_run` records one
+  h = 0.01 s, :func:`steps_per_frame`); :func:`crowd_env.experiments.running.recording.record_run` records one
   from a run of the runner;
 - :meth:`Trajectories.write_txt` writes the whitespace text format that
   ``pedpy.load_trajectory_from_txt`` reads (``#framerate: 25.0`` header, columns

@@ -10,7 +10,7 @@ speed_mean, speed_std and the vision rule's vision_time_gap_s, vision_jam_gap_m,
 vision_body_scale, with the same seeds for every candidate; writes ``optimise/optimum.json``. ``--objective
 targets+fd`` scores every point on the bottleneck's targets and the fundamental diagram at once (the periodic
 corridor's speeds at the Jülich bins, monotone in density, the single file's speeds and headway fit;
-crowd_env.analysis.targets), running the density sweep's runs beside the bottleneck's on the same executor.
+crowd_env.experiments.validation.calibration.objective), running the density sweep's runs beside the bottleneck's on the same executor.
 ``targets``: every preset against every target of the experiment (``targets.json``); ``--fd`` adds each
 preset's fundamental-diagram sweep and its rows (the corridor's speeds at the Jülich bins, flow peak and
 monotone speed, the single file's speeds and headway fit) and terms, the ``--fd-*`` options setting its runs.
@@ -38,22 +38,22 @@ import csv
 import sys
 from pathlib import Path
 
-from ..analysis.calibration import PAPER_VALLEY_FIT, CalibrationError, check_grid_values, grid_axis
+from ..experiments.validation.calibration.errors import PAPER_VALLEY_FIT, CalibrationError, check_grid_values, grid_axis
 from ..analysis.experiment import ExperimentError, ExperimentTable
-from ..analysis.targets import TargetWeights, required_cases
+from ..experiments.validation.calibration.objective import TargetWeights, required_cases
 from ..core.params import ParameterError
 from ..core.presets import DEFAULT_PRESET, PRESETS
-from ..experiments.backends import make_backend
-from ..experiments.bottleneck import check_setups
-from ..experiments.calibration import (FREE_PARAMETERS, analyse_surface, base_config, evaluate_grid, optimise,
+from ..experiments.running.backends import make_backend
+from ..experiments.validation.bottleneck import check_setups
+from ..experiments.validation.calibration import (FREE_PARAMETERS, analyse_surface, base_config, evaluate_grid, optimise,
                                        write_grid_outputs)
-from ..experiments.calibration.grid import check_run_plan
-from ..experiments.calibration.landscape import entry_failed, landscape, write_landscape
-from ..experiments.calibration.optimize import PointEvaluator
-from ..experiments.calibration.targets import preset_targets, write_targets
-from ..experiments.calibration.tasks import FDPlan
-from ..experiments.fundamental_diagram import CORRIDOR_DENSITIES, SINGLE_FILE_DENSITIES
-from ..experiments.store import RunStore
+from ..experiments.validation.calibration.grid import check_run_plan
+from ..experiments.validation.calibration.landscape import entry_failed, landscape, write_landscape
+from ..experiments.validation.calibration.optimize import PointEvaluator
+from ..experiments.validation.calibration.preset_targets import preset_targets, write_targets
+from ..experiments.validation.calibration.tasks import FDPlan
+from ..experiments.validation.fundamental_diagram import CORRIDOR_DENSITIES, SINGLE_FILE_DENSITIES
+from ..experiments.running.store import RunStore
 from .options import add_geometry_arguments, config_of, model_params_from_args
 
 
@@ -65,7 +65,7 @@ def _name_value(text: str, what: str):
 
 
 OBJECTIVE_HELP = ("'epsilon': ε_T of Eq. 24 (+ --range-weight), the paper's; 'targets': every figure the experiment "
-                  "measured (crowd_env.analysis.targets: N = 60 flows, N = 20/40 range and order, speed and "
+                  "measured (crowd_env.experiments.validation.calibration.objective: N = 60 flows, N = 20/40 range and order, speed and "
                   "densities, capacity N = 120 vs 60), on N = 20, 40, 60 at --widths and N = 120 at 1.0 and 1.2 m "
                   "(--sizes is then unused); 'targets+fd': those and the fundamental diagram (periodic corridor "
                   "speeds at the Jülich bins and monotone, single-file speeds and headway fit), its runs set by the "
@@ -229,7 +229,7 @@ def _seeds(args) -> list:
 
 
 def run_landscape(args) -> int:
-    """``crowd-calibrate landscape``: :func:`crowd_env.experiments.calibration.landscape.landscape` and its outputs."""
+    """``crowd-calibrate landscape``: :func:`crowd_env.experiments.validation.calibration.landscape.landscape` and its outputs."""
     params = model_params_from_args(args)
     cfg = config_of(args, params)
     config = base_config(cfg["geometry"], params, cfg["max_time_s"])
@@ -250,8 +250,8 @@ def run_landscape(args) -> int:
 
 
 def run_targets(args) -> int:
-    """``crowd-calibrate targets``: the target table of each preset, side by side (crowd_env.analysis.targets);
-    ``--fd``: with the fundamental diagram's rows and terms (:func:`crowd_env.analysis.targets.fd_table`)."""
+    """``crowd-calibrate targets``: the target table of each preset, side by side (crowd_env.experiments.validation.calibration.objective);
+    ``--fd``: with the fundamental diagram's rows and terms (:func:`crowd_env.experiments.validation.calibration.objective.fd_table`)."""
     seeds = _seeds(args)
     widths, _, seeds = check_run_plan(args.widths, [60], seeds)
     required_cases(widths)  # capacity widths among --widths, or a clear error
@@ -273,7 +273,7 @@ def run_targets(args) -> int:
     for k, row in enumerate(next(iter(tables.values()))):
         cells = "".join(f"  {('ok  ' if t[k]['passed'] else 'MISS') + ' ' + t[k]['figure']:<34}" for t in tables.values())
         print(f"{row['target']:<{width}}  {row['criterion']:<22}{cells}")
-    print("objective (crowd_env.analysis.targets, lower is better): "
+    print("objective (crowd_env.experiments.validation.calibration.objective, lower is better): "
           + ", ".join(f"{n} {e.objective:.4f}" + (" (failed: incomplete runs)" if e.failed else "")
                       for n, e in scores.items()))
     out = write_targets(args.out / "targets.json", seeds, widths, tables, scores, fd_plan=fd_plan)

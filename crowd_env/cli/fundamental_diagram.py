@@ -7,7 +7,7 @@ PedPy computes the classic density and the mean individual speed per frame; J_s 
 ``OUT/fundamental_diagram.csv`` (one row per area and occupied frame) and ``OUT/fundamental_diagram.png``.
 
 With ``--sweep`` it instead sweeps density in the periodic corridor (1.8 m, the Jülich experiment's width) and
-the single-file ring (:mod:`crowd_env.experiments.fundamental_diagram`), prints each density's mean speed beside
+the single-file ring (:mod:`crowd_env.experiments.validation.fundamental_diagram`), prints each density's mean speed beside
 the experiment's, the single file's headway fit d = a + b v, and writes ``OUT/fd_sweep.csv``, ``OUT/fd_sweep.json``
 and ``OUT/fd_sweep.png`` (beside the Jülich corridor bins, Seyfried's single file and Weidmann's curve). Runs are
 kept under ``OUT/runs``: a stopped sweep resumes.
@@ -42,12 +42,13 @@ from ..analysis.trajectories import (DEFAULT_FRAME_RATE_PER_S, Trajectories, Tra
                                      fundamental_diagram_data, pedpy_measurement_area, read_geometry)
 from ..core.params import ParameterError
 from ..core.presets import DEFAULT_PRESET, PRESETS, get_preset
-from ..experiments.backends import execute, make_backend
-from ..experiments.bottleneck import params_dict
-from ..experiments.fundamental_diagram import (CORRIDOR_DENSITIES, SETUPS, SINGLE_FILE_DENSITIES, door_and_corridor,
+from ..experiments.running.backends import execute, make_backend
+from ..experiments.validation.bottleneck import params_dict
+from ..experiments.validation.fundamental_diagram import (CORRIDOR_DENSITIES, SETUPS, SINGLE_FILE_DENSITIES, door_and_corridor,
                                                fd_tasks, run_fd_one, summarise_fd)
-from ..experiments.recording import record_bottleneck_run
-from ..experiments.store import RunStore, write_atomic, write_csv_atomic, write_json_atomic
+from ..experiments.running.recording import record_bottleneck_run
+from ..experiments.running.store import RunStore
+from crowd_env.files import write_atomic, write_csv_atomic, write_json_atomic
 from .options import key_values
 
 CSV_COLUMNS = ["area", "frame", "time_s", "density_per_m2", "speed_m_s", "specific_flow_per_m_s"]

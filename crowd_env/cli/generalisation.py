@@ -2,7 +2,7 @@
 
 Runs a preset (``--preset``, default: the reproduction's default preset) on a grid of corridor widths,
 channel lengths, bottleneck widths b and group sizes N, through the reproduction's own run function
-and run store (:mod:`crowd_env.experiments.generalisation`): nothing is tuned, the model parameters
+and run store (:mod:`crowd_env.experiments.validation.generalisation`): nothing is tuned, the model parameters
 are the preset's. The geometry is Seyfried's otherwise (holding sections of
 1.515 m at 3.3 /m², the nearest 2.24 m upstream; the corridor is made as long as the N pedestrians need;
 measurement line in the middle of the channel; a 2 m outflow). Each geometry is one configuration and
@@ -37,11 +37,11 @@ import numpy as np
 
 from ..core.params import ParameterError
 from ..core.presets import DEFAULT_PRESET, PRESETS
-from ..experiments.bottleneck import flow_fit, summarise
-from ..experiments.generalisation import (DEFAULT_CHANNEL_LENGTHS_M, DEFAULT_CORRIDOR_WIDTHS_M, DEFAULT_SEEDS,
+from ..experiments.validation.bottleneck import flow_fit, summarise
+from ..experiments.validation.generalisation import (DEFAULT_CHANNEL_LENGTHS_M, DEFAULT_CORRIDOR_WIDTHS_M, DEFAULT_SEEDS,
                                           DEFAULT_SIZES, DEFAULT_WIDTHS_M, QUICK, GeneralisationError, figure,
                                           geometry_folder, run_counts, run_generalisation, write_csv)
-from ..experiments.store import RunStoreError
+from ..experiments.running.store import RunStoreError
 
 
 def build_parser() -> argparse.ArgumentParser:

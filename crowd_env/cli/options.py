@@ -11,8 +11,8 @@ import os
 from ..core.params import ModelParams
 from ..errors import OptionError
 from ..core.presets import DEFAULT_PRESET, get_preset
-from ..experiments.bottleneck import GEOMETRY_OPTIONS, bottleneck_config, model_params
-from ..experiments.evaluation import DEFAULT_POLICY_RESOLVER
+from ..experiments.validation.bottleneck import GEOMETRY_OPTIONS, bottleneck_config, model_params
+from ..experiments.training.evaluation import DEFAULT_POLICY_RESOLVER
 
 __all__ = ["add_geometry_arguments", "model_params_from_args", "navigation_clearance_from_args", "config_of",
            "DEFAULT_POLICY_RESOLVER", "key_values", "policy_env_options", "MODEL_ENV_KEYS"]
@@ -96,7 +96,7 @@ def navigation_clearance_from_args(args) -> float:
 
 def config_of(args, params: ModelParams) -> dict:
     """The configuration of the runs the flags describe
-    (:func:`~crowd_env.experiments.bottleneck.bottleneck_config`)."""
+    (:func:`~crowd_env.experiments.validation.bottleneck.bottleneck_config`)."""
     return bottleneck_config(params, navigation_clearance_m=navigation_clearance_from_args(args),
                              max_time_s=args.max_time,
                              navigation_wall_slowdown=getattr(args, "navigation_wall_slowdown", None),

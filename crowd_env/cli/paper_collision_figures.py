@@ -1,13 +1,13 @@
 """Reproduce the collision calibration of Kabalan et al. (2016), Section 3 (Figs. 5-7).
 
 Usage: ``crowd-collision-figures --out DIR`` writes PNGs and prints the numbers
-(:mod:`crowd_env.experiments.collision`).
+(:mod:`crowd_env.experiments.validation.collision`).
 """
 from __future__ import annotations
 
 import argparse
 
-from crowd_env.experiments.collision import make_figures
+from ..experiments.validation.collision import make_figures
 
 
 def main(argv=None) -> int:

@@ -16,7 +16,7 @@ Example::
 
     crowd-bottleneck --widths 0.8 1.0 --sizes 60 --seeds 10 --out out/bottleneck
 
-The pipeline is :mod:`crowd_env.experiments.bottleneck`; this module parses the flags and prints.
+The pipeline is :mod:`crowd_env.experiments.validation.bottleneck`; this module parses the flags and prints.
 """
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.calibration import in_range_check
+from ..experiments.validation.calibration.errors import in_range_check
 from ..analysis.density import force_balance_jam_density_per_m2, hexagonal_density_per_m2
 from ..analysis.experiment import (FRONT_DENSITY_RANGE_PER_M2, INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RANGE_M_S,
                                    RESIDUAL_NORM_BY_GROUP, SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S)
@@ -36,9 +36,9 @@ from ..analysis.trajectories import DEFAULT_FRAME_RATE_PER_S, TrajectoryFormatEr
 from ..core.params import ParameterError, PedestrianDefaults
 from ..errors import OptionError
 from ..core.presets import DEFAULT_PRESET, PRESETS
-from ..experiments.bottleneck import (SetupError, check_setups, flow_fit, run_sweep, summarise, write_results,
+from ..experiments.validation.bottleneck import (SetupError, check_setups, flow_fit, run_sweep, summarise, write_results,
                                       write_summary)
-from ..experiments.store import RunStore, RunStoreError
+from ..experiments.running.store import RunStore, RunStoreError
 from .options import add_geometry_arguments, config_of, model_params_from_args
 
 # Configurations of the model and the navigation, the base that explicit flags override: see

@@ -39,8 +39,8 @@ def main(argv=None) -> int:
     ap.add_argument("--docs", action="store_true",
                     help="also write rimea_results.md beside the figures (the documentation's page: --out docs/validation/rimea)")
     args = ap.parse_args(argv)
-    from ..experiments.rimea import format_table, run_suite
-    from ..experiments.rimea.suite import write_markdown
+    from ..experiments.validation.rimea import format_table, run_suite
+    from ..experiments.validation.rimea.suite import write_markdown
 
     try:
         results = run_suite(args.tests, quick=args.quick, jupedsim=args.jupedsim, seed=args.seed, out_dir=args.out,

@@ -1,6 +1,6 @@
 """Soak test: many agent-steps over every registered scenario with random and adversarial actions.
 
-Every registered scenario (aliases once; :func:`crowd_env.experiments.soak.distinct_scenarios`) runs through
+Every registered scenario (aliases once; :func:`crowd_env.experiments.validation.soak.distinct_scenarios`) runs through
 the PettingZoo parallel environment with every pedestrian controlled (even episodes) or half of them
 (odd episodes; the others follow the calibrated baseline), under each action mode:
 
@@ -9,17 +9,17 @@ the PettingZoo parallel environment with every pedestrian controlled (even episo
 - ``toward_wall``: every learner pushes at maximum intent toward the nearest wall.
 
 Scenarios whose factory requires options (the user polygon) get them from ``--scenario-options`` or
-``crowd_env.experiments.soak.EXAMPLE_OPTIONS``; any still missing is skipped and listed.
+``crowd_env.experiments.validation.soak.EXAMPLE_OPTIONS``; any still missing is skipped and listed.
 
-Then the high-pressure phase (:func:`crowd_env.experiments.soak.pressure_soak`, ``--pressure-agent-steps``,
+Then the high-pressure phase (:func:`crowd_env.experiments.validation.soak.pressure_soak`, ``--pressure-agent-steps``,
 by default as many as ``--agent-steps``; 0 skips it): hundreds of pedestrians on the calibrated baseline
-agent pressing into a door, :data:`crowd_env.experiments.soak.PRESSURE_CASES`: a widened Seyfried bottleneck
+agent pressing into a door, :data:`crowd_env.experiments.validation.soak.PRESSURE_CASES`: a widened Seyfried bottleneck
 (corridor 7 m, channel 4 m; N = 220 at b = 1.0 m with the ``paper`` preset, N = 250 at b = 0.9 m with
 desired speeds doubled) and a room packed at 3 /m² (N = 300, 1.0 m door, ``paper``; N = 400, 0.8 m door,
 doubled speeds), episodes of 20 s with seeds ``--seed``, ``--seed`` + 1, ... It prints the largest
 impact cluster and the largest group of pedestrians joined by contacts that carried a percussion.
 
-After every simulator step :class:`crowd_env.experiments.soak.InvariantChecker` checks overlaps (pairs and
+After every simulator step :class:`crowd_env.experiments.validation.soak.InvariantChecker` checks overlaps (pairs and
 walls, tolerance 1e-3 m), centres inside the walkable area, kinetic energy across the impact and the
 projection stages, and finite state. Memory (RSS, and tracemalloc with ``--tracemalloc``) is sampled
 at every episode end; the growth after the first quarter of the run, fitted by least squares, must stay
@@ -38,7 +38,7 @@ import argparse
 import json
 import sys
 
-from ..experiments.soak import DEFAULT_AGENT_STEPS, PRESSURE_CASES, SoakError, soak
+from ..experiments.validation.soak import DEFAULT_AGENT_STEPS, PRESSURE_CASES, SoakError, soak
 
 
 def format_summary(r: dict) -> str:

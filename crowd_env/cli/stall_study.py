@@ -31,7 +31,7 @@ import sys
 from pathlib import Path
 
 from ..core.presets import get_preset
-from ..experiments.stall_study import figure, run_jobs, stall_jobs
+from ..experiments.validation.stall_study import figure, run_jobs, stall_jobs
 from .options import key_values
 
 

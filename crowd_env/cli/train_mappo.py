@@ -4,7 +4,7 @@ TorchRL's PettingZoo wrapper puts every agent in one group, with masks for the p
 left (they are never trained on); the policy network is shared by all agents. The two algorithms
 differ in the critic only: ``mappo`` (default) gives it the agent's observation and the environment's
 global state ``env.state()`` (centralised training, decentralised execution), ``ippo`` the agent's
-own observation (:mod:`crowd_env.experiments.marl`).
+own observation (:mod:`crowd_env.experiments.training.marl`).
 
 Each iteration collects ``--frames-per-batch`` environment steps (every step holds one transition per
 live agent) and prints, and appends to ``progress.csv``: the mean per-agent return and the length of
@@ -13,7 +13,7 @@ the trained policy (deterministic) and the uniform random policy run on the same
 through the evaluation harness; ``summary.json`` holds both mean per-agent episode returns.
 
 Outputs in ``--out``: ``progress.csv``, ``policy.pt`` (the policy's weights and shapes; reload it with
-``crowd_env.experiments.marl.load_policy(out)``, a policy of the evaluation harness),
+``crowd_env.experiments.training.marl.load_policy(out)``, a policy of the evaluation harness),
 ``env_config.json``, ``summary.json`` and ``checkpoints/`` (every ``--checkpoint-every`` iterations and at
 the end: networks, optimiser and progress, ``index.json`` written last). A run stopped midway continues
 with ``--resume`` up to ``--frames`` in all; without it a folder holding checkpoints is refused, and so is
@@ -34,7 +34,7 @@ import importlib.util
 import sys
 
 from ..errors import MissingDependencyError, TrainingError
-from ..experiments.marl import ALGORITHMS, DEFAULT_PPO, train
+from ..experiments.training.marl import ALGORITHMS, DEFAULT_PPO, train
 from .train_options import add_env_arguments, add_evaluation_arguments, env_config_and_resolver
 
 

@@ -4,8 +4,8 @@
 from __future__ import annotations
 
 from ..errors import OptionError
-from ..experiments.evaluation import import_object
-from ..experiments.training import DEFAULT_SCENARIO_OPTIONS
+from ..experiments.training.evaluation import import_object
+from ..experiments.training.ppo import DEFAULT_SCENARIO_OPTIONS
 from .options import DEFAULT_POLICY_RESOLVER, key_values
 
 __all__ = ["add_env_arguments", "add_evaluation_arguments", "env_config_from_args", "env_config_and_resolver"]

@@ -3,7 +3,7 @@
 Every controlled pedestrian of ``--copies`` environment copies is one slot of the native vector
 environment (``--vectoriser native``, default: :mod:`crowd_env.envs.vector`; agents that leave are
 padding until their copy resets), so every pedestrian's experience trains the same network
-(:mod:`crowd_env.experiments.training`). ``--vectoriser supersuit`` uses SuperSuit's
+(:mod:`crowd_env.experiments.training.ppo`). ``--vectoriser supersuit`` uses SuperSuit's
 ``black_death_v3`` → ``pettingzoo_env_to_vec_env_v1`` → ``concat_vec_envs_v1`` chain instead.
 
 Outputs in ``--out``: ``model.zip`` (load with ``stable_baselines3.PPO.load`` or evaluate with
@@ -39,7 +39,7 @@ import importlib.util
 import sys
 
 from ..errors import EnvOptionError
-from ..experiments.training import VECTORISERS, TrainingError, train
+from ..experiments.training.ppo import VECTORISERS, TrainingError, train
 from .train_options import add_env_arguments, add_evaluation_arguments, env_config_and_resolver
 
 

@@ -5,7 +5,7 @@ module ``"shared"`` (RLlib's new API stack; pedestrians that leave end their own
 Without ``--address`` Ray starts locally on ``--num-cpus`` cores (default ``--num-env-runners`` + 1);
 with ``--address host:port`` (or ``ray://host:port``, or ``auto``) the same code joins a running cluster,
 where ``--num-env-runners`` EnvRunners sample in parallel (every node needs crowd_env installed). An
-unreachable address is refused within ``--connect-timeout`` seconds (:mod:`crowd_env.experiments.rllib`).
+unreachable address is refused within ``--connect-timeout`` seconds (:mod:`crowd_env.experiments.training.rllib`).
 
 Each iteration (``--train-batch-size`` environment steps) prints, and appends to ``progress.csv``: the
 mean per-agent episode return and episode length (RLlib's running means over recent episodes), the
@@ -14,7 +14,7 @@ policy, value and total losses, the entropy and the wall time. At the end the tr
 harness; ``summary.json`` holds both mean per-agent episode returns.
 
 Outputs in ``--out``: ``progress.csv``, ``policy/`` + ``policy.json`` (the RLModule; reload it with
-``crowd_env.experiments.rllib.load_policy(out)``), ``env_config.json``, ``summary.json`` and
+``crowd_env.experiments.training.rllib.load_policy(out)``), ``env_config.json``, ``summary.json`` and
 ``checkpoints/`` (RLlib algorithm checkpoints every ``--checkpoint-every`` iterations and at the end,
 ``index.json`` written last). ``--resume`` continues from the latest checkpoint up to ``--timesteps`` in
 all; without it a folder holding checkpoints is refused, and so is resuming with other environment options.
@@ -32,7 +32,7 @@ import importlib.util
 import sys
 
 from ..errors import BackendError, MissingDependencyError, TrainingError
-from ..experiments.rllib import DEFAULT_PPO, train
+from ..experiments.training.rllib import DEFAULT_PPO, train
 from .train_options import add_env_arguments, add_evaluation_arguments, env_config_and_resolver
 
 

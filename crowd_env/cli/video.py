@@ -30,7 +30,7 @@ import os
 import sys
 
 from ..errors import CrowdEnvError
-from ..experiments.video import record_rollout, record_trajectory_file
+from ..experiments.output.video import record_rollout, record_trajectory_file
 from .options import DEFAULT_POLICY_RESOLVER, key_values, policy_env_options
 
 

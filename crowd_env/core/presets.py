@@ -8,7 +8,7 @@ the generalisation command and the RL environment take their model from :data:`D
 unless told otherwise; ``ModelParams()`` itself stays the paper's literal parameter set.
 
 - ``calibrated`` (default): calibrated against every figure the Seyfried et al. (2009) experiment
-  measured at once (:mod:`crowd_env.analysis.targets`: the N = 60 flows, N = 20/40, the stationary
+  measured at once (:mod:`crowd_env.experiments.validation.calibration.objective`: the N = 60 flows, N = 20/40, the stationary
   speed and densities, the capacity criterion N = 120 vs 60), ``crowd-calibrate optimize --objective
   targets --preset recalibrated --free A B lambda``. Eq. 16 with the anisotropy λ inside the
   paper's range 0 < λ < 1, between pedestrians only (walls act through the Frémond contacts alone,

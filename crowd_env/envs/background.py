@@ -27,8 +27,8 @@ when they are agents acting with it (``tests/envs/test_background.py``).
 **Names.** ``background_policy`` may also be a name or a path: ``"calibrated"`` (alias ``"baseline"``,
 the default) or anything a loader registered under the ``crowd_env_background_policies`` entry-point
 group accepts. The project's ``baselines`` package registers :func:`baselines.trained.background_policy`,
-which takes the name of a shipped trained policy (``baselines.trained.list_trained()``) or a policy file
-(``.npz``). crowd_env itself never imports ``baselines`` (the layer contract): it finds the loader
+which takes the name of a shipped trained policy (``baselines.trained.list_trained()``). A policy file
+(``.npz``) loads without any plugin (:class:`FileObservationPolicy`). crowd_env itself never imports ``baselines`` (the layer contract): it finds the loader
 through the package metadata, as Gymnasium finds environment plugins.
 """
 from __future__ import annotations
@@ -43,6 +43,7 @@ from crowd_env.errors import EnvOptionError, PolicyError
 from ..core.angles import direction_angles_rad
 from ..walking.agent import desired_direction
 from .observations import ObservationBuilder, to_world_frame
+from .policy_files import load_policy_file
 
 __all__ = ["ObservingBackground", "OBSERVATION_POLICY_OPTIONS", "CALIBRATED_NAMES", "ENTRY_POINT_GROUP",
            "is_observation_policy", "load_named_background"]
@@ -59,14 +60,39 @@ def is_observation_policy(policy) -> bool:
     return callable(getattr(policy, "actions", None)) and isinstance(getattr(policy, "env_overrides", None), dict)
 
 
+class FileObservationPolicy:
+    """A policy file (``.npz``, :mod:`crowd_env.envs.policy_files`) as an observation policy: batched
+    :meth:`actions`, the ``env_overrides`` of its training (the :data:`OBSERVATION_POLICY_OPTIONS` its
+    ``env_config`` names) and ``obs_dim``. The environment loads a file given as ``background_policy`` with it,
+    without any plugin; :class:`baselines.trained.FilePolicy` adds the agent interface on top."""
+
+    def __init__(self, path, name: str | None = None):
+        self.path = os.fspath(path)
+        self.file = load_policy_file(self.path)
+        self.name = name or os.path.splitext(os.path.basename(self.path))[0]
+        cfg = self.file.env_config  # the options its observation layout, decision interval and action depend on
+        self.env_overrides = {k: cfg[k] for k in OBSERVATION_POLICY_OPTIONS if k in cfg}
+
+    @property
+    def obs_dim(self) -> int:
+        """The size of the observations it acts on."""
+        return self.file.obs_dim
+
+    def actions(self, observations) -> np.ndarray:
+        """Batched actions (n, 2) for observations (n, D), as the vector environments take them."""
+        return self.file.actions(observations)
+
+
 def load_named_background(spec):
     """The background policy named ``spec`` (a string or path): None for :data:`CALIBRATED_NAMES` (the
-    environment's default), else what the first loader of the :data:`ENTRY_POINT_GROUP` entry points that
+    environment's default), a :class:`FileObservationPolicy` for a policy file (``.npz``), else what the first loader of the :data:`ENTRY_POINT_GROUP` entry points that
     accepts it returns. A loader raises ``LookupError`` or ``ValueError`` for a name it does not know;
     :class:`~crowd_env.errors.EnvOptionError` gathers their messages when none knows it."""
     name = os.fspath(spec)
     if name in CALIBRATED_NAMES:
         return None
+    if name.endswith(".npz"):
+        return FileObservationPolicy(name)
     reasons = []
     for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name):
         try:

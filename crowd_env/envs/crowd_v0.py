@@ -3,7 +3,7 @@
 Use :func:`parallel_env` (a :class:`pettingzoo.ParallelEnv`) or :func:`env` (the AEC version, through
 PettingZoo's ``parallel_to_aec`` converter, which adds the order-enforcing wrapper)::
 
-    from crowd_env.envs import crowd_v0
+    from . import crowd_v0
     env = crowd_v0.parallel_env(scenario="seyfried_bottleneck",
                                 scenario_options={"width_m": 1.0, "n_pedestrians": 20},
                                 controlled="all", frame_skip=10)

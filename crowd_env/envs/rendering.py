@@ -8,7 +8,7 @@ off-screen only, returning None as PettingZoo expects, instead of failing.
 
 One drawing function, :meth:`CrowdRenderer.draw_frame`, serves ``env.render()`` (through
 :meth:`CrowdRenderer.draw`, from the simulator's state) and the videos of
-:mod:`crowd_env.experiments.video` (from a rollout, or from a saved trajectory file):
+:mod:`crowd_env.experiments.output.video` (from a rollout, or from a saved trajectory file):
 
 - pedestrians are disks of their radius, learned (controlled) ones in :data:`CONTROLLED_COLOR` (blue),
   background ones in :data:`BACKGROUND_COLOR` (grey);

@@ -1,10 +1,15 @@
-"""The experiment layer: simulations run and measured the way the commands and tests need them.
+"""The experiment layer: simulations run and measured the way the commands and tests need them, by purpose.
 
-``runner`` runs a scenario to the end (or a stall) and measures it (Kabalan et al. 2016, Eq. 22);
-``bottleneck`` is the Seyfried bottleneck pipeline (Section 4: one run, a sweep, the summary) in the one
-task format; ``store`` the one run store and ``backends`` the one executor (Ray, process pool, serial)
-of the reproduction, the calibration and the generalisation; ``calibration`` fits the social force
-(Section 4.1.2, Eq. 23-25); ``recording`` records trajectories of a run; ``generalisation``, ``soak``,
-``stall_study``, ``evaluation`` (the harness that compares policies) and ``training`` (PPO) are the
-other pipelines. Commands (:mod:`crowd_env.cli`) call these; :mod:`crowd_env.analysis` only measures.
+- :mod:`~crowd_env.experiments.running`: running and storing runs: a scenario run to the end or a stall and
+  measured (Kabalan et al. 2016, Eq. 22), compiled rollouts, the run store, the one executor (Ray, a process
+  pool or serial), trajectory recording.
+- :mod:`~crowd_env.experiments.training`: RL training (PPO through Stable-Baselines3, MAPPO/IPPO through TorchRL,
+  PPO through RLlib, behaviour cloning), the evaluation harness that runs any policy, and the reference results
+  of learned policies against the calibrated model.
+- :mod:`~crowd_env.experiments.validation`: the model against experiments: the Seyfried bottleneck reproduction
+  (Section 4), the calibration (Section 4.1.2, Eq. 23-25, one home), the fundamental diagram, generalisation,
+  the RiMEA suite, the soak, the collision experiments (Section 3), the stall study.
+- :mod:`~crowd_env.experiments.output`: videos and the commands' tables.
+
+Commands (:mod:`crowd_env.cli`) call these; :mod:`crowd_env.analysis` only measures.
 """

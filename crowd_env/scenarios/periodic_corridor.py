@@ -14,7 +14,7 @@ a radius from the walls and from the seam (so nobody overlaps across it), at res
 A width below 4 r (e.g. 0.7 m with r = 0.23 m) leaves no room to pass: a single file, the straight ring of
 the single-file fundamental diagram (``width_m=0.7``). The measurements are
 :mod:`crowd_env.analysis.periodic` (global density, mean speed along each one's walking direction, specific
-flow, unwrapped trajectories); :func:`crowd_env.experiments.periodic.fundamental_diagram_point` runs one point.
+flow, unwrapped trajectories); :func:`crowd_env.experiments.validation.periodic.fundamental_diagram_point` runs one point.
 """
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 ::
 
-    from crowd_env.scenarios import make_scenario
+    from . import make_scenario
     sc = make_scenario("polygon",
                        walkable_area=[(0, 0), (8, 0), (8, 6), (0, 6)], holes=[[(4, 2.5), (5, 2.5), (5, 3.5), (4, 3.5)]],
                        exits=[[(8, 2.5), (8, 3.5)]],                   # a door segment in the wall x = 8

@@ -37,7 +37,7 @@ def test_the_first_stall_of_any_preset_is_drawn_beside_calibrated(tmp_path, monk
 
 
 def test_the_stall_figure_draws_any_preset(tmp_path):
-    from crowd_env.experiments.stall_study import figure
+    from crowd_env.experiments.validation.stall_study import figure
 
     stalled = _row({"preset": "vision", "seed": 6, "width_m": 0.8, "n": 20, "snapshot_s": 50.0}, True)
     other = _row({"preset": "calibrated", "seed": 6, "width_m": 0.8, "n": 20, "snapshot_s": 50.0}, False)

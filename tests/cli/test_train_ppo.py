@@ -1,8 +1,8 @@
 """crowd-train-ppo's command line (crowd_env.cli.train_ppo): it shows its progress while it trains. (The
-training itself: tests/experiments/test_training.py.)"""
+training itself: tests/experiments/training/test_ppo.py.)"""
 import pytest
 
-from crowd_env.experiments.training import progress_line
+from crowd_env.experiments.training.ppo import progress_line
 
 
 def test_the_command_prints_progress_while_it_trains(tmp_path, capsys):

@@ -1,4 +1,4 @@
-"""crowd-video's command line (crowd_env.cli.video); the videos themselves: tests/experiments/test_video.py."""
+"""crowd-video's command line (crowd_env.cli.video); the videos themselves: tests/experiments/output/test_video.py."""
 import pytest
 
 from crowd_env.cli.video import main

@@ -14,7 +14,7 @@ from baselines.trained import FilePolicy
 from crowd_env.envs import crowd_v0
 from crowd_env.envs.observations import observation_size
 from crowd_env.errors import EnvOptionError, EnvStateError, PolicyError
-from crowd_env.experiments.policy_files import MLPPolicyFile, save_policy_file
+from crowd_env.envs.policy_files import MLPPolicyFile, save_policy_file
 from crowd_env.scenarios import make_scenario
 
 SCENARIO = {"scenario": "seyfried_bottleneck", "scenario_options": {"width_m": 1.0, "n_pedestrians": 12}}
@@ -183,7 +183,7 @@ def test_a_shipped_clone_walks_a_crowd_out_as_its_background():
     policy there gives less than half of it)."""
     from baselines.reference_policies import as_policy
     from baselines.trained import list_trained
-    from crowd_env.experiments.evaluation import ScenarioSpec, run_episode
+    from crowd_env.experiments.training.evaluation import ScenarioSpec, run_episode
 
     assert "bottleneck_bc" in list_trained()
     spec = ScenarioSpec("seyfried_bottleneck", {"width_m": 1.0, "n_pedestrians": 20})

@@ -1,8 +1,8 @@
 """Shared helpers of the experiment tests: the reproduction's bottleneck geometry with the point field, and
 a calibration configuration on it."""
 from crowd_env.core.params import ModelParams
-from crowd_env.experiments.bottleneck import GEOMETRY_OPTIONS
-from crowd_env.experiments.calibration import base_config
+from crowd_env.experiments.validation.bottleneck import GEOMETRY_OPTIONS
+from crowd_env.experiments.validation.calibration import base_config
 
 
 def point_field_geometry():

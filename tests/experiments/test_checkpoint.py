@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from crowd_env.errors import InputError
-from crowd_env.experiments.recording import record_run
+from crowd_env.experiments.running.recording import record_run
 from crowd_env.experiments.runner import RunCheckpoint
 from crowd_env.scenarios import make_scenario
 from crowd_env.walking.agent import SocialForceAgent
@@ -91,7 +91,7 @@ def test_another_runs_checkpoint_is_not_resumed(tmp_path):
 def test_rimea_suite_keeps_checkpoints_beside_its_runs(tmp_path, monkeypatch):
     """The suite gives crowd_env's runs a checkpoint beside the kept run, keyed by the run's settings and
     resumed only with --resume."""
-    from crowd_env.experiments.rimea import suite
+    from crowd_env.experiments.validation.rimea import suite
 
     seen = []
 
@@ -109,6 +109,6 @@ def test_rimea_suite_keeps_checkpoints_beside_its_runs(tmp_path, monkeypatch):
 
 
 def _variants():
-    from crowd_env.experiments.rimea.base import select_tests
+    from crowd_env.experiments.validation.rimea.base import select_tests
 
     return select_tests(["1"])[0].scenarios(True, 0)

@@ -9,7 +9,7 @@ import pytest
 
 from crowd_env.core import ModelParams
 from crowd_env.core.presets import DEFAULT_PRESET, get_preset
-from crowd_env.experiments.recording import record_run
+from crowd_env.experiments.running.recording import record_run
 from crowd_env.experiments.runner import run_scenario
 from crowd_env.scenarios import make_scenario
 from crowd_env.walking.agent import SocialForceAgent

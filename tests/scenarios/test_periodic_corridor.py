@@ -48,7 +48,7 @@ def test_single_file_ring_keeps_its_order():
     """0.7 m wide (< 4 r): a straight ring of single file. 20 walkers on 20 m for 20 s with the calibrated
     agent: they walk (every one over 10 m) and nobody overtakes anybody: the cyclic order along x never changes."""
     from crowd_env.analysis.periodic import trajectory_frames, unwrap_x
-    from crowd_env.experiments.recording import record_run
+    from crowd_env.experiments.running.recording import record_run
 
     sc = make_scenario("periodic_corridor", width_m=0.7, n_pedestrians=20, seed=1)
     assert sc.metadata["single_file"]

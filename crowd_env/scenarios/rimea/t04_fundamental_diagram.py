@@ -7,7 +7,7 @@ crowd fills the whole corridor (back wall at x = 0, an open end across the full 
 ``length_m``) and the measuring areas sit far enough from both ends that what the ends do does not reach
 them during the measurement: the tail, which follows the crowd at most at the free speed (≤ 1.34 m/s ×
 70 s ≈ 94 m), and the front, where the crowd streams out and a release wave runs upstream (the
-``back_margin_m`` and ``front_margin_m`` options; docs in :mod:`crowd_env.experiments.rimea.t04_fundamental_diagram`).
+``back_margin_m`` and ``front_margin_m`` options; docs in :mod:`crowd_env.experiments.validation.rimea.t04_fundamental_diagram`).
 Desired speeds are equal for everybody ("as equal as possible", RiMEA), 1.34 m/s (Weidmann's free speed).
 """
 from __future__ import annotations

@@ -1,0 +1,233 @@
+"""Where runs execute: Ray (local on all cores or a running cluster), a process pool, or serially.
+
+One executor for every sweep of bottleneck runs (Kabalan et al. 2016, Section 4): the reproduction, the
+calibration and the generalisation. All backends expose ``imap_unordered(fn, tasks)`` yielding
+``(task, ok, result_or_error_text)`` as each run finishes, so the caller can save it at once;
+:func:`execute` does that into a :class:`~crowd_env.experiments.running.store.RunStore` with a tqdm bar (ETA).
+Ray: ``ray.init()`` starts a local instance on all cores (``num_cpus`` to limit it); with ``address``
+(``host:port`` of a head node, ``ray://host:port`` for Ray Client, or ``auto``) it joins a running
+cluster through the same code path. Cluster nodes need ``crowd_env`` installed (same version). An
+unreachable address fails within ``connect_timeout_s`` (Ray's own connect would retry for minutes).
+"""
+from __future__ import annotations
+
+from crowd_env.errors import BackendError
+
+import os
+import socket
+import sys
+import traceback
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+from ...core.checks import check_integer
+
+__all__ = ["BACKENDS", "BackendError", "SerialBackend", "ProcessBackend", "RayBackend", "check_reachable",
+           "make_backend", "execute", "run_all"]
+
+BACKENDS = ("ray", "process", "serial")
+
+
+def _error_text(exc: BaseException) -> str:
+    return "".join(traceback.format_exception_only(type(exc), exc)).strip()
+
+
+class SerialBackend:
+    """Runs in this process, one after another (tests, debugging)."""
+
+    n_workers = 1
+
+    def imap_unordered(self, fn, tasks):
+        for task in tasks:
+            try:
+                yield task, True, fn(task)
+            except Exception as exc:  # a failed run is reported, the sweep goes on
+                yield task, False, _error_text(exc)
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class ProcessBackend(SerialBackend):
+    """A local process pool of ``jobs`` workers."""
+
+    def __init__(self, jobs: int | None = None):
+        self.n_workers = int(jobs or os.cpu_count() or 1)
+        if self.n_workers < 1:
+            raise BackendError(f"jobs must be >= 1, got {jobs!r}")
+        self._pool = ProcessPoolExecutor(max_workers=self.n_workers)
+
+    def imap_unordered(self, fn, tasks):
+        tasks = list(tasks)
+        pending = {}
+        it = iter(tasks)
+        try:
+            for task in it:
+                pending[self._pool.submit(fn, task)] = task
+                if len(pending) >= 2 * self.n_workers:
+                    break
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    task = pending.pop(fut)
+                    exc = fut.exception()
+                    yield (task, False, _error_text(exc)) if exc else (task, True, fut.result())
+                    nxt = next(it, None)
+                    if nxt is not None:
+                        pending[self._pool.submit(fn, nxt)] = nxt
+        finally:
+            for fut in pending:
+                fut.cancel()
+
+    def close(self) -> None:
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+def check_reachable(address: str, timeout_s: float = 5.0) -> None:
+    """Fail fast when ``host:port`` (or ``ray://host:port``) accepts no TCP connection within ``timeout_s``."""
+    if address == "auto":
+        return
+    hostport = address.split("://", 1)[1] if "://" in address else address
+    host, sep, port = hostport.rpartition(":")
+    if not sep or not host or not port.isdigit():
+        raise BackendError(f"Ray address must be 'host:port', 'ray://host:port' or 'auto', got {address!r}")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s):
+            pass
+    except OSError as exc:
+        raise BackendError(f"cannot reach the Ray cluster at {address!r} within {timeout_s:g} s ({exc}); "
+                               f"is the head node running ('ray start --head') and the port open?") from None
+
+
+class RayBackend(SerialBackend):
+    """Ray tasks, one per run (``num_cpus=1`` each), at most ``2 × cluster CPUs`` in flight.
+
+    ``address=None``: local instance (``ray.init(num_cpus=num_cpus)``); otherwise joins that cluster.
+    Shuts Ray down on close only if it started it.
+    """
+
+    def __init__(self, address: str | None = None, num_cpus: int | None = None, connect_timeout_s: float = 5.0):
+        try:
+            import ray
+        except ImportError:
+            raise BackendError("the Ray backend needs ray: pip install 'crowd_env[distributed]' "
+                                   "(or use --backend process)") from None
+        self._ray = ray
+        self._started = False
+        if not ray.is_initialized():
+            kwargs = {"include_dashboard": False, "log_to_driver": False}
+            if address is None:
+                kwargs["num_cpus"] = num_cpus
+            else:
+                check_reachable(address, connect_timeout_s)
+                kwargs["address"] = address
+            try:
+                ray.init(**kwargs)
+            except (ConnectionError, RuntimeError, ValueError) as exc:
+                raise BackendError(f"cannot start or join Ray (address={address!r}): {exc}") from None
+            self._started = True
+        self.n_workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
+        self._remote = {}
+
+    def imap_unordered(self, fn, tasks):
+        ray = self._ray
+        if fn not in self._remote:
+            self._remote[fn] = ray.remote(num_cpus=1, max_retries=1)(fn)
+        remote = self._remote[fn]
+        it = iter(list(tasks))
+        pending = {}
+        try:
+            for task in it:
+                pending[remote.remote(task)] = task
+                if len(pending) >= 2 * self.n_workers:
+                    break
+            while pending:
+                done, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)  # timeout: Ctrl-C stays responsive
+                if not done:
+                    continue
+                ref = done[0]
+                task = pending.pop(ref)
+                try:
+                    yield task, True, ray.get(ref)
+                except ray.exceptions.RayError as exc:
+                    cause = getattr(exc, "cause", None)
+                    yield task, False, _error_text(cause if isinstance(cause, BaseException) else exc)
+                nxt = next(it, None)
+                if nxt is not None:
+                    pending[remote.remote(nxt)] = nxt
+        finally:
+            for ref in pending:
+                ray.cancel(ref, force=True)
+
+    def close(self) -> None:
+        if self._started and self._ray.is_initialized():
+            self._ray.shutdown()
+        self._started = False
+
+
+def make_backend(name: str = "ray", *, address: str | None = None, jobs: int | None = None,
+                 connect_timeout_s: float = 5.0):
+    """Backend by name: ``ray`` (default), ``process`` or ``serial``."""
+    if name not in BACKENDS:
+        raise BackendError(f"unknown backend {name!r}; choose one of {BACKENDS}")
+    if address is not None and name != "ray":
+        raise BackendError(f"--address needs the ray backend, not {name!r}")
+    if jobs is not None:
+        check_integer("jobs", jobs, error=BackendError, minimum=1, whole_floats=True)
+    if name == "ray":
+        return RayBackend(address, jobs, connect_timeout_s)
+    if name == "process":
+        return ProcessBackend(jobs)
+    return SerialBackend()
+
+
+def execute(tasks: list, store, backend, run_fn, desc: str = "runs", leave: bool = True) -> int:
+    """Run the tasks of ``tasks`` not yet in their store, saving each as it finishes; returns the number of
+    failures (logged to ``OUT/errors.jsonl``; they are retried by the next call).
+
+    ``store``: a :class:`~crowd_env.experiments.running.store.RunStore`, or ``store(task) -> RunStore`` when the
+    tasks go to several folders (one per configuration, e.g. per geometry).
+    """
+    from tqdm import tqdm
+
+    store_of = store if callable(store) else (lambda task: store)
+    todo = [store_of(t).prepare(t) for t in tasks if not store_of(t).done(t)]
+    # Largest groups first, so that the last runs to finish are short ones (load balance).
+    todo.sort(key=lambda t: -t["n_pedestrians"])
+    failures = 0
+    with tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc=desc, unit="run", file=sys.stderr,
+              leave=leave, dynamic_ncols=True) as bar:
+        for task, ok, value in backend.imap_unordered(run_fn, todo):
+            if ok:
+                store_of(task).save(task, value)
+            else:
+                failures += 1
+                store_of(task).log_error(task, value)
+                bar.set_postfix(failed=failures)
+            bar.update()
+    return failures
+
+
+def run_all(tasks: list, backend, run_fn) -> list:
+    """``run_fn`` of every task on ``backend``, the results in the order of ``tasks`` (for studies whose
+    runs are not stored one by one). A failed run raises :class:`BackendError` naming every failed task
+    and its error, after the others have finished."""
+    tasks = list(tasks)
+    slot = {id(t): i for i, t in enumerate(tasks)}
+    if len(slot) != len(tasks):
+        raise BackendError("run_all needs distinct task objects (the same object was passed twice)")
+    results = [None] * len(tasks)
+    failed = []
+    for task, ok, value in backend.imap_unordered(run_fn, tasks):
+        if ok:
+            results[slot[id(task)]] = value
+        else:
+            failed.append(f"{task!r}: {value}")
+    if failed:
+        raise BackendError(f"{len(failed)} of {len(tasks)} runs failed:\n" + "\n".join(failed))
+    return results

@@ -1,0 +1,512 @@
+"""Evaluation harness: run any policy through the same scenarios and seeds and report the same metrics.
+
+A policy is an object with ``act(env, observations) -> {agent: (2,) intent}`` and optionally
+``reset(env, seed)``, ``name`` and ``env_overrides`` (environment options it needs); the harness never
+imports one. Specs that are not policy objects are turned into policies by ``resolve(spec, name=...)``
+(e.g. ``baselines.reference_policies.as_policy``, which knows ``"baseline"``, ``"random"``, ``"zero"``,
+saved SB3 models and callables), or, without ``resolve``, from an import path ``"module:attribute"``
+(:func:`import_object`; a class or factory is called without arguments). This is how the shipped
+baselines and users' own policies are plugged in.
+
+Each episode runs the parallel environment (every pedestrian controlled by the policy by default)
+for at most ``max_time_s`` of simulated time, measuring at every simulator step (through the
+environment's ``substep_hooks``). When only some pedestrians are agents, the episode goes on after the
+last agent has left until the whole crowd has (``CrowdParallelEnv.step_background``), so that the crowd's
+measures below cover everybody whatever the agents did:
+
+- ``specific_flow_per_m_s`` J_s = N / (Δt b) at the scenario's measurement line (Kabalan Eq. 22;
+  NaN with fewer than two passages or no width in the scenario metadata, and NaN unless the episode is
+  ``complete``); the line is ``line``, by default "bottleneck" where the geometry has one, else its
+  first measurement line (e.g. "door" of ``room_pillar``, "middle" of ``corridor_bidirectional``), and
+  none (NaN) without lines; ``flow_per_s`` likewise;
+- ``complete``: nobody remains at the end (each pedestrian crossed the line or left; without a line:
+  left); ``partial_specific_flow_per_m_s`` / ``partial_flow_per_s``: Eq. 22 over the passages that
+  happened, for incomplete episodes too;
+- ``stalled`` / ``stall_time_s``: the runner's stall rule (:class:`crowd_env.experiments.runner.StallDetector`:
+  nobody crossed the line or left for 20 s while those remaining stood still, mean speed below
+  0.05 m/s) fired at that time. Unlike ``run_scenario`` the episode is not stopped there, so that every
+  policy's return covers the same horizon; ``stall_time_s`` is the first detection;
+- ``evacuation_time_s``: time of the last exit if everybody left, else NaN (``n_evacuated`` says
+  how many did);
+- ``mean_speed_m_s``: mean speed over pedestrians on the floor and simulator steps;
+- ``n_percussions`` and ``mean_percussion_kg_m_s``: number and mean size of the non-zero normal
+  contact percussions (pedestrian-pedestrian and pedestrian-wall; impacts and the sustained-contact
+  projection, each simulator step counted);
+- ``density_front_per_m2``: the classic density (pedestrians whose centre lies in the area, over its area)
+  in the geometry's measurement area "front" (the Seyfried bottleneck's area before the entrance; NaN
+  for geometries without one), averaged over the simulator steps between the first and the last passage
+  at the line (the window of J_s; NaN with fewer than two passages);
+- ``min_gap_m``: smallest gap between two pedestrians or a pedestrian and a wall (negative = overlap);
+- ``mean_return``: mean over agents of the summed environment reward.
+"""
+from __future__ import annotations
+
+from crowd_env.errors import PolicyError
+
+import csv
+import importlib
+import json
+import math
+import os
+import time
+from dataclasses import asdict, dataclass, field, fields
+
+import numpy as np
+import shapely
+from scipy.spatial import cKDTree
+
+from ...analysis.flow import MeasurementLine, PassageCounter, specific_flow
+from ...core.params import ModelParams
+from ...envs.crowd_v0 import CrowdParallelEnv, decisions_for_time
+from ..output import tables
+from ..runner import StallDetector
+
+__all__ = ["DEFAULT_POLICY_RESOLVER", "EpisodeMetrics", "ScenarioSpec", "import_object", "resolve_policy", "run_episode", "evaluate", "summarize",
+           "format_table", "write_csv", "plot_results", "METRICS", "ENV_CONFIG_FILE", "recorded_env_config",
+           "episode_setup", "describe_setup", "confidence_interval", "format_intervals"]
+
+# Names and saved models are turned into policies by the shipped baselines, reached by import path so that
+# crowd_env never imports baselines.
+DEFAULT_POLICY_RESOLVER = "baselines.reference_policies:as_policy"
+METRICS = (
+    ("specific_flow_per_m_s", "J_s (1/m/s)"),
+    ("evacuation_time_s", "evac. time (s)"),
+    ("mean_speed_m_s", "mean speed (m/s)"),
+    ("n_percussions", "# percussions"),
+    ("mean_percussion_kg_m_s", "mean perc. (kg m/s)"),
+    ("density_front_per_m2", "density front (1/m²)"),
+    ("min_gap_m", "min gap (m)"),
+    ("mean_return", "mean return"),
+)
+
+
+@dataclass
+class EpisodeMetrics:
+    policy: str
+    scenario: str
+    seed: int
+    n_pedestrians: int
+    n_evacuated: int
+    simulated_time_s: float
+    evacuation_time_s: float
+    specific_flow_per_m_s: float
+    flow_per_s: float
+    mean_speed_m_s: float
+    n_percussions: int
+    mean_percussion_kg_m_s: float
+    min_gap_m: float
+    mean_return: float
+    wall_time_s: float
+    complete: bool = True
+    stalled: bool = False
+    stall_time_s: float = field(default=float("nan"), compare=False)  # nan unless stalled (nan != nan)
+    partial_specific_flow_per_m_s: float = float("nan")
+    partial_flow_per_s: float = float("nan")
+    density_front_per_m2: float = float("nan")
+
+
+@dataclass
+class ScenarioSpec:
+    """A scenario to evaluate on: a registered name (+ options) or a Scenario object, and a label."""
+
+    scenario: object = "seyfried_bottleneck"
+    scenario_options: dict | None = None
+    label: str | None = None
+
+    def __post_init__(self):
+        if self.label is None:
+            if isinstance(self.scenario, str):
+                opts = ",".join(f"{k}={v}" for k, v in sorted((self.scenario_options or {}).items()))
+                self.label = f"{self.scenario}({opts})" if opts else self.scenario
+            else:
+                self.label = getattr(self.scenario, "name", "scenario")
+
+    def env_options(self) -> dict:
+        out = {"scenario": self.scenario}
+        if self.scenario_options:
+            out["scenario_options"] = dict(self.scenario_options)
+        return out
+
+
+ENV_CONFIG_FILE = "env_config.json"  # written by the training commands beside the trained policy
+
+
+def recorded_env_config(model_path) -> tuple:
+    """``(env_config, path)``: the environment options a policy was trained with, from the
+    :data:`ENV_CONFIG_FILE` beside the saved model ``model_path`` (a file such as ``runs/ppo/model.zip``, or
+    a run folder), or ``(None, None)`` when there is none."""
+    folder = os.fspath(model_path)
+    if not os.path.isdir(folder):
+        folder = os.path.dirname(os.path.abspath(folder))
+    path = os.path.join(folder, ENV_CONFIG_FILE)
+    if not os.path.exists(path):
+        return None, None
+    with open(path) as fh:
+        return json.load(fh), path
+
+
+def episode_setup(env_config: dict) -> tuple:
+    """``(ScenarioSpec, env_options, max_time_s)`` of the episodes an ``env_config`` (the options of
+    :func:`crowd_env.envs.crowd_v0.parallel_env`, as the training commands record them) describes: its
+    scenario and options, every other option but ``max_steps``, and ``max_steps`` as simulated time
+    (``max_steps × frame_skip × dt``), which :func:`run_episode` takes."""
+    params = env_config.get("params")
+    dt = ModelParams.from_dict(params).dt_s if isinstance(params, dict) and params else ModelParams().dt_s
+    frame_skip = env_config.get("frame_skip") or 1
+    steps = env_config.get("max_steps")
+    max_time = steps * frame_skip * dt if steps else None
+    opts = {k: v for k, v in env_config.items() if k not in ("scenario", "scenario_options", "max_steps")}
+    spec = ScenarioSpec(env_config.get("scenario", "seyfried_bottleneck"), env_config.get("scenario_options"))
+    return spec, opts, max_time
+
+
+def describe_setup(scenarios, env_options: dict, max_time_s: float) -> str:
+    """One line naming the scenarios, the environment options and the episode length of an evaluation."""
+    names = ", ".join(s.label if isinstance(s, ScenarioSpec) else str(s) for s in scenarios)
+    return f"scenario {names}; environment options {env_options}; at most {max_time_s:g} s simulated per episode"
+
+
+def import_object(path: str):
+    """The object an import path ``"package.module:attribute"`` names (``importlib``; nested attributes
+    with dots after the colon)."""
+    module, sep, attr = str(path).partition(":")
+    if not sep or not module or not attr:
+        raise PolicyError(f"an import path is 'module:attribute', got {path!r}")
+    obj = importlib.import_module(module)
+    for part in attr.split("."):
+        try:
+            obj = getattr(obj, part)
+        except AttributeError:
+            raise PolicyError(f"{path!r}: {obj!r} has no attribute {part!r}") from None
+    return obj
+
+
+def resolve_policy(spec, name: str | None = None, resolve=None):
+    """A policy object from ``spec``: ``resolve(spec, name=name)`` when ``resolve`` is given; otherwise
+    ``spec`` itself when it has ``act``, or the object an import path ``"module:attribute"`` names (called
+    without arguments when it is a class or factory without ``act``). ``name`` relabels the policy."""
+    if resolve is not None:
+        return resolve(spec, name=name)
+    policy = spec
+    if isinstance(spec, str):
+        policy = import_object(spec)
+        if not hasattr(policy, "act") or isinstance(policy, type):
+            policy = policy()
+    if not (hasattr(policy, "act") and callable(policy.act)):
+        raise PolicyError(f"not a policy (no act(env, observations)): {spec!r}; pass a policy object, an import path "
+                        "'module:attribute', or resolve= (e.g. baselines.reference_policies.as_policy)")
+    if name:
+        policy.name = name
+    return policy
+
+
+def _line_name(geometry, line: str | None):
+    """``line``, or by default "bottleneck" if the geometry has it, else its first measurement line (or None)."""
+    if line is not None:
+        return line
+    lines = list(geometry.measurement_lines)
+    return "bottleneck" if "bottleneck" in lines else (lines[0] if lines else None)
+
+
+class _Probe:
+    """Substep hook collecting the metrics."""
+
+    def __init__(self, env: CrowdParallelEnv, line_name: str | None):
+        geom = env.geometry
+        self.counter = None
+        line_name = _line_name(geom, line_name)
+        if line_name in geom.measurement_lines:
+            ends = np.asarray(geom.measurement_lines[line_name], dtype=float)
+            self.counter = PassageCounter(MeasurementLine(ends[0], ends[1]))
+        self.ids = np.arange(env.n_pedestrians)
+        self.speed_sum = 0.0
+        self.speed_n = 0
+        self.n_perc = 0
+        self.perc_sum = 0.0
+        self.last_exit_s = float("nan")
+        self.min_gap = self._gap(env)
+        self.passed = np.zeros(env.n_pedestrians, dtype=bool)
+        self.stall = StallDetector(env.sim.params.dt_s, start_s=env.sim.time_s)
+        self.front = geom.measurement_areas.get("front")
+        if self.front is not None:
+            shapely.prepare(self.front)  # tested against the crowd at every step
+        self.front_density, self.front_time = [], []
+
+    def front_density_per_m2(self) -> float:
+        """Mean density in the "front" area over the steps between the first and the last passage (NaN
+        without the area or with fewer than two passages)."""
+        if self.front is None or self.counter is None or len(self.counter.times_s) < 2:
+            return float("nan")
+        t = np.asarray(self.front_time)
+        times = np.sort(self.counter.times_s)
+        window = (t >= times[0]) & (t <= times[-1])
+        return float(np.mean(np.asarray(self.front_density)[window])) if window.any() else float("nan")
+
+    @staticmethod
+    def _gap(env) -> float:
+        st = env.sim.state
+        idx = np.flatnonzero(st.active)
+        if idx.size == 0:
+            return float("inf")
+        pos, r = st.position_m[idx], st.radius_m[idx]
+        best = float("inf")
+        if idx.size >= 2:
+            pairs = cKDTree(pos).query_pairs(2.0 * float(r.max()) + 0.05, output_type="ndarray")
+            if pairs.size:
+                d = np.hypot(*(pos[pairs[:, 0]] - pos[pairs[:, 1]]).T)
+                best = float(np.min(d - r[pairs[:, 0]] - r[pairs[:, 1]]))
+        if env.geometry.walls.shape[0]:
+            best = min(best, float(np.min(env.geometry.distance_to_walls(pos) - r)))
+        return best
+
+    def __call__(self, env, res, prev_pos, prev_t):
+        st = env.sim.state
+        progressed = res.exited.size > 0
+        if self.counter is not None:
+            new = self.counter.update(prev_pos, st.position_m, prev_t, env.sim.time_s, self.ids)
+            if new:
+                self.passed[self.counter.ids[-new:]] = True
+                progressed = True
+        self.stall.update(env.sim.time_s, st.velocity_m_s, st.active & ~self.passed, progressed)
+        v = st.velocity_m_s[st.active]
+        if v.shape[0]:
+            self.speed_sum += float(np.hypot(v[:, 0], v[:, 1]).sum())
+            self.speed_n += v.shape[0]
+        pn = res.percussion_normal
+        nz = pn[np.abs(pn) > 0]
+        self.n_perc += int(nz.size)
+        self.perc_sum += float(np.abs(nz).sum())
+        if res.exited.size:
+            self.last_exit_s = env.sim.time_s
+        self.min_gap = min(self.min_gap, self._gap(env))
+        if self.front is not None:
+            pos = st.position_m[st.active]
+            inside = int(np.count_nonzero(shapely.contains_xy(self.front, pos[:, 0], pos[:, 1]))) if pos.size else 0
+            self.front_density.append(inside / self.front.area)
+            self.front_time.append(env.sim.time_s)
+
+
+def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", seed: int = 0, *,
+                env_options: dict | None = None, max_time_s: float = 90.0, line: str | None = None,
+                resolve=None, video=None) -> EpisodeMetrics:
+    """Run one episode of ``policy`` on ``scenario`` with ``seed``; see the module docstring for the metrics.
+
+    ``policy``: a policy object, or a spec :func:`resolve_policy` turns into one (with ``resolve``).
+
+    ``scenario``: a :class:`ScenarioSpec`, or a registered scenario name (any of
+    ``crowd_env.scenarios.list_scenarios()``; options through ``ScenarioSpec(name, options)``).
+
+    ``env_options`` go to :class:`~crowd_env.envs.crowd_v0.CrowdParallelEnv` (``controlled`` defaults to
+    ``"all"``); the policy's ``env_overrides`` win over them; ``max_steps`` is set from ``max_time_s``.
+
+    ``video``: None, or a recorder (e.g. :class:`crowd_env.experiments.output.video.RolloutVideo`) whose
+    ``begin(env)`` is called after the reset, ``after_step(env)`` after every environment step and
+    ``end(env, completed)`` at the end (``completed`` False when the episode raised); it only reads the
+    environment, so the metrics are the same with or without it.
+    """
+    policy = resolve_policy(policy, resolve=resolve)
+    spec = scenario if isinstance(scenario, ScenarioSpec) else ScenarioSpec(scenario)
+    opts = {"controlled": "all", **(env_options or {}), **spec.env_options(), **getattr(policy, "env_overrides", {})}
+    opts.pop("max_steps", None)
+    env = CrowdParallelEnv(**opts)
+    env.max_steps = decisions_for_time(max_time_s, env.dt_s)  # frame_skip and dt resolved
+    t0 = time.perf_counter()
+    obs, _ = env.reset(seed=seed)
+    if hasattr(policy, "reset"):
+        policy.reset(env, seed)
+    probe = _Probe(env, line)
+    env.substep_hooks.append(probe)
+    returns = dict.fromkeys(env.possible_agents, 0.0)
+    if video is not None:
+        video.begin(env)
+    completed = False
+    try:
+        while env.agents:
+            actions = policy.act(env, obs)
+            obs, rewards, _, _, _ = env.step(actions)
+            for a, r in rewards.items():
+                returns[a] += r
+            if video is not None:
+                video.after_step(env)
+        while env.step_background():  # learners among a crowd: the crowd goes on after they have left
+            if video is not None:
+                video.after_step(env)
+        completed = True
+    finally:
+        if video is not None:
+            video.end(env, completed)
+    env.substep_hooks.remove(probe)
+    n = env.n_pedestrians
+    n_out = int(np.count_nonzero(~env.sim.state.active))
+    times = np.sort(probe.counter.times_s) if probe.counter is not None else np.zeros(0)
+    width = env.scenario.metadata.get("width_m")
+    j = js = float("nan")
+    if times.size >= 2 and times[-1] > times[0]:
+        fr = specific_flow(times, width if width else 1.0)
+        j = fr.flow_per_s
+        js = fr.specific_flow_per_m_s if width else float("nan")
+    complete = not (env.sim.state.active & ~probe.passed).any()
+    result = EpisodeMetrics(
+        policy=getattr(policy, "name", type(policy).__name__), scenario=spec.label, seed=int(seed), n_pedestrians=n,
+        n_evacuated=n_out,
+        simulated_time_s=env.sim.time_s,
+        evacuation_time_s=probe.last_exit_s if n_out == n else float("nan"),
+        specific_flow_per_m_s=js if complete else float("nan"), flow_per_s=j if complete else float("nan"),
+        mean_speed_m_s=probe.speed_sum / probe.speed_n if probe.speed_n else float("nan"),
+        n_percussions=probe.n_perc,
+        mean_percussion_kg_m_s=probe.perc_sum / probe.n_perc if probe.n_perc else 0.0,
+        min_gap_m=probe.min_gap, mean_return=float(np.mean(list(returns.values()))),
+        wall_time_s=time.perf_counter() - t0, complete=bool(complete), stalled=probe.stall.stalled,
+        stall_time_s=probe.stall.stall_time_s, partial_specific_flow_per_m_s=js, partial_flow_per_s=j,
+        density_front_per_m2=probe.front_density_per_m2())
+    env.close()
+    return result
+
+
+def evaluate(policies, scenarios=("seyfried_bottleneck",), seeds=(0, 1, 2), *, env_options: dict | None = None,
+             max_time_s: float = 90.0, line: str | None = None, progress=print, resolve=None, video=None) -> list:
+    """Every policy x scenario x seed; ``policies``: a list of policies (or specs) or a dict label -> policy
+    (or spec), specs turned into policies by :func:`resolve_policy` (with ``resolve``); ``scenarios``:
+    :class:`ScenarioSpec` objects, registered names or ``(name, options)`` pairs.
+
+    ``video``: None, or a callable ``video(policy_label) -> recorder`` (e.g.
+    :func:`crowd_env.experiments.output.video.per_policy`) giving the recorder (see :func:`run_episode`) of the
+    first episode of each policy: its first scenario with its first seed."""
+    items = list(policies.items()) if isinstance(policies, dict) else [(None, p) for p in policies]
+    specs = [s if isinstance(s, ScenarioSpec) else ScenarioSpec(*s) if isinstance(s, tuple) else ScenarioSpec(s)
+             for s in scenarios]
+    results = []
+    for label, p in items:
+        pol = resolve_policy(p, name=label, resolve=resolve)
+        recorder = None if video is None else video(getattr(pol, "name", type(pol).__name__))
+        for spec in specs:
+            for seed in seeds:
+                r = run_episode(pol, spec, seed, env_options=env_options, max_time_s=max_time_s, line=line,
+                                video=recorder)
+                recorder = None  # only the first episode of each policy
+                results.append(r)
+                if progress is not None:
+                    progress(f"  {r.policy:>12s} | {r.scenario} | seed {seed}: J_s {r.specific_flow_per_m_s:.3f}, "
+                             f"evacuated {r.n_evacuated}/{r.n_pedestrians}"
+                             + (f", stalled at {r.stall_time_s:.1f} s" if r.stalled else "")
+                             + f" ({r.wall_time_s:.1f} s wall)")
+    return results
+
+
+def summarize(results) -> list:
+    """Mean (and std, and the 95 % interval of the mean: ``_ci_low``, ``_ci_high``, :func:`confidence_interval`)
+    of every metric per (scenario, policy), in first-seen order."""
+    groups: dict = {}
+    for r in results:
+        groups.setdefault((r.scenario, r.policy), []).append(r)
+    rows = []
+    for (scen, pol), rs in groups.items():
+        row = {"scenario": scen, "policy": pol, "n_episodes": len(rs),
+               "evacuated_fraction": float(np.mean([r.n_evacuated / r.n_pedestrians for r in rs])),
+               "n_complete": sum(bool(r.complete) for r in rs), "n_stalled": sum(bool(r.stalled) for r in rs)}
+        for key, _ in METRICS:
+            vals = np.array([getattr(r, key) for r in rs], dtype=float)
+            finite = vals[np.isfinite(vals)]
+            row[key] = float(finite.mean()) if finite.size else float("nan")
+            row[key + "_std"] = float(finite.std()) if finite.size > 1 else float("nan")
+            row[key + "_n"] = int(finite.size)
+            row[key + "_ci_low"], row[key + "_ci_high"] = confidence_interval(finite)
+        rows.append(row)
+    return rows
+
+
+def confidence_interval(values, *, confidence: float = 0.95, n_resamples: int = 2000, seed: int = 0) -> tuple:
+    """``(low, high)``: the percentile bootstrap interval of the mean of the finite ``values`` (episodes
+    resampled with replacement, ``n_resamples`` times, a fixed ``seed`` so that tables are reproducible);
+    ``(mean, mean)`` for one value, NaN for none. With a handful of episodes the interval is rough (and
+    narrower than the truth): evaluate more seeds for a firm one."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return float("nan"), float("nan")
+    mean = float(v.mean())
+    if v.size == 1:
+        return mean, mean
+    rng = np.random.default_rng(seed)
+    means = v[rng.integers(0, v.size, (n_resamples, v.size))].mean(axis=1)
+    alpha = (1.0 - confidence) / 2.0
+    lo, hi = np.quantile(means, [alpha, 1.0 - alpha])
+    return float(min(lo, mean)), float(max(hi, mean))
+
+
+def format_table(rows) -> str:
+    """One plain-text table of the summary (means over seeds; NaN-valued episodes left out, counted in [k/n];
+    J_s is NaN for incomplete episodes, so its mean is over the complete ones)."""
+    head = ["scenario", "policy", "evac.", "stalled"] + [label for _, label in METRICS]
+    lines = []
+    for row in rows:
+        cells = [row["scenario"], row["policy"], f"{100 * row['evacuated_fraction']:.0f}%",
+                 f"{row.get('n_stalled', 0)}/{row['n_episodes']}"]
+        for key, _ in METRICS:
+            v, k, n = row[key], row[key + "_n"], row["n_episodes"]
+            s = "nan" if not np.isfinite(v) else (f"{v:.0f}" if key == "n_percussions" else
+                                                   f"{v:.4f}" if key == "min_gap_m" else f"{v:.3f}")
+            if k < n:
+                s += f" [{k}/{n}]"
+            cells.append(s)
+        lines.append(cells)
+    return tables.format_table(head, lines, align="<<" + ">" * (len(head) - 2))
+
+
+def format_intervals(rows) -> str:
+    """The 95 % intervals of :func:`summarize`'s means (:func:`confidence_interval`, a percentile bootstrap over
+    the episodes), one table laid out as :func:`format_table`'s."""
+    head = ["scenario", "policy", "episodes"] + [label for _, label in METRICS]
+    lines = []
+    for row in rows:
+        cells = [row["scenario"], row["policy"], str(row["n_episodes"])]
+        for key, _ in METRICS:
+            lo, hi = row[key + "_ci_low"], row[key + "_ci_high"]
+            digits = 0 if key == "n_percussions" else 4 if key == "min_gap_m" else 3
+            cells.append("nan" if not (np.isfinite(lo) and np.isfinite(hi)) else f"{lo:.{digits}f}..{hi:.{digits}f}")
+        lines.append(cells)
+    return tables.format_table(head, lines, align="<<" + ">" * (len(head) - 2))
+
+
+def write_csv(results, path) -> None:
+    names = [f.name for f in fields(EpisodeMetrics)]
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=names)
+        w.writeheader()
+        for r in results:
+            w.writerow(asdict(r))
+
+
+def plot_results(results, path) -> None:
+    """Bar chart per metric (mean ± std over seeds), one bar per policy, grouped by scenario."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    rows = summarize(results)
+    scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
+    policies = list(dict.fromkeys(r["policy"] for r in rows))
+    ncols = 4
+    nrows = math.ceil(len(METRICS) / ncols)
+    fig = Figure(figsize=(3.4 * ncols, 3.0 * nrows + 0.4))
+    FigureCanvasAgg(fig)
+    width = 0.8 / max(len(policies), 1)
+    for m, (key, label) in enumerate(METRICS):
+        ax = fig.add_subplot(nrows, ncols, m + 1)
+        for p, pol in enumerate(policies):
+            xs, ys, es = [], [], []
+            for s, scen in enumerate(scenarios):
+                row = next((r for r in rows if r["scenario"] == scen and r["policy"] == pol), None)
+                if row is None:
+                    continue
+                xs.append(s + (p - (len(policies) - 1) / 2) * width)
+                ys.append(row[key] if np.isfinite(row[key]) else 0.0)
+                es.append(row[key + "_std"] if np.isfinite(row[key + "_std"]) else 0.0)
+            ax.bar(xs, ys, width, yerr=es, label=pol, capsize=2)
+        ax.set_title(label, fontsize=9)
+        ax.set_xticks(range(len(scenarios)))
+        ax.set_xticklabels([f"S{s}" for s in range(len(scenarios))], fontsize=8)
+        ax.tick_params(labelsize=8)
+    fig.axes[0].legend(fontsize=7)
+    fig.suptitle("; ".join(f"S{s}: {scen}" for s, scen in enumerate(scenarios)) + "  (NaN shown as 0)", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)

@@ -1,0 +1,148 @@
+"""Calibration runs (A, B, ..., b, N, seed) in the bottleneck task format (Kabalan et al. 2016, Section 4.1.2).
+
+A calibration task is a task of :func:`crowd_env.experiments.validation.bottleneck.run_one` (``width_m``,
+``n_pedestrians``, ``seed``, ``geometry``, ``params``, ``max_time_s``) plus ``pedestrian``: overrides of
+:class:`~crowd_env.core.params.PedestrianDefaults` (τ, desired-speed mean/std), empty by default. Every
+task runs through ``run_one`` itself, so calibration numbers are those of the reproduction. The runs of
+one calibration folder share :func:`base_config` and differ in their parameters: they are stored with
+``RunStore(out, config, keyed_by="task")`` (:mod:`crowd_env.experiments.running.store`).
+
+With the fundamental diagram in the objective (``--objective targets+fd``) a point also has the runs of the
+density sweep (:func:`make_fd_tasks`: :func:`crowd_env.experiments.validation.fundamental_diagram.fd_tasks` of both set-ups
+at the densities and seeds of an :class:`FDPlan`, the same for every point, with the point's model and
+pedestrian parameters), in the same folder and on the same executor; :func:`run_calibration_task` runs either
+kind (a task with a ``setup`` key is a sweep run).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .errors import CalibrationError
+from .objective import DENSITY_MATCH, corridor_fd_bins, single_file_bins
+from ....core.params import ModelParams, ParameterError, PedestrianDefaults
+from ..bottleneck import params_dict, run_one
+from ..fundamental_diagram import CORRIDOR_DENSITIES, SETUPS, SINGLE_FILE_DENSITIES, fd_tasks, run_fd_one
+
+__all__ = ["PEDESTRIAN_FIELDS", "SIGNIFICANT_DIGITS", "canonical", "check_pedestrian", "base_config", "make_task",
+           "FDPlan", "make_fd_tasks", "run_calibration_task"]
+
+# PedestrianDefaults fields a calibration may vary (per-pedestrian, drawn/set in Scenario.make_state).
+PEDESTRIAN_FIELDS = ("tau_s", "desired_speed_mean_m_s", "desired_speed_std_m_s")
+SIGNIFICANT_DIGITS = 6  # parameter values are rounded to this before running (stable cache keys)
+
+
+def canonical(value: float) -> float:
+    """``value`` rounded to :data:`SIGNIFICANT_DIGITS` significant digits (the value actually simulated)."""
+    return float(f"{float(value):.{SIGNIFICANT_DIGITS}g}")
+
+
+def check_pedestrian(pedestrian: dict) -> dict:
+    """Validated per-pedestrian overrides (names in :data:`PEDESTRIAN_FIELDS`, values finite and > 0)."""
+    unknown = sorted(set(pedestrian) - set(PEDESTRIAN_FIELDS))
+    if unknown:
+        raise CalibrationError(f"unknown pedestrian parameter(s) {unknown}; calibratable: {list(PEDESTRIAN_FIELDS)}")
+    out = {}
+    for name, value in sorted(pedestrian.items()):
+        v = float(value)
+        if not (v > 0 and v < float("inf")):
+            raise CalibrationError(f"{name} must be finite and > 0, got {value!r}")
+        out[name] = canonical(v)
+    return out
+
+
+def base_config(geometry: dict, params: ModelParams, max_time_s: float) -> dict:
+    """The fixed part of a calibration (geometry, base model parameters, time limit): one per folder."""
+    return {"kind": "calibration", "geometry": dict(geometry), "params": params_dict(params),
+            "max_time_s": float(max_time_s)}
+
+
+def _point_params(config: dict, model: dict) -> ModelParams:
+    """``config``'s model parameters with the overrides ``model`` (values rounded by :func:`canonical`)."""
+    changes = {k: canonical(v) for k, v in model.items()}
+    try:
+        return ModelParams.from_dict(config["params"]).replace(**changes)
+    except ParameterError as exc:
+        raise CalibrationError(str(exc)) from None
+
+
+def make_task(config: dict, model: dict, pedestrian: dict, width_m: float, n_pedestrians: int, seed: int) -> dict:
+    """One run: ``config`` with the ModelParams overrides ``model`` and PedestrianDefaults overrides ``pedestrian``."""
+    params = _point_params(config, model)
+    return {"width_m": float(width_m), "n_pedestrians": int(n_pedestrians), "seed": int(seed),
+            "geometry": config["geometry"], "params": params_dict(params), "max_time_s": config["max_time_s"],
+            "pedestrian": check_pedestrian(pedestrian)}
+
+
+@dataclass(frozen=True)
+class FDPlan:
+    """The fundamental-diagram runs of every calibration point: the corridor (1/m²) and single-file (1/m)
+    densities, each a shipped bin the objective scores (default: all of them,
+    :data:`~crowd_env.experiments.validation.fundamental_diagram.CORRIDOR_DENSITIES` and ``SINGLE_FILE_DENSITIES``), the
+    seeds (the same at every point: common random numbers), and the periodic strip's length, simulated time and
+    transient left out (the sweep's defaults, :func:`~crowd_env.experiments.validation.fundamental_diagram.fd_tasks`)."""
+
+    seeds: tuple = (0,)
+    corridor_densities: tuple = CORRIDOR_DENSITIES
+    single_file_densities: tuple = SINGLE_FILE_DENSITIES
+    length_m: float = 20.0
+    max_time_s: float = 40.0
+    transient_s: float = 15.0
+
+    def __post_init__(self) -> None:
+        seeds = tuple(int(x) for x in self.seeds)
+        if not seeds or any(x < 0 for x in seeds) or len(set(seeds)) != len(seeds):
+            raise CalibrationError(f"fundamental-diagram seeds must be distinct integers >= 0, at least one, got "
+                                   f"{list(self.seeds)}")
+        object.__setattr__(self, "seeds", seeds)
+        for name, bins, unit in (("corridor_densities", corridor_fd_bins(), "1/m²"),
+                                 ("single_file_densities", single_file_bins(), "1/m")):
+            values = tuple(float(x) for x in getattr(self, name))
+            if not values or len(set(values)) != len(values):
+                raise CalibrationError(f"{name} must be distinct and at least one, got {list(values)}")
+            off = [x for x in values if not np.any(np.abs(bins[:, 0] - x) <= DENSITY_MATCH)]
+            if off:
+                raise CalibrationError(f"{name} {off} are no shipped bins the objective scores; choose among "
+                                       f"{', '.join(f'{x:g}' for x in bins[:, 0])} ({unit})")
+            object.__setattr__(self, name, values)
+        for name in ("length_m", "max_time_s", "transient_s"):
+            v = float(getattr(self, name))
+            if not math.isfinite(v) or v < 0 or (v == 0 and name != "transient_s"):
+                raise CalibrationError(f"{name} must be finite and {'>= 0' if name == 'transient_s' else '> 0'}, "
+                                       f"got {getattr(self, name)!r}")
+            object.__setattr__(self, name, v)
+        if self.transient_s >= self.max_time_s:
+            raise CalibrationError(f"the transient ({self.transient_s:g} s) must end before the fundamental-diagram "
+                                   f"runs do ({self.max_time_s:g} s)")
+
+    def as_dict(self) -> dict:
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+    @property
+    def n_runs(self) -> int:
+        """Runs per parameter point."""
+        return len(self.seeds) * (len(self.corridor_densities) + len(self.single_file_densities))
+
+
+def make_fd_tasks(config: dict, model: dict, pedestrian: dict, plan: FDPlan) -> list:
+    """The fundamental-diagram runs of one parameter point (tasks of
+    :func:`~crowd_env.experiments.validation.fundamental_diagram.run_fd_one` with ``pedestrian``): ``config``'s model
+    parameters with the overrides ``model``, every set-up, density and seed of ``plan``. The sweep's strips hold
+    pedestrians of the default radius; a calibration on another radius is refused."""
+    radius = float(config["geometry"].get("radius_m", PedestrianDefaults().radius_m))
+    if abs(radius - PedestrianDefaults().radius_m) > 1e-12:
+        raise CalibrationError(f"the fundamental-diagram runs are built for r = {PedestrianDefaults().radius_m:g} m "
+                               f"(the single file's 0.7 m strip), not the configuration's {radius:g} m")
+    tasks = fd_tasks(SETUPS, {"corridor": plan.corridor_densities, "single_file": plan.single_file_densities},
+                     plan.seeds, _point_params(config, model), length_m=plan.length_m, max_time_s=plan.max_time_s,
+                     transient_s=plan.transient_s)
+    ped = check_pedestrian(pedestrian)
+    return [dict(t, pedestrian=ped) for t in tasks]
+
+
+def run_calibration_task(task: dict, run_fn=run_one, fd_run_fn=run_fd_one) -> dict:
+    """Run a calibration task of either kind: ``fd_run_fn`` for a fundamental-diagram run (a ``setup`` key),
+    ``run_fn`` for a bottleneck run (bind them with :func:`functools.partial` for an executor)."""
+    return fd_run_fn(task) if "setup" in task else run_fn(task)
