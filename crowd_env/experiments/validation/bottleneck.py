@@ -63,7 +63,7 @@ RESULT_COLUMNS = ["width_m", "n_pedestrians", "seed", "specific_flow_per_m_s", "
 
 def model_params(preset: str = DEFAULT_PRESET, changes: dict | None = None) -> ModelParams:
     """The preset's model (:mod:`crowd_env.core.presets`) with ``changes`` (ModelParams fields) on top."""
-    return ModelParams().replace(**{**get_preset(preset).model, **(changes or {})})
+    return get_preset(preset).params(**(changes or {}))
 
 
 def params_dict(params: ModelParams) -> dict:
