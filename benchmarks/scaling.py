@@ -46,7 +46,8 @@ PHASES = ("neighbors", "forces", "smooth", "contacts", "impacts", "projection", 
 def dense_room(n: int, seed: int = 0):
     """Scenario: n pedestrians at 3 /m² in a square room with a door on the right wall."""
     from crowd_env.core.geometry import Geometry
-    from crowd_env.scenarios.base import Scenario, place_pedestrians
+    from crowd_env.scenarios.placement import place_pedestrians
+    from crowd_env.scenarios.scenario import Scenario
 
     side = math.sqrt(n / DENSITY_PER_M2) + 0.6  # the outer 0.3 m strip holds no centres
     room = [(0, 0), (side, 0), (side, side), (0, side)]

@@ -8,8 +8,11 @@ periodic along x, no exits: the fundamental diagram's instrument) and "polygon" 
 "custom"; any user geometry from coordinates or WKT), and the set-ups of the RiMEA verification tests
 ("rimea_<test>_<name>", :mod:`crowd_env.scenarios.rimea`).
 """
-from .base import (Scenario, ScenarioError, check_clearance, door_exit, form_groups, list_scenarios, make_scenario,
-                   place_pedestrians, register_scenario, scenario_options)
+from .checks import check_clearance
+from .doors import door_exit
+from .placement import form_groups, place_pedestrians
+from .registry import list_scenarios, make_scenario, register_scenario, scenario_options
+from .scenario import Scenario, ScenarioError
 from .bottleneck import bottleneck_geometry, seyfried_bottleneck
 from .corner import corner_90
 from .corridor import corridor_bidirectional

@@ -45,7 +45,10 @@ from shapely.ops import unary_union
 from ..core.geometry import Geometry
 from ..walking.navigation import NavigationField
 from ..core.segments import GeometryError
-from .base import Scenario, ScenarioError, check_clearance, check_count, check_positive as _positive, place_pedestrians, register_scenario
+from .checks import check_clearance, check_count, check_positive as _positive
+from .placement import place_pedestrians
+from .registry import register_scenario
+from .scenario import Scenario, ScenarioError
 
 __all__ = ["seyfried_bottleneck", "bottleneck_geometry", "BottleneckScenario"]
 

@@ -3,7 +3,7 @@
 Coordinates (metres): the first leg spans x in [0, leg1_length], y in [0, width]; the second leg
 x in [leg1_length - width, leg1_length], y in [0, leg2_length], so the corner square is shared and the
 turn is to the left (+y). Pedestrians start in the first ``spawn_depth_m`` of the first leg and leave
-when their centre crosses the far end of the second leg (:func:`~crowd_env.scenarios.base.door_exit`).
+when their centre crosses the far end of the second leg (:func:`~crowd_env.scenarios.doors.door_exit`).
 Measurement lines: ``"turn_in"`` where the first leg enters the corner square, ``"turn_out"`` where
 the second leg leaves it, ``"exit"`` at the end.
 """
@@ -14,8 +14,11 @@ from shapely.geometry import Polygon, box
 from shapely.ops import unary_union
 
 from ..core.geometry import Geometry
-from .base import (Scenario, ScenarioError, check_clearance, check_count, check_positive, door_exit,
-                   place_pedestrians, register_scenario)
+from .checks import check_clearance, check_count, check_positive
+from .doors import door_exit
+from .placement import place_pedestrians
+from .registry import register_scenario
+from .scenario import Scenario, ScenarioError
 
 __all__ = ["corner_90"]
 

@@ -15,8 +15,10 @@ from shapely.geometry import box
 from shapely.ops import unary_union
 
 from ..core.geometry import Geometry
-from .base import (Scenario, ScenarioError, check_clearance, check_count, check_positive, place_pedestrians,
-                   register_scenario)
+from .checks import check_clearance, check_count, check_positive
+from .placement import place_pedestrians
+from .registry import register_scenario
+from .scenario import Scenario, ScenarioError
 
 __all__ = ["corridor_bidirectional", "EXIT_INSET_M"]
 

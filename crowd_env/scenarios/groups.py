@@ -13,7 +13,10 @@ import dataclasses
 
 import numpy as np
 
-from .base import ScenarioError, check_count, form_groups, register_scenario, scenario_options
+from .checks import check_count
+from .placement import form_groups
+from .registry import register_scenario, scenario_options
+from .scenario import ScenarioError
 from .bottleneck import seyfried_bottleneck
 
 __all__ = ["bottleneck_groups"]

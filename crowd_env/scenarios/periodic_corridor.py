@@ -8,7 +8,7 @@ east (e_d = (+1, 0)) or west (e_d = (−1, 0)); a fraction ``westbound_fraction`
 walk west (0: unidirectional flow; 0.5: balanced counterflow). Their navigation is a pair of uniform fields
 (:meth:`~crowd_env.walking.navigation.NavigationField.uniform`) combined per pedestrian by a
 :class:`~crowd_env.walking.navigation.DestinationNavigation` (keys 0 east, 1 west), which the compiled
-rollout samples. Start positions: :func:`~crowd_env.scenarios.base.place_pedestrians` in the strip, at least
+rollout samples. Start positions: :func:`~crowd_env.scenarios.placement.place_pedestrians` in the strip, at least
 a radius from the walls and from the seam (so nobody overlaps across it), at rest.
 
 A width below 4 r (e.g. 0.7 m with r = 0.23 m) leaves no room to pass: a single file, the straight ring of
@@ -23,7 +23,10 @@ from shapely.geometry import box
 
 from ..core.geometry import Geometry
 from ..walking.navigation import DestinationNavigation, NavigationField
-from .base import Scenario, ScenarioError, check_count, check_positive, place_pedestrians, register_scenario
+from .checks import check_count, check_positive
+from .placement import place_pedestrians
+from .registry import register_scenario
+from .scenario import Scenario, ScenarioError
 
 __all__ = ["periodic_corridor", "EAST", "WEST", "DEFAULT_DENSITY_PER_M2"]
 

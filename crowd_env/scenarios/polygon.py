@@ -14,7 +14,7 @@
 
 Exits are polygons (where a pedestrian whose centre enters leaves; they must overlap the walkable
 area or share a boundary stretch with it) or door segments on the boundary (the exit is then the
-strip of ``exit_depth_m`` behind the door, :func:`~crowd_env.scenarios.base.door_exit`). The
+strip of ``exit_depth_m`` behind the door, :func:`~crowd_env.scenarios.doors.door_exit`). The
 polygons are normalised (shapely.normalize), so the same shape given as coordinates or WKT, in either
 orientation, gives the identical geometry. The eikonal field is solved for the disk centres
 (``navigation_clearance_m`` = radius by default), so a passage narrower than a pedestrian blocks it.
@@ -29,8 +29,11 @@ from shapely.geometry.base import BaseGeometry
 
 from ..core.geometry import Geometry, GeometryError, as_polygon, ring_coordinates
 from ..walking.navigation import NavigationField
-from .base import (Scenario, ScenarioError, check_clearance, check_count, check_positive, door_exit, door_widths_m,
-                   place_pedestrians, register_scenario)
+from .checks import check_clearance, check_count, check_positive
+from .doors import door_exit, door_widths_m
+from .placement import place_pedestrians
+from .registry import register_scenario
+from .scenario import Scenario, ScenarioError
 
 __all__ = ["scenario_from_polygon", "walkable_polygon", "exit_polygons"]
 

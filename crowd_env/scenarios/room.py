@@ -2,7 +2,7 @@
 
 Coordinates (metres): the room spans x in [0, length], y in [-width/2, width/2]; the door is a gap of
 ``door_width_m`` in the wall x = length, centred on y = 0, and pedestrians leave when their centre
-crosses it (the exit is the strip behind the door, :func:`~crowd_env.scenarios.base.door_exit`). The
+crosses it (the exit is the strip behind the door, :func:`~crowd_env.scenarios.doors.door_exit`). The
 pillar (a circle of diameter ``pillar_size_m`` or a square of that side) is a hole in the walkable
 area centred ``pillar_distance_m`` in front of the door wall, ``pillar_offset_m`` off the door axis;
 its outline is a wall. Pedestrians start in the rear ``spawn_depth_m`` of the room. Measurement line
@@ -15,8 +15,11 @@ from shapely.geometry import Point, box
 
 from ..core.geometry import Geometry
 from ..core.segments import GeometryError
-from .base import (Scenario, ScenarioError, check_clearance, check_count, check_positive, door_exit,
-                   place_pedestrians, register_scenario)
+from .checks import check_clearance, check_count, check_positive
+from .doors import door_exit
+from .placement import place_pedestrians
+from .registry import register_scenario
+from .scenario import Scenario, ScenarioError
 
 __all__ = ["room_pillar", "PILLAR_SHAPES"]
 

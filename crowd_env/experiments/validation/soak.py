@@ -49,7 +49,9 @@ from ...core.params import ModelParams
 from ...core.state import first_overlap, min_gap_m
 from ...envs import crowd_v0
 from ...scenarios import list_scenarios, make_scenario, scenario_options
-from ...scenarios.base import Scenario, _lookup, place_pedestrians
+from ...scenarios.placement import place_pedestrians
+from ...scenarios.registry import scenario_factory
+from ...scenarios.scenario import Scenario
 from ...walking.agent import SocialForceAgent
 
 __all__ = ["OVERLAP_TOLERANCE_M", "VIOLATION_KINDS", "InvariantChecker", "MemoryProbe", "ACTION_MODES",
@@ -71,15 +73,15 @@ VIOLATION_KINDS = ("non_finite", "pedestrian_overlap", "wall_overlap", "outside_
 def distinct_scenarios() -> list:
     """Registered scenario names, one per factory (aliases dropped), sorted.
 
-    Two names are aliases when :func:`crowd_env.scenarios.base._lookup` returns the same factory; the
+    Two names are aliases when :func:`crowd_env.scenarios.registry.scenario_factory` returns the same factory; the
     name kept is the factory's own ``__name__`` when it is registered, else the longest one.
     """
     by_factory = {}
     for name in list_scenarios():
-        by_factory.setdefault(id(_lookup(name)), []).append(name)
+        by_factory.setdefault(id(scenario_factory(name)), []).append(name)
     names = []
     for group in by_factory.values():
-        own = getattr(_lookup(group[0]), "__name__", None)
+        own = getattr(scenario_factory(group[0]), "__name__", None)
         names.append(own if own in group else max(group, key=lambda n: (len(n), n)))
     return sorted(names)
 

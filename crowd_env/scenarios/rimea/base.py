@@ -13,7 +13,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..base import Scenario
+from ..scenario import Scenario
 from ..polygon import scenario_from_polygon
 
 __all__ = ["rimea_scenario", "RIMEA_RADIUS_M"]

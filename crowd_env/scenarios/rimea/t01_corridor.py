@@ -3,7 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..base import Scenario, check_positive, register_scenario
+from ..checks import check_positive
+from ..registry import register_scenario
+from ..scenario import Scenario
 from .base import RIMEA_RADIUS_M, rimea_scenario
 
 

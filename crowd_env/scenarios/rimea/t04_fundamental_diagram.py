@@ -18,7 +18,11 @@ import numpy as np
 import shapely
 
 from ...core.geometry import Geometry
-from ..base import Scenario, ScenarioError, check_positive, door_exit, place_pedestrians, register_scenario
+from ..checks import check_positive
+from ..doors import door_exit
+from ..placement import place_pedestrians
+from ..registry import register_scenario
+from ..scenario import Scenario, ScenarioError
 from .base import RIMEA_RADIUS_M
 
 __all__ = ["rimea_4_fundamental_diagram", "fd_measuring_areas", "MEASURING_AREA_NAMES"]

@@ -3,7 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..base import Scenario, check_count, register_scenario
+from ..checks import check_count
+from ..registry import register_scenario
+from ..scenario import Scenario
 from .base import rimea_scenario
 
 PREMOVEMENT_RANGE_S = (10.0, 100.0)

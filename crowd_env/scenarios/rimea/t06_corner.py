@@ -8,8 +8,9 @@ the exit the door (10,12)-(12,12) at the end of the second arm. The square x 0-1
 turn is the region jpscore v0.8 forbids (:data:`FORBIDDEN_SQUARE`).
 """
 from __future__ import annotations
-
-from ..base import Scenario, check_count, check_positive, register_scenario
+from ..checks import check_count, check_positive
+from ..registry import register_scenario
+from ..scenario import Scenario
 from .base import rimea_scenario
 
 __all__ = ["rimea_6_corner", "FORBIDDEN_SQUARE", "CORNER_ARM_M", "CORNER_WIDTH_M"]

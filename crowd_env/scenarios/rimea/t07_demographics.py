@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..base import Scenario, register_scenario
+from ..registry import register_scenario
+from ..scenario import Scenario
 from ..demographics import RIMEA_ADULTS, ages_of_population, desired_speeds_for_ages
 from .base import RIMEA_RADIUS_M, rimea_scenario
 

@@ -1,7 +1,8 @@
 """RiMEA test 9: a crowd leaves a large public room through four exits, then through two."""
 from __future__ import annotations
-
-from ..base import Scenario, ScenarioError, check_count, register_scenario
+from ..checks import check_count
+from ..registry import register_scenario
+from ..scenario import Scenario, ScenarioError
 from .base import rimea_scenario
 
 DOORS = {"exit_1": [(4.0, 0.0), (5.0, 0.0)], "exit_2": [(25.0, 0.0), (26.0, 0.0)],

@@ -4,7 +4,9 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-from ..base import Scenario, place_pedestrians, register_scenario
+from ..placement import place_pedestrians
+from ..registry import register_scenario
+from ..scenario import Scenario
 from .base import RIMEA_RADIUS_M, rimea_scenario
 
 WALL_M = 0.1  # wall thickness between rooms and corridor

@@ -1,7 +1,8 @@
 """RiMEA test 11: a crowd packed on the left of a room chooses between a near and a far exit."""
 from __future__ import annotations
-
-from ..base import Scenario, check_count, register_scenario
+from ..checks import check_count
+from ..registry import register_scenario
+from ..scenario import Scenario
 from .base import rimea_scenario
 
 DOORS = {"exit_1": [(21.0, 20.0), (22.0, 20.0)], "exit_2": [(27.0, 20.0), (28.0, 20.0)]}

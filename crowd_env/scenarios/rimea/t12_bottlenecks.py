@@ -23,7 +23,9 @@ from __future__ import annotations
 import numpy as np
 
 from ...core.state import sample_desired_speeds
-from ..base import Scenario, ScenarioError, check_count, check_positive, register_scenario
+from ..checks import check_count, check_positive
+from ..registry import register_scenario
+from ..scenario import Scenario, ScenarioError
 from .base import RIMEA_RADIUS_M, rimea_scenario
 
 __all__ = ["rimea_12a_goal_distance", "rimea_12b_bottleneck_length", "rimea_12c_two_bottlenecks",

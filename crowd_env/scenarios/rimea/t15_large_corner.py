@@ -11,12 +11,13 @@ Coordinates are jpscore v0.8's ``test_15/geometry.xml`` (each scenario its own f
   y 0-20; start block x 42-62, y 54-60.
 
 The start blocks are 6 m deep across the full 20 m (jpscore's); 500 pedestrians there are 4.2 /m², which
-:func:`~crowd_env.scenarios.base.place_pedestrians` reaches on its lattice. ``desired_speed_m_s`` None: the
+:func:`~crowd_env.scenarios.placement.place_pedestrians` reaches on its lattice. ``desired_speed_m_s`` None: the
 preset's distribution (RiMEA asks for no particular speed here).
 """
 from __future__ import annotations
-
-from ..base import Scenario, ScenarioError, check_count, check_positive, register_scenario
+from ..checks import check_count, check_positive
+from ..registry import register_scenario
+from ..scenario import Scenario, ScenarioError
 from .base import rimea_scenario
 
 __all__ = ["rimea_15_corridor", "rimea_15_corner", "LONG_M", "SHORT_M", "CORRIDOR_WIDTH_M", "START_DEPTH_M",

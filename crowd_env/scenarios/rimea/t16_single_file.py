@@ -26,7 +26,9 @@ import shapely
 from ...core.geometry import Geometry
 from ...core.state import sample_desired_speeds
 from ...walking.circulation import CirculationNavigation, oval_centreline
-from ..base import Scenario, ScenarioError, check_count, check_positive, register_scenario
+from ..checks import check_count, check_positive
+from ..registry import register_scenario
+from ..scenario import Scenario, ScenarioError
 from .base import RIMEA_RADIUS_M
 
 __all__ = ["rimea_16_ring", "ring_geometry"]

@@ -1,4 +1,4 @@
-"""Scenarios in general (crowd_env.scenarios.base): pedestrian placement, validation that names the
+"""Scenarios in general (crowd_env.scenarios.scenario, .placement, .registry): pedestrian placement, validation that names the
 pedestrian, hand links, and the registry."""
 import numpy as np
 import pytest
