@@ -39,12 +39,23 @@ def bottleneck_figures(records: list, rows: list, out: Path) -> list:
     only; a width with stalled or otherwise incomplete runs is labelled with their count in Fig. 11, and
     the discharge diagnostic uses complete runs only.
     """
-    plt = pyplot()
     out = Path(out)
-    exp = seyfried_2009()
     sizes = sorted({r["n_pedestrians"] for r in rows})
-    paths = []
-    # Fig. 11: J_s vs b per N against experiment.
+    n_d = 60 if 60 in sizes else sizes[-1]
+    paths = [_specific_flow_figure(rows, sizes, out / "fig11_specific_flow.png"),
+             _density_figure(rows, n_d, out / "fig12_density.png"),
+             _flow_figure(rows, sizes, out / "fig13_flow_linear.png"),
+             _lanes_figure(records, n_d, out / "fig14_lanes.png")]
+    # Diagnostic: discharge rate vs the number of pedestrians not yet passed (records with crossing times).
+    path = discharge_figure(records, out / "fig15_discharge.png")
+    if path is not None:
+        paths.append(path)
+    return paths
+
+
+def _specific_flow_figure(rows: list, sizes: list, path: Path) -> Path:
+    """Fig. 11: J_s vs b per N against the experiment, incomplete runs counted."""
+    plt, exp = pyplot(), seyfried_2009()
     fig, axes = plt.subplots(1, len(sizes), figsize=(4.2 * len(sizes), 3.6), squeeze=False)
     for ax, n in zip(axes[0], sizes):
         sub = [r for r in rows if r["n_pedestrians"] == n]
@@ -67,10 +78,13 @@ def bottleneck_figures(records: list, rows: list, out: Path) -> list:
             ax.axhspan(lo, hi, color="0.85", label="experimental range")
         ax.set(title=f"N = {n}", xlabel="b (m)", ylabel="J_s (1/(m s))", ylim=(1.0, 3.4))
         ax.legend(fontsize=8)
-    paths.append(save_figure(fig, out / "fig11_specific_flow.png"))
-    # Fig. 12: densities in front of and inside the bottleneck, and the speed inside (N = 60 where
-    # present). In a stationary channel J_s = ρ_inside · v_inside: the last two panels split the flow.
-    n_d = 60 if 60 in sizes else sizes[-1]
+    return save_figure(fig, path)
+
+
+def _density_figure(rows: list, n_d: int, path: Path) -> Path:
+    """Fig. 12: densities in front of and inside the bottleneck, and the speed inside (N = ``n_d``). In a
+    stationary channel J_s = ρ_inside · v_inside: the last two panels split the flow."""
+    plt = pyplot()
     sub = [r for r in rows if r["n_pedestrians"] == n_d]
     fig, axes = plt.subplots(1, 3, figsize=(12.6, 3.6))
     for ax, key, band, title, unit, top in (
@@ -81,8 +95,12 @@ def bottleneck_figures(records: list, rows: list, out: Path) -> list:
         ax.axhspan(*band, color="0.85", label="experiment")
         ax.set(title=f"{title}, N = {n_d}", xlabel="b (m)", ylabel=unit, ylim=(0, top))
         ax.legend(fontsize=8)
-    paths.append(save_figure(fig, out / "fig12_density.png"))
-    # Fig. 13: J vs b with linear fits and residual norms.
+    return save_figure(fig, path)
+
+
+def _flow_figure(rows: list, sizes: list, path: Path) -> Path:
+    """Fig. 13: J vs b with linear fits and their residual norms."""
+    plt, exp = pyplot(), seyfried_2009()
     fig, axes = plt.subplots(1, len(sizes), figsize=(4.2 * len(sizes), 3.6), squeeze=False)
     for ax, n in zip(axes[0], sizes):
         sub = [r for r in rows if r["n_pedestrians"] == n]
@@ -98,8 +116,12 @@ def bottleneck_figures(records: list, rows: list, out: Path) -> list:
             ax.plot(exp.width_m[sel], exp.flow_per_s[sel], "ks", label="Seyfried 2009")
         ax.set(title=f"N = {n}", xlabel="b (m)", ylabel="J (1/s)")
         ax.legend(fontsize=8)
-    paths.append(save_figure(fig, out / "fig13_flow_linear.png"))
-    # Fig. 14: lateral-position histograms (N = 60) at each simulated width.
+    return save_figure(fig, path)
+
+
+def _lanes_figure(records: list, n_d: int, path: Path) -> Path:
+    """Fig. 14: lateral-position histograms (N = ``n_d``) at each simulated width."""
+    plt = pyplot()
     widths = sorted({r["width_m"] for r in records if r["n_pedestrians"] == n_d})
     fig, axes = plt.subplots(1, len(widths), figsize=(3.2 * len(widths), 3.2), squeeze=False, sharey=True)
     for ax, b in zip(axes[0], widths):
@@ -111,12 +133,7 @@ def bottleneck_figures(records: list, rows: list, out: Path) -> list:
         ax.bar(centers, counts / max(counts.sum(), 1.0), width=step)
         ax.set(title=f"b = {b:.1f} m: {lanes.n_lanes} lane(s)", xlabel="y (m)", xlim=(-b / 2 - 0.05, b / 2 + 0.05))
     axes[0][0].set_ylabel("probability")
-    paths.append(save_figure(fig, out / "fig14_lanes.png"))
-    # Diagnostic: discharge rate vs the number of pedestrians not yet passed (records with crossing times).
-    path = discharge_figure(records, out / "fig15_discharge.png")
-    if path is not None:
-        paths.append(path)
-    return paths
+    return save_figure(fig, path)
 
 
 def discharge_rate(crossing_times_s, window: int = 5):

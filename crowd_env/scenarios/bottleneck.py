@@ -106,6 +106,46 @@ def bottleneck_geometry(width_m: float = 1.0, *, corridor_width_m: float = 4.0, 
         name=f"seyfried_bottleneck_b{width_m:g}")
 
 
+def _section_counts(n_pedestrians: int, n_sections, density_per_m2: float, corridor_width_m: float,
+                    section_depth_m: float) -> tuple:
+    """(persons per holding section, number of sections): round(density x area) each, 3 sections or as many
+    as N needs; :class:`ScenarioError` when a section holds nobody or ``n_sections`` is too few."""
+    per_section = int(round(density_per_m2 * corridor_width_m * section_depth_m))
+    if per_section < 1:
+        raise ScenarioError(f"a holding section of {corridor_width_m} m x {section_depth_m} m at "
+                            f"{density_per_m2} /m² holds no pedestrian")
+    needed = math.ceil(n_pedestrians / per_section)
+    if n_sections is None:
+        n_sections = max(3, needed)
+    elif int(n_sections) != n_sections or n_sections < needed:
+        raise ScenarioError(f"more pedestrians than fit in the holding area: {n_pedestrians} need {needed} sections "
+                            f"of {per_section}, but n_sections = {n_sections!r}")
+    return per_section, int(n_sections)
+
+
+def _fill_sections(n_pedestrians: int, n_sections: int, per_section: int, rng, *, corridor_width_m: float,
+                   section_depth_m: float, block_start_upstream_m: float, radius_m: float,
+                   density_per_m2: float) -> tuple:
+    """(the holding sections as boxes, (N, 2) start positions): sections filled nearest-first, a partly filled
+    one packed towards its downstream edge's centre."""
+    hc = 0.5 * corridor_width_m
+    sections, positions = [], []
+    left = n_pedestrians
+    for k in range(n_sections):
+        x1 = -(block_start_upstream_m + k * section_depth_m)
+        section = box(x1 - section_depth_m, -hc, x1, hc)
+        sections.append(section)
+        count = min(left, per_section)
+        if count:
+            try:
+                positions.append(place_pedestrians(section, count, radius_m, rng, density_per_m2=density_per_m2,
+                                                   toward=None if count == per_section else (x1, 0.0)))
+            except ScenarioError as exc:
+                raise ScenarioError(f"holding section {k} ({corridor_width_m} m x {section_depth_m} m): {exc}") from exc
+        left -= count
+    return sections, np.vstack(positions)
+
+
 def seyfried_bottleneck(width_m: float = 1.0, n_pedestrians: int = 60, seed: int | None = 0,
                         corridor_width_m: float = 4.0, channel_length_m: float = 2.8,
                         initial_density_per_m2: float = 3.3, section_depth_m: float = 1.515,
@@ -137,39 +177,16 @@ def seyfried_bottleneck(width_m: float = 1.0, n_pedestrians: int = 60, seed: int
     if width_m <= 2.0 * radius_m:
         raise GeometryError(f"bottleneck width {width_m} m is not wider than a pedestrian (diameter "
                             f"{2 * radius_m} m): nobody can pass")
-    per_section = int(round(initial_density_per_m2 * corridor_width_m * section_depth_m))
-    if per_section < 1:
-        raise ScenarioError(f"a holding section of {corridor_width_m} m x {section_depth_m} m at "
-                            f"{initial_density_per_m2} /m² holds no pedestrian")
-    needed = math.ceil(n_pedestrians / per_section)
-    if n_sections is None:
-        n_sections = max(3, needed)
-    elif int(n_sections) != n_sections or n_sections < needed:
-        raise ScenarioError(f"more pedestrians than fit in the holding area: {n_pedestrians} need {needed} sections "
-                            f"of {per_section}, but n_sections = {n_sections!r}")
-    n_sections = int(n_sections)
+    per_section, n_sections = _section_counts(n_pedestrians, n_sections, initial_density_per_m2, corridor_width_m,
+                                              section_depth_m)
     corridor_length_m = block_start_upstream_m + n_sections * section_depth_m
     geometry = bottleneck_geometry(width_m, corridor_width_m=corridor_width_m, corridor_length_m=corridor_length_m,
                                    channel_length_m=channel_length_m, outflow_depth_m=outflow_depth_m,
                                    outflow_width_m=outflow_width_m, exit_depth_m=exit_depth_m)
-    rng = np.random.default_rng(seed)
-    hc = 0.5 * corridor_width_m
-    sections, positions = [], []
-    left = n_pedestrians
-    for k in range(n_sections):
-        x1 = -(block_start_upstream_m + k * section_depth_m)
-        section = box(x1 - section_depth_m, -hc, x1, hc)
-        sections.append(section)
-        count = min(left, per_section)
-        if count:
-            try:
-                positions.append(place_pedestrians(section, count, radius_m, rng,
-                                                   density_per_m2=initial_density_per_m2,
-                                                   toward=None if count == per_section else (x1, 0.0)))
-            except ScenarioError as exc:
-                raise ScenarioError(f"holding section {k} ({corridor_width_m} m x {section_depth_m} m): {exc}") from exc
-        left -= count
-    position = np.vstack(positions)
+    sections, position = _fill_sections(n_pedestrians, n_sections, per_section, np.random.default_rng(seed),
+                                        corridor_width_m=corridor_width_m, section_depth_m=section_depth_m,
+                                        block_start_upstream_m=block_start_upstream_m, radius_m=radius_m,
+                                        density_per_m2=initial_density_per_m2)
     metadata = {
         "source": "Seyfried et al. (2009) Transp. Sci. 43(3):395-406; Kabalan et al. (2016) Section 4",
         "width_m": float(width_m), "n_pedestrians": n_pedestrians, "seed": seed,

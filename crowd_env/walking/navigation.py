@@ -197,6 +197,33 @@ class NavigationField:
         self.raster = raster
         self.resolution_m = h = raster.resolution_m
         self.origin_m = raster.origin_m
+        nav, ex, target = self._grid_masks(geometry, raster)
+        self.walkable = nav
+        pts = raster.node_points().reshape(*nav.shape, 2)
+        # phi < 0 inside exits; the signed distance to the exit boundary in the nodes next to it (Eq. 12).
+        band = ex ^ ndimage.binary_dilation(ex)
+        band |= ex & ~ndimage.binary_erosion(ex, border_value=1)
+        d = np.full(nav.shape, 10.0 * h)
+        d[band] = shapely.distance(self._exit_interface(target, geometry.navigable_area), shapely.points(pts[band]))
+        phi = np.where(ex, -d, d)
+        speed = self._wavefront_speed(geometry, nav, pts, h)
+        try:
+            t = self._fmm(np.ma.MaskedArray(phi, ~nav), speed, h)
+        except ValueError as exc:
+            raise GeometryError(f"fast marching failed on the navigation grid ({exc})") from exc
+        reachable = nav & ~np.ma.getmaskarray(t) & np.isfinite(np.ma.getdata(t))
+        t_signed = np.where(reachable, np.where(ex, -1.0, 1.0) * np.ma.getdata(t), np.inf)
+        direction, travel = self._node_fields(t_signed, reachable, nav, ex, h)
+        travel.setflags(write=False)
+        direction.setflags(write=False)
+        self.travel_time_s_grid = travel
+        self.direction_grid = direction
+        self.reachable = reachable
+        self.reachable.setflags(write=False)
+
+    def _grid_masks(self, geometry: Geometry, raster) -> tuple:
+        """(walkable nodes, exit nodes, the target exits' area): the nodes this field's exits cover, both
+        masks less the nodes nearer a wall than ``clearance_m``; :class:`GeometryError` when nothing is left."""
         nav, ex = raster.walkable, raster.exit
         target = geometry.exit_area
         if self.exits is not None:  # T = 0 on these exits only; the others are floor
@@ -211,21 +238,16 @@ class NavigationField:
             if not (nav & ~ex).any():
                 raise GeometryError(f"no grid node of the walkable area is {self.clearance_m} m (clearance_m) from "
                                     "the walls: the area is too narrow for a pedestrian of that radius")
-        self.walkable = nav
         if not ex.any():
-            raise GeometryError(f"no grid node lies inside an exit at resolution {h} m: exits must be at least "
-                                "one cell wide; use a finer resolution_m")
+            raise GeometryError(f"no grid node lies inside an exit at resolution {raster.resolution_m} m: exits must "
+                                "be at least one cell wide; use a finer resolution_m")
         if not (nav & ~ex).any():
             raise GeometryError("the walkable area lies entirely inside the exits")
+        return nav, ex, target
 
-        # phi < 0 inside exits; the signed distance to the exit boundary in the nodes next to it (Eq. 12).
-        band = ex ^ ndimage.binary_dilation(ex)
-        band |= ex & ~ndimage.binary_erosion(ex, border_value=1)
-        pts = raster.node_points().reshape(*nav.shape, 2)
-        d = np.full(nav.shape, 10.0 * h)
-        d[band] = shapely.distance(self._exit_interface(target, geometry.navigable_area), shapely.points(pts[band]))
-        phi = np.where(ex, -d, d)
-
+    def _wavefront_speed(self, geometry: Geometry, nav, pts, h: float) -> np.ndarray:
+        """The wavefront speed V of Eq. 11 at every node: ``speed_m_s``, times the wall slowdown's factor
+        within its distance of a wall."""
         speed = np.full(nav.shape, self.speed_m_s)
         if self.wall_slowdown is not None and geometry.walls.shape[0]:
             dist_m, factor = self.wall_slowdown
@@ -234,15 +256,12 @@ class NavigationField:
             slow = np.zeros(nav.shape, dtype=bool)
             slow[near] = geometry.distance_to_walls(pts[near]) < dist_m
             speed[slow] *= factor
+        return speed
 
-        try:
-            t = self._fmm(np.ma.MaskedArray(phi, ~nav), speed, h)
-        except ValueError as exc:
-            raise GeometryError(f"fast marching failed on the navigation grid ({exc})") from exc
-        reachable = nav & ~np.ma.getmaskarray(t) & np.isfinite(np.ma.getdata(t))
-        t_signed = np.where(reachable, np.where(ex, -1.0, 1.0) * np.ma.getdata(t), np.inf)
-
-        # Node directions -grad T / |grad T| (Eq. 13).
+    def _node_fields(self, t_signed, reachable, nav, ex, h: float) -> tuple:
+        """(node directions −∇T/‖∇T‖ (Eq. 13), node travel times T): inside exits the direction of the nearest
+        reachable node outside them ("keep walking through"); masked nodes take the nearest walkable node's
+        direction and T_nearest + distance / V."""
         gx = _axis_gradient(t_signed, h, 0)
         gy = _axis_gradient(t_signed, h, 1)
         norm = np.hypot(gx, gy)
@@ -251,23 +270,15 @@ class NavigationField:
         direction[~reachable] = np.nan
         _block_wall_ward(direction, nav)
         travel = np.where(reachable, np.maximum(t_signed, 0.0), np.inf)
-
-        # Inside exits: the direction of the nearest reachable node outside them ("keep walking through").
         outside = reachable & ~ex
         if outside.any():
             _, ii, jj = _nearest_index(outside)
             direction[ex] = direction[ii[ex], jj[ex]]
-        # Masked nodes: nearest walkable node's direction, T_nearest + distance / V.
         dist, ii, jj = _nearest_index(nav)
         masked = ~nav
         direction[masked] = direction[ii[masked], jj[masked]]
         travel[masked] = travel[ii[masked], jj[masked]] + dist[masked] * h / self.speed_m_s
-        travel.setflags(write=False)
-        direction.setflags(write=False)
-        self.travel_time_s_grid = travel
-        self.direction_grid = direction
-        self.reachable = reachable
-        self.reachable.setflags(write=False)
+        return direction, travel
 
     @staticmethod
     def _exit_interface(exit_area, navigable_area):

@@ -38,9 +38,7 @@ def qp_bpp_sparse(H, c, B, d, free0=None, max_iter=None):
     ``(x, ν, status, iterations)`` with ν ≥ 0 the multipliers (H x = c + Bᵀ ν).
     """
     import scipy.sparse as sp
-    from scipy.sparse.linalg import splu
 
-    n = H.shape[0]
     m = B.shape[0]
     H = sp.csc_matrix(H)
     B = sp.csr_matrix(B)
@@ -54,44 +52,12 @@ def qp_bpp_sparse(H, c, B, d, free0=None, max_iter=None):
     eps = REG_RELATIVE * diag_mean
     x_free = c / hdiag if diagonal else None
 
-    def factor(F):
-        """Returns solve(refine_unregularised) -> (x, ν_F) for the active set F."""
-        nf = F.shape[0]
-        if diagonal:
-            BF = B[F]
-            hinv = sp.diags(1.0 / hdiag)
-            HiBt = (hinv @ BF.T).tocsc()
-            S0 = (BF @ HiBt).tocsc()
-            S = (S0 + eps * sp.identity(nf)).tocsc() if nf else S0
-            lu = splu(S) if nf else None
-            rhs = d[F] - BF @ x_free
-
-            def solve(polish):
-                if nf == 0:
-                    return x_free.copy(), np.zeros(0)
-                lam = lu.solve(rhs)
-                lam += lu.solve(rhs - S @ lam)
-                for _ in range(4 if polish else 0):
-                    lam += lu.solve(rhs - S0 @ lam)
-                return x_free + HiBt @ lam, lam
-            return solve
-        rhs = np.concatenate([c, d[F]])
-        if nf:
-            BF = B[F]
-            K = sp.bmat([[H, BF.T], [BF, -eps * sp.identity(nf)]], format="csc")
-        else:
-            K = H
-        lu = splu(K)
-
-        def solve(polish):
-            sol = lu.solve(rhs)
-            sol += lu.solve(rhs - K @ sol)
-            if polish and nf:
-                K0 = sp.bmat([[H, BF.T], [BF, None]], format="csc")
-                for _ in range(4):
-                    sol += lu.solve(rhs - K0 @ sol)
-            return sol[:n], -sol[n:]
-        return solve
+    if diagonal:
+        def factor(F):
+            return _schur_solver(B, F, hdiag, x_free, d, eps)
+    else:
+        def factor(F):
+            return _kkt_solver(H, B, F, c, d, eps)
 
     max_iter = min(2 * m + 20, DENSE_MAX_ITER) if max_iter is None else max_iter
     best = m + 1
@@ -103,13 +69,7 @@ def qp_bpp_sparse(H, c, B, d, free0=None, max_iter=None):
         x, nu_f = solve(False)
         nu = np.zeros(m)
         nu[F] = nu_f
-        w = B @ x - d
-        w[F] += eps * nu_f  # residual of the regularised LCP: zero on the free set
-        nf = F.shape[0]
-        scale = (float(np.abs(w[~free]).max()) if nf < m else 0.0) + diag_mean * (float(np.abs(nu).max()) if m else 0.0)
-        tol_w = 1e-11 * scale + 1e-300
-        tol_l = tol_w / diag_mean
-        bad = (free & (nu < -tol_l)) | (~free & (w < -tol_w))
+        bad, tol_w, tol_l = _violations(B, x, d, F, free, nu, nu_f, eps, diag_mean)
         n_bad = int(bad.sum())
         if n_bad == 0:
             status = STATUS_OK
@@ -203,3 +163,68 @@ def project_gaps_sparse(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, free0=None
     if status == STATUS_OK:
         vel[bodies, :2] = x.reshape(-1, 2)
     return nu, status
+
+
+def _schur_solver(B, F, hdiag, x_free, d, eps):
+    """For a diagonal H: ``solve(polish) -> (x, ν_F)`` on the active set F from a sparse LU of the Schur
+    complement B_F H⁻¹ B_Fᵀ + εI, one refinement step, and with ``polish`` four towards the unregularised system."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import splu
+
+    nf = F.shape[0]
+    BF = B[F]
+    hinv = sp.diags(1.0 / hdiag)
+    HiBt = (hinv @ BF.T).tocsc()
+    S0 = (BF @ HiBt).tocsc()
+    S = (S0 + eps * sp.identity(nf)).tocsc() if nf else S0
+    lu = splu(S) if nf else None
+    rhs = d[F] - BF @ x_free
+
+    def solve(polish):
+        if nf == 0:
+            return x_free.copy(), np.zeros(0)
+        lam = lu.solve(rhs)
+        lam += lu.solve(rhs - S @ lam)
+        for _ in range(4 if polish else 0):
+            lam += lu.solve(rhs - S0 @ lam)
+        return x_free + HiBt @ lam, lam
+    return solve
+
+
+def _kkt_solver(H, B, F, c, d, eps):
+    """For a general H: ``solve(polish) -> (x, ν_F)`` on the active set F from a sparse LU of the quasi-definite
+    KKT system [[H, B_Fᵀ], [B_F, −εI]], one refinement step, and with ``polish`` four towards ε = 0."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import splu
+
+    n, nf = H.shape[0], F.shape[0]
+    rhs = np.concatenate([c, d[F]])
+    if nf:
+        BF = B[F]
+        K = sp.bmat([[H, BF.T], [BF, -eps * sp.identity(nf)]], format="csc")
+    else:
+        K = H
+    lu = splu(K)
+
+    def solve(polish):
+        sol = lu.solve(rhs)
+        sol += lu.solve(rhs - K @ sol)
+        if polish and nf:
+            K0 = sp.bmat([[H, BF.T], [BF, None]], format="csc")
+            for _ in range(4):
+                sol += lu.solve(rhs - K0 @ sol)
+        return sol[:n], -sol[n:]
+    return solve
+
+
+def _violations(B, x, d, F, free, nu, nu_f, eps, diag_mean) -> tuple:
+    """(the complementarity violations of the regularised LCP as a bool mask, tol_w, tol_λ): a free contact
+    with ν < −tol_λ or a blocked one with w = Bx − d < −tol_w, tolerances relative to the iterate's scale."""
+    m = B.shape[0]
+    w = B @ x - d
+    w[F] += eps * nu_f  # residual of the regularised LCP: zero on the free set
+    nf = F.shape[0]
+    scale = (float(np.abs(w[~free]).max()) if nf < m else 0.0) + diag_mean * (float(np.abs(nu).max()) if m else 0.0)
+    tol_w = 1e-11 * scale + 1e-300
+    tol_l = tol_w / diag_mean
+    return (free & (nu < -tol_l)) | (~free & (w < -tol_w)), tol_w, tol_l
