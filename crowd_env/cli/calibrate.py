@@ -137,6 +137,19 @@ def _fd_plan(args, wanted: bool) -> FDPlan | None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    common = _common_parser()
+    ap = argparse.ArgumentParser(prog="crowd-calibrate", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="mode", required=True)
+    _add_grid_parser(sub, common)
+    _add_optimize_parser(sub, common)
+    _add_targets_parser(sub, common)
+    _add_landscape_parser(sub, common)
+    return ap
+
+
+def _common_parser() -> argparse.ArgumentParser:
+    """The options every mode shares: runs, distribution, geometry, fixed model parameters."""
     common = argparse.ArgumentParser(add_help=False)
     run = common.add_argument_group("runs (each point = widths × sizes × seeds)")
     run.add_argument("--out", type=Path, default=Path("out/calibration"), help="output folder (resumable)")
@@ -172,9 +185,10 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--param", action="append", default=[], metavar="NAME=VALUE", help="any other ModelParams field")
     common.set_defaults(social_strength_n=None, social_range_m=None, no_social=False)
 
-    ap = argparse.ArgumentParser(prog="crowd-calibrate", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = ap.add_subparsers(dest="mode", required=True)
+    return common
+
+
+def _add_grid_parser(sub, common) -> None:
     gp = sub.add_parser("grid", parents=[common], help="ε_T on an (A, B) grid (Fig. 10)")
     gp.add_argument("--A-range", type=float, nargs=2, default=None, metavar=("LOW", "HIGH"), dest="a_range",
                     help="default 10 1000 (N)")
@@ -188,6 +202,9 @@ def build_parser() -> argparse.ArgumentParser:
     gp.add_argument("--keep-edge-minima", action="store_true",
                     help="fit A(B) also through minima at the A grid ends (default: interior ones when >= 2)")
     gp.add_argument("--no-figures", action="store_true")
+
+
+def _add_optimize_parser(sub, common) -> None:
     op = sub.add_parser("optimize", aliases=["optimise"], parents=[common], help="minimise ε_T (Eq. 25)")
     op.add_argument("--free", nargs="+", default=["A", "B"],
                     help=f"free parameters: {' '.join(FREE_PARAMETERS)} (vision_rays is fixed: --param vision_rays=N)")
@@ -200,6 +217,9 @@ def build_parser() -> argparse.ArgumentParser:
     op.add_argument("--objective", choices=["epsilon", "targets", "targets+fd"], default="epsilon",
                     help=OBJECTIVE_HELP)
     _add_target_arguments(op)
+
+
+def _add_targets_parser(sub, common) -> None:
     tp = sub.add_parser("targets", parents=[common],
                         help="every preset against every target of the experiment (one table; N = 20, 40, 60 at "
                              "--widths and N = 120 at 1.0 and 1.2 m, --seeds seeds each); with --fd also the "
@@ -212,6 +232,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also run each preset's fundamental-diagram sweep (the --fd-* options) and add its rows and "
                         "terms, as --objective targets+fd scores a point")
     _add_fd_arguments(g)
+
+
+def _add_landscape_parser(sub, common) -> None:
     lp = sub.add_parser("landscape", parents=[common],
                         help="the objective along one parameter, the others fixed by the preset (e.g. ε_T in λ)")
     lp.add_argument("--vary", required=True, choices=list(FREE_PARAMETERS), help="the parameter to vary")
@@ -220,7 +243,6 @@ def build_parser() -> argparse.ArgumentParser:
                     help="as optimize (default 'targets': the figures of every target are kept per value)")
     _add_target_arguments(lp)
     lp.add_argument("--no-figures", action="store_true")
-    return ap
 
 
 def _seeds(args) -> list:

@@ -511,23 +511,11 @@ def soak(agent_steps: int = DEFAULT_AGENT_STEPS, *, scenarios=None, modes=None, 
     """Run the soak; returns a JSON-able summary (see ``crowd-soak``'s ``format_summary``). ``agent_steps`` = 0 skips
     the environment phase; ``pressure_agent_steps`` > 0 adds the high-pressure phase
     (:func:`pressure_soak` over ``pressure_cases``, default all)."""
-    names = list(scenarios) if scenarios else distinct_scenarios()
     modes = list(modes) if modes else list(ACTION_MODES)
     unknown = sorted(set(modes) - set(ACTION_MODES))
     if unknown:
         raise SoakError(f"unknown mode(s) {unknown}; known: {list(ACTION_MODES)}")
-    given = scenario_options or {}
-    scenario_options, skipped = {}, {}
-    for n in names:  # required options: given ones, else the examples of EXAMPLE_OPTIONS
-        missing = [k for k in required_options(n) if k not in given.get(n, {})]
-        example = soak_options(n)
-        if missing and example is None:
-            skipped[n] = f"needs options {missing}"
-        else:
-            scenario_options[n] = {**(example or {}), **given.get(n, {})}
-    names = [n for n in names if n not in skipped]
-    if not names:
-        raise SoakError("no scenario to soak")
+    names, scenario_options, skipped = _soak_scenarios(scenarios, scenario_options or {})
     pairs = [(n, m) for n in names for m in modes] if agent_steps > 0 else []
     share = int(np.ceil(agent_steps / max(len(pairs), 1)))
     total = InvariantChecker()
@@ -539,42 +527,21 @@ def soak(agent_steps: int = DEFAULT_AGENT_STEPS, *, scenarios=None, modes=None, 
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
     for name, mode in pairs:
-        act = ACTION_MODES[mode]
         options = dict(scenario_options.get(name, {}))
         if fixed_start:
             options.setdefault("seed", seed)
         checker = InvariantChecker(overlap_tolerance_m=overlap_tolerance_m, label=f"{name}/{mode}")
-        envs = {}
-        pair_steps, pair_t0, k, first_sample = 0, time.perf_counter(), 0, len(memory.samples)
-        while pair_steps < share:
-            controlled = "all" if k % 2 == 0 else 0.5
-            if controlled not in envs:  # built when first needed (a short soak may never need the second)
-                envs[controlled] = crowd_v0.parallel_env(scenario=name, scenario_options=options, controlled=controlled,
-                                                         max_steps=max_steps, frame_skip=frame_skip)
-                envs[controlled].substep_hooks.append(checker)
-            env = envs[controlled]
-            env.reset(seed=int(rng.integers(2**31 - 1)))
-            while env.agents and pair_steps < share:
-                n_live = len(env.agents)
-                env.step(act(env, rng))
-                pair_steps += n_live
-                env_steps += 1
-            episodes += 1
-            k += 1
-            memory.sample(done_agent_steps + pair_steps)
-        done_agent_steps += pair_steps
-        per_pair[f"{name}/{mode}"] = {"agent_steps": pair_steps, "sim_steps": checker.n_checked_steps,
-                                      "impact_steps": checker.n_impact_steps, "episodes": k,
-                                      "violations": dict(checker.counts),
-                                      "max_overlap_m": checker.max_overlap_m,
-                                      "rss_first_episode_end_mib": memory.samples[first_sample][1] / 2**20,
-                                      "rss_end_mib": memory.samples[-1][1] / 2**20,
-                                      "wall_s": time.perf_counter() - pair_t0}
+        record = _soak_pair(name, ACTION_MODES[mode], options, checker, share, rng, memory, done_agent_steps,
+                            max_steps=max_steps, frame_skip=frame_skip)
+        done_agent_steps += record["agent_steps"]
+        env_steps += record.pop("env_steps")
+        episodes += record["episodes"]
+        per_pair[f"{name}/{mode}"] = record
         total.merge(checker)
-        progress(f"{name}/{mode}: {pair_steps} agent-steps, {checker.n_checked_steps} simulator steps "
-                 f"({checker.n_impact_steps} with impacts), {k} episodes, "
+        progress(f"{name}/{mode}: {record['agent_steps']} agent-steps, {checker.n_checked_steps} simulator steps "
+                 f"({checker.n_impact_steps} with impacts), {record['episodes']} episodes, "
                  f"violations {dict(checker.counts) or 0}, max overlap {checker.max_overlap_m:.3g} m "
-                 f"({time.perf_counter() - pair_t0:.0f} s)")
+                 f"({record['wall_s']:.0f} s)")
     environment_cluster, environment_group = total.max_cluster_size, total.max_contact_group
     pressure = None
     if pressure_agent_steps > 0:
@@ -582,15 +549,10 @@ def soak(agent_steps: int = DEFAULT_AGENT_STEPS, *, scenarios=None, modes=None, 
                                  overlap_tolerance_m=overlap_tolerance_m, progress=progress)
         total.merge(pressure.pop("checker"))  # memory is judged on the environment phase only
     memory.stop()
-    mib = 2.0**20
-    window = memory.window()
-    growth = {c: memory.slope_bytes_per(c) * window / mib for c in ("rss", "traced")}
-    judged = "traced" if trace_memory else "rss"
-    memory_ok = not (growth[judged] > memory_tolerance_mib)
+    memory_summary = _memory_summary(memory, trace_memory, memory_tolerance_mib)
     violations = dict(total.counts)
-    if not memory_ok:
+    if not memory_summary["ok"]:
         violations["memory_growth"] = 1
-    s = memory.samples
     return {
         "agent_steps": done_agent_steps, "env_steps": env_steps, "sim_steps": total.n_checked_steps,
         "impact_steps": total.n_impact_steps, "max_cluster_size": total.max_cluster_size,
@@ -603,15 +565,69 @@ def soak(agent_steps: int = DEFAULT_AGENT_STEPS, *, scenarios=None, modes=None, 
         "max_impact_energy_increase_j": total.max_impact_energy_increase_j,
         "max_impact_energy_increase_rel": total.max_impact_energy_increase_rel,
         "max_projection_energy_increase_j": total.max_projection_energy_increase_j,
-        "examples": total.examples,
-        "memory": {"rss_start_mib": s[0][1] / mib, "rss_end_mib": s[-1][1] / mib,
-                   "traced_start_mib": s[0][2] / mib if trace_memory else None,
-                   "traced_end_mib": s[-1][2] / mib if trace_memory else None,
-                   "rss_slope_kib_per_1000_agent_steps": memory.slope_bytes_per("rss") * 1000 / 1024,
-                   "traced_slope_kib_per_1000_agent_steps": memory.slope_bytes_per("traced") * 1000 / 1024
-                   if trace_memory else None,
-                   "fit_window_agent_steps": window, "growth_over_window_mib": growth, "judged_on": judged,
-                   "tolerance_mib": memory_tolerance_mib, "ok": memory_ok, "n_samples": len(s),
-                   "samples": [(x, rss / mib, traced / mib if trace_memory else None) for x, rss, traced in s]},
-        "per_pair": per_pair, "wall_s": time.perf_counter() - t0,
+        "examples": total.examples, "memory": memory_summary, "wall_s": time.perf_counter() - t0,
     }
+
+
+def _soak_scenarios(scenarios, given: dict) -> tuple:
+    """(names, options per name, skipped name -> why): the scenarios to soak (default every distinct one) with
+    their required options, given ones first, else the examples of EXAMPLE_OPTIONS; :class:`SoakError` if none."""
+    names = list(scenarios) if scenarios else distinct_scenarios()
+    options, skipped = {}, {}
+    for n in names:
+        missing = [k for k in required_options(n) if k not in given.get(n, {})]
+        example = soak_options(n)
+        if missing and example is None:
+            skipped[n] = f"needs options {missing}"
+        else:
+            options[n] = {**(example or {}), **given.get(n, {})}
+    names = [n for n in names if n not in skipped]
+    if not names:
+        raise SoakError("no scenario to soak")
+    return names, options, skipped
+
+
+def _soak_pair(name: str, act, options: dict, checker, share: int, rng, memory, done_agent_steps: int, *,
+               max_steps: int, frame_skip: int) -> dict:
+    """``share`` agent-steps of one (scenario, action mode) pair, episodes alternating all / half the pedestrians
+    controlled, every simulator step checked by ``checker``; its record (with ``env_steps``, popped by the caller)."""
+    envs = {}
+    pair_steps, env_steps, pair_t0, k, first_sample = 0, 0, time.perf_counter(), 0, len(memory.samples)
+    while pair_steps < share:
+        controlled = "all" if k % 2 == 0 else 0.5
+        if controlled not in envs:  # built when first needed (a short soak may never need the second)
+            envs[controlled] = crowd_v0.parallel_env(scenario=name, scenario_options=options, controlled=controlled,
+                                                     max_steps=max_steps, frame_skip=frame_skip)
+            envs[controlled].substep_hooks.append(checker)
+        env = envs[controlled]
+        env.reset(seed=int(rng.integers(2**31 - 1)))
+        while env.agents and pair_steps < share:
+            n_live = len(env.agents)
+            env.step(act(env, rng))
+            pair_steps += n_live
+            env_steps += 1
+        k += 1
+        memory.sample(done_agent_steps + pair_steps)
+    return {"agent_steps": pair_steps, "sim_steps": checker.n_checked_steps, "impact_steps": checker.n_impact_steps,
+            "episodes": k, "violations": dict(checker.counts), "max_overlap_m": checker.max_overlap_m,
+            "rss_first_episode_end_mib": memory.samples[first_sample][1] / 2**20,
+            "rss_end_mib": memory.samples[-1][1] / 2**20, "wall_s": time.perf_counter() - pair_t0,
+            "env_steps": env_steps}
+
+
+def _memory_summary(memory, trace_memory: bool, tolerance_mib: float) -> dict:
+    """The memory probe's samples, slopes and growth over its fit window, judged on traced or RSS memory."""
+    mib = 2.0**20
+    window = memory.window()
+    growth = {c: memory.slope_bytes_per(c) * window / mib for c in ("rss", "traced")}
+    judged = "traced" if trace_memory else "rss"
+    s = memory.samples
+    return {"rss_start_mib": s[0][1] / mib, "rss_end_mib": s[-1][1] / mib,
+            "traced_start_mib": s[0][2] / mib if trace_memory else None,
+            "traced_end_mib": s[-1][2] / mib if trace_memory else None,
+            "rss_slope_kib_per_1000_agent_steps": memory.slope_bytes_per("rss") * 1000 / 1024,
+            "traced_slope_kib_per_1000_agent_steps": memory.slope_bytes_per("traced") * 1000 / 1024
+            if trace_memory else None,
+            "fit_window_agent_steps": window, "growth_over_window_mib": growth, "judged_on": judged,
+            "tolerance_mib": tolerance_mib, "ok": not (growth[judged] > tolerance_mib), "n_samples": len(s),
+            "samples": [(x, rss / mib, traced / mib if trace_memory else None) for x, rss, traced in s]}
