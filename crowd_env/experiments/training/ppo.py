@@ -211,10 +211,7 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
     remaining time, the mean return of the recent episodes), then the trained policy's score.
     """
     import torch
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.utils import set_random_seed
-    from stable_baselines3.common.vec_env import VecNormalize
 
     torch.set_num_threads(max(1, int(threads)))
     t0 = time.perf_counter()
@@ -225,6 +222,56 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
     set_random_seed(seed + start)  # python, numpy, torch
     vec = make_vec_env(env_config, copies, seed + start, vectoriser, workers)
     curve = []
+    model = _model(entries, out, vec, curve, progress, n_steps=n_steps, batch_size=batch_size, n_epochs=n_epochs,
+                   learning_rate=learning_rate, gamma=gamma, verbose=verbose)
+    model.action_space.seed(seed + start)
+    t1 = time.perf_counter()
+    remaining = int(timesteps) - int(model.num_timesteps)
+    try:
+        if remaining > 0:  # with reset_num_timesteps=False SB3 counts total_timesteps on top of num_timesteps
+            model.learn(total_timesteps=remaining, reset_num_timesteps=not entries,
+                        callback=_callbacks(curve, out, start, timesteps, checkpoint_every, progress, progress_every_s))
+        train_s = time.perf_counter() - t1
+        model.save(os.path.join(out, "model.zip"))
+    finally:
+        vec.close()  # also stops worker processes when training fails
+
+    after = evaluate_trained(resolve(model, name="ppo"), env_config, eval_seeds, progress)
+    write_curve(curve, out, before["mean_return"], after["mean_return"])
+    summary = {"timesteps": int(model.num_timesteps), "resumed_from_timesteps": start, "train_wall_s": train_s,
+               "total_wall_s": time.perf_counter() - t0, "random": before, "trained": after,
+               "improvement": after["mean_return"] - before["mean_return"], "env_config": env_config,
+               "eval_seeds": list(eval_seeds), "seed": seed, "copies": copies, "vectoriser": vectoriser, "workers": workers,
+               "ppo": {"n_steps": n_steps, "batch_size": batch_size, "n_epochs": n_epochs,
+                       "learning_rate": learning_rate, "gamma": gamma}}
+    write_json_atomic(os.path.join(out, "summary.json"), summary)
+    return summary
+
+
+def _model(entries: list, out: str, vec, curve: list, progress, **ppo):
+    """The PPO model: loaded from the latest checkpoint of ``entries`` (its VecNormalize and learning curve too),
+    or new with the ``ppo`` hyperparameters and a 64-64 MLP."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    if not entries:  # Not PPO(seed=...): SB3 would call vec.seed(), which SuperSuit's concatenated env lacks.
+        return PPO("MlpPolicy", vec, device="cpu", policy_kwargs={"net_arch": [64, 64]}, **ppo)
+    latest = entries[-1]
+    folder = os.path.join(out, "checkpoints")
+    if latest["vecnormalize"]:
+        vec = VecNormalize.load(os.path.join(folder, latest["vecnormalize"]), vec)
+    model = PPO.load(os.path.join(folder, latest["model"]), env=vec, device="cpu")
+    with open(os.path.join(folder, "curve.json")) as fh:
+        curve.extend(tuple(c) for c in json.load(fh) if c[0] <= latest["timesteps"])
+    progress(f"resuming from the checkpoint at {model.num_timesteps} timesteps")
+    return model
+
+
+def _callbacks(curve: list, out: str, start: int, timesteps: int, checkpoint_every: int, progress,
+               progress_every_s: float) -> list:
+    """SB3 callbacks: the learning curve (appended to ``curve``), checkpoints every ``checkpoint_every``
+    timesteps and at the end, and a progress line after a rollout at most every ``progress_every_s`` s."""
+    from stable_baselines3.common.callbacks import BaseCallback
 
     class Curve(BaseCallback):
         def _on_step(self) -> bool:
@@ -235,8 +282,6 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
             return True
 
     class Progress(BaseCallback):
-        """A line through ``progress`` after a rollout, at most every ``progress_every_s`` seconds."""
-
         def _on_training_start(self) -> None:
             self.t0 = self.last = time.perf_counter()
             self.t_start = int(self.model.num_timesteps)
@@ -269,43 +314,7 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
         def _on_training_end(self) -> None:
             save_checkpoint(self.model, out, curve)
 
-    if entries:
-        latest = entries[-1]
-        folder = os.path.join(out, "checkpoints")
-        if latest["vecnormalize"]:
-            vec = VecNormalize.load(os.path.join(folder, latest["vecnormalize"]), vec)
-        model = PPO.load(os.path.join(folder, latest["model"]), env=vec, device="cpu")
-        with open(os.path.join(folder, "curve.json")) as fh:
-            curve.extend(tuple(c) for c in json.load(fh) if c[0] <= latest["timesteps"])
-        progress(f"resuming from the checkpoint at {model.num_timesteps} timesteps")
-    else:
-        # Not PPO(seed=...): SB3 would call vec.seed(), which SuperSuit's concatenated env lacks.
-        model = PPO("MlpPolicy", vec, n_steps=n_steps, batch_size=batch_size, n_epochs=n_epochs,
-                    learning_rate=learning_rate, gamma=gamma, device="cpu", verbose=verbose,
-                    policy_kwargs={"net_arch": [64, 64]})
-    model.action_space.seed(seed + start)
-    t1 = time.perf_counter()
-    remaining = int(timesteps) - int(model.num_timesteps)
-    try:
-        if remaining > 0:  # with reset_num_timesteps=False SB3 counts total_timesteps on top of num_timesteps
-            model.learn(total_timesteps=remaining, callback=[Curve(), Checkpoint(), Progress()],
-                        reset_num_timesteps=not entries)
-        train_s = time.perf_counter() - t1
-        model.save(os.path.join(out, "model.zip"))
-    finally:
-        vec.close()  # also stops worker processes when training fails
-
-    after = evaluate_trained(resolve(model, name="ppo"), env_config, eval_seeds, progress)
-    write_curve(curve, out, before["mean_return"], after["mean_return"])
-    summary = {"timesteps": int(model.num_timesteps), "resumed_from_timesteps": start, "train_wall_s": train_s,
-               "total_wall_s": time.perf_counter() - t0, "random": before, "trained": after,
-               "improvement": after["mean_return"] - before["mean_return"], "env_config": env_config,
-               "eval_seeds": list(eval_seeds), "seed": seed, "copies": copies, "vectoriser": vectoriser, "workers": workers,
-               "ppo": {"n_steps": n_steps, "batch_size": batch_size, "n_epochs": n_epochs,
-                       "learning_rate": learning_rate, "gamma": gamma}}
-    with open(os.path.join(out, "summary.json"), "w") as fh:
-        json.dump(summary, fh, indent=2)
-    return summary
+    return [Curve(), Checkpoint(), Progress()]
 
 
 def progress_line(done: int, total: int, start: int, elapsed_s: float, recent_returns) -> str:
