@@ -15,13 +15,13 @@ bound, decision interval) that the reference results report (``crowd-reference-r
 """
 from __future__ import annotations
 
-import json
 import os
 import time
 
 import numpy as np
 
 from crowd_env.errors import TrainingError
+from crowd_env.files import write_atomic, write_json_atomic
 
 from ...core.checks import check_integer
 
@@ -109,11 +109,7 @@ def train_behaviour_cloning(env_config: dict, out: str, *, teacher, seed: int = 
     mean = x.mean(0).astype(np.float64)  # the first demonstrations' scaling, kept through the DAgger rounds
     std = x.std(0).astype(np.float64)
     std[std < 1e-6] = 1.0  # constant inputs (padding) pass through unscaled
-    layers, d = [], x.shape[1]
-    for h in hidden:
-        layers += [torch.nn.Linear(d, int(h)), torch.nn.Tanh()]
-        d = int(h)
-    net = torch.nn.Sequential(*layers, torch.nn.Linear(d, y.shape[1]))
+    net = _mlp(x.shape[1], hidden, y.shape[1])
     opt = torch.optim.Adam(net.parameters(), lr=learning_rate)
     gen = torch.Generator().manual_seed(seed)
 
@@ -135,32 +131,17 @@ def train_behaviour_cloning(env_config: dict, out: str, *, teacher, seed: int = 
         n_val = max(1, int(round(validation_fraction * x.shape[0])))
         X = torch.as_tensor((x - mean) / std, dtype=torch.float32)
         Y = torch.as_tensor(y)
-        tr_t, val_t = torch.as_tensor(order[n_val:]), torch.as_tensor(order[:n_val])
+        split = (torch.as_tensor(order[n_val:]), torch.as_tensor(order[:n_val]))
         t1 = time.perf_counter()
         for epoch in range(1, int(epochs) + 1):
-            perm = tr_t[torch.randperm(tr_t.numel(), generator=gen)]
-            total, count = 0.0, 0
-            for start in range(0, perm.numel(), int(batch_size)):
-                i = perm[start:start + int(batch_size)]
-                loss = ((net(X[i]) - Y[i]) ** 2).mean()
-                opt.zero_grad()
-                loss.backward()
-                opt.step()
-                total += float(loss.detach()) * i.numel()
-                count += i.numel()
-            with torch.no_grad():
-                val_loss = float(((net(X[val_t]) - Y[val_t]) ** 2).mean())
-            rows.append({"round": r, "epoch": epoch, "train_mse": total / count, "validation_mse": val_loss,
+            train_mse, val_loss = _epoch(net, opt, gen, X, Y, split, int(batch_size))
+            rows.append({"round": r, "epoch": epoch, "train_mse": train_mse, "validation_mse": val_loss,
                          "wall_s": train_s + time.perf_counter() - t1})
-            progress(f"bc round {r} epoch {epoch:3d} | train mse {total / count:.5f} | validation mse {val_loss:.5f}")
+            progress(f"bc round {r} epoch {epoch:3d} | train mse {train_mse:.5f} | validation mse {val_loss:.5f}")
         train_s += time.perf_counter() - t1
-    with open(os.path.join(out, "progress.csv"), "w") as fh:
-        fh.write("round,epoch,train_mse,validation_mse,wall_s\n")
-        fh.writelines(f"{r['round']},{r['epoch']},{r['train_mse']:.6g},{r['validation_mse']:.6g},{r['wall_s']:.3f}\n"
-                      for r in rows)
+    write_atomic(os.path.join(out, "progress.csv"), "round,epoch,train_mse,validation_mse,wall_s\n" + "".join(
+        f"{r['round']},{r['epoch']},{r['train_mse']:.6g},{r['validation_mse']:.6g},{r['wall_s']:.3f}\n" for r in rows))
     cfg = {k: v for k, v in demonstration_env_config(env_config, teacher).items() if k != "max_steps"}
-    linears = [m for m in net if isinstance(m, torch.nn.Linear)]
-    space_max = float(cfg.get("action_max_m_s", DEFAULT_ACTION_MAX_M_S))
     summary = {"algorithm": "bc", "teacher": getattr(teacher, "name", type(teacher).__name__),
                "demo_seeds": [int(s) for s in rounds[0]], "dagger_seeds": [[int(s) for s in r] for r in rounds[1:]],
                "every": int(every), "samples": int(x.shape[0]), "samples_per_round": samples,
@@ -168,10 +149,50 @@ def train_behaviour_cloning(env_config: dict, out: str, *, teacher, seed: int = 
                "total_wall_s": time.perf_counter() - t0, "final_train_mse": rows[-1]["train_mse"],
                "final_validation_mse": rows[-1]["validation_mse"], "intent_rms_m_s": float(np.sqrt((y ** 2).mean())),
                "hidden": [int(h) for h in hidden], "epochs": int(epochs), "seed": int(seed), "env_config": cfg}
+    _save_clone(net, mean, std, cfg, summary, out)
+    return summary
+
+
+def _save_clone(net, mean, std, cfg: dict, summary: dict, out: str) -> None:
+    """``out/policy.npz`` (the clone as a policy file acting in the teacher's action box) and ``out/summary.json``."""
+    import torch
+
+    linears = [m for m in net if isinstance(m, torch.nn.Linear)]
+    space_max = float(cfg.get("action_max_m_s", DEFAULT_ACTION_MAX_M_S))
     policy = MLPPolicyFile([m.weight.detach().numpy().T for m in linears], [m.bias.detach().numpy() for m in linears],
                            "tanh", "linear", [-space_max] * 2, [space_max] * 2, mean, std, cfg,
                            {k: summary[k] for k in ("algorithm", "teacher", "samples", "agent_steps", "seed")})
     save_policy_file(policy, os.path.join(out, "policy.npz"))
-    with open(os.path.join(out, "summary.json"), "w") as fh:
-        json.dump(summary, fh, indent=2)
-    return summary
+    write_json_atomic(os.path.join(out, "summary.json"), summary)
+
+
+def _mlp(d_in: int, hidden, d_out: int):
+    """A torch MLP: tanh hidden layers of the sizes ``hidden``, a linear output."""
+    import torch
+
+    layers, d = [], d_in
+    for h in hidden:
+        layers += [torch.nn.Linear(d, int(h)), torch.nn.Tanh()]
+        d = int(h)
+    return torch.nn.Sequential(*layers, torch.nn.Linear(d, d_out))
+
+
+def _epoch(net, opt, gen, X, Y, split: tuple, batch_size: int) -> tuple:
+    """One epoch of mean-squared-error minibatches over the training rows of ``split`` (train, validation
+    indices), shuffled by ``gen``; (the epoch's mean training loss, the validation loss after it)."""
+    import torch
+
+    tr_t, val_t = split
+    perm = tr_t[torch.randperm(tr_t.numel(), generator=gen)]
+    total, count = 0.0, 0
+    for start in range(0, perm.numel(), batch_size):
+        i = perm[start:start + batch_size]
+        loss = ((net(X[i]) - Y[i]) ** 2).mean()
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        total += float(loss.detach()) * i.numel()
+        count += i.numel()
+    with torch.no_grad():
+        val_loss = float(((net(X[val_t]) - Y[val_t]) ** 2).mean())
+    return total / count, val_loss

@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import functools
 import importlib.util
-import json
 import os
 import time
 import warnings
@@ -305,15 +304,10 @@ def train(env_config: dict, frames: int, out: str, *, algorithm: str = "mappo", 
     iterations (0: only at the end); ``resume`` continues from the latest one up to ``frames`` in all, a
     folder with checkpoints is refused without it, and with other environment options or another algorithm.
     """
-    check_algorithm(algorithm)
-    for name, value in (("frames", frames), ("frames_per_batch", frames_per_batch), ("num_epochs", num_epochs),
-                        ("minibatch_size", minibatch_size)):
-        check_integer(name, value, error=TrainingError, minimum=1)
-    if checkpoint_every < 0:
-        raise TrainingError(f"checkpoint_every must be >= 0, got {checkpoint_every!r}")
+    _check_train_arguments(algorithm, frames=frames, frames_per_batch=frames_per_batch, num_epochs=num_epochs,
+                           minibatch_size=minibatch_size, checkpoint_every=checkpoint_every)
     _require()
     import torch
-    from torchrl.collectors import Collector
 
     torch.set_num_threads(max(1, int(threads)))
     previous = read_checkpoints(out)
@@ -341,51 +335,12 @@ def train(env_config: dict, frames: int, out: str, *, algorithm: str = "mappo", 
         rows = list(ckpt["progress"])
         progress(f"resuming from the checkpoint at {start} frames")
 
-    remaining = int(frames) - start
-    frames_done = start
-    iteration = rows[-1]["iteration"] if rows else 0
     t1 = time.perf_counter()
-    if remaining > 0:
-        batch = min(int(frames_per_batch), remaining)
-        total = -(-remaining // batch) * batch
-        collector = Collector(env, actor, frames_per_batch=batch, total_frames=total, device="cpu",
-                              auto_register_policy_transforms=False)
-        t_iter = time.perf_counter()
-        for data in collector:
-            with torch.no_grad():
-                gae(data)
-            episodes, ep_return, ep_length = _episode_stats(data)
-            flat = valid_transitions(data, state)
-            n = flat.batch_size[0]
-            sums = dict.fromkeys(("loss_objective", "loss_critic", "loss_entropy", "entropy"), 0.0)
-            count = 0
-            for _ in range(num_epochs):
-                for idx in torch.randperm(n).split(int(minibatch_size)):
-                    parts = loss(flat[idx])
-                    total_loss = parts["loss_objective"] + parts["loss_critic"] + parts["loss_entropy"]
-                    optim.zero_grad()
-                    total_loss.backward()
-                    torch.nn.utils.clip_grad_norm_(loss.parameters(), max_grad_norm)
-                    optim.step()
-                    for key in sums:
-                        sums[key] += float(parts[key].detach())
-                    count += 1
-            collector.update_policy_weights_()
-            frames_done += data.numel()
-            iteration += 1
-            row = {"iteration": iteration, "frames": frames_done, "agent_steps": int(n), "episodes": episodes,
-                   "mean_episode_return": ep_return, "mean_episode_length": ep_length,
-                   **{k: v / max(count, 1) for k, v in sums.items()}, "wall_s": time.perf_counter() - t_iter}
-            t_iter = time.perf_counter()  # wall_s: collection and update of the iteration
-            rows.append(row)
-            write_progress(out, rows, CSV_COLUMNS)
-            progress(f"iter {iteration:4d} | frames {frames_done:8d} | episodes {episodes:3d} | return "
-                     f"{ep_return:8.3f} | length {ep_length:6.1f} | loss pi {row['loss_objective']:+.4f} "
-                     f"v {row['loss_critic']:.4f} ent {row['loss_entropy']:+.5f}")
-            if checkpoint_every and iteration % checkpoint_every == 0:
-                _save_checkpoint(out, algorithm, frames_done, actor, critic, optim, rows)
-        collector.shutdown()
-        _save_checkpoint(out, algorithm, frames_done, actor, critic, optim, rows)
+    frames_done, iteration = _iterate(env, actor, critic, loss, gae, optim, rows, out, algorithm, start=start,
+                                      frames=frames, frames_per_batch=frames_per_batch, state=state,
+                                      num_epochs=num_epochs, minibatch_size=minibatch_size,
+                                      max_grad_norm=max_grad_norm, checkpoint_every=checkpoint_every,
+                                      progress=progress)
     train_s = time.perf_counter() - t1
     write_progress(out, rows, CSV_COLUMNS)
 
@@ -404,6 +359,80 @@ def train(env_config: dict, frames: int, out: str, *, algorithm: str = "mappo", 
                "ppo": {"frames_per_batch": frames_per_batch, "num_epochs": num_epochs, "minibatch_size": minibatch_size,
                        "learning_rate": learning_rate, "clip_epsilon": clip_epsilon, "gamma": gamma, "lmbda": lmbda,
                        "entropy_coeff": entropy_coeff, "max_grad_norm": max_grad_norm, "hidden": list(hidden)}}
-    with open(os.path.join(out, "summary.json"), "w") as fh:
-        json.dump(summary, fh, indent=2)
+    write_json_atomic(os.path.join(out, "summary.json"), summary)
     return summary
+
+
+def _iterate(env, actor, critic, loss, gae, optim, rows: list, out: str, algorithm: str, *, start: int, frames: int,
+             frames_per_batch: int, state: bool, num_epochs: int, minibatch_size: int, max_grad_norm: float,
+             checkpoint_every: int, progress) -> tuple:
+    """Collect-and-update iterations from ``start`` to ``frames`` environment steps: GAE, clipped-PPO epochs, a row
+    appended to ``rows`` and ``out/progress.csv``, a checkpoint every ``checkpoint_every`` and at the end;
+    (frames done, iterations done)."""
+    import torch
+    from torchrl.collectors import Collector
+
+    remaining = int(frames) - start
+    frames_done = start
+    iteration = rows[-1]["iteration"] if rows else 0
+    if remaining <= 0:
+        return frames_done, iteration
+    batch = min(int(frames_per_batch), remaining)
+    total = -(-remaining // batch) * batch
+    collector = Collector(env, actor, frames_per_batch=batch, total_frames=total, device="cpu",
+                          auto_register_policy_transforms=False)
+    t_iter = time.perf_counter()
+    for data in collector:
+        with torch.no_grad():
+            gae(data)
+        episodes, ep_return, ep_length = _episode_stats(data)
+        flat = valid_transitions(data, state)
+        means = _ppo_update(loss, optim, flat, num_epochs, minibatch_size, max_grad_norm)
+        collector.update_policy_weights_()
+        frames_done += data.numel()
+        iteration += 1
+        row = {"iteration": iteration, "frames": frames_done, "agent_steps": int(flat.batch_size[0]),
+               "episodes": episodes, "mean_episode_return": ep_return, "mean_episode_length": ep_length,
+               **means, "wall_s": time.perf_counter() - t_iter}
+        t_iter = time.perf_counter()  # wall_s: collection and update of the iteration
+        rows.append(row)
+        write_progress(out, rows, CSV_COLUMNS)
+        progress(f"iter {iteration:4d} | frames {frames_done:8d} | episodes {episodes:3d} | return "
+                 f"{ep_return:8.3f} | length {ep_length:6.1f} | loss pi {row['loss_objective']:+.4f} "
+                 f"v {row['loss_critic']:.4f} ent {row['loss_entropy']:+.5f}")
+        if checkpoint_every and iteration % checkpoint_every == 0:
+            _save_checkpoint(out, algorithm, frames_done, actor, critic, optim, rows)
+    collector.shutdown()
+    _save_checkpoint(out, algorithm, frames_done, actor, critic, optim, rows)
+    return frames_done, iteration
+
+
+def _check_train_arguments(algorithm: str, *, checkpoint_every: int, **counts) -> None:
+    """:class:`TrainingError` naming the argument: an unknown algorithm, a count below 1, checkpoint_every < 0."""
+    check_algorithm(algorithm)
+    for name, value in counts.items():
+        check_integer(name, value, error=TrainingError, minimum=1)
+    if checkpoint_every < 0:
+        raise TrainingError(f"checkpoint_every must be >= 0, got {checkpoint_every!r}")
+
+
+def _ppo_update(loss, optim, flat, num_epochs: int, minibatch_size: int, max_grad_norm: float) -> dict:
+    """``num_epochs`` passes of clipped-PPO minibatch updates over the batch ``flat``, gradients clipped to
+    ``max_grad_norm``; the mean of each loss term and of the entropy over the minibatches."""
+    import torch
+
+    n = flat.batch_size[0]
+    sums = dict.fromkeys(("loss_objective", "loss_critic", "loss_entropy", "entropy"), 0.0)
+    count = 0
+    for _ in range(num_epochs):
+        for idx in torch.randperm(n).split(int(minibatch_size)):
+            parts = loss(flat[idx])
+            total_loss = parts["loss_objective"] + parts["loss_critic"] + parts["loss_entropy"]
+            optim.zero_grad()
+            total_loss.backward()
+            torch.nn.utils.clip_grad_norm_(loss.parameters(), max_grad_norm)
+            optim.step()
+            for key in sums:
+                sums[key] += float(parts[key].detach())
+            count += 1
+    return {k: v / max(count, 1) for k, v in sums.items()}

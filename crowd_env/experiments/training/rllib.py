@@ -199,10 +199,7 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, address: str |
     if address is not None:
         check_reachable(address, connect_timeout_s)  # before anything else: fail in seconds
     _require()
-    probe = crowd_v0.parallel_env(**env_config)  # bad environment options fail here, not inside a Ray actor
-    agent = probe.possible_agents[0]
-    policy_meta = {"format": POLICY_FORMAT, "obs_dim": int(probe.observation_space(agent).shape[0]),
-                   "low": probe.action_space(agent).low.tolist(), "high": probe.action_space(agent).high.tolist()}
+    policy_meta = _policy_meta(env_config)
     t0 = time.perf_counter()
     entries, before = begin_run(out, env_config, resume=resume, resolve=resolve, eval_seeds=eval_seeds, seed=seed,
                                 progress=progress)
@@ -214,30 +211,9 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, address: str |
     with RayBackend(address=address, num_cpus=None if address else local_cpus,
                     connect_timeout_s=connect_timeout_s) as backend:
         algo = config.build_algo()
-        rows, start = [], 0
-        if entries:
-            path = os.path.join(out, "checkpoints", entries[-1]["model"])
-            algo.restore_from_path(os.path.abspath(path))
-            with open(os.path.join(path, "progress.json")) as fh:
-                rows = json.load(fh)
-            start = int(entries[-1]["timesteps"])
-            progress(f"resuming from the checkpoint at {start} environment steps (iteration {rows[-1]['iteration']})")
-        env_steps = start
-        iteration = rows[-1]["iteration"] if rows else 0
+        rows, start = _restore(algo, out, entries, progress)
         t1 = time.perf_counter()
-        while env_steps < timesteps:
-            t_iter = time.perf_counter()
-            result = algo.train()
-            iteration += 1
-            row = _row(result, iteration, time.perf_counter() - t_iter)
-            env_steps = row["env_steps"]
-            rows.append(row)
-            write_progress(out, rows, CSV_COLUMNS)
-            progress(f"iter {iteration:4d} | env steps {env_steps:8d} | episodes {row['episodes']:3d} | return "
-                     f"{row['mean_episode_return']:8.3f} | length {row['mean_episode_length']:6.1f} | loss pi "
-                     f"{row['policy_loss']:+.4f} v {row['vf_loss']:.4f} | entropy {row['entropy']:.3f}")
-            if checkpoint_every and iteration % checkpoint_every == 0:
-                _save_checkpoint(algo, out, env_steps, iteration, rows)
+        env_steps, iteration = _iterate(algo, out, rows, start, timesteps, checkpoint_every, progress)
         if rows:
             _save_checkpoint(algo, out, env_steps, iteration, rows)
         train_s = time.perf_counter() - t1
@@ -262,6 +238,48 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, address: str |
                "ppo": {"train_batch_size": train_batch_size, "minibatch_size": minibatch_size, "num_epochs": num_epochs,
                        "learning_rate": learning_rate, "gamma": gamma, "lambda_": lambda_,
                        "entropy_coeff": entropy_coeff, "hidden": list(hidden)}}
-    with open(os.path.join(out, "summary.json"), "w") as fh:
-        json.dump(summary, fh, indent=2)
+    write_json_atomic(os.path.join(out, "summary.json"), summary)
     return summary
+
+
+def _iterate(algo, out: str, rows: list, start: int, timesteps: int, checkpoint_every: int, progress) -> tuple:
+    """RLlib training iterations until ``timesteps`` environment steps, each a row appended to ``rows`` and
+    ``out/progress.csv``, a checkpoint every ``checkpoint_every``; (environment steps, iterations) done."""
+    env_steps = start
+    iteration = rows[-1]["iteration"] if rows else 0
+    while env_steps < timesteps:
+        t_iter = time.perf_counter()
+        result = algo.train()
+        iteration += 1
+        row = _row(result, iteration, time.perf_counter() - t_iter)
+        env_steps = row["env_steps"]
+        rows.append(row)
+        write_progress(out, rows, CSV_COLUMNS)
+        progress(f"iter {iteration:4d} | env steps {env_steps:8d} | episodes {row['episodes']:3d} | return "
+                 f"{row['mean_episode_return']:8.3f} | length {row['mean_episode_length']:6.1f} | loss pi "
+                 f"{row['policy_loss']:+.4f} v {row['vf_loss']:.4f} | entropy {row['entropy']:.3f}")
+        if checkpoint_every and iteration % checkpoint_every == 0:
+            _save_checkpoint(algo, out, env_steps, iteration, rows)
+    return env_steps, iteration
+
+
+def _policy_meta(env_config: dict) -> dict:
+    """The policy file's description from a probe environment (bad options fail here, not inside a Ray actor)."""
+    probe = crowd_v0.parallel_env(**env_config)
+    agent = probe.possible_agents[0]
+    return {"format": POLICY_FORMAT, "obs_dim": int(probe.observation_space(agent).shape[0]),
+            "low": probe.action_space(agent).low.tolist(), "high": probe.action_space(agent).high.tolist()}
+
+
+def _restore(algo, out: str, entries: list, progress) -> tuple:
+    """(progress rows, environment steps done): ``algo`` restored from the latest checkpoint of ``entries``, or
+    ([], 0) for a fresh run."""
+    if not entries:
+        return [], 0
+    path = os.path.join(out, "checkpoints", entries[-1]["model"])
+    algo.restore_from_path(os.path.abspath(path))
+    with open(os.path.join(path, "progress.json")) as fh:
+        rows = json.load(fh)
+    start = int(entries[-1]["timesteps"])
+    progress(f"resuming from the checkpoint at {start} environment steps (iteration {rows[-1]['iteration']})")
+    return rows, start
