@@ -83,7 +83,13 @@ def main(argv=None) -> None:
     if not problems:
         print(f"no projection too large for the dense path in {args.steps} steps after {args.warmup}")
         return
-    # compile everything once outside the timings (same argument types as below)
+    _compile(problems)
+    times, iterations, stats = _time_solvers(problems, cascade.working)
+    _report(args, problems, times, iterations, stats)
+
+
+def _compile(problems) -> None:
+    """Compile every solver once outside the timings (same argument types as the timed calls)."""
     project_gaps_alm(problems[0][0].copy(), *problems[0][1:], np.zeros(problems[0][2].shape[0]), ALM_NEWTON_BUDGET)
     project_gaps_interior_point(problems[0][0].copy(), *problems[0][1:])
     project_gaps_ipm(problems[0][0].copy(), *problems[0][1:])
@@ -91,10 +97,15 @@ def main(argv=None) -> None:
     for guess in (np.zeros(m0), None):  # both start signatures of the working set's solves
         project_gaps_working_set(problems[0][0].copy(), *problems[0][1:], np.ones(m0, bool), z0=guess)
 
+
+
+def _time_solvers(problems, working_sets) -> tuple:
+    """Each recorded projection solved by every method: (seconds per method, iterations per method, the
+    largest differences, the augmented Lagrangian's successes and the smallest slack)."""
     times = {"alm": 0.0, "own": 0.0, "piqp": 0.0, "ws": 0.0, "ws_cold": 0.0, "own_ws": 0.0}
     iterations = {"alm": [], "own": [], "ws": [], "ws_cold": []}
     d_piqp, d_exact, d_ws, alm_ok, min_slack = 0.0, 0.0, 0.0, 0, np.inf
-    for (vel, *rest), start in zip(problems, cascade.working):
+    for (vel, *rest), start in zip(problems, working_sets):
         m = rest[1].shape[0]
         v_alm = vel.copy()
         t0 = time.perf_counter()
@@ -131,6 +142,13 @@ def main(argv=None) -> None:
         if status_alm == STATUS_OK:
             alm_ok += 1
             d_exact = max(d_exact, float(np.abs(v_own[:, :2] - v_alm[:, :2]).max()))
+    return times, iterations, {"d_piqp": d_piqp, "d_exact": d_exact, "d_ws": d_ws, "alm_ok": alm_ok,
+                               "min_slack": min_slack}
+
+
+def _report(args, problems, times: dict, iterations: dict, stats: dict) -> None:
+    """Print the timings per projection, the speed-ups and the differences between the methods."""
+    d_piqp, d_exact, d_ws, alm_ok, min_slack = (stats[k] for k in ("d_piqp", "d_exact", "d_ws", "alm_ok", "min_slack"))
     k = len(problems)
     sizes = [p[2].shape[0] for p in problems]
     print(f"dense room N = {args.n}: {k} large projections in {args.steps} steps after {args.warmup}, "

@@ -30,6 +30,10 @@ def test_import_contracts_are_kept():
     ("analysis/flow.py", "import crowd_env.envs.crowd_v0  # noqa\n", "Layers"),
     ("envs/rewards.py", "import baselines  # noqa\n", "never imports baselines"),
     ("walking/agent.py", "import gymnasium  # noqa\n", "knows nothing of RL"),
+    ("experiments/running/store.py", "    from crowd_env.experiments.training import ppo  # noqa\n", "Experiments:"),
+    ("experiments/output/tables.py", "import crowd_env.experiments.validation.soak  # noqa\n", "Experiments:"),
+    ("experiments/training/ppo.py", "import crowd_env.experiments.validation.bottleneck  # noqa\n", "Experiments:"),
+    ("files.py", "import crowd_env.core.params  # noqa\n", "atomic file writes"),
 ])
 def test_an_upward_import_breaks_a_contract(tmp_path, module, line, contract):
     shutil.copytree(ROOT / "crowd_env", tmp_path / "crowd_env", ignore=shutil.ignore_patterns("__pycache__", "*.nb?"))

@@ -14,7 +14,7 @@ explicitly (``--scenario``, ``--scenario-option``, ``--widths``, ``--max-time``,
 one, the defaults below apply (Seyfried bottleneck, 60 pedestrians, 90 s). The command prints which
 configuration it uses.
 
-Metrics (:mod:`crowd_env.experiments.training.evaluation`): specific flow J_s (Kabalan et al. 2016, Eq. 22),
+Metrics (:mod:`crowd_env.experiments.running.evaluation`): specific flow J_s (Kabalan et al. 2016, Eq. 22),
 evacuation time, mean speed, number and mean size of the contact percussions, minimum gap, mean
 per-agent return: their means over the episodes, then their 95 % intervals (percentile bootstrap of
 the mean over the episodes; rough with few seeds).
@@ -36,9 +36,9 @@ import argparse
 import os
 import sys
 
-from ..experiments.training.evaluation import (ScenarioSpec, describe_setup, episode_setup, evaluate, format_intervals,
-                                      format_table, import_object, plot_results, recorded_env_config, resolve_policy,
-                                      summarize, write_csv)
+from ..experiments.output.evaluation_report import format_intervals, format_table, plot_results, write_csv
+from ..experiments.running.evaluation import (ScenarioSpec, describe_setup, episode_setup, evaluate, import_object,
+                                              recorded_env_config, resolve_policy, summarize)
 from ..experiments.output.video import per_policy
 from ..errors import CrowdEnvError, InputError, OptionError, PolicyError, ScenarioError
 from .options import DEFAULT_POLICY_RESOLVER, key_values, policy_env_options

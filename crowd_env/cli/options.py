@@ -12,7 +12,7 @@ from ..core.params import ModelParams
 from ..errors import OptionError
 from ..core.presets import DEFAULT_PRESET, get_preset
 from ..experiments.validation.bottleneck import GEOMETRY_OPTIONS, bottleneck_config, model_params
-from ..experiments.training.evaluation import DEFAULT_POLICY_RESOLVER
+from ..experiments.running.evaluation import DEFAULT_POLICY_RESOLVER
 
 __all__ = ["add_geometry_arguments", "model_params_from_args", "navigation_clearance_from_args", "config_of",
            "DEFAULT_POLICY_RESOLVER", "key_values", "policy_env_options", "MODEL_ENV_KEYS"]

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 from ..errors import OptionError
-from ..experiments.training.evaluation import import_object
+from ..experiments.running.evaluation import import_object
 from ..experiments.training.ppo import DEFAULT_SCENARIO_OPTIONS
 from .options import DEFAULT_POLICY_RESOLVER, key_values
 

@@ -183,7 +183,7 @@ def test_a_shipped_clone_walks_a_crowd_out_as_its_background():
     policy there gives less than half of it)."""
     from baselines.reference_policies import as_policy
     from baselines.trained import list_trained
-    from crowd_env.experiments.training.evaluation import ScenarioSpec, run_episode
+    from crowd_env.experiments.running.evaluation import ScenarioSpec, run_episode
 
     assert "bottleneck_bc" in list_trained()
     spec = ScenarioSpec("seyfried_bottleneck", {"width_m": 1.0, "n_pedestrians": 20})

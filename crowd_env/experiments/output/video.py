@@ -7,7 +7,7 @@ percussions as lines between touching pedestrians (or a pedestrian and the wall)
 normal percussion summed over the simulator steps since the previous frame grows.
 
 - :func:`record_rollout`: one episode of the evaluation harness
-  (:func:`crowd_env.experiments.training.evaluation.run_episode`, the same policies, scenarios, seeds and metrics
+  (:func:`crowd_env.experiments.running.evaluation.run_episode`, the same policies, scenarios, seeds and metrics
   as ``crowd-evaluate``) with a :class:`RolloutVideo` reading the environment after every step;
   percussions come from the simulator's sub-steps (``env.substep_hooks``,
   :class:`crowd_env.envs.rendering.ContactPercussions`).
@@ -50,7 +50,7 @@ from ...core.checks import check_integer, check_number
 from ...core.params import PedestrianDefaults
 from ...envs.rendering import ContactPercussions, CrowdRenderer
 from crowd_env.errors import InputError, MissingDependencyError, MissingFileError, NotFoundError, PolicyError
-from ..training.evaluation import ScenarioSpec, import_object, resolve_policy, run_episode
+from ..running.evaluation import ScenarioSpec, import_object, resolve_policy, run_episode
 
 __all__ = ["VIDEO_FORMATS", "MAX_DEFAULT_FPS", "DEFAULT_QUALITY", "VideoInfo", "VideoWriter", "RolloutVideo", "check_video_path",
            "frame_stride", "policy_from_spec", "record_rollout", "record_trajectory_file", "per_policy",
@@ -230,7 +230,7 @@ def _title(label: str, time_s: float, active, controlled, pmax: float | None) ->
 
 
 class RolloutVideo:
-    """Recorder of one episode of :func:`crowd_env.experiments.training.evaluation.run_episode` (its ``video``
+    """Recorder of one episode of :func:`crowd_env.experiments.running.evaluation.run_episode` (its ``video``
     argument): a frame at the reset and then every ``every`` environment steps, with the percussions of
     the simulator steps in between; see the module docstring for ``fps`` and ``every``. After the
     episode :attr:`info` is the :class:`VideoInfo` of the file written. ``label`` starts each frame's title
@@ -285,7 +285,7 @@ class RolloutVideo:
 
 def policy_from_spec(spec, resolver: str | None = None, name: str | None = None):
     """A policy from a spec as ``crowd-evaluate`` reads it: an import path ``module:attribute``
-    (:func:`crowd_env.experiments.training.evaluation.resolve_policy`), a policy object, or a name or saved model
+    (:func:`crowd_env.experiments.running.evaluation.resolve_policy`), a policy object, or a name or saved model
     given to the resolver function the import path ``resolver`` names (e.g.
     ``"baselines.reference_policies:as_policy"``). Any failure is a :class:`~crowd_env.errors.PolicyError`
     naming the spec."""
@@ -309,10 +309,10 @@ def record_rollout(policy, path, scenario="seyfried_bottleneck", seed: int = 0, 
                    resolver: str | None = None, line: str | None = None, percussion_scale_kg_m_s: float = 20.0,
                    label: str | None = None, quality: float = DEFAULT_QUALITY) -> tuple:
     """Write a video of one episode of ``policy`` on ``scenario`` (a registered name with
-    ``scenario_options``, or a :class:`~crowd_env.experiments.training.evaluation.ScenarioSpec`) with ``seed``, at
+    ``scenario_options``, or a :class:`~crowd_env.experiments.running.evaluation.ScenarioSpec`) with ``seed``, at
     most ``max_time_s`` simulated seconds, to ``path`` (``.mp4`` or ``.gif``). ``policy``: a policy object
     or a spec (:func:`policy_from_spec` with ``resolver``); ``env_options`` go to the environment as in
-    :func:`~crowd_env.experiments.training.evaluation.run_episode` (``controlled`` defaults to ``"all"``).
+    :func:`~crowd_env.experiments.running.evaluation.run_episode` (``controlled`` defaults to ``"all"``).
     ``quality``: the MP4's, 0 (smallest file) to 10 (best; default 7). Returns ``(EpisodeMetrics, VideoInfo)``.
     The path, fps, stride and quality are checked before the episode runs."""
     path = check_video_path(path)
@@ -341,7 +341,7 @@ def per_policy_path(path, label: str) -> Path:
 
 
 def per_policy(path, *, fps=None, every=None, percussion_scale_kg_m_s: float = 20.0, written: list | None = None):
-    """The ``video`` argument of :func:`crowd_env.experiments.training.evaluation.evaluate`: for each policy label a
+    """The ``video`` argument of :func:`crowd_env.experiments.running.evaluation.evaluate`: for each policy label a
     :class:`RolloutVideo` writing :func:`per_policy_path` ``(path, label)``, so that the first episode of
     each policy (first scenario, first seed) is recorded. The recorders are appended to ``written`` when
     given (their :attr:`RolloutVideo.info` says what each wrote). ``path``, ``fps`` and ``every`` are

@@ -30,7 +30,7 @@ Outputs of :func:`train` in ``out``: ``progress.csv`` (one row per iteration, :d
 also printed), ``policy.pt`` (the policy's weights and its shapes; :func:`load_policy` rebuilds it as a
 policy of the evaluation harness), ``env_config.json``, ``summary.json`` (mean per-agent episode
 return of the random policy and of the trained one, deterministic, on the same evaluation seeds, through
-:mod:`crowd_env.experiments.training.evaluation`) and ``checkpoints/`` (networks, optimiser, progress, indexed
+:mod:`crowd_env.experiments.running.evaluation`) and ``checkpoints/`` (networks, optimiser, progress, indexed
 last and atomically as :mod:`crowd_env.experiments.training.ppo` does; ``resume`` continues from the latest).
 
 Needs the ``marl`` extra (torchrl, tensordict), imported inside the functions. Command line:

@@ -26,7 +26,7 @@ import warnings
 import numpy as np
 
 from ...envs import crowd_v0
-from .evaluation import ENV_CONFIG_FILE, episode_setup, run_episode
+from ..running.evaluation import ENV_CONFIG_FILE, episode_setup, run_episode
 from crowd_env.files import write_json_atomic
 
 __all__ = ["DEFAULT_SCENARIO_OPTIONS", "SharedPolicy", "TrainingError", "make_vec_env", "mean_return", "read_checkpoints",
@@ -198,7 +198,7 @@ def train(env_config: dict, timesteps: int, out: str, *, resolve, seed: int = 0,
     """Train, save and evaluate; returns the summary dict (also written to ``out/summary.json``).
 
     ``resolve(spec, name=None) -> policy`` makes the policies the summary compares
-    (:func:`~crowd_env.experiments.training.evaluation.resolve_policy`): ``resolve("random")`` before training and
+    (:func:`~crowd_env.experiments.running.evaluation.resolve_policy`): ``resolve("random")`` before training and
     ``resolve(model, name="ppo")`` for the trained SB3 model, e.g. ``baselines.reference_policies.as_policy``.
 
     ``checkpoint_every`` timesteps (0: only at the end) a checkpoint is saved under ``out/checkpoints``;

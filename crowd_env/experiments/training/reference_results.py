@@ -17,7 +17,7 @@ learned ones are trained with ``train_seeds`` and saved as :mod:`policy files
 <crowd_env.envs.policy_files>`; every policy is evaluated on the same ``eval_seeds`` (unseen in
 training: training and demonstrations use other seeds).
 
-**Measures** per episode: the evaluation harness's (:mod:`crowd_env.experiments.training.evaluation`: evacuation,
+**Measures** per episode: the evaluation harness's (:mod:`crowd_env.experiments.running.evaluation`: evacuation,
 J_s (NaN for an episode that did not finish: never a flow figure from a stalled run), mean speed, density
 in front of the bottleneck, number and size of contact percussions, smallest gap, per-agent return), and
 per trained policy its training cost (agent steps, wall time, one core each).
@@ -47,7 +47,7 @@ from crowd_env.errors import InputError, RunStoreError
 from ...core.params import ModelParams
 from ...core.checks import check_integer
 from ...envs.crowd_v0 import decisions_for_time
-from .evaluation import DEFAULT_POLICY_RESOLVER, ScenarioSpec, evaluate, import_object
+from ..running.evaluation import DEFAULT_POLICY_RESOLVER, ScenarioSpec, evaluate, import_object
 from crowd_env.files import write_json_atomic
 from ..output.tables import format_table
 

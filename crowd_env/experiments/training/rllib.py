@@ -20,7 +20,7 @@ also printed; returns and lengths are RLlib's running means over the last episod
 ``policy/`` (the trained RLModule; :func:`load_policy` makes it a policy of the evaluation harness),
 ``policy.json`` (its action bounds and observation size), ``env_config.json``, ``summary.json`` (mean
 per-agent episode return of the random policy and of the trained one, deterministic, on the same
-evaluation seeds, through :mod:`crowd_env.experiments.training.evaluation`) and ``checkpoints/`` (RLlib
+evaluation seeds, through :mod:`crowd_env.experiments.running.evaluation`) and ``checkpoints/`` (RLlib
 algorithm checkpoints, ``index.json`` written last: ``resume`` continues from the latest; a folder with
 checkpoints is refused without it, and resuming with other environment options is refused, by
 :func:`crowd_env.experiments.training.ppo.check_resume`).

@@ -18,7 +18,7 @@ from crowd_env.envs.rendering import (BACKGROUND_COLOR, CONTROLLED_COLOR, Contac
                                       CrowdRenderer)
 from crowd_env.errors import (InputError, MissingDependencyError, MissingFileError, NotFoundError,  # noqa: E402
                               PolicyError, ScenarioError, TrajectoryFormatError)
-from crowd_env.experiments.training.evaluation import evaluate  # noqa: E402
+from crowd_env.experiments.running.evaluation import evaluate  # noqa: E402
 from crowd_env.experiments.output.video import (frame_stride, per_policy, record_rollout,  # noqa: E402
                                          record_trajectory_file)
 from crowd_env.scenarios import make_scenario  # noqa: E402

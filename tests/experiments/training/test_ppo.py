@@ -1,7 +1,7 @@
 """Training pipeline (SB3 PPO on the native vector env or SuperSuit): agent deaths in the SuperSuit pipeline, the two
 vectorisers training to comparable returns, a smoke training whose model
 runs through the evaluation harness and command, and SB3Policy's check of the observations. (The harness
-alone: tests/experiments/training/test_evaluation.py.)"""
+alone: tests/experiments/running/test_evaluation.py.)"""
 import json
 import os
 import warnings
@@ -16,8 +16,8 @@ import supersuit as ss  # noqa: E402
 
 from baselines.reference_policies import CallablePolicy, RandomPolicy, SB3Policy, as_policy  # noqa: E402
 from crowd_env.envs import crowd_v0  # noqa: E402
-from crowd_env.experiments.training.evaluation import (ScenarioSpec, evaluate, format_table, plot_results,  # noqa: E402
-                                              run_episode, summarize)
+from crowd_env.experiments.output.evaluation_report import format_table, plot_results  # noqa: E402
+from crowd_env.experiments.running.evaluation import ScenarioSpec, evaluate, run_episode, summarize  # noqa: E402
 from crowd_env.experiments.training.ppo import TrainingError, make_vec_env, train  # noqa: E402
 from tests.conftest import load_script  # noqa: E402
 

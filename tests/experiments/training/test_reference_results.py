@@ -149,7 +149,7 @@ def test_the_quick_reference_results_train_evaluates_resumes_and_ships(quick_run
     assert sorted(os.path.basename(p) for p in shipped) == ["bottleneck_bc.npz", "bottleneck_mappo.npz",
                                                             "bottleneck_ppo.npz"]
     policy = as_policy(shipped[0])
-    from crowd_env.experiments.training.evaluation import run_episode
+    from crowd_env.experiments.running.evaluation import run_episode
 
     m = run_episode(policy, bm.ScenarioSpec("seyfried_bottleneck", {"width_m": 1.0, "n_pedestrians": 8}), 3,
                     max_time_s=2.0)

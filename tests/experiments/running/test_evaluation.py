@@ -1,9 +1,9 @@
-"""The evaluation harness (crowd_env.experiments.training.evaluation): the calibrated baseline's metrics through it,
+"""The evaluation harness (crowd_env.experiments.running.evaluation): the calibrated baseline's metrics through it,
 and scenarios given by name and options."""
 import numpy as np
 
 from baselines.reference_policies import CalibratedPolicy, ZeroIntentPolicy, as_policy
-from crowd_env.experiments.training.evaluation import ScenarioSpec, evaluate, run_episode
+from crowd_env.experiments.running.evaluation import ScenarioSpec, evaluate, run_episode
 
 
 def test_evaluation_harness_takes_scenario_name_and_options():
@@ -48,7 +48,7 @@ def test_learners_among_a_crowd_are_measured_until_the_whole_crowd_has_left():
 def test_episode_setup_and_recorded_config_give_the_problem_a_policy_was_trained_on(tmp_path):
     import json
 
-    from crowd_env.experiments.training.evaluation import episode_setup, recorded_env_config
+    from crowd_env.experiments.running.evaluation import episode_setup, recorded_env_config
 
     config = {"scenario": "seyfried_bottleneck", "scenario_options": {"width_m": 1.0, "n_pedestrians": 10},
               "controlled": "all", "frame_skip": 10, "max_steps": 100, "n_neighbors": 6, "n_rays": 8,
@@ -65,7 +65,8 @@ def test_episode_setup_and_recorded_config_give_the_problem_a_policy_was_trained
 
 
 def test_summaries_carry_bootstrap_intervals_of_the_means():
-    from crowd_env.experiments.training.evaluation import EpisodeMetrics, confidence_interval, format_intervals, summarize
+    from crowd_env.experiments.output.evaluation_report import format_intervals
+    from crowd_env.experiments.running.evaluation import EpisodeMetrics, confidence_interval, summarize
 
     lo, hi = confidence_interval([1.0, 2.0, 3.0, 4.0])
     assert 1.0 <= lo < 2.5 < hi <= 4.0
