@@ -8,7 +8,8 @@ from .experiment import (DIP_N20_WIDTH_M, GROUP_SIZES, PUBLISHED_SPECIFIC_FLOW_N
                          SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, WIDTHS_M, ExperimentError, ExperimentTable, seyfried_2009)
 from .flow import (FlowError, FlowResult, LinearFit, MeasurementLine, PassageCounter, line_crossings, linear_fit,
                    linear_fit_residual_norm, specific_flow, trajectory_crossings)
-from .lanes import LaneError, LaneResult, LateralHistogram, detect_lanes, lateral_histogram
+from .lanes import (LaneError, LaneResult, LateralHistogram, detect_lanes, lane_order_parameter, lateral_histogram,
+                    mixed_lane_order_parameter)
 from .recorder import RecorderError, TrajectoryRecorder
 from .trajectories import Trajectories, TrajectoryFormatError, export_run, read_geometry, write_geometry
 
@@ -19,7 +20,8 @@ __all__ = [
     "SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S", "WIDTHS_M", "ExperimentError", "ExperimentTable", "seyfried_2009",
     "FlowError", "FlowResult", "LinearFit", "MeasurementLine", "PassageCounter", "line_crossings", "linear_fit",
     "linear_fit_residual_norm", "specific_flow", "trajectory_crossings",
-    "LaneError", "LaneResult", "LateralHistogram", "detect_lanes", "lateral_histogram",
+    "LaneError", "LaneResult", "LateralHistogram", "detect_lanes", "lateral_histogram", "lane_order_parameter",
+    "mixed_lane_order_parameter",
     "RecorderError", "TrajectoryRecorder",
     "Trajectories", "TrajectoryFormatError", "export_run", "read_geometry", "write_geometry",
 ]
