@@ -104,8 +104,9 @@ def pooled_lanes(records) -> LaneResult:
 
 def lane_order_parameter(*, y_m, eastbound, band_m: float = 0.46) -> float:
     """The lane order parameter Φ of a counterflow (Rex & Löwen 2007, Phys. Rev. E 75, 051402; used for
-    self-driven particles by Ikeda & Kim 2017): for each pedestrian i, the others whose lateral position lies within ``band_m`` / 2 of its own (its lane, one body
-    wide by default), n_same walking its way and n_opp the other;
+    self-driven particles by Ikeda & Kim 2017): for each pedestrian i, the others whose lateral position lies
+    within ``band_m`` / 2 of its own (its lane, one body wide by default), n_same walking its way and n_opp the
+    other;
 
         φ_i = ((n_same − n_opp) / (n_same + n_opp))²,   Φ = mean of φ_i over the pedestrians with a lane-mate.
 
