@@ -67,7 +67,8 @@ from gymnasium.vector.utils import batch_space
 from crowd_env.errors import ActionError, EnvOptionError, EnvStateError, WorkerError
 
 from ..core.checks import check_integer, check_seed
-from .crowd_v0 import CrowdParallelEnv, parallel_env, resolve_options
+from .config import resolve_options
+from .crowd_v0 import CrowdParallelEnv, parallel_env
 
 __all__ = ["CrowdVectorEnv", "vector_env", "gym_vector_env", "WorkerError"]
 
