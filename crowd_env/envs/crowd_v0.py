@@ -57,7 +57,10 @@ Observations
     Field by field: :mod:`crowd_env.envs.observations` (``OBSERVATION_FIELDS``,
     ``EGOCENTRIC_OBSERVATION_FIELDS``, :attr:`CrowdParallelEnv.observation_layout`). In the egocentric
     frame a rotated or shifted copy of the scenario gives the same observations, and the same actions
-    give the same (rotated) trajectories (``tests/envs/test_frames.py``).
+    give the same (rotated) trajectories (``tests/envs/test_frames.py``). The fields come from named
+    components (``observation_components``; built-ins such as ``"free_distance"`` and
+    ``"local_density"``, or a component of one's own module as ``"module:Class"``), and the space's
+    bounds from theirs.
 
 State
     :meth:`CrowdParallelEnv.state` (PettingZoo's global state, for centralised critics): a float32
@@ -71,12 +74,15 @@ State
 Rewards
     Default :class:`~crowd_env.envs.rewards.DefaultReward`: progress along the travel-time field
     (T_before − T_after, s of travel) − 0.01 × normal percussion received (kg m/s) − 0.1 per simulated
-    second + 1 on leaving. Pass ``reward_fn(env, agent_ids, info) -> rewards`` to change it
-    (:mod:`crowd_env.envs.rewards` lists the info arrays).
+    second + 1 on leaving: the terms ``progress``, ``contact_percussion``, ``time`` and ``exit``, each
+    agent's share of each in its info (``infos[a]["reward_terms"]["progress"]``). Name other terms and
+    weights with ``reward_terms`` (a term of one's own module as ``"module:Class"``), or pass
+    ``reward_fn(env, agent_ids, info) -> rewards`` (:mod:`crowd_env.envs.rewards` lists the info arrays).
 
 Infos
     Per agent: ``contact_percussion_kg_m_s`` (sum of the normal percussions' magnitudes over its contacts this step),
-    ``n_contacts``, ``travel_time_s`` (T after the step), ``speed_m_s``.
+    ``n_contacts``, ``travel_time_s`` (T after the step), ``speed_m_s``, and after a step ``reward_terms``
+    (a record with one field per reward term: its weighted contribution, the fields summing to the reward).
 
 Episode end
     A pedestrian whose centre enters an exit (its own destination exit in scenarios with per-pedestrian
@@ -159,7 +165,8 @@ def default_background_policy(scenario):
 class CrowdParallelEnv(ParallelEnv):
     """PettingZoo parallel environment of the crowd model (see the module docstring for the full spec).
 
-    Options (all keyword):
+    Options: a :class:`~crowd_env.envs.config.CrowdEnvConfig` (positional), keywords (over it, or over the
+    defaults), checked there:
 
     - ``scenario``: a registered scenario name (``crowd_env.scenarios.list_scenarios()``) or a
       :class:`~crowd_env.scenarios.Scenario` (any geometry); ``scenario_options``: dict for the named
@@ -183,7 +190,13 @@ class CrowdParallelEnv(ParallelEnv):
     - ``action_max_m_s``: a_max of the action Box (default 2.5 m/s; at most 1e3/√2 m/s, the core's bound on intents).
     - ``n_neighbors`` (k, default 6), ``neighbor_radius_m`` (4 m), ``n_rays`` (R, default 8),
       ``ray_range_m`` (5 m): observation settings.
-    - ``reward_fn``: ``reward_fn(env, agent_ids, info) -> rewards`` (default :class:`DefaultReward`).
+    - ``reward_fn``: ``reward_fn(env, agent_ids, info) -> rewards`` (default
+      :class:`~crowd_env.envs.rewards.DefaultReward`); or ``reward_terms``: the terms of a
+      :class:`~crowd_env.envs.rewards.TermReward` (names, ``"module:Class"`` paths, term objects, or a dict
+      of them to weights; :func:`~crowd_env.envs.rewards.resolve_terms`).
+    - ``observation_components``: the observation's components, in order (names, ``"module:Class"``
+      paths or component objects; default the seven fields above:
+      :func:`~crowd_env.envs.observations.resolve_components`).
     - ``render_mode``: None, ``"human"`` or ``"rgb_array"``.
     - ``frame_skip``: simulator steps per environment step (decision interval frame_skip × dt; default 1).
     - ``heading_target``: ``"intent"`` (θ_d = angle of the action) or ``"desired_direction"`` (angle of e_d).
