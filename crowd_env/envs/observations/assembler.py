@@ -139,6 +139,7 @@ class ObservationBuilder:
             (self.walls[:, :2], self.walls[:, 2:] - self.walls[:, :2])))  # start (x, y) and direction (ex, ey)
         self._parts, self.low, self.high = self._lay_out()
         self._search_k = self.n_neighbors if any(c.uses_neighbors for c, _, _ in self._parts) else 0
+        self._writers = tuple((c.write, col, size) for c, col, size in self._parts)
 
     def _lay_out(self) -> tuple:
         """The (component, first column, size) of every component with entries, and the bounds."""
@@ -198,8 +199,8 @@ class ObservationBuilder:
             return obs, travel, speed
         ctx = ObservationContext(state, index, spec, self.walls, self._walls_d, velocity, cos_t, sin_t, e_d, travel,
                                  speed, act, near)
-        for comp, col, size in self._parts:
-            comp.write(ctx, obs, col, size)
+        for write, col, size in self._writers:
+            write(ctx, obs, col, size)
         return obs, travel, speed
 
 
