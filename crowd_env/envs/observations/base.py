@@ -81,11 +81,11 @@ class ObservationContext:
     neighbours, else (m, 0)).
     """
 
-    __slots__ = ("state", "index", "spec", "world", "walls", "wall_directions", "velocity_m_s", "cos_heading", "sin_heading",
-                 "desired_direction", "travel_time_s", "speed_m_s", "active_index", "neighbor_rows")
+    __slots__ = ("state", "index", "spec", "world", "walls", "wall_directions", "velocity_m_s", "cos_heading",
+                 "sin_heading", "desired_direction", "travel_time_s", "speed_m_s", "active_index", "neighbor_rows")
 
-    def __init__(self, state, index, spec, walls, wall_directions, velocity_m_s, cos_heading, sin_heading, desired_direction,
-                 travel_time_s, speed_m_s, active_index, neighbor_rows):
+    def __init__(self, state, index, spec, walls, wall_directions, velocity_m_s, cos_heading, sin_heading,
+                 desired_direction, travel_time_s, speed_m_s, active_index, neighbor_rows):
         self.state = state
         self.index = index
         self.spec = spec
