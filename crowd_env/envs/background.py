@@ -5,9 +5,9 @@ The environment's ``background_policy`` option drives the pedestrians it does no
 takes an *observation policy*: an object with ``actions(observations (n, D)) -> (n, 2)`` and
 ``env_overrides``, the environment options it was trained with (``n_neighbors``, ``n_rays``,
 ``neighbor_radius_m``, ``ray_range_m``, ``observation_frame``, ``frame_skip``, ``action_max_m_s``,
-``heading_target``; those it does not name take the environment's defaults), and optionally ``obs_dim``,
-the observation size it expects (checked against its options). A trained policy file
-(:class:`baselines.trained.FilePolicy`) is one. :class:`ObservingBackground` runs it for the background
+``heading_target``, ``observation_components``; those it does not name take the environment's
+defaults), and optionally ``obs_dim``, the observation size it expects (checked against its options).
+A trained policy file (:class:`baselines.trained.FilePolicy`) is one. :class:`ObservingBackground` runs it for the background
 pedestrians exactly as the environment runs it for its agents:
 
 - every ``frame_skip`` simulator steps of the policy (its own decision interval, whatever the
@@ -50,7 +50,7 @@ __all__ = ["ObservingBackground", "OBSERVATION_POLICY_OPTIONS", "CALIBRATED_NAME
 
 # The environment options an observation policy depends on (its observation layout, decision interval, action).
 OBSERVATION_POLICY_OPTIONS = ("n_neighbors", "n_rays", "neighbor_radius_m", "ray_range_m", "observation_frame",
-                              "frame_skip", "action_max_m_s", "heading_target")
+                              "frame_skip", "action_max_m_s", "heading_target", "observation_components")
 CALIBRATED_NAMES = ("calibrated", "baseline")
 ENTRY_POINT_GROUP = "crowd_env_background_policies"
 
@@ -129,7 +129,8 @@ class ObservingBackground:
                                            neighbor_radius_m=float(options["neighbor_radius_m"]),
                                            ray_range_m=float(options["ray_range_m"]),
                                            velocity_bound_m_s=velocity_bound_m_s, travel_time_bound_s=travel_time_bound_s,
-                                           frame=options["observation_frame"], period_m=period_m)
+                                           frame=options["observation_frame"], period_m=period_m,
+                                           components=options.get("observation_components"))
         want = getattr(policy, "obs_dim", None)  # checked when the policy says
         if want is not None and int(want) != self.observer.size:
             raise PolicyError(f"background policy {getattr(policy, 'name', policy)!r} expects observations of size "

@@ -57,7 +57,10 @@ Observations
     Field by field: :mod:`crowd_env.envs.observations` (``OBSERVATION_FIELDS``,
     ``EGOCENTRIC_OBSERVATION_FIELDS``, :attr:`CrowdParallelEnv.observation_layout`). In the egocentric
     frame a rotated or shifted copy of the scenario gives the same observations, and the same actions
-    give the same (rotated) trajectories (``tests/envs/test_frames.py``).
+    give the same (rotated) trajectories (``tests/envs/test_frames.py``). The fields come from named
+    components (``observation_components``; built-ins such as ``"free_distance"`` and
+    ``"local_density"``, or a component of one's own module as ``"module:Class"``), and the space's
+    bounds from theirs.
 
 State
     :meth:`CrowdParallelEnv.state` (PettingZoo's global state, for centralised critics): a float32
@@ -71,12 +74,15 @@ State
 Rewards
     Default :class:`~crowd_env.envs.rewards.DefaultReward`: progress along the travel-time field
     (T_before − T_after, s of travel) − 0.01 × normal percussion received (kg m/s) − 0.1 per simulated
-    second + 1 on leaving. Pass ``reward_fn(env, agent_ids, info) -> rewards`` to change it
-    (:mod:`crowd_env.envs.rewards` lists the info arrays).
+    second + 1 on leaving: the terms ``progress``, ``contact_percussion``, ``time`` and ``exit``, each
+    agent's share of each in its info (``infos[a]["reward_terms"]["progress"]``). Name other terms and
+    weights with ``reward_terms`` (a term of one's own module as ``"module:Class"``), or pass
+    ``reward_fn(env, agent_ids, info) -> rewards`` (:mod:`crowd_env.envs.rewards` lists the info arrays).
 
 Infos
     Per agent: ``contact_percussion_kg_m_s`` (sum of the normal percussions' magnitudes over its contacts this step),
-    ``n_contacts``, ``travel_time_s`` (T after the step), ``speed_m_s``.
+    ``n_contacts``, ``travel_time_s`` (T after the step), ``speed_m_s``, and after a step ``reward_terms``
+    (a record with one field per reward term: its weighted contribution, the fields summing to the reward).
 
 Episode end
     A pedestrian whose centre enters an exit (its own destination exit in scenarios with per-pedestrian
@@ -107,9 +113,8 @@ Decision interval
 """
 from __future__ import annotations
 
-from crowd_env.errors import ActionError, EnvStateError, PolicyError, EnvOptionError, UnknownOptionError
+from crowd_env.errors import ActionError, EnvOptionError, EnvStateError, PolicyError, UnknownOptionError
 
-import inspect
 import math
 import os
 import warnings
@@ -120,35 +125,29 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from ..core.params import ModelParams, ParameterError
-from ..core.presets import DEFAULT_PRESET, get_preset
-from ..core.simulator import Simulator
-from ..core.periodic import minimum_image_dx
-from ..core.step import MAX_INPUT_SPEED_M_S
 from ..core.angles import direction_angles_rad
-from ..core.checks import check_integer, check_number, check_seed
-from ..scenarios import Scenario, make_scenario, scenario_options as _scenario_option_defaults
+from ..core.checks import check_integer, check_seed
+from ..core.periodic import minimum_image_dx
+from ..core.simulator import Simulator
+from ..scenarios import Scenario, make_scenario
 from ..walking.agent import SocialForceAgent, desired_direction, hold_waiting
 from .background import OBSERVATION_POLICY_OPTIONS, ObservingBackground, is_observation_policy, load_named_background
-from .observations import OBSERVATION_FIELDS, ObservationBuilder, check_frame, to_world_frame
-from .rewards import DefaultReward
+from .config import (DEFAULT_ACTION_MAX_M_S, ENV_DEFAULTS, ENV_OPTIONS, OPTION_ALIASES, CrowdEnvConfig, agent_id,
+                     make_config, observation_policy_options, resolve_options, select_controlled,
+                     unknown_options_message)
+from .observations import OBSERVATION_FIELDS, ObservationBuilder, to_world_frame
 from .state import GlobalStateBuilder
 
-__all__ = ["CrowdParallelEnv", "parallel_env", "env", "EnvOptionError", "UnknownOptionError", "ResetOptionsWarning",
-           "ENV_OPTIONS", "OPTION_ALIASES", "resolve_options", "unknown_options_message", "OBSERVATION_FIELDS",
-           "DEFAULT_ACTION_MAX_M_S", "default_background_policy", "agent_id", "decisions_for_time"]
+__all__ = ["CrowdParallelEnv", "CrowdEnvConfig", "parallel_env", "env", "EnvOptionError", "UnknownOptionError",
+           "ResetOptionsWarning", "ENV_OPTIONS", "ENV_DEFAULTS", "OPTION_ALIASES", "resolve_options",
+           "unknown_options_message", "OBSERVATION_FIELDS", "DEFAULT_ACTION_MAX_M_S", "default_background_policy",
+           "agent_id", "decisions_for_time"]
 
-DEFAULT_ACTION_MAX_M_S = 2.5
 DEFAULT_EPISODE_TIME_S = 60.0
 
 
 class ResetOptionsWarning(UserWarning):
     """reset() was given options, which it ignores (the environment is configured when made)."""
-
-
-def agent_id(index: int) -> str:
-    """The agent id of pedestrian ``index``: ``"ped_<index>"``."""
-    return f"ped_{int(index)}"
 
 
 def decisions_for_time(time_s: float, decision_dt_s: float) -> int:
@@ -163,105 +162,11 @@ def default_background_policy(scenario):
     return SocialForceAgent(scenario.navigation())
 
 
-def _positive_number(name, value):
-    return check_number(name, value, error=EnvOptionError, positive=True)
-
-
-def _count(name, value, minimum=0):
-    return check_integer(name, value, error=EnvOptionError, minimum=minimum)
-
-
-def _action_max(name, value) -> float:
-    """a_max, positive and small enough that an action's norm (up to a_max √2) stays within the core's bound on
-    intents (:data:`~crowd_env.core.step.MAX_INPUT_SPEED_M_S`)."""
-    a = _positive_number(name, value)
-    if a * math.sqrt(2.0) > MAX_INPUT_SPEED_M_S:
-        raise EnvOptionError(f"{name} must be at most {MAX_INPUT_SPEED_M_S / math.sqrt(2.0):.6g} m/s (an action's norm, "
-                             f"up to {name} x sqrt(2), must stay within the core's bound on intents "
-                             f"crowd_env.core.step.MAX_INPUT_SPEED_M_S = {MAX_INPUT_SPEED_M_S:g} m/s), got {value!r}")
-    return a
-
-
-def _check_heading_target(name, value) -> str:
-    if value not in ("intent", "desired_direction"):
-        raise EnvOptionError(f"{name} must be 'intent' or 'desired_direction', got {value!r}")
-    return value
-
-
-_OPTION_CHECKS = {  # the options an observation policy depends on (OBSERVATION_POLICY_OPTIONS), checked
-    "frame_skip": lambda n, v: _count(n, v, minimum=1),
-    "action_max_m_s": _action_max,
-    "n_neighbors": _count,
-    "n_rays": _count,
-    "neighbor_radius_m": _positive_number,
-    "ray_range_m": _positive_number,
-    "heading_target": _check_heading_target,
-    "observation_frame": lambda n, v: check_frame(v),
-}
-
-
-def _observation_options(values: dict, what: str = "") -> dict:
-    """``values`` of the :data:`OBSERVATION_POLICY_OPTIONS`, checked and converted as the environment's own
-    options are; ``what`` starts the message of an :class:`EnvOptionError` (e.g. whose options they are)."""
-    try:
-        return {k: _OPTION_CHECKS[k](k, v) for k, v in values.items()}
-    except EnvOptionError as exc:
-        if not what:
-            raise
-        raise EnvOptionError(f"{what}{exc}") from None
-
-
-def _select_controlled(controlled, n: int) -> np.ndarray:
-    """Sorted pedestrian indices selected by the ``controlled`` option."""
-    if isinstance(controlled, str):
-        if controlled == "all":
-            return np.arange(n)
-        raise EnvOptionError(f"controlled must be 'all', a count, a fraction in (0, 1] or a list of ids, got {controlled!r}")
-    if isinstance(controlled, (bool, np.bool_)):
-        raise EnvOptionError(f"controlled must be 'all', a count, a fraction or a list of ids, got {controlled!r}")
-    if isinstance(controlled, (int, np.integer)) or isinstance(controlled, (float, np.floating)):
-        if isinstance(controlled, (float, np.floating)):
-            if not (0.0 < controlled <= 1.0):
-                raise EnvOptionError(f"a fraction of controlled pedestrians must lie in (0, 1], got {controlled!r}")
-            k = max(1, int(round(controlled * n)))
-        else:
-            k = int(controlled)
-            if not (1 <= k <= n):
-                raise EnvOptionError(f"controlled = {k} pedestrians, but the scenario has {n}; give 1..{n}")
-        # Evenly spread over the pedestrian indices (deterministic; spacing >= 1 keeps them distinct).
-        return np.unique(np.round(np.linspace(0, n - 1, k)).astype(np.int64)) if k > 1 else np.zeros(1, np.int64)
-    try:
-        items = list(controlled)
-    except TypeError:
-        raise EnvOptionError(f"controlled must be 'all', a count, a fraction or a list of ids, got {controlled!r}") from None
-    if not items:
-        raise EnvOptionError("controlled selects no pedestrian: give at least one")
-    out, bad = [], []
-    for item in items:
-        if isinstance(item, (int, np.integer)) and not isinstance(item, (bool, np.bool_)):
-            i = int(item)
-        elif isinstance(item, str) and item.startswith("ped_") and item[4:].isdigit():
-            i = int(item[4:])
-        else:
-            bad.append(item)
-            continue
-        if not 0 <= i < n:
-            bad.append(item)
-            continue
-        out.append(i)
-    if bad:
-        raise EnvOptionError(f"unknown pedestrian id(s) in controlled: {bad}; ids are 'ped_0'..'ped_{n - 1}' "
-                             f"(or indices 0..{n - 1})")
-    if len(set(out)) != len(out):
-        dup = sorted({agent_id(i) for i in out if out.count(i) > 1})
-        raise EnvOptionError(f"duplicate id(s) in controlled: {dup}")
-    return np.array(sorted(out), dtype=np.int64)
-
-
 class CrowdParallelEnv(ParallelEnv):
     """PettingZoo parallel environment of the crowd model (see the module docstring for the full spec).
 
-    Options (all keyword):
+    Options: a :class:`~crowd_env.envs.config.CrowdEnvConfig` (positional), keywords (over it, or over the
+    defaults), checked there:
 
     - ``scenario``: a registered scenario name (``crowd_env.scenarios.list_scenarios()``) or a
       :class:`~crowd_env.scenarios.Scenario` (any geometry); ``scenario_options``: dict for the named
@@ -285,7 +190,13 @@ class CrowdParallelEnv(ParallelEnv):
     - ``action_max_m_s``: a_max of the action Box (default 2.5 m/s; at most 1e3/√2 m/s, the core's bound on intents).
     - ``n_neighbors`` (k, default 6), ``neighbor_radius_m`` (4 m), ``n_rays`` (R, default 8),
       ``ray_range_m`` (5 m): observation settings.
-    - ``reward_fn``: ``reward_fn(env, agent_ids, info) -> rewards`` (default :class:`DefaultReward`).
+    - ``reward_fn``: ``reward_fn(env, agent_ids, info) -> rewards`` (default
+      :class:`~crowd_env.envs.rewards.DefaultReward`); or ``reward_terms``: the terms of a
+      :class:`~crowd_env.envs.rewards.TermReward` (names, ``"module:Class"`` paths, term objects, or a dict
+      of them to weights; :func:`~crowd_env.envs.rewards.resolve_terms`).
+    - ``observation_components``: the observation's components, in order (names, ``"module:Class"``
+      paths or component objects; default the seven fields above:
+      :func:`~crowd_env.envs.observations.resolve_components`).
     - ``render_mode``: None, ``"human"`` or ``"rgb_array"``.
     - ``frame_skip``: simulator steps per environment step (decision interval frame_skip × dt; default 1).
     - ``heading_target``: ``"intent"`` (θ_d = angle of the action) or ``"desired_direction"`` (angle of e_d).
@@ -301,82 +212,47 @@ class CrowdParallelEnv(ParallelEnv):
     metadata = {"name": "crowd_v0", "render_modes": ["human", "rgb_array"], "render_fps": 10,
                 "is_parallelizable": True}
 
-    def __init__(self, *, scenario="seyfried_bottleneck", scenario_options=None, controlled="all",
-                 background_policy=None, preset=None, params=None, max_steps=None, action_max_m_s=DEFAULT_ACTION_MAX_M_S,
-                 n_neighbors=6, n_rays=8, neighbor_radius_m=4.0, ray_range_m=5.0, reward_fn=None, render_mode=None,
-                 frame_skip=1, heading_target="intent", observation_frame="world", reseed_scenario=None):
-        # -- scenario
+    def __init__(self, config: CrowdEnvConfig | None = None, /, **options):
+        config = make_config(config, options, "CrowdParallelEnv", "CrowdParallelEnv")
+        self.config = config
+        self._init_scenario(config)
+        self._init_model(config)
+        self._init_agents(config)
+        self._init_spaces(config)
+        self._init_run_state()
+
+    def _init_scenario(self, config: CrowdEnvConfig) -> None:
+        scenario = config.scenario
         if isinstance(scenario, Scenario):
-            if scenario_options:
-                raise EnvOptionError("scenario_options apply to a scenario given by name, not to a Scenario object "
-                                     f"(got {sorted(scenario_options)})")
             self._scenario_name, self._scenario_kwargs = None, {}
-        elif isinstance(scenario, str):
-            if scenario_options is not None and not isinstance(scenario_options, dict):
-                raise EnvOptionError(f"scenario_options must be a dict, got {type(scenario_options).__name__}")
-            self._scenario_name, self._scenario_kwargs = scenario, dict(scenario_options or {})
-            scenario = make_scenario(scenario, **self._scenario_kwargs)
         else:
-            raise EnvOptionError(f"scenario must be a registered scenario name or a Scenario, got {type(scenario).__name__}")
+            self._scenario_name, self._scenario_kwargs = scenario, dict(config.scenario_options or {})
+            scenario = make_scenario(scenario, **self._scenario_kwargs)
         self._scenario = scenario
         self._base_positions = scenario.position_m
-        n = scenario.n_pedestrians
-        if n < 1:
+        if scenario.n_pedestrians < 1:
             raise EnvOptionError("the scenario has no pedestrian")
-        can_reseed = self._scenario_name is not None and "seed" in _scenario_option_defaults(self._scenario_name)
-        if reseed_scenario is None:  # auto: vary start positions unless the user pinned the scenario's seed
-            reseed_scenario = can_reseed and "seed" not in self._scenario_kwargs
-        elif not isinstance(reseed_scenario, (bool, np.bool_)):
-            raise EnvOptionError(f"reseed_scenario must be None, True or False, got {reseed_scenario!r}")
-        elif reseed_scenario and not can_reseed:
-            raise EnvOptionError("reseed_scenario=True needs a scenario given by name whose factory takes a 'seed'")
-        self.reseed_scenario = bool(reseed_scenario)
-        # -- model and options
-        if preset is not None and isinstance(params, ModelParams):
-            raise EnvOptionError("give preset or a ModelParams as params, not both (a dict of params overrides the "
-                                 "preset's fields)")
-        try:
-            base = get_preset(DEFAULT_PRESET if preset is None else preset)
-        except ParameterError as exc:
-            raise EnvOptionError(str(exc)) from None
-        self.preset = base.name  # None when a ModelParams object was given
-        if params is None:
-            params = base.params()
-        elif isinstance(params, dict):
-            params = base.params(**params)
-        elif isinstance(params, ModelParams):
-            self.preset = None
-        else:
-            raise EnvOptionError(f"params must be a ModelParams or a dict, got {type(params).__name__}")
-        self.params = params
-        own = _observation_options({"frame_skip": frame_skip, "action_max_m_s": action_max_m_s,
-                                    "n_neighbors": n_neighbors, "n_rays": n_rays, "neighbor_radius_m": neighbor_radius_m,
-                                    "ray_range_m": ray_range_m, "heading_target": heading_target,
-                                    "observation_frame": observation_frame})
-        self.frame_skip = own["frame_skip"]
+        self.reseed_scenario = config.reseeds()
+
+    def _init_model(self, config: CrowdEnvConfig) -> None:
+        self.preset, self.params = config.model()  # preset None when a ModelParams object was given
+        self.frame_skip = config.frame_skip
+        max_steps = config.max_steps
         if max_steps is None:
-            max_steps = decisions_for_time(DEFAULT_EPISODE_TIME_S, params.dt_s * self.frame_skip)
-        self.max_steps = _count("max_steps", max_steps, minimum=1)
-        self.action_max_m_s, self.n_neighbors, self.n_rays = own["action_max_m_s"], own["n_neighbors"], own["n_rays"]
-        neighbor_radius_m, ray_range_m = own["neighbor_radius_m"], own["ray_range_m"]
-        self.heading_target, self.observation_frame = own["heading_target"], own["observation_frame"]
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise EnvOptionError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
-        self.render_mode = render_mode
-        if reward_fn is None:
-            reward_fn = DefaultReward()
-        elif not callable(reward_fn):
-            raise EnvOptionError(f"reward_fn must be callable reward_fn(env, agent_ids, info), got {reward_fn!r}")
-        self.reward_fn = reward_fn
+            max_steps = decisions_for_time(DEFAULT_EPISODE_TIME_S, self.params.dt_s * self.frame_skip)
+        self.max_steps = max_steps
+        self.action_max_m_s, self.n_neighbors, self.n_rays = config.action_max_m_s, config.n_neighbors, config.n_rays
+        self.heading_target, self.observation_frame = config.heading_target, config.observation_frame
+        self.render_mode = config.render_mode
+        self.reward_fn = config.make_reward_fn()
+        background_policy = config.background_policy
         if isinstance(background_policy, (str, os.PathLike)):
             background_policy = load_named_background(background_policy)
-        observing = is_observation_policy(background_policy)
-        if background_policy is not None and not observing and not callable(background_policy):
-            raise EnvOptionError("background_policy must be a name, a callable policy(sim) or an observation policy "
-                                 f"(actions(observations) and env_overrides), got {background_policy!r}")
         self._background_policy = background_policy
-        # -- agents
-        self._controlled_index = _select_controlled(controlled, n)
+
+    def _init_agents(self, config: CrowdEnvConfig) -> None:
+        n = self._scenario.n_pedestrians
+        self._controlled_index = select_controlled(config.controlled, n)
         self._ids = [agent_id(i) for i in range(n)]
         self.possible_agents = [self._ids[i] for i in self._controlled_index]
         self._index_of = {a: int(i) for a, i in zip(self.possible_agents, self._controlled_index)}
@@ -385,24 +261,32 @@ class CrowdParallelEnv(ParallelEnv):
         self._background_mask = ~self._controlled_mask
         self._has_background = bool(self._background_mask.any())
         self.agents = []
-        # -- navigation, observations and spaces
+
+    def _init_spaces(self, config: CrowdEnvConfig) -> None:
+        """Navigation, the observation assembler, the global state and the spaces (and an observing background)."""
+        scenario = self._scenario
         self.navigation = scenario.navigation()
         t_bound = self.navigation.max_travel_time_s + 1.0
         self.velocity_bound_m_s = max(20.0, 2.0 * self.action_max_m_s)
         self._observer = ObservationBuilder(self.navigation, scenario.geometry.walls, n_neighbors=self.n_neighbors,
-                                            n_rays=self.n_rays, neighbor_radius_m=neighbor_radius_m,
-                                            ray_range_m=ray_range_m, velocity_bound_m_s=self.velocity_bound_m_s,
+                                            n_rays=self.n_rays, neighbor_radius_m=config.neighbor_radius_m,
+                                            ray_range_m=config.ray_range_m, velocity_bound_m_s=self.velocity_bound_m_s,
                                             travel_time_bound_s=t_bound, frame=self.observation_frame,
-                                            period_m=scenario.geometry.period_x_m)
+                                            period_m=scenario.geometry.period_x_m,
+                                            components=config.observation_components)
         self.observation_layout = dict(self._observer.layout)
-        if observing:  # a learned background: observed and acting with its own options, checked as ours are
-            options = _observation_options({k: background_policy.env_overrides.get(k, ENV_DEFAULTS[k])
-                                            for k in OBSERVATION_POLICY_OPTIONS}, what="background policy: ")
+        policy = self._background_policy
+        if is_observation_policy(policy):  # a learned background: observed and acting with its own options
+            options = observation_policy_options({k: policy.env_overrides.get(k, ENV_DEFAULTS[k])
+                                                  for k in OBSERVATION_POLICY_OPTIONS}, what="background policy: ")
             self._background_policy = ObservingBackground(
-                background_policy, options, navigation=self.navigation, walls=scenario.geometry.walls,
+                policy, options, navigation=self.navigation, walls=scenario.geometry.walls,
                 background_mask=self._background_mask, dt_s=self.params.dt_s,
                 velocity_bound_m_s=self.velocity_bound_m_s, travel_time_bound_s=t_bound,
                 period_m=scenario.geometry.period_x_m)
+        elif policy is not None and not callable(policy):
+            raise EnvOptionError("background_policy must be a name, a callable policy(sim) or an observation policy "
+                                 f"(actions(observations) and env_overrides), got {policy!r}")
         self._state_builder = GlobalStateBuilder(self.navigation, scenario.geometry, self._controlled_mask,
                                                  frame=self.observation_frame,
                                                  velocity_bound_m_s=self.velocity_bound_m_s, travel_time_bound_s=t_bound)
@@ -414,19 +298,20 @@ class CrowdParallelEnv(ParallelEnv):
         self._action_spaces = {ag: spaces.Box(-a, a, shape=(2,), dtype=np.float32) for ag in self.possible_agents}
         # Accept |a| <= a_max whether the action is float64 (the option's value) or float32 (the Box's bound).
         self._a_max_check = max(float(a), self.action_max_m_s)
-        self.metadata = {**type(self).metadata, "render_fps": 1.0 / (params.dt_s * self.frame_skip)}
-        # -- run state
+        self.metadata = {**type(self).metadata, "render_fps": 1.0 / (self.params.dt_s * self.frame_skip)}
+
+    def _init_run_state(self) -> None:
         self._rng = None
         self._sim = None
         self._steps = 0
         self._agent_index = np.zeros(0, np.int64)
-        self._travel_time = np.full(n, np.nan)
-        self._progress_period_s = _travel_time_period_s(self.navigation, scenario.geometry.period_x_m)
+        self._travel_time = np.full(self._scenario.n_pedestrians, np.nan)
+        self._progress_period_s = _travel_time_period_s(self.navigation, self._scenario.geometry.period_x_m)
         self._renderer = None
         self.substep_hooks = []
         self._percussions = None
         self._last_premovement_s = 0.0
-        if render_mode is not None:  # frames show the contact percussions of the steps since the last frame
+        if self.render_mode is not None:  # frames show the contact percussions of the steps since the last frame
             from .rendering import ContactPercussions
 
             self._percussions = ContactPercussions()
@@ -467,7 +352,7 @@ class CrowdParallelEnv(ParallelEnv):
 
     @max_cycles.setter
     def max_cycles(self, value) -> None:
-        self.max_steps = _count("max_cycles", value, minimum=1)
+        self.max_steps = check_integer("max_cycles", value, error=EnvOptionError, minimum=1)
 
     @property
     def sim(self) -> Simulator:
@@ -670,10 +555,15 @@ class CrowdParallelEnv(ParallelEnv):
         else:
             term_d = dict(zip(agents, exited.tolist()))
             trunc_d = dict(zip(agents, truncated.tolist()))
-        info_d = {a: {"contact_percussion_kg_m_s": p, "n_contacts": c, "travel_time_s": t, "speed_m_s": v}
-                  for a, p, c, t, v in zip(agents, info["contact_percussion_kg_m_s"].tolist(),
-                                           info["n_contacts"].tolist(), info["travel_time_s"].tolist(),
-                                           info["speed_m_s"].tolist())}
+        columns = (agents, info["contact_percussion_kg_m_s"].tolist(), info["n_contacts"].tolist(),
+                   info["travel_time_s"].tolist(), info["speed_m_s"].tolist())
+        terms = info.get("reward_terms")
+        if terms is None:
+            info_d = {a: {"contact_percussion_kg_m_s": p, "n_contacts": c, "travel_time_s": t, "speed_m_s": v}
+                      for a, p, c, t, v in zip(*columns)}
+        else:  # each agent's record of the reward's terms (rewards.TermReward)
+            info_d = {a: {"contact_percussion_kg_m_s": p, "n_contacts": c, "travel_time_s": t, "speed_m_s": v,
+                          "reward_terms": r} for a, p, c, t, v, r in zip(*columns, terms)}
         if self.render_mode == "human":
             self.render()
         return obs_d, rew_d, term_d, trunc_d, info_d
@@ -779,6 +669,10 @@ class CrowdParallelEnv(ParallelEnv):
 
     def _rewards(self, agents, info) -> np.ndarray:
         out = self.reward_fn(self, agents, info)
+        terms = info.get("reward_terms")
+        if terms is not None and len(terms) != len(agents):
+            raise PolicyError(f"reward_fn put {len(terms)} rows in info['reward_terms'], expected one per agent "
+                              f"({len(agents)})")
         if type(out) is np.ndarray and out.dtype == np.float64 and out.shape == (len(agents),) \
                 and _all_finite(out):  # DefaultReward's: nothing to convert
             return out
@@ -901,49 +795,10 @@ def _all_finite(values):
     return True
 
 
-ENV_DEFAULTS = {p.name: p.default for p in inspect.signature(CrowdParallelEnv.__init__).parameters.values()
-                if p.kind == p.KEYWORD_ONLY}
-ENV_OPTIONS = tuple(ENV_DEFAULTS)
-
-
-# Other names of options, as the ecosystem spells them: PettingZoo's environments call the episode length
-# in environment steps ``max_cycles``.
-OPTION_ALIASES = {"max_cycles": "max_steps"}
-
-
-def unknown_options_message(unknown, known, what: str, call: str) -> str:
-    """The message of :class:`~crowd_env.errors.UnknownOptionError` for the unknown keyword options ``unknown``
-    of ``call`` (e.g. ``"crowd_v0.parallel_env"``): it names them and the ``known`` ones, in Python's own
-    wording for the first (``got an unexpected keyword argument 'name'``, which wrappers such as TorchRL's
-    ``GymEnv`` act on)."""
-    unknown = sorted(unknown)
-    return (f"unknown option(s) {unknown} for {what}: {call}() got an unexpected keyword argument {unknown[0]!r}; "
-            f"known: {list(known)}")
-
-
-def resolve_options(options: dict, what: str = "crowd_v0", call: str = "crowd_v0.parallel_env",
-                    extra=()) -> dict:
-    """``options`` with the aliases of :data:`OPTION_ALIASES` renamed (``max_cycles`` -> ``max_steps``; giving
-    both raises); unknown options (not in :data:`ENV_OPTIONS` or ``extra``) raise
-    :class:`~crowd_env.errors.UnknownOptionError`."""
-    options = dict(options)
-    for alias, name in OPTION_ALIASES.items():
-        if alias in options:
-            if name in options:
-                raise EnvOptionError(f"give {name} or its PettingZoo name {alias}, not both (got {name}="
-                                     f"{options[name]!r} and {alias}={options[alias]!r})")
-            options[name] = options.pop(alias)
-    known = list(ENV_OPTIONS) + [k for k in extra if k not in ENV_OPTIONS]
-    unknown = set(options) - set(known)
-    if unknown:
-        raise UnknownOptionError(unknown_options_message(unknown, known + list(OPTION_ALIASES), what, call))
-    return options
-
-
 def parallel_env(**options) -> CrowdParallelEnv:
     """The PettingZoo parallel environment; options as in :class:`CrowdParallelEnv` (unknown ones raise
     :class:`~crowd_env.errors.UnknownOptionError`), and ``max_cycles``, PettingZoo's name of ``max_steps``."""
-    return CrowdParallelEnv(**resolve_options(options))
+    return CrowdParallelEnv(make_config(None, options))
 
 
 def env(**options):

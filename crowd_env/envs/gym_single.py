@@ -16,7 +16,8 @@ from crowd_env.errors import EnvStateError
 import gymnasium
 
 from ..core.checks import check_seed
-from .crowd_v0 import CrowdParallelEnv, EnvOptionError, resolve_options
+from .config import resolve_options
+from .crowd_v0 import CrowdParallelEnv, EnvOptionError
 
 __all__ = ["CrowdSingleAgentEnv"]
 

@@ -67,7 +67,8 @@ from gymnasium.vector.utils import batch_space
 from crowd_env.errors import ActionError, EnvOptionError, EnvStateError, WorkerError
 
 from ..core.checks import check_integer, check_seed
-from .crowd_v0 import CrowdParallelEnv, parallel_env, resolve_options
+from .config import make_config, resolve_options
+from .crowd_v0 import CrowdParallelEnv
 
 __all__ = ["CrowdVectorEnv", "vector_env", "gym_vector_env", "WorkerError"]
 
@@ -638,10 +639,12 @@ class CrowdVectorEnv(VectorEnv):
 
 def vector_env(copies: int = 1, *, workers: int = 1, start_method: str = "spawn", **options) -> CrowdVectorEnv:
     """K = ``copies`` copies of ``crowd_v0.parallel_env(**options)`` as one :class:`CrowdVectorEnv`, stepped in
-    ``workers`` processes (1: this one; see the module docstring)."""
+    ``workers`` processes (1: this one; see the module docstring). The options are checked once, as one
+    :class:`~crowd_env.envs.config.CrowdEnvConfig` that every copy is built from."""
     check_integer("copies", copies, error=EnvOptionError, minimum=1)
     _check_workers(workers, int(copies))
-    return CrowdVectorEnv([parallel_env(**options) for _ in range(int(copies))], workers=workers,
+    config = make_config(None, options, "crowd_env.envs.vector", "vector_env")
+    return CrowdVectorEnv([CrowdParallelEnv(config) for _ in range(int(copies))], workers=workers,
                           start_method=start_method)
 
 
