@@ -46,6 +46,22 @@ def test_default_observation_rewards_and_bounds_are_bitwise_the_frozen_ones(case
         np.testing.assert_array_equal(_bits(value), _bits(want), err_msg=f"{case}/{key}")
 
 
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_the_fused_default_pass_equals_the_components_one_by_one(case, monkeypatch):
+    """Two implementations: the default components in one compiled call (ObservationBuilder._default_pass) and
+    each component's own ``write`` in turn give the same bits, in every frozen case."""
+    from crowd_env.envs.observations.assembler import ObservationBuilder
+
+    env = crowd_v0.parallel_env(**CASES[case][0])
+    assert env._observer._fused is not None  # the default takes the fused pass
+    fused = rollout(*CASES[case])
+    monkeypatch.setattr(ObservationBuilder, "_default_columns", lambda self: None)
+    one_by_one = rollout(*CASES[case])
+    assert fused.keys() == one_by_one.keys()
+    for key in fused:
+        np.testing.assert_array_equal(_bits(fused[key]), _bits(one_by_one[key]), err_msg=f"{case}/{key}")
+
+
 def test_default_fields_and_layout_are_unchanged():
     assert [f.name for f in OBSERVATION_FIELDS] == ["velocity", "heading", "desired_direction", "travel_time",
                                                    "neighbors", "neighbor_mask", "wall_rays"]

@@ -21,12 +21,12 @@ from ...walking.navigation import NavigationField, sample_bilinear
 from .base import ObservationComponent, ObservationContext, ObservationSpec, check_frame
 from .desired_direction import DesiredDirection
 from .free_distance import FreeDistance
-from .heading import Heading
+from .heading import Heading, write_heading
 from .local_density import LocalDensity
-from .neighbors import Neighbors
-from .travel_time import TravelTime
-from .velocity import Velocity
-from .wall_rays import WallRays
+from .neighbors import Neighbors, write_neighbors
+from .travel_time import TravelTime, write_column
+from .velocity import Velocity, write_in_frame
+from .wall_rays import WallRays, ray_table, write_rays
 
 __all__ = ["COMPONENTS", "DEFAULT_COMPONENTS", "resolve_components", "observation_fields", "observation_layout",
            "observation_size", "ObservationBuilder"]
@@ -140,6 +140,17 @@ class ObservationBuilder:
         self._parts, self.low, self.high = self._lay_out()
         self._search_k = self.n_neighbors if any(c.uses_neighbors for c, _, _ in self._parts) else 0
         self._writers = tuple((c.write, col, size) for c, col, size in self._parts)
+        self._fused = self._default_columns()
+
+    def _default_columns(self):
+        """For the default components (these classes, in this order): the first column of each (−1: absent,
+        as the heading in the egocentric frame) and the ray table, which :func:`_default_pass` fills in one
+        compiled call (the same kernels as the components' own ``write``); None for any other list."""
+        if tuple(type(c) for c in self.components) != _DEFAULT_TYPES:
+            return None
+        first = {type(c): col for c, col, _ in self._parts}
+        cols = np.array([first.get(kind, -1) for kind in _DEFAULT_TYPES], np.int64)
+        return cols, ray_table(self.n_rays)
 
     def _lay_out(self) -> tuple:
         """The (component, first column, size) of every component with entries, and the bounds."""
@@ -187,10 +198,19 @@ class ObservationBuilder:
             else:
                 e_d, travel = self.navigation.sample(pos)
             nav = _NO_GRID
+        spec = self.spec
+        if self._fused is not None:
+            cols, (ray_cos, ray_sin) = self._fused
+            bad = _default_pass(state.position_m, state.velocity_m_s, state.heading_rad, state.active, index,
+                                nav[0], nav[1], nav[2], nav is not _NO_GRID, self._search_k, spec.neighbor_radius_m,
+                                spec.period_m, e_d, travel, speed, self.frame == "world", self._walls_d, ray_cos,
+                                ray_sin, spec.ray_range_m, cols, obs)
+            if bad >= 0:  # outside the navigation grid: the field raises its own error
+                self.navigation.sample(state.position_m[index[bad:bad + 1]])
+            return obs, travel, speed
         velocity = np.empty((m, 2))
         cos_t = np.empty(m)
         sin_t = np.empty(m)
-        spec = self.spec
         bad, act, near = _prepare(state.position_m, state.velocity_m_s, state.heading_rad, state.active, index,
                                   nav[0], nav[1], nav[2], nav is not _NO_GRID, self._search_k, spec.neighbor_radius_m,
                                   spec.period_m, e_d, travel, speed, velocity, cos_t, sin_t)
@@ -205,6 +225,7 @@ class ObservationBuilder:
 
 
 _NO_GRID = (np.zeros(3), np.zeros((2, 2)), np.zeros((2, 2, 2)))
+_DEFAULT_TYPES = (Velocity, Heading, DesiredDirection, TravelTime, Neighbors, WallRays)  # DEFAULT_COMPONENTS' classes
 
 
 def _grid_of(field: NavigationField) -> tuple:
@@ -243,3 +264,29 @@ def _prepare(position, velocity, heading, active, index, grid_xyh, grid_t, grid_
         vel[a, 1] = uy
         speed[a] = np.hypot(ux, uy)
     return -1, act, near
+
+
+@nb.njit(cache=True)
+def _default_pass(position, velocity, heading, active, index, grid_xyh, grid_t, grid_d, sample, k, radius_m,
+                  period_m, e_d, travel, speed, world, walls_d, ray_cos, ray_sin, ray_range_m, cols, obs):
+    """The default observation in one compiled call: :func:`_prepare`, then the kernels the default components'
+    ``write`` call, in their order, at the columns ``cols`` (velocity, heading, desired direction, travel time,
+    neighbours, wall rays; −1: absent). Returns −1, or the first row outside the navigation grid."""
+    m = index.shape[0]
+    vel = np.empty((m, 2))
+    cos_t = np.empty(m)
+    sin_t = np.empty(m)
+    bad, act, near = _prepare(position, velocity, heading, active, index, grid_xyh, grid_t, grid_d, sample, k,
+                              radius_m, period_m, e_d, travel, speed, vel, cos_t, sin_t)
+    if bad >= 0:
+        return bad
+    write_in_frame(vel, cos_t, sin_t, world, obs, cols[0])
+    if cols[1] >= 0:
+        write_heading(cos_t, sin_t, obs, cols[1])
+    write_in_frame(e_d, cos_t, sin_t, world, obs, cols[2])
+    write_column(travel, obs, cols[3])
+    if cols[4] >= 0:
+        write_neighbors(position, velocity, index, act, near, cos_t, sin_t, world, period_m, obs, cols[4])
+    if cols[5] >= 0 and ray_cos.shape[0] > 0:
+        write_rays(position, index, cos_t, sin_t, walls_d, ray_cos, ray_sin, ray_range_m, obs, cols[5])
+    return -1

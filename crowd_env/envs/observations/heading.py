@@ -7,7 +7,7 @@ import numba as nb
 
 from .base import ObservationComponent, ObservationField
 
-__all__ = ["Heading"]
+__all__ = ["Heading", "write_heading"]
 
 
 @dataclass(frozen=True)
@@ -22,11 +22,11 @@ class Heading(ObservationComponent):
         return -1.0, 1.0
 
     def write(self, ctx, obs, col, size):
-        _write_heading(ctx.cos_heading, ctx.sin_heading, obs, col)
+        write_heading(ctx.cos_heading, ctx.sin_heading, obs, col)
 
 
 @nb.njit(cache=True)
-def _write_heading(cos_t, sin_t, obs, col):
+def write_heading(cos_t, sin_t, obs, col):
     for a in range(cos_t.shape[0]):
         obs[a, col] = cos_t[a]
         obs[a, col + 1] = sin_t[a]

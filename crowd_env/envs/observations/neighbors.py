@@ -12,7 +12,7 @@ import numpy as np
 from ...core.periodic import minimum_image_dx
 from .base import ObservationComponent, ObservationField
 
-__all__ = ["Neighbors"]
+__all__ = ["Neighbors", "write_neighbors"]
 
 _MASK = ObservationField("neighbor_mask", "k", "1 for a real neighbour in the slot, 0 for padding")
 
@@ -38,12 +38,12 @@ class Neighbors(ObservationComponent):
 
     def write(self, ctx, obs, col, size):
         st = ctx.state
-        _write_neighbors(st.position_m, st.velocity_m_s, ctx.index, ctx.active_index, ctx.neighbor_rows,
+        write_neighbors(st.position_m, st.velocity_m_s, ctx.index, ctx.active_index, ctx.neighbor_rows,
                          ctx.cos_heading, ctx.sin_heading, ctx.world, ctx.spec.period_m, obs, col)
 
 
 @nb.njit(cache=True)
-def _write_neighbors(position, velocity, index, act, near, cos_t, sin_t, world, period_m, obs, col):
+def write_neighbors(position, velocity, index, act, near, cos_t, sin_t, world, period_m, obs, col):
     """Offsets and relative velocities of the slots ``near`` (m, k) (rows into ``act``, −1: none) from
     ``col``, then the mask from ``col + 4k``. Egocentric padding is turned too (signed zeros)."""
     k = near.shape[1]

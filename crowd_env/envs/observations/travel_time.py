@@ -8,7 +8,7 @@ import numba as nb
 
 from .base import ObservationComponent, ObservationField
 
-__all__ = ["TravelTime"]
+__all__ = ["TravelTime", "write_column"]
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ import numpy as np
 
 from .base import ObservationComponent, ObservationField
 
-__all__ = ["WallRays", "cast_rays"]
+__all__ = ["WallRays", "cast_rays", "write_rays", "ray_table"]
 
 
 @dataclass(frozen=True)
@@ -29,15 +29,15 @@ class WallRays(ObservationComponent):
         n_rays = ctx.spec.n_rays
         if n_rays == 0:
             return
-        cos_r, sin_r = _ray_table(n_rays)
-        _write_rays(ctx.state.position_m, ctx.index, ctx.cos_heading, ctx.sin_heading, ctx.wall_directions, cos_r,
+        cos_r, sin_r = ray_table(n_rays)
+        write_rays(ctx.state.position_m, ctx.index, ctx.cos_heading, ctx.sin_heading, ctx.wall_directions, cos_r,
                     sin_r, ctx.spec.ray_range_m, obs, col)
 
 
 _TABLES = {}
 
 
-def _ray_table(n_rays: int) -> tuple:
+def ray_table(n_rays: int) -> tuple:
     """(cos φ_r, sin φ_r) of the fixed offsets φ_r = 2πr/R (ray r: the heading turned by φ_r), once per R."""
     table = _TABLES.get(n_rays)
     if table is None:
@@ -47,7 +47,7 @@ def _ray_table(n_rays: int) -> tuple:
 
 
 @nb.njit(cache=True)
-def _write_rays(position, index, cos_t, sin_t, walls, ray_cos, ray_sin, ray_range, obs, col):
+def write_rays(position, index, cos_t, sin_t, walls, ray_cos, ray_sin, ray_range, obs, col):
     n_rays = ray_cos.shape[0]
     dxs = np.empty(n_rays)
     dys = np.empty(n_rays)
