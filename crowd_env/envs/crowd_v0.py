@@ -306,6 +306,7 @@ class CrowdParallelEnv(ParallelEnv):
         self._steps = 0
         self._agent_index = np.zeros(0, np.int64)
         self._travel_time = np.full(self._scenario.n_pedestrians, np.nan)
+        self._speed = np.full(self._scenario.n_pedestrians, np.nan)  # at the end of the last step (start of the next)
         self._progress_period_s = _travel_time_period_s(self.navigation, self._scenario.geometry.period_x_m)
         self._renderer = None
         self.substep_hooks = []
@@ -474,10 +475,12 @@ class CrowdParallelEnv(ParallelEnv):
         obs, travel = self._observer.build(state, self._agent_index)
         self._travel_time[:] = np.nan
         self._travel_time[self._agent_index] = travel
+        speed = np.hypot(*state.velocity_m_s[self._agent_index].T)
+        self._speed[:] = np.nan
+        self._speed[self._agent_index] = speed
         infos = {a: {"contact_percussion_kg_m_s": 0.0, "n_contacts": 0, "travel_time_s": float(t),
                      "speed_m_s": float(s)}
-                 for a, t, s in zip(self.agents, travel.tolist(),
-                                    np.hypot(*state.velocity_m_s[self._agent_index].T).tolist())}
+                 for a, t, s in zip(self.agents, travel.tolist(), speed.tolist())}
         if self.render_mode == "human":
             self.render()
         return dict(zip(self.agents, obs)), infos
@@ -602,6 +605,7 @@ class CrowdParallelEnv(ParallelEnv):
             theta0 = st.heading_rad[idx_c]
             intent_c = to_world_frame(intent_c, np.cos(theta0), np.sin(theta0))
         t_before = self._travel_time[idx_c]
+        speed_before = self._speed[idx_c]
         percussion = np.zeros(n)
         contacts = np.zeros(n, np.int64)
         by_intent = self.heading_target == "intent"
@@ -634,13 +638,14 @@ class CrowdParallelEnv(ParallelEnv):
                 hook(self, res, prev_pos, prev_t)
         self._steps += 1
         obs, t_after, speed = self._observer.observe(st, idx_c)
+        self._speed[idx_c] = speed
         progress, perc_c, contacts_c, exited, truncated, n_done = _step_arrays(
             st.active, idx_c, t_before, t_after, self._travel_time, percussion, contacts, self._steps >= self.max_steps)
         if self._progress_period_s > 0.0:  # periodic corridor: T jumps by L/V at the seam (module docstring)
             progress = minimum_image_dx(progress, self._progress_period_s)
         info = {"agent_index": idx_c.copy(), "progress_s": progress, "travel_time_before_s": t_before,
                 "travel_time_s": t_after, "contact_percussion_kg_m_s": perc_c, "n_contacts": contacts_c,
-                "speed_m_s": speed, "exited": exited, "dt_s": self.dt_s}
+                "speed_m_s": speed, "speed_before_m_s": speed_before, "exited": exited, "dt_s": self.dt_s}
         rewards = self._rewards(agents, info)
         if n_done:
             keep = ~(exited | truncated)

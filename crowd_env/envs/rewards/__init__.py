@@ -9,6 +9,8 @@ the environment then hands each agent its values in its info under ``"reward_ter
 
 The default reward (:class:`DefaultReward`) is a :class:`~.base.TermReward` of four terms
 (:mod:`.terms`): ``progress``, ``contact_percussion``, ``time`` and ``exit``, summed in that order. The
+least-effort reward (``reward_terms="least_effort"``, :mod:`.least_effort`) prices walking in metabolic
+energy. The
 environment's ``reward_terms`` option names the terms of a :class:`~.base.TermReward`
 (:func:`resolve_terms`: names of :data:`REWARD_TERMS`, ``"module:Class"`` import paths, term objects, or a
 dict of them to weights); a new term subclasses :class:`~.base.RewardTerm` in a module of its own.
@@ -26,14 +28,18 @@ from crowd_env.errors import EnvOptionError, InputError
 
 from ...core.checks import check_number
 from .base import RewardTerm, TermReward
+from .least_effort import LEAST_EFFORT_TERMS, MetabolicEffort
 from .terms import ContactPercussion, ExitBonus, Progress, TimeCost
 
 __all__ = ["DefaultReward", "REWARD_INFO_KEYS", "RewardTerm", "TermReward", "REWARD_TERMS", "DEFAULT_TERMS",
-           "resolve_terms"]
+           "REWARDS", "resolve_terms"]
 
 # The built-in terms by name, and the default reward's, in order.
-REWARD_TERMS = {t.name: t for t in (Progress, ContactPercussion, TimeCost, ExitBonus)}
+REWARD_TERMS = {t.name: t for t in (Progress, ContactPercussion, TimeCost, ExitBonus, MetabolicEffort)}
 DEFAULT_TERMS = ("progress", "contact_percussion", "time", "exit")
+# Whole rewards by name (``reward_terms="least_effort"``): term -> weight.
+REWARDS = {"default": {name: REWARD_TERMS[name].weight for name in DEFAULT_TERMS},
+           "least_effort": LEAST_EFFORT_TERMS}
 OPTION = "reward_terms"
 
 REWARD_INFO_KEYS = {
@@ -44,7 +50,8 @@ REWARD_INFO_KEYS = {
     "travel_time_s": "(n,) T at the end of the step (0 once in an exit)",
     "contact_percussion_kg_m_s": "(n,) sum of |normal percussion| over all contacts of the agent this step, kg m/s",
     "n_contacts": "(n,) number of contacts with a non-zero percussion (each simulator step counted)",
-    "speed_m_s": "(n,) speed at the end of the step",
+    "speed_m_s": "(n,) speed at the end of the step, m/s",
+    "speed_before_m_s": "(n,) speed at the start of the step, m/s",
     "exited": "(n,) bool: the agent left through an exit this step",
     "dt_s": "float: simulated duration of the step (frame_skip × dt)",
 }
@@ -137,15 +144,18 @@ def _term(item, weight=None):
 
 
 def resolve_terms(terms) -> TermReward:
-    """The :class:`~.base.TermReward` of the ``reward_terms`` option: a sequence of names of
+    """The :class:`~.base.TermReward` of the ``reward_terms`` option: the name of a whole reward (:data:`REWARDS`:
+    ``"default"``, ``"least_effort"``), a sequence of names of
     :data:`REWARD_TERMS`, ``"module:Class"`` paths or :class:`~.base.RewardTerm` objects (or classes), each
     with its default weight, or a dict of them to weights. Raises :class:`~crowd_env.errors.EnvOptionError`
     naming the option for anything else and for two terms of one name."""
+    if isinstance(terms, str) and terms in REWARDS:
+        terms = REWARDS[terms]
     if isinstance(terms, dict):
         pairs = list(terms.items())
     elif isinstance(terms, (str, RewardTerm)) or not hasattr(terms, "__iter__"):
-        raise EnvOptionError(f"{OPTION} must be a sequence of term names or objects, or a dict of them to weights, "
-                             f"got {terms!r}")
+        raise EnvOptionError(f"{OPTION} must be the name of a reward ({sorted(REWARDS)}), a sequence of term names "
+                             f"or objects, or a dict of them to weights, got {terms!r}")
     else:
         pairs = [(t, None) for t in terms]
     out = []
