@@ -131,10 +131,10 @@ from ..core.periodic import minimum_image_dx
 from ..core.simulator import Simulator
 from ..scenarios import Scenario, make_scenario
 from ..walking.agent import SocialForceAgent, desired_direction, hold_waiting
-from .background import OBSERVATION_POLICY_OPTIONS, ObservingBackground, is_observation_policy, load_named_background
+from .background import is_observation_policy, load_named_background
 from .config import (DEFAULT_ACTION_MAX_M_S, ENV_DEFAULTS, ENV_OPTIONS, OPTION_ALIASES, CrowdEnvConfig, agent_id,
-                     make_config, observation_policy_options, resolve_options, select_controlled,
-                     unknown_options_message)
+                     make_config, resolve_options, select_controlled, unknown_options_message)
+from .drivers import intents_and_headings, observing_driver
 from .observations import OBSERVATION_FIELDS, ObservationBuilder, to_world_frame
 from .state import GlobalStateBuilder
 
@@ -277,13 +277,9 @@ class CrowdParallelEnv(ParallelEnv):
         self.observation_layout = dict(self._observer.layout)
         policy = self._background_policy
         if is_observation_policy(policy):  # a learned background: observed and acting with its own options
-            options = observation_policy_options({k: policy.env_overrides.get(k, ENV_DEFAULTS[k])
-                                                  for k in OBSERVATION_POLICY_OPTIONS}, what="background policy: ")
-            self._background_policy = ObservingBackground(
-                policy, options, navigation=self.navigation, walls=scenario.geometry.walls,
-                background_mask=self._background_mask, dt_s=self.params.dt_s,
-                velocity_bound_m_s=self.velocity_bound_m_s, travel_time_bound_s=t_bound,
-                period_m=scenario.geometry.period_x_m)
+            self._background_policy = observing_driver(
+                policy, scenario, navigation=self.navigation, mask=self._background_mask, dt_s=self.params.dt_s,
+                velocity_bound_m_s=self.velocity_bound_m_s, travel_time_bound_s=t_bound)
         elif policy is not None and not callable(policy):
             raise EnvOptionError("background_policy must be a name, a callable policy(sim) or an observation policy "
                                  f"(actions(observations) and env_overrides), got {policy!r}")
@@ -654,23 +650,7 @@ class CrowdParallelEnv(ParallelEnv):
         return obs, rewards, exited, truncated, info
 
     def _background(self, sim):
-        out = self._background_policy(sim)
-        n = sim.state.n
-        if isinstance(out, tuple):
-            intents, heading = out
-        else:
-            intents, heading = out, None
-        intents = np.array(intents, dtype=np.float64)
-        if intents.shape != (n, 2):
-            raise PolicyError(f"background policy returned intents of shape {intents.shape}, expected ({n}, 2)")
-        if heading is None:
-            speed = np.hypot(intents[:, 0], intents[:, 1])
-            heading = np.where(speed > 1e-12, direction_angles_rad(intents), sim.state.heading_rad)
-        else:
-            heading = np.array(heading, dtype=np.float64)
-            if heading.shape != (n,):
-                raise PolicyError(f"background policy returned headings of shape {heading.shape}, expected ({n},)")
-        return intents, heading
+        return intents_and_headings(self._background_policy(sim), sim.state)
 
     def _rewards(self, agents, info) -> np.ndarray:
         out = self.reward_fn(self, agents, info)
