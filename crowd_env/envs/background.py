@@ -46,13 +46,15 @@ from .observations import ObservationBuilder, to_world_frame
 from .policy_files import load_policy_file
 
 __all__ = ["ObservingBackground", "OBSERVATION_POLICY_OPTIONS", "CALIBRATED_NAMES", "ENTRY_POINT_GROUP",
-           "is_observation_policy", "load_named_background"]
+           "NAMES_ENTRY_POINT_GROUP", "shipped_policy_names", "is_observation_policy", "load_named_background",
+           "FileObservationPolicy"]
 
 # The environment options an observation policy depends on (its observation layout, decision interval, action).
 OBSERVATION_POLICY_OPTIONS = ("n_neighbors", "n_rays", "neighbor_radius_m", "ray_range_m", "observation_frame",
                               "frame_skip", "action_max_m_s", "heading_target", "observation_components")
 CALIBRATED_NAMES = ("calibrated", "baseline")
 ENTRY_POINT_GROUP = "crowd_env_background_policies"
+NAMES_ENTRY_POINT_GROUP = "crowd_env_trained_policy_names"
 
 
 def is_observation_policy(policy) -> bool:
@@ -106,6 +108,15 @@ def load_named_background(spec):
                              "points: is crowd_env installed with pip install -e .?)")
     raise EnvOptionError(f"unknown background policy {name!r}: give {known}, a policy(sim) callable, an observation "
                          "policy, or a name a loader knows (" + "; ".join(reasons) + ")")
+
+
+def shipped_policy_names() -> list:
+    """The names of the trained policies shipped beside crowd_env, as the :data:`NAMES_ENTRY_POINT_GROUP` entry
+    points list them (``baselines.trained.list_trained``); empty without them."""
+    names = []
+    for ep in sorted(entry_points(group=NAMES_ENTRY_POINT_GROUP), key=lambda e: e.name):
+        names.extend(str(n) for n in ep.load()())
+    return sorted(set(names))
 
 
 class ObservingBackground:

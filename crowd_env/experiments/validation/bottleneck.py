@@ -14,7 +14,6 @@ from __future__ import annotations
 
 from crowd_env.errors import SetupError, SweepError
 
-import csv
 import dataclasses
 from pathlib import Path
 
@@ -27,8 +26,8 @@ from ...core.params import ModelParams, PedestrianDefaults
 from ...core.presets import DEFAULT_PRESET, get_preset
 from ...core.segments import GeometryError
 from ...scenarios import ScenarioError, make_scenario
-from ...walking.agent import SocialForceAgent
 from ..running.backends import ProcessBackend, SerialBackend, execute
+from ..running.crowd_policy import crowd_policy
 from ..running.recording import record_run
 from ..runner import STALL_SPEED_M_S, STALL_WINDOW_S, run_scenario
 from ..running.store import RunStore, check_record, config_hash, normalise_record
@@ -110,7 +109,8 @@ def check_setups(geometry: dict, widths_m, sizes, seed: int) -> None:
 def run_one(task: dict) -> dict:
     """One bottleneck run of the task format (module docstring); returns a JSON-able record.
 
-    A ``pedestrian`` override draws the state with those PedestrianDefaults from the same seed (the
+    A ``policy`` entry drives the crowd, or a fraction of it, by a learned policy instead of the calibrated
+    agent (:mod:`crowd_env.experiments.running.crowd_policy`). A ``pedestrian`` override draws the state with those PedestrianDefaults from the same seed (the
     same positions and standard-normal speed draws: common random numbers for the calibration). With
     ``trajectory_fps`` (and ``trajectory_stem``, set by the store) the same run is also recorded and
     exported in PedPy's text format. The record holds every measured figure, ``complete`` /
@@ -120,7 +120,7 @@ def run_one(task: dict) -> dict:
     params = ModelParams.from_dict(task["params"])
     scenario = make_scenario("seyfried_bottleneck", width_m=task["width_m"], n_pedestrians=task["n_pedestrians"],
                              seed=task["seed"], **task["geometry"])
-    agent = SocialForceAgent(scenario.navigation())
+    agent = crowd_policy(task, scenario, params)  # the calibrated agent, unless the task names a learned policy
     state = None
     if task.get("pedestrian"):
         state = scenario.make_state(defaults=dataclasses.replace(PedestrianDefaults(), **task["pedestrian"]))

@@ -28,6 +28,7 @@ from ...analysis.periodic import MIN_FIT_SPEED_M_S, headway_fit, trajectory_fram
 from ...core.checks import check_number
 from ...core.params import ModelParams
 from ...core.periodic import minimum_image_dx
+from ..running.crowd_policy import crowd_policy
 from .bottleneck import bottleneck_config, params_dict, run_one
 from .periodic import fundamental_diagram_point
 
@@ -84,8 +85,10 @@ def _single_file_samples(time_s, position_m, period_m: float, window_s) -> tuple
 
 def run_fd_one(task: dict) -> dict:
     """One run of a :func:`fd_tasks` task; returns a JSON-able record (density, speed, flow, headway fit for a
-    single file, cost). An optional ``pedestrian`` entry of the task (PedestrianDefaults overrides, as in a
-    calibration task) draws the state with those defaults from the same seed."""
+    single file, cost). An optional ``policy`` entry drives the crowd by a learned policy
+    (:mod:`crowd_env.experiments.running.crowd_policy`); an optional ``pedestrian`` entry of the task
+    (PedestrianDefaults overrides, as in a calibration task) draws the state with those defaults from the same
+    seed."""
     params = ModelParams.from_dict(task["params"])
     single = task["setup"] == "single_file"
     width = task["width_m"]
@@ -93,7 +96,8 @@ def run_fd_one(task: dict) -> dict:
     point, result, traj = fundamental_diagram_point(
         task["density"] / width if single else task["density"], length_m=task["length_m"], width_m=width,
         seed=task["seed"], max_time_s=task["max_time_s"], transient_s=task["transient_s"], params=params,
-        frame_rate_per_s=FRAME_RATE_PER_S, pedestrian=task.get("pedestrian"))
+        frame_rate_per_s=FRAME_RATE_PER_S, pedestrian=task.get("pedestrian"),
+        driver=(lambda scenario: crowd_policy(task, scenario, params)) if task.get("policy") else None)
     n = point.n_pedestrians
     record = {"setup": task["setup"], "density": task["density"], "seed": task["seed"], "n_pedestrians": n,
               "density_measured": n / task["length_m"] if single else point.density_per_m2,

@@ -26,11 +26,12 @@ __all__ = ["fundamental_diagram_point"]
 def fundamental_diagram_point(density_per_m2: float, *, length_m: float = 20.0, width_m: float = 1.8,
                               westbound_fraction: float = 0.0, seed: int = 0, radius_m: float = 0.23,
                               max_time_s: float = 30.0, transient_s: float = 10.0, params=None,
-                              frame_rate_per_s: float = 10.0, pedestrian: dict | None = None) -> tuple:
+                              frame_rate_per_s: float = 10.0, pedestrian: dict | None = None, driver=None) -> tuple:
     """ρ, v and J_s of the periodic corridor ``length_m`` x ``width_m`` at ``density_per_m2`` (options of the
     scenario ``periodic_corridor``), walked for ``max_time_s`` with ``params`` (default: the default preset)
     and measured after ``transient_s``; ``pedestrian``: overrides of :class:`~crowd_env.core.params.PedestrianDefaults`
-    (τ, desired-speed mean/std) to draw the state with, from the same seed (as a calibration task's). Returns
+    (τ, desired-speed mean/std) to draw the state with, from the same seed (as a calibration task's);
+    ``driver(scenario) -> policy(sim)``: who walks (default: the calibrated agent). Returns
     ``(PeriodicCorridorPoint, RunResult, Trajectories)``, the trajectories as recorded (x wrapped;
     :func:`~crowd_env.analysis.periodic.unwrap_trajectories` for PedPy)."""
     max_time_s = check_number("max_time_s", max_time_s, error=InputError, positive=True)
@@ -41,7 +42,8 @@ def fundamental_diagram_point(density_per_m2: float, *, length_m: float = 20.0, 
                              westbound_fraction=westbound_fraction, seed=seed, radius_m=radius_m)
     state = None if not pedestrian else scenario.make_state(
         defaults=dataclasses.replace(PedestrianDefaults(), **pedestrian))
-    result, traj = record_run(scenario, SocialForceAgent(scenario.navigation()), params, state=state,
+    policy = SocialForceAgent(scenario.navigation()) if driver is None else driver(scenario)
+    result, traj = record_run(scenario, policy, params, state=state,
                               frame_rate_per_s=frame_rate_per_s, max_time_s=max_time_s, line=None, density_areas=(),
                               lane_area=None)
     time_s, position, _ = trajectory_frames(traj)

@@ -1,0 +1,123 @@
+"""The human-likeness scorecard (crowd_env.experiments.validation.scorecard, crowd-scorecard): the quick path runs
+end to end; the calibrated model's row is the calibration's own (the same tasks and the same terms); the
+bootstrap interval collapses when every seed gives the same runs; a learned policy drives only its share of a
+mixed crowd; bad policies are refused by name."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from crowd_env.core.presets import get_preset
+from crowd_env.errors import InputError, PolicyError
+from crowd_env.experiments.running.crowd_policy import crowd_policy, policy_entry
+from crowd_env.experiments.validation.bottleneck import bottleneck_config
+from crowd_env.experiments.validation.calibration.objective import target_error
+from crowd_env.experiments.validation.calibration.optimize import target_tasks
+from crowd_env.experiments.validation.calibration.tasks import FDPlan, base_config, make_fd_tasks
+from crowd_env.experiments.validation.scorecard import (EXPERIMENT_TERMS, QUICK_PLAN, ScorecardPlan,
+                                                        bootstrap_intervals, distances, parse_policy,
+                                                        scorecard_tasks)
+from crowd_env.scenarios import make_scenario
+
+pytest.importorskip("baselines.trained")
+
+
+def _config(max_time_s: float = 300.0) -> dict:
+    preset = get_preset("calibrated")
+    params = preset.params()
+    geometry = bottleneck_config(params, navigation_clearance_m=preset.navigation_clearance_m,
+                                 max_time_s=max_time_s)["geometry"]
+    return base_config(geometry, params, max_time_s)
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    """crowd-scorecard --quick on the calibrated model and the shipped behaviour clone, serially."""
+    from crowd_env.cli.scorecard import main
+
+    out = tmp_path_factory.mktemp("scorecard")
+    assert main(["--quick", "--policies", "bottleneck_bc", "--backend", "serial", "--draws", "200",
+                 "--out", str(out), "--no-figure"]) == 0
+    return out, json.loads((out / "scorecard.json").read_text())
+
+
+def test_the_quick_scorecard_scores_the_calibrated_model_first_and_a_learned_policy(quick):
+    out, card = quick
+    rows = card["rows"]
+    assert [r["policy"] for r in rows] == ["calibrated", "bottleneck_bc"]
+    for r in rows:
+        assert r["failed_runs"] == 0 and r["runs"] == 12  # 3 bottleneck runs and 3 sweep runs, 2 seeds
+        for name in EXPERIMENT_TERMS:
+            lo, hi = r[f"{name}_ci"]
+            assert np.isfinite(r[name]) and r[name] >= 0 and 0 <= lo <= hi
+    assert (out / "scorecard.csv").read_text().startswith("policy,runs,failed_runs")
+    assert "bottleneck distance" in (out / "scorecard.md").read_text()
+    assert (out / "calibrated" / "runs").is_dir() and (out / "bottleneck_bc" / "runs").is_dir()
+
+
+def test_the_calibrated_row_is_the_calibrations_own(quick):
+    # the same tasks as crowd-calibrate targets --fd (full widths: with the capacity runs) ...
+    config = _config()
+    plan = ScorecardPlan(seeds=(0, 1), fd=FDPlan(corridor_densities=(1.147,), single_file_densities=(0.87,)))
+    assert scorecard_tasks(config, None, plan) == (target_tasks(config, {}, {}, plan.widths_m, plan.seeds)
+                                                   + make_fd_tasks(config, {}, {}, plan.fd))
+    # ... and the same terms: the distances are sums of target_error's terms of the same records
+    from crowd_env.experiments.running.store import RunStore
+    from crowd_env.experiments.validation.calibration.objective import fd_terms
+
+    out, card = quick
+    config = _config()
+    store = RunStore(out / "calibrated", config, keyed_by="task")
+    records = [store.load(t) for t in scorecard_tasks(config, None, QUICK_PLAN)]
+    score = target_error([r for r in records if "setup" not in r], fd=False)
+    fd, _ = fd_terms([r for r in records if "setup" in r])
+    row = card["rows"][0]
+    assert row["bottleneck"] == sum(score.terms[k] for k in EXPERIMENT_TERMS["bottleneck"])
+    assert row["corridor"] == fd["corridor_fd"] + fd["corridor_monotone"]
+    assert row["single_file"] == fd["single_file"] + fd["headway_fit"]
+    assert distances(records)["bottleneck"] == row["bottleneck"]
+
+
+def test_the_interval_collapses_when_every_seed_gives_the_same_runs(quick):
+    from crowd_env.experiments.running.store import RunStore
+
+    out, _ = quick
+    config = _config()
+    store = RunStore(out / "calibrated", config, keyed_by="task")
+    seed0 = [store.load(t) for t in scorecard_tasks(config, None, QUICK_PLAN) if t["seed"] == 0]
+    twins = seed0 + [dict(r, seed=1) for r in seed0]
+    d = distances(twins)
+    ci = bootstrap_intervals(twins, (0, 1), draws=50)
+    for name in EXPERIMENT_TERMS:
+        assert ci[name][0] == pytest.approx(d[name], rel=1e-12) and ci[name][1] == pytest.approx(d[name], rel=1e-12)
+
+
+def test_a_learned_policy_drives_only_its_share_of_a_mixed_crowd():
+    scenario = make_scenario("seyfried_bottleneck", n_pedestrians=10, seed=0, navigation_clearance_m=0.23)
+    params = get_preset("calibrated").params()
+    sim = scenario.make_simulator(params=params)
+    calibrated = crowd_policy({}, scenario, params)
+    mixed = crowd_policy({"policy": policy_entry("bottleneck_bc", 0.5)}, scenario, params)
+    alone = crowd_policy({"policy": policy_entry("bottleneck_bc", 1.0)}, scenario, params)
+    want, want_heading = calibrated(sim)
+    got, _ = mixed(sim)
+    learned = mixed.learned_mask
+    assert learned.sum() == 5
+    np.testing.assert_array_equal(got[~learned], want[~learned])
+    assert not np.allclose(got[learned], want[learned])
+    np.testing.assert_array_equal(got[learned], alone(sim)[0][learned])
+
+
+def test_bad_policies_are_refused_by_name():
+    assert parse_policy("bottleneck_ppo@0.25") == ("bottleneck_ppo@0.25", "bottleneck_ppo", 0.25)
+    with pytest.raises(InputError, match="fraction"):
+        parse_policy("bottleneck_ppo@half")
+    with pytest.raises(PolicyError, match="learned_fraction"):
+        policy_entry("bottleneck_ppo", 1.5)
+    with pytest.raises(Exception, match="no_such_policy"):
+        policy_entry("no_such_policy")
+    with pytest.raises(PolicyError, match="no observation policy"):
+        policy_entry("math:pi")
+    assert policy_entry("calibrated") is None
