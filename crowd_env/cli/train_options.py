@@ -27,6 +27,10 @@ def add_env_arguments(ap) -> None:
     g.add_argument("--n-rays", type=int, default=8)
     g.add_argument("--observation-frame", choices=("world", "egocentric"), default="world",
                    help="frame of observations, actions and state (default world)")
+    g.add_argument("--reward", choices=("default", "least_effort"), default="default",
+                   help="the reward (docs/environment.md, 'The rewards'): default (progress, contacts, time, exit) or "
+                        "least_effort (progress valued at the least cost of transport, metabolic effort, contacts, "
+                        "exit; its optimum is the preferred walking speed)")
     g.add_argument("--fixed-start", action="store_true",
                    help="keep the scenario's start positions in every episode (default: new positions drawn "
                         "from the episode seed, see reseed_scenario)")
@@ -54,6 +58,8 @@ def env_config_from_args(args) -> dict:
               "frame_skip": args.frame_skip, "max_steps": args.max_steps, "n_neighbors": args.n_neighbors,
               "n_rays": args.n_rays, "reseed_scenario": False if args.fixed_start else None,
               "observation_frame": args.observation_frame}
+    if getattr(args, "reward", "default") != "default":  # the default reward stays out: old configs stay equal
+        config["reward_terms"] = args.reward
     return config
 
 

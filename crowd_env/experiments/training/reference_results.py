@@ -211,7 +211,7 @@ def train_one(job: dict) -> dict:
     t0 = time.perf_counter()
     resume = os.path.isdir(os.path.join(folder, "checkpoints"))
     if algo == "ppo":
-        from .ppo import ppo as training
+        from . import ppo as training
         summary = training.train(cfg, int(budgets["ppo_timesteps"]), folder, resolve=resolve, seed=_train_env_seed(seed),
                                  copies=2, eval_seeds=(_train_env_seed(seed) + 500,), resume=resume, progress=quiet,
                                  checkpoint_every=max(10_000, int(budgets["ppo_timesteps"]) // 10))
@@ -220,7 +220,7 @@ def train_one(job: dict) -> dict:
         policy = from_sb3(PPO.load(os.path.join(folder, "model.zip"), device="cpu"), env_config=cfg)
         agent_steps = int(summary["timesteps"])
     elif algo == "mappo":
-        from .ppo import marl
+        from . import marl
         summary = marl.train(cfg, int(budgets["mappo_frames"]), folder, algorithm="mappo", resolve=resolve,
                              seed=_train_env_seed(seed), eval_seeds=(_train_env_seed(seed) + 500,), resume=resume,
                              progress=quiet)
