@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .bundles import Bodies
 from .neighbors import grid_pairs
 from .periodic import minimum_image_dx
 from .params import ParameterError, PedestrianDefaults
@@ -160,6 +161,13 @@ class CrowdState:
             i, j, overlap = idx[pair[0]], idx[pair[1]], pair[2]
             raise StateError(f"pedestrians {i} and {j} overlap by {overlap:.4g} m at start "
                              f"(positions {self.position_m[i].tolist()} and {self.position_m[j].tolist()})")
+
+    def arrays(self) -> Bodies:
+        """The state's arrays (the same objects, not copies) as the compiled step takes them
+        (:class:`~crowd_env.core.bundles.Bodies`, fields named as here)."""
+        return Bodies(self.position_m, self.heading_rad, self.velocity_m_s, self.angular_velocity_rad_s, self.mass_kg,
+                      self.inertia_kg_m2, self.radius_m, self.desired_speed_m_s, self.tau_s, self.heading_stiffness,
+                      self.heading_damping, self.active, self.links, self.link_offsets_m, self.premovement_s)
 
     def copy(self) -> "CrowdState":
         return CrowdState(**{k: np.array(v, copy=True) for k, v in self.__dict__.items()})
