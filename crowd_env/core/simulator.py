@@ -10,10 +10,12 @@ the final velocities; pedestrians whose centre enters an exit leave (with per-pe
 The velocity intent ``(N, 2)`` in m/s is the only behavioural input; external forces (for example
 Helbing's social repulsion, Eq. 16) can be added per step. The core knows nothing of RL.
 
-By default a step runs as one compiled call (:func:`crowd_env.core.step.fused_step`); steps that
-need a solver beyond the dense ones or a re-detection, and every step of a ``Simulator(profile=True)``
-(which times each stage into ``StepResult.timings_s``), run the same compiled stages one by one from
-Python (:meth:`Simulator._staged_step`).
+By default a step runs as one compiled call (:func:`crowd_env.core.step.advance`: the hand links, the fused
+step, the exit test and the clock, the kernel the compiled rollouts run too); steps that need a solver beyond the
+dense ones, and every step of a ``Simulator(profile=True)`` (which times each stage into
+``StepResult.timings_s``), run the same compiled stages one by one from Python (:meth:`Simulator._staged_step`).
+The kernels take the state, the world and the step's numbers as the named bundles of
+:mod:`crowd_env.core.bundles` (:meth:`CrowdState.arrays`, :attr:`Simulator.world`, :attr:`Simulator.step_params`).
 
 Periodic along x (``Simulator.period_m`` L > 0, from ``Geometry(period_x_m=L)``): x and x + L are the same
 place; positions are kept in [0, L) and every pedestrian-pedestrian displacement is taken to its nearest image

@@ -23,11 +23,12 @@ The stages, in order (the names are the keys of ``StepResult.timings_s`` in a st
    step met an exit leave (:func:`leave_at_exits`).
 
 Two paths run these stages with the same functions in this order. By default
-:class:`~crowd_env.core.Simulator` runs :func:`fused_step`: the stages compiled into one call, with the
-dense solvers only. It handles the common case (every cluster within the dense limits, every projection
-within the dense one, re-detections included); otherwise it reports which stage needs the general path
-(``FUSED_*``) and leaves the state
-untouched, and the simulator runs the staged step (``Simulator._staged_step``) from the start: the same
+:class:`~crowd_env.core.Simulator` runs :func:`advance` (the hand links, :func:`fused_step`, the exit test and
+the clock: the one compiled step, which the compiled rollouts of the experiments run too), the stages compiled
+into one call with the dense solvers only; the kernels take the bundles of :mod:`crowd_env.core.bundles`. It
+handles the common case (every cluster within the dense limits, every projection within the dense one,
+re-detections included); otherwise it reports which stage needs the general path (``FUSED_*``) and leaves the
+state untouched, and the simulator runs the staged step (``Simulator._staged_step``) from the start: the same
 stage functions called one by one from Python, timed, with the
 :class:`~crowd_env.core.solvers.cascade.SolverCascade` for large or degenerate problems and the
 re-detection loop. Both paths call the same kernels, so they agree to the last bit
