@@ -43,9 +43,9 @@ from .solvers.graph import contact_keys, gap_residuals
 from .solvers.impact import solve_clusters
 from .state import CrowdState, StateError, first_overlap, pair_distances
 from .timestep import check_time_step
-from .bundles import StepInputs, StepParams, World, empty_exits
+from .bundles import StepParams, World, empty_exits
 from .step import (FUSED_OK, MAX_INPUT_SPEED_M_S, MAX_REDETECT, advance_from_python, compact_bodies, detection_reach,
-                   finish_step, first_out_of_bound, grown_margins, impact_stage, kinetic_energy, leave_world,
+                   finish_step, first_out_of_bound, grown_margins, impact_stage, kinetic_energy, leave_at_exits,
                    redetect_candidates, smooth_update, speeds)
 
 
@@ -225,11 +225,28 @@ class Simulator:
     def step_params(self) -> StepParams:
         """h, ε, the dissipations and the dense solvers' limits (the cascade's, read now) as the compiled step
         takes them (:class:`~crowd_env.core.bundles.StepParams`)."""
-        p = self.params
-        max_rows, max_bodies = self.cascade.impact_limits()
-        return StepParams(float(p.dt_s), float(p.contact_tolerance_m), float(p.normal_dissipation_kg),
-                          float(p.tangential_dissipation_kg), float(p.link_dissipation_kg_per_m2), bool(p.rotation),
-                          int(max_rows), int(max_bodies), int(self.cascade.max_dense_projection_rows))
+        return StepParams._make(self._step_fields())
+
+    def _step_fields(self) -> tuple:
+        """:attr:`step_params` as a plain tuple (for calls from Python: module :mod:`~crowd_env.core.step`'s
+        ``advance_from_python``), kept while the params object and the cascade's limits stay the same."""
+        p, c = self.params, self.cascade
+        key = (c.reference, c.max_dense_rows, c.max_dense_bodies, c.max_dense_projection_rows)
+        kept = self.__dict__.get("_step_kept")
+        if kept is None or kept[0] is not p or kept[1] != key:
+            max_rows, max_bodies = c.impact_limits()
+            fields = (float(p.dt_s), float(p.contact_tolerance_m), float(p.normal_dissipation_kg),
+                      float(p.tangential_dissipation_kg), float(p.link_dissipation_kg_per_m2), bool(p.rotation),
+                      int(max_rows), int(max_bodies), int(c.max_dense_projection_rows))
+            kept = self._step_kept = (p, key, fields)
+        return kept[2]
+
+    def _world_fields(self) -> tuple:
+        """:attr:`world` as a plain tuple (for calls from Python)."""
+        fields = self.__dict__.get("_world_kept")
+        if fields is None:
+            fields = self._world_kept = tuple(self.world)
+        return fields
 
     def fused_ready(self) -> bool:
         """Whether the next step may be tried as one compiled call (:func:`~crowd_env.core.step.fused_step`):
@@ -284,10 +301,11 @@ class Simulator:
                               np.full(idx.shape[0], margin_m))
 
     # ------------------------------------------------------------------ stepping
-    def _check_input(self, name, value, shape, scale=None, bound=np.inf, unit=""):
+    def _check_input(self, name, value, shape, scale=None, bound=np.inf, unit="", bounds=True):
         """``value`` as a contiguous float64 array of ``shape``; raises :class:`InputError` naming ``name``
         and what was given unless it is an array of numbers of that shape, finite, with every row's norm
-        times ``scale[row]`` (empty: 1) at most ``bound`` (:data:`~crowd_env.core.step.MAX_INPUT_SPEED_M_S`)."""
+        times ``scale[row]`` (empty: 1) at most ``bound`` (:data:`~crowd_env.core.step.MAX_INPUT_SPEED_M_S`);
+        ``bounds`` False: the shape and type only (the caller's compiled step checks the rest)."""
         arr = value if isinstance(value, np.ndarray) else None
         if arr is None:
             try:
@@ -301,6 +319,8 @@ class Simulator:
             given = "an array" if isinstance(value, np.ndarray) else f"a {type(value).__name__}"
             raise InputError(f"{name} must have shape {shape} (one row per pedestrian), got {given} of shape {arr.shape}")
         arr = np.ascontiguousarray(arr, dtype=np.float64)
+        if not bounds:
+            return arr
         scale = _EMPTY_1D if scale is None else scale
         first = first_out_of_bound(arr, scale, bound)
         if first >= 0:
@@ -333,31 +353,39 @@ class Simulator:
         Anything else raises :class:`~crowd_env.errors.InputError` naming the argument, the pedestrian and
         the bound, before the state changes.
         """
-        n_all = self.state.n
-        intents = self._check_input("intents_m_s", intents_m_s, (n_all, 2), bound=MAX_INPUT_SPEED_M_S, unit="m/s")
-        theta_d = _EMPTY_1D if desired_heading_rad is None else \
-            self._check_input("desired_heading_rad", desired_heading_rad, (n_all,))
-        force = _EMPTY_2D if external_force_n is None else \
-            self._check_input("external_force_n", external_force_n, (n_all, 2), self.state.tau_s / self.state.mass_kg,
-                              MAX_INPUT_SPEED_M_S, "N")
-        inputs = StepInputs(intents, theta_d, desired_heading_rad is not None, force, external_force_n is not None)
+        given = (intents_m_s, desired_heading_rad, external_force_n)
         # The cascade says when the dense solvers alone may serve (not right after a large projection, whose
         # staged step skips the dense projection: the fused step waits too, so fused and staged runs stay
-        # bitwise equal).
+        # bitwise equal). The compiled step checks the bounds itself (first_bad_input) and refuses out-of-bound
+        # inputs before it writes anything; the full checks below then raise naming them.
         if not self.profile and self.active_index.shape[0] and self.cascade.dense_only(self.step_count):
-            result = self._fused_step(inputs)
+            result = self._fused_step(self._inputs(*given, bounds=False))
             if result is not None:
                 return result
-        return self._staged_step(inputs)
+        return self._staged_step(self._inputs(*given))
+
+    def _inputs(self, intents_m_s, desired_heading_rad, external_force_n, bounds: bool = True) -> tuple:
+        """The step's inputs checked by :meth:`_check_input` (its bounds too unless ``bounds`` is False), as the
+        fields of :class:`~crowd_env.core.bundles.StepInputs`."""
+        n_all = self.state.n
+        intents = self._check_input("intents_m_s", intents_m_s, (n_all, 2), bound=MAX_INPUT_SPEED_M_S, unit="m/s",
+                                    bounds=bounds)
+        theta_d = _EMPTY_1D if desired_heading_rad is None else \
+            self._check_input("desired_heading_rad", desired_heading_rad, (n_all,), bounds=bounds)
+        force = _EMPTY_2D if external_force_n is None else \
+            self._check_input("external_force_n", external_force_n, (n_all, 2),
+                              self.state.tau_s / self.state.mass_kg if bounds else None, MAX_INPUT_SPEED_M_S, "N",
+                              bounds=bounds)
+        return intents, theta_d, desired_heading_rad is not None, force, external_force_n is not None
 
     def _fused_step(self, inputs):
         """The whole step as one compiled call (:func:`~crowd_env.core.step.advance`); None when a stage needs the
         general path (nothing changed)."""
         idx = self.active_index
         t0 = time.perf_counter()
-        status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, _, time_s = \
-            advance_from_python(tuple(self.state.arrays()), tuple(self.world), tuple(self.step_params), tuple(inputs),
-                                idx, *self._cached_pairs(), self.time_s)
+        status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, time_s = \
+            advance_from_python(self.state.array_fields(), self._world_fields(), self._step_fields(), inputs, idx,
+                                *self._cached_pairs(), self.time_s)
         if status != FUSED_OK:
             return None
         self.n_redetections += n_redetect
@@ -372,13 +400,15 @@ class Simulator:
         problems beyond the dense limits and the re-detection loop of stage 5 (:meth:`_staged_projection`)."""
         self.n_staged_steps += 1
         st = self.state
-        bodies, world, params = st.arrays(), self.world, self.step_params
-        h, eps_m = params.dt_s, params.contact_tolerance_m
+        p = self.params
+        h, eps_m = p.dt_s, p.contact_tolerance_m
         timings = {}
         t0 = time.perf_counter()
         idx = self.active_index
         # 1. smooth
-        vel = smooth_update(bodies, inputs, idx, params)
+        vel = smooth_update(st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad, st.mass_kg,
+                            st.inertia_kg_m2, st.tau_s, st.heading_stiffness, st.heading_damping, *inputs, idx, h,
+                            p.rotation)
         t1 = time.perf_counter()
         timings["smooth"] = t1 - t0
         # 2. neighbors
@@ -396,9 +426,9 @@ class Simulator:
         # 4. impacts: the dense ones compiled, the clusters they leave by the cascade
         ke0, p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = impact_stage(
             vel, mass, inertia, con["a"], con["b"], con["gap"], con["nx"], con["ny"], con["rho_a"], con["rho_b"],
-            links, params)
+            *links, p.normal_dissipation_kg, p.tangential_dissipation_kg, p.link_dissipation_kg_per_m2, eps_m,
+            p.rotation, *self.cascade.impact_limits())
         if unsolved.shape[0]:
-            p = self.params
             solve_clusters(unsolved, root, vel, mass, inertia, in_impact, con["a"], con["b"], con["nx"], con["ny"],
                            con["rho_a"], con["rho_b"], *links, p.normal_dissipation_kg,
                            p.tangential_dissipation_kg, p.link_dissipation_kg_per_m2, p.rotation,
@@ -414,8 +444,9 @@ class Simulator:
         timings["projection"] = t5 - t4
         # 6. integrate and leave at exits
         previous = st.position_m[idx]
-        min_gap, contacts = finish_step(bodies, world, params, idx, vel, con["a"], con["b"], con["wall"], p_n, p_t,
-                                        lam_p, in_impact)
+        min_gap, contacts = finish_step(st.position_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad,
+                                        st.radius_m, idx, vel, h, p.rotation, self.walls, con["a"], con["b"],
+                                        con["wall"], p_n, p_t, lam_p, in_impact, self.period_m)
         exited = self._leave_at_exits(idx, previous)
         self._tick(self.time_s + self.params.dt_s)
         timings["integrate"] = time.perf_counter() - t5
@@ -465,11 +496,14 @@ class Simulator:
 
     def _leave_at_exits(self, idx, previous_m) -> np.ndarray:
         """Deactivate pedestrians whose centre's straight path of the step, from ``previous_m`` ((n, 2)
-        compact), met their exit (:func:`~crowd_env.core.step.leave_world`). Returns their indices. With a bare
+        compact), met their exit (:func:`~crowd_env.core.step.leave_at_exits` through the exits of :attr:`world`,
+        as the compiled step's :func:`~crowd_env.core.step.leave_world`). Returns their indices. With a bare
         ``exit_test`` callable (no geometry) only the end points are tested (:meth:`_exit_by_test`)."""
         exited = _NO_INDEX
         if idx.shape[0] and self._exits is not None:
-            exited = leave_world(self.state.arrays(), self.world, idx, previous_m)
+            w = self.world
+            exited = leave_at_exits(self.state.position_m, self.state.active, idx, previous_m, w.exit_destination,
+                                    w.exit_vertices, w.exit_ring_start, w.exit_ring_owner, w.exit_boxes)
         return self._exit_by_test(idx, exited)
 
     def _exit_by_test(self, idx, exited) -> np.ndarray:

@@ -65,20 +65,13 @@ MAX_REDETECT = 10  # re-detection rounds per step (speeds are bounded: one or tw
 
 
 @nb.njit(cache=True)
-def smooth_update(bodies, inputs, index, params):
+def smooth_update(velocity, angular_velocity, heading, mass, inertia, tau, stiffness, damping, intents,
+                  theta_d, has_theta_d, force, has_force, index, dt_s, rotation):
     """Stage 1, the smooth dynamics (Eq. 3, 14, 15) of the pedestrians ``index``: compact (n, 3) u*, ω*.
 
     u* = u + h/τ (u_intent − u) + h f/m (explicit Euler);
     ω* = ω + h (−k wrap(θ − θ_d) − c ω)/I, with θ_d the intent's direction when not given.
-    ``bodies``, ``inputs``, ``params``: :class:`~crowd_env.core.bundles.Bodies`,
-    :class:`~crowd_env.core.bundles.StepInputs`, :class:`~crowd_env.core.bundles.StepParams`.
     """
-    velocity, angular_velocity, heading = bodies.velocity_m_s, bodies.angular_velocity_rad_s, bodies.heading_rad
-    mass, inertia, tau = bodies.mass_kg, bodies.inertia_kg_m2, bodies.tau_s
-    stiffness, damping = bodies.heading_stiffness, bodies.heading_damping
-    intents, theta_d, force = inputs.intents_m_s, inputs.desired_heading_rad, inputs.external_force_n
-    has_theta_d, has_force = inputs.has_desired_heading, inputs.has_external_force
-    dt_s, rotation = params.dt_s, params.rotation
     n = index.shape[0]
     vel = np.empty((n, 3))
     for k in range(n):
@@ -306,30 +299,27 @@ def compact_bodies(mass_all, inertia_all, index):
 
 
 @nb.njit(cache=True)
-def impact_stage(vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, links, params):
+def impact_stage(vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, l_a, l_b, dvec, gi, gj,
+                 k_n, k_tg, k_v, eps_m, rotation, max_dense_rows, max_dense_bodies):
     """Stage 4: the kinetic energy before the impacts, then the dense Frémond impacts of every cluster
-    within the limits of ``params`` (:func:`~crowd_env.core.solvers.impact.resolve_impacts`, in place on
-    ``vel``; ``links`` the :func:`~crowd_env.core.contacts.active_links` of the step):
+    within the limits (:func:`~crowd_env.core.solvers.impact.resolve_impacts`, in place on ``vel``):
     ``(ke_before, p_normal, p_tangent, in_impact, root, unsolved, n_clusters, max_cluster)``; the
     clusters in ``unsolved`` are left for the solver cascade."""
-    l_a, l_b, dvec, gi, gj = links
     ke0 = kinetic_energy(vel, mass, inertia)
     p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = resolve_impacts(
         vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, l_a, l_b, dvec, gi, gj,
-        params.normal_dissipation_kg, params.tangential_dissipation_kg, params.link_dissipation_kg_per_m2,
-        params.contact_tolerance_m, VTOL_M_S, params.rotation, params.max_dense_rows, params.max_dense_bodies)
+        k_n, k_tg, k_v, eps_m, VTOL_M_S, rotation, max_dense_rows, max_dense_bodies)
     return ke0, p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster
 
 
 @nb.njit(cache=True)
-def finish_step(bodies, world, params, index, vel, c_a, c_b, c_wall, p_normal, p_tangent, p_projection, in_impact):
+def finish_step(position, velocity, angular_velocity, heading, radius, index, vel, dt_s, rotation, walls,
+                c_a, c_b, c_wall, p_normal, p_tangent, p_projection, in_impact, period_m=0.0):
     """Stage 6 (before the exit test): :func:`commit_step`, then the smallest gap after the step among the
     candidates (pairs not among them cannot have closed) and the contacts that carried a percussion:
     ``(min_gap, contacts)``, ``contacts`` being :func:`compact_contacts`."""
-    commit_step(bodies.position_m, bodies.velocity_m_s, bodies.angular_velocity_rad_s, bodies.heading_rad, index, vel,
-                params.dt_s, params.rotation, world.period_m)
-    min_gap = candidate_gaps_min(bodies.position_m, bodies.radius_m, index, world.walls, c_a, c_b, c_wall,
-                                 world.period_m)
+    commit_step(position, velocity, angular_velocity, heading, index, vel, dt_s, rotation, period_m)
+    min_gap = candidate_gaps_min(position, radius, index, walls, c_a, c_b, c_wall, period_m)
     return min_gap, compact_contacts(index, c_a, c_b, c_wall, p_normal, p_tangent, p_projection, in_impact)
 
 
@@ -394,14 +384,20 @@ def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached
     position, radius = bodies.position_m, bodies.radius_m
     walls, wall_owner, period_m = world.walls, world.wall_owner, world.period_m
     dt_s, eps_m = params.dt_s, params.contact_tolerance_m
-    vel = smooth_update(bodies, inputs, index, params)
+    vel = smooth_update(bodies.velocity_m_s, bodies.angular_velocity_rad_s, bodies.heading_rad, bodies.mass_kg,
+                        bodies.inertia_kg_m2, bodies.tau_s, bodies.heading_stiffness, bodies.heading_damping,
+                        inputs.intents_m_s, inputs.desired_heading_rad, inputs.has_desired_heading,
+                        inputs.external_force_n, inputs.has_external_force, index, dt_s, params.rotation)
     speed_star, r_max, reach = detection_reach(vel, radius, index, eps_m, dt_s)
     pairs = cached_pairs if reach <= cached_radius_m else grid_pairs(position, index, reach, period_m)
     c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall = contact_candidates(
         position, radius, speed_star, index, pairs, walls, wall_owner, eps_m, dt_s, period_m)
     mass, inertia = compact_bodies(bodies.mass_kg, bodies.inertia_kg_m2, index)
+    l_a, l_b, dvec, gi, gj = links
     ke0, p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = impact_stage(
-        vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, links, params)
+        vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, l_a, l_b, dvec, gi, gj,
+        params.normal_dissipation_kg, params.tangential_dissipation_kg, params.link_dissipation_kg_per_m2, eps_m,
+        params.rotation, params.max_dense_rows, params.max_dense_bodies)
     none = compact_contacts(index, c_a[:0], c_b[:0], c_wall[:0], p_n[:0], p_t[:0], p_n[:0], in_impact[:0])
     if unsolved.shape[0]:
         return FUSED_LARGE_CLUSTER, none, ke0, 0.0, 0.0, 0, 0, np.inf, 0
@@ -444,7 +440,9 @@ def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached
             return FUSED_PROJECTION, none, ke0, ke1, 0.0, 0, 0, np.inf, 0
         have_lam = True
     ke2 = kinetic_energy(vel, mass, inertia)
-    min_gap, contacts = finish_step(bodies, world, params, index, vel, c_a, c_b, c_wall, p_n, p_t, lam_p, in_impact)
+    min_gap, contacts = finish_step(position, bodies.velocity_m_s, bodies.angular_velocity_rad_s, bodies.heading_rad,
+                                    radius, index, vel, dt_s, params.rotation, walls, c_a, c_b, c_wall, p_n, p_t, lam_p,
+                                    in_impact, period_m)
     return FUSED_OK, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect
 
 
@@ -469,7 +467,7 @@ def first_bad_input(bodies, inputs):
     """Whether a step input is beyond what :meth:`~crowd_env.core.Simulator.step` accepts (the checks of its
     ``_check_input``: every entry finite, ‖u_int‖ and τ‖f‖/m at most :data:`MAX_INPUT_SPEED_M_S`); the
     Python path then raises naming it."""
-    if first_out_of_bound(inputs.intents_m_s, np.zeros(0), MAX_INPUT_SPEED_M_S) >= 0:
+    if first_out_of_bound(inputs.intents_m_s, bodies.tau_s[:0], MAX_INPUT_SPEED_M_S) >= 0:  # no scale: empty
         return True
     if inputs.has_desired_heading and first_non_finite(inputs.desired_heading_rad) >= 0:
         return True
@@ -503,17 +501,22 @@ def advance(bodies, world, params, inputs, index, cached_pairs, cached_radius_m,
     for k in range(n):
         previous[k, 0] = bodies.position_m[index[k], 0]
         previous[k, 1] = bodies.position_m[index[k], 1]
-    no_one = np.zeros(0, np.int64)
     if first_bad_input(bodies, inputs):
+        no_one = np.zeros(0, np.int64)
         return (FUSED_INPUT, compact_contacts(index, no_one, no_one, no_one, np.zeros(0), np.zeros(0), np.zeros(0),
                                               np.zeros(0, np.bool_)),
                 0.0, 0.0, 0.0, 0, 0, np.inf, 0, no_one, previous, time_s)
-    links = active_links(bodies.position_m, bodies.heading_rad, bodies.active, index, bodies.links,
-                         bodies.link_offsets_m, world.period_m)
+    if bodies.links.shape[0]:
+        links = active_links(bodies.position_m, bodies.heading_rad, bodies.active, index, bodies.links,
+                             bodies.link_offsets_m, world.period_m)
+    else:  # what active_links gives without links: empty views, no allocation
+        none_2d = bodies.position_m[:0]
+        links = (index[:0], index[:0], none_2d, none_2d, none_2d)
     status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect = fused_step(
         bodies, world, params, inputs, index, links, cached_pairs, cached_radius_m)
     if status != FUSED_OK:
-        return status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, no_one, previous, time_s
+        return (status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, np.zeros(0, np.int64),
+                previous, time_s)
     exited = leave_world(bodies, world, index, previous)
     return (status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, previous,
             time_s + params.dt_s)
@@ -521,9 +524,11 @@ def advance(bodies, world, params, inputs, index, cached_pairs, cached_radius_m,
 
 @nb.njit(cache=True)
 def advance_from_python(bodies, world, params, inputs, index, cached_pairs, cached_radius_m, time_s):
-    """:func:`advance` for a caller in Python: ``bodies``, ``world``, ``params`` and ``inputs`` come as plain
-    tuples of the bundles' fields (``tuple(bundle)``) and are named here. numba recognises the type of a plain
-    tuple of arrays in C but types a named tuple in Python, field by field, which would cost several µs per
-    step; the naming inside is free."""
-    return advance(Bodies(*bodies), World(*world), StepParams(*params), StepInputs(*inputs), index, cached_pairs,
-                   cached_radius_m, time_s)
+    """:func:`advance` for a caller in Python, less its ``previous``: ``bodies``, ``world``, ``params`` and
+    ``inputs`` come as plain tuples of the bundles' fields (``tuple(bundle)``) and are named here. numba
+    recognises the type of a plain tuple of arrays in C but types a named tuple in Python, field by field,
+    which would cost several µs per step; the naming inside is free."""
+    status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, _, time_s = advance(
+        Bodies(*bodies), World(*world), StepParams(*params), StepInputs(*inputs), index, cached_pairs,
+        cached_radius_m, time_s)
+    return status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, time_s
