@@ -497,7 +497,7 @@ class Simulator:
     def _leave_at_exits(self, idx, previous_m) -> np.ndarray:
         """Deactivate pedestrians whose centre's straight path of the step, from ``previous_m`` ((n, 2)
         compact), met their exit (:func:`~crowd_env.core.step.leave_at_exits` through the exits of :attr:`world`,
-        as the compiled step's :func:`~crowd_env.core.step.leave_world`). Returns their indices. With a bare
+        as in the compiled step :func:`~crowd_env.core.step.advance`). Returns their indices. With a bare
         ``exit_test`` callable (no geometry) only the end points are tested (:meth:`_exit_by_test`)."""
         exited = _NO_INDEX
         if idx.shape[0] and self._exits is not None:

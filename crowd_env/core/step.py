@@ -463,23 +463,17 @@ def active_rows(active):
 
 
 @nb.njit(cache=True)
-def first_bad_input(bodies, inputs):
-    """Whether a step input is beyond what :meth:`~crowd_env.core.Simulator.step` accepts (the checks of its
-    ``_check_input``: every entry finite, ‖u_int‖ and τ‖f‖/m at most :data:`MAX_INPUT_SPEED_M_S`); the
-    Python path then raises naming it."""
-    if first_out_of_bound(inputs.intents_m_s, bodies.tau_s[:0], MAX_INPUT_SPEED_M_S) >= 0:  # no scale: empty
+def first_bad_input(inputs, tau, mass):
+    """Whether a step input (:class:`~crowd_env.core.bundles.StepInputs`) is beyond what
+    :meth:`~crowd_env.core.Simulator.step` accepts (the checks of its ``_check_input``: every entry finite, ‖u_int‖
+    and τ‖f‖/m at most :data:`MAX_INPUT_SPEED_M_S`, with τ ``tau`` and m ``mass`` (N,)); the Python path then
+    raises naming it."""
+    if first_out_of_bound(inputs.intents_m_s, tau[:0], MAX_INPUT_SPEED_M_S) >= 0:  # no scale: empty
         return True
     if inputs.has_desired_heading and first_non_finite(inputs.desired_heading_rad) >= 0:
         return True
-    return inputs.has_external_force and first_out_of_bound(
-        inputs.external_force_n, bodies.tau_s / bodies.mass_kg, MAX_INPUT_SPEED_M_S) >= 0
-
-
-@nb.njit(cache=True)
-def leave_world(bodies, world, index, previous):
-    """:func:`leave_at_exits` through the exits of ``world`` (:class:`~crowd_env.core.bundles.World`)."""
-    return leave_at_exits(bodies.position_m, bodies.active, index, previous, world.exit_destination,
-                          world.exit_vertices, world.exit_ring_start, world.exit_ring_owner, world.exit_boxes)
+    return inputs.has_external_force and first_out_of_bound(inputs.external_force_n, tau / mass,
+                                                            MAX_INPUT_SPEED_M_S) >= 0
 
 
 @nb.njit(cache=True)
@@ -488,7 +482,7 @@ def advance(bodies, world, params, inputs, index, cached_pairs, cached_radius_m,
     :meth:`~crowd_env.core.Simulator.step` runs it when the dense solvers serve: the inputs' bounds
     (:func:`first_bad_input`), the hand links between active pedestrians
     (:func:`~crowd_env.core.contacts.active_links`), :func:`fused_step`, the exit test
-    (:func:`leave_world`) and the clock t + h. The one compiled step that the simulator and the compiled
+    (:func:`leave_at_exits` through the exits of ``world``) and the clock t + h. The one compiled step that the simulator and the compiled
     rollouts share.
 
     Returns ``(status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetections, exited,
@@ -501,7 +495,7 @@ def advance(bodies, world, params, inputs, index, cached_pairs, cached_radius_m,
     for k in range(n):
         previous[k, 0] = bodies.position_m[index[k], 0]
         previous[k, 1] = bodies.position_m[index[k], 1]
-    if first_bad_input(bodies, inputs):
+    if first_bad_input(inputs, bodies.tau_s, bodies.mass_kg):
         no_one = np.zeros(0, np.int64)
         return (FUSED_INPUT, compact_contacts(index, no_one, no_one, no_one, np.zeros(0), np.zeros(0), np.zeros(0),
                                               np.zeros(0, np.bool_)),
@@ -517,7 +511,8 @@ def advance(bodies, world, params, inputs, index, cached_pairs, cached_radius_m,
     if status != FUSED_OK:
         return (status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, np.zeros(0, np.int64),
                 previous, time_s)
-    exited = leave_world(bodies, world, index, previous)
+    exited = leave_at_exits(bodies.position_m, bodies.active, index, previous, world.exit_destination,
+                            world.exit_vertices, world.exit_ring_start, world.exit_ring_owner, world.exit_boxes)
     return (status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, previous,
             time_s + params.dt_s)
 

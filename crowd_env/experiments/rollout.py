@@ -141,12 +141,12 @@ def stall_update(stall, dt_s, time_s, velocity, remaining, progressed):
 
 
 @nb.njit(cache=True)
-def measure_step(bodies, world, params, index, previous, n_exited, t_prev_s, time_s, step_count, step_min_gap_m,
+def measure_step(bodies, index, previous, n_exited, t_prev_s, time_s, step_count, step_min_gap_m, dt_s, period_m,
                  measures, stall):
-    """The runner's measurement of one step that moved the pedestrians ``index`` (active before it) of
-    ``bodies`` from ``previous`` (compact) to their positions, from ``t_prev_s`` to ``time_s`` (with the
-    ``world``'s period L > 0 the move is the nearest image of the displacement, so a step across the seam crosses
-    no line between). In place on the :class:`Measures` ``measures``:
+    """The runner's measurement of one step of ``dt_s`` that moved the pedestrians ``index`` (active before it) of
+    ``bodies`` (:class:`~crowd_env.core.bundles.Bodies`) from ``previous`` (compact) to their positions, from
+    ``t_prev_s`` to ``time_s`` (with ``period_m`` L > 0 the move is the nearest image of the displacement, so a step
+    across the seam crosses no line between). In place on the :class:`Measures` ``measures``:
 
     - first passages of the measurement line (time interpolated within the step, Eq. 22) into
       ``passed``, ``cross_ids``, ``cross_times``;
@@ -157,7 +157,6 @@ def measure_step(bodies, world, params, index, previous, n_exited, t_prev_s, tim
     - the stall rule (:func:`stall_update` on ``stall``). Returns whether the run is stalled.
     """
     position, velocity, active = bodies.position_m, bodies.velocity_m_s, bodies.active
-    period_m = world.period_m
     m = measures
     counts, scalars, passed = m.counts, m.scalars, m.passed
     progressed = n_exited > 0
@@ -200,7 +199,7 @@ def measure_step(bodies, world, params, index, previous, n_exited, t_prev_s, tim
     scalars[SCALAR_MIN_GAP_M] = min(scalars[SCALAR_MIN_GAP_M], step_min_gap_m)
     if m.record_every > 0 and step_count % m.record_every == 0:
         f = counts[COUNT_FRAMES]
-        m.frame_time_s[f] = step_count * params.dt_s
+        m.frame_time_s[f] = step_count * dt_s
         for i in range(active.shape[0]):
             m.frame_position[f, i, 0] = position[i, 0]
             m.frame_position[f, i, 1] = position[i, 1]
@@ -210,7 +209,7 @@ def measure_step(bodies, world, params, index, previous, n_exited, t_prev_s, tim
     remaining = np.empty_like(active)  # those left who have started to walk (a waiting crowd is no stall)
     for i in range(active.shape[0]):
         remaining[i] = active[i] and not passed[i] and time_s >= bodies.premovement_s[i]
-    return stall_update(stall, params.dt_s, time_s, velocity, remaining, progressed)
+    return stall_update(stall, dt_s, time_s, velocity, remaining, progressed)
 
 
 @nb.njit(cache=True)
@@ -241,7 +240,7 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, params, agent, m
         time_s = t_next
         step_count += 1
         done += 1
-        if measure_step(bodies, world, params, index, previous, exited.shape[0], t_prev, time_s, step_count, min_gap,
-                        measures, stall):
+        if measure_step(bodies, index, previous, exited.shape[0], t_prev, time_s, step_count, min_gap, params.dt_s,
+                        world.period_m, measures, stall):
             return ROLLOUT_STALLED, done, time_s, n_redetect
     return ROLLOUT_LIMIT, done, time_s, n_redetect

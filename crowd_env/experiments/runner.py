@@ -489,8 +489,8 @@ def _python_step(sim, policy, measures: _RunMeasures, stall: StallDetector) -> N
     intents, heading = policy(sim)
     t_prev = sim.time_s
     result = sim.step(intents, desired_heading_rad=heading)
-    measure_step(sim.state.arrays(), sim.world, sim.step_params, idx, previous, result.exited.shape[0], t_prev,
-                 sim.time_s, sim.step_count, result.min_gap_m, measures.bundle(), stall.bundle())
+    measure_step(sim.state.arrays(), idx, previous, result.exited.shape[0], t_prev, sim.time_s, sim.step_count,
+                 result.min_gap_m, sim.step_params.dt_s, sim.world.period_m, measures.bundle(), stall.bundle())
 
 
 def _run_result(scenario, sim, measures: _RunMeasures, stall: StallDetector, width_m, wall_s: float) -> RunResult:
