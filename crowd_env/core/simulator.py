@@ -249,7 +249,7 @@ class Simulator:
         return fields
 
     def fused_ready(self) -> bool:
-        """Whether the next step may be tried as one compiled call (:func:`~crowd_env.core.step.fused_step`):
+        """Whether the next step may be tried as one compiled call (:func:`~crowd_env.core.step.advance`):
         not when profiling, nor when the cascade wants its general path (:meth:`SolverCascade.dense_only`).
         A compiled rollout runs fused steps only while this holds, and it holds on after a fused step."""
         return not self.profile and self.cascade.dense_only(self.step_count)
