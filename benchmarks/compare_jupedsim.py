@@ -39,7 +39,7 @@ import numpy as np  # noqa: E402
 import numba as nb  # noqa: E402
 
 from crowd_env.analysis.flow import MeasurementLine, PassageCounter, specific_flow  # noqa: E402
-from crowd_env.core.bundles import StepInputs  # noqa: E402
+from crowd_env.core.bundles import Bodies, StepInputs, World  # noqa: E402
 from crowd_env.core.state import min_gap_m  # noqa: E402
 from crowd_env.core.step import FUSED_OK, active_rows, advance  # noqa: E402
 from crowd_env.core.presets import DEFAULT_PRESET, PRESETS, get_preset  # noqa: E402
@@ -68,16 +68,17 @@ def _floor_steps(max_steps, time_s, bodies, world, params, agent):
     test, the clock) per step, nothing else. Returns (steps done, agent-steps, clock, ok); ok False: the next step
     needs the staged path."""
     no_force = np.zeros((0, 2))
+    named_bodies, named_world = Bodies(*bodies), World(*world)
     done = 0
     agent_steps = 0
     while done < max_steps:
-        index = active_rows(bodies.active)
+        index = active_rows(named_bodies.active)
         if index.shape[0] == 0:
             break
-        status, intents, theta_d, pairs, pair_radius = decide(agent, bodies, world, index, time_s)
+        status, intents, theta_d, pairs, pair_radius = decide(agent, named_bodies, named_world, index, time_s)
         if status != AGENT_OK:
             return done, agent_steps, time_s, False
-        step = advance(bodies, world, params, StepInputs(intents, theta_d, True, no_force, False), index, pairs,
+        step = advance(bodies, world, params, StepInputs(intents, theta_d, True, no_force, False)[:], index, pairs,
                        pair_radius, time_s)
         if step[0] != FUSED_OK:
             return done, agent_steps, time_s, False
@@ -98,8 +99,8 @@ def run_floor(scenario, state, params):
     agent_steps, wall = 0, 0.0
     while sim.step_count < n_max and state.active.any():
         t0 = time.perf_counter()
-        k, a, clock, ok = _floor_steps(n_max - sim.step_count, sim.time_s, state.arrays(), sim.world, sim.step_params,
-                                       compiled)
+        k, a, clock, ok = _floor_steps(n_max - sim.step_count, sim.time_s, state.array_fields(), tuple(sim.world),
+                                       tuple(sim.step_params), compiled)
         wall += time.perf_counter() - t0
         sim.advanced(k, clock)
         agent_steps += a

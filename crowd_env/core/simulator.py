@@ -44,7 +44,7 @@ from .solvers.impact import solve_clusters
 from .state import CrowdState, StateError, first_overlap, pair_distances
 from .timestep import check_time_step
 from .bundles import StepParams, World, empty_exits
-from .step import (FUSED_OK, MAX_INPUT_SPEED_M_S, MAX_REDETECT, advance_from_python, compact_bodies, detection_reach,
+from .step import (FUSED_OK, MAX_INPUT_SPEED_M_S, MAX_REDETECT, advance, compact_bodies, detection_reach,
                    finish_step, first_out_of_bound, grown_margins, impact_stage, kinetic_energy, leave_at_exits,
                    redetect_candidates, smooth_update, speeds)
 
@@ -228,8 +228,8 @@ class Simulator:
         return StepParams._make(self._step_fields())
 
     def _step_fields(self) -> tuple:
-        """:attr:`step_params` as a plain tuple (for calls from Python: module :mod:`~crowd_env.core.step`'s
-        ``advance_from_python``), kept while the params object and the cascade's limits stay the same."""
+        """:attr:`step_params` as a plain tuple (as :func:`~crowd_env.core.step.advance` takes it), kept while the
+        params object and the cascade's limits stay the same."""
         p, c = self.params, self.cascade
         key = (c.reference, c.max_dense_rows, c.max_dense_bodies, c.max_dense_projection_rows)
         kept = self.__dict__.get("_step_kept")
@@ -242,7 +242,7 @@ class Simulator:
         return kept[2]
 
     def _world_fields(self) -> tuple:
-        """:attr:`world` as a plain tuple (for calls from Python)."""
+        """:attr:`world` as a plain tuple (as :func:`~crowd_env.core.step.advance` takes it)."""
         fields = self.__dict__.get("_world_kept")
         if fields is None:
             fields = self._world_kept = tuple(self.world)
@@ -383,9 +383,9 @@ class Simulator:
         general path (nothing changed)."""
         idx = self.active_index
         t0 = time.perf_counter()
-        status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, time_s = \
-            advance_from_python(self.state.array_fields(), self._world_fields(), self._step_fields(), inputs, idx,
-                                *self._cached_pairs(), self.time_s)
+        status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, _, time_s = advance(
+            self.state.array_fields(), self._world_fields(), self._step_fields(), inputs, idx, *self._cached_pairs(),
+            self.time_s)
         if status != FUSED_OK:
             return None
         self.n_redetections += n_redetect

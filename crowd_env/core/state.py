@@ -169,7 +169,8 @@ class CrowdState:
         return Bodies._make(_BODIES_FIELDS(self))
 
     def array_fields(self) -> tuple:
-        """:meth:`arrays` as a plain tuple (what numba's dispatcher types fastest, for calls from Python)."""
+        """:meth:`arrays` as a plain tuple (as :func:`~crowd_env.core.step.advance` takes it: numba's dispatcher
+        types a plain tuple fastest)."""
         return _BODIES_FIELDS(self)
 
     def copy(self) -> "CrowdState":

@@ -369,7 +369,7 @@ def redetect_candidates(position, radius, index, walls, wall_owner, eps_m, dt_s,
     return a[new], b[new], gap[new], nx[new], ny[new], rho_a[new], rho_b[new], wall[new]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached_radius_m):
     """The stages 1-6 (but the exit test) in one compiled call, with the dense solvers only (module docstring).
     ``bodies``, ``world``, ``params``, ``inputs``: the bundles of :mod:`crowd_env.core.bundles`; ``index`` the
@@ -482,14 +482,29 @@ def advance(bodies, world, params, inputs, index, cached_pairs, cached_radius_m,
     :meth:`~crowd_env.core.Simulator.step` runs it when the dense solvers serve: the inputs' bounds
     (:func:`first_bad_input`), the hand links between active pedestrians
     (:func:`~crowd_env.core.contacts.active_links`), :func:`fused_step`, the exit test
-    (:func:`leave_at_exits` through the exits of ``world``) and the clock t + h. The one compiled step that the simulator and the compiled
-    rollouts share.
+    (:func:`leave_at_exits` through the exits of ``world``) and the clock t + h. The one compiled step that the
+    simulator and the compiled rollouts share.
+
+    ``bodies``, ``world``, ``params``, ``inputs``: the bundles :class:`~crowd_env.core.bundles.Bodies`,
+    :class:`~crowd_env.core.bundles.World`, :class:`~crowd_env.core.bundles.StepParams`,
+    :class:`~crowd_env.core.bundles.StepInputs` as plain tuples of their fields (``tuple(bundle)``, e.g.
+    :meth:`CrowdState.array_fields <crowd_env.core.state.CrowdState.array_fields>`), named here. A plain tuple
+    is typed by numba's dispatcher in C (a named one in Python, several µs per call), and one compiled entry
+    serves the callers in Python and in compiled code: each compiled function that calls another generates the
+    machine code of its callees again, so one entry instead of two keeps the first run's compilation short.
 
     Returns ``(status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetections, exited,
     previous, time_s)``: :func:`fused_step`'s figures, the pedestrians who left, the positions ``previous``
     (n, 2) before the move and the new clock. With ``status != FUSED_OK`` (``FUSED_INPUT``: an input out of
     bounds) nothing was written and the clock is ``time_s``.
     """
+    return _advance(Bodies(*bodies), World(*world), StepParams(*params), StepInputs(*inputs), index, cached_pairs,
+                    cached_radius_m, time_s)
+
+
+@nb.njit(cache=True, inline="always")
+def _advance(bodies, world, params, inputs, index, cached_pairs, cached_radius_m, time_s):
+    """:func:`advance` on the named bundles (inlined into it)."""
     n = index.shape[0]
     previous = np.empty((n, 2))
     for k in range(n):
@@ -515,15 +530,3 @@ def advance(bodies, world, params, inputs, index, cached_pairs, cached_radius_m,
                             world.exit_vertices, world.exit_ring_start, world.exit_ring_owner, world.exit_boxes)
     return (status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, previous,
             time_s + params.dt_s)
-
-
-@nb.njit(cache=True)
-def advance_from_python(bodies, world, params, inputs, index, cached_pairs, cached_radius_m, time_s):
-    """:func:`advance` for a caller in Python, less its ``previous``: ``bodies``, ``world``, ``params`` and
-    ``inputs`` come as plain tuples of the bundles' fields (``tuple(bundle)``) and are named here. numba
-    recognises the type of a plain tuple of arrays in C but types a named tuple in Python, field by field,
-    which would cost several µs per step; the naming inside is free."""
-    status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, _, time_s = advance(
-        Bodies(*bodies), World(*world), StepParams(*params), StepInputs(*inputs), index, cached_pairs,
-        cached_radius_m, time_s)
-    return status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, time_s

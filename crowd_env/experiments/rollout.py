@@ -33,7 +33,7 @@ import numpy as np
 from ..analysis.flow import crossing_alpha
 from ..core.periodic import minimum_image_dx
 from ..core.polygons import point_in_interior
-from ..core.bundles import StepInputs
+from ..core.bundles import Bodies, StepInputs, StepParams, World
 from ..core.step import FUSED_OK, active_rows, advance
 from ..walking.agent import AGENT_OK, decide
 
@@ -219,20 +219,22 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, params, agent, m
     ``agent``), the core's step (:func:`~crowd_env.core.step.advance` on the bundles ``bodies``, ``world``,
     ``params`` of :mod:`crowd_env.core.bundles`) and :func:`measure_step` (module docstring). Returns
     ``(status, steps done, clock, re-detection rounds)``; the state arrays in ``bodies`` and the measurements
-    are updated in place."""
+    are updated in place. ``bodies``, ``world``, ``params`` come as :func:`~crowd_env.core.step.advance` takes them,
+    plain tuples of the bundles' fields."""
     no_force = np.zeros((0, 2))
+    named_bodies, named_world, named_params = Bodies(*bodies), World(*world), StepParams(*params)
     done = 0
     n_redetect = 0
     while done < max_steps:
-        index = active_rows(bodies.active)
+        index = active_rows(named_bodies.active)
         if index.shape[0] == 0:
             return ROLLOUT_EMPTY, done, time_s, n_redetect
-        decided, intents, theta_d, pairs, pair_radius = decide(agent, bodies, world, index, time_s)
+        decided, intents, theta_d, pairs, pair_radius = decide(agent, named_bodies, named_world, index, time_s)
         if decided != AGENT_OK:
             return ROLLOUT_PYTHON_STEP, done, time_s, n_redetect
+        inputs = StepInputs(intents, theta_d, True, no_force, False)
         status, _, _, _, _, _, _, min_gap, rounds, exited, previous, t_next = advance(
-            bodies, world, params, StepInputs(intents, theta_d, True, no_force, False), index, pairs, pair_radius,
-            time_s)
+            bodies, world, params, inputs[:], index, pairs, pair_radius, time_s)
         if status != FUSED_OK:
             return ROLLOUT_PYTHON_STEP, done, time_s, n_redetect
         n_redetect += rounds
@@ -240,7 +242,7 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, params, agent, m
         time_s = t_next
         step_count += 1
         done += 1
-        if measure_step(bodies, index, previous, exited.shape[0], t_prev, time_s, step_count, min_gap, params.dt_s,
-                        world.period_m, measures, stall):
+        if measure_step(named_bodies, index, previous, exited.shape[0], t_prev, time_s, step_count, min_gap,
+                        named_params.dt_s, named_world.period_m, measures, stall):
             return ROLLOUT_STALLED, done, time_s, n_redetect
     return ROLLOUT_LIMIT, done, time_s, n_redetect

@@ -473,8 +473,9 @@ def _compiled_chunk(sim, agent, measures: _RunMeasures, stall: StallDetector, st
     to ``sim``: ``(steps done, whether the next step needs the Python path)``."""
     measures.room_for(steps)
     stall.room_for(steps)
-    status, k, clock, rounds = rollout_steps(steps, sim.time_s, sim.step_count, sim.state.arrays(), sim.world,
-                                             sim.step_params, agent, measures.bundle(), stall.bundle())
+    status, k, clock, rounds = rollout_steps(steps, sim.time_s, sim.step_count, sim.state.array_fields(),
+                                             tuple(sim.world), tuple(sim.step_params), agent, measures.bundle(),
+                                             stall.bundle())
     sim.advanced(k, clock, rounds)
     return k, status == ROLLOUT_PYTHON_STEP
 

@@ -266,7 +266,7 @@ def compiled_agent(navigation: CompiledNavigation, params) -> CompiledAgent:
                          ttc_parameters(params))
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def decide(agent, bodies, world, index, time_s):
     """:func:`agent_step` of the :class:`CompiledAgent` ``agent`` for the pedestrians ``index`` of ``bodies`` in
     ``world`` (:mod:`crowd_env.core.bundles`) at ``time_s``: ``(status, intents, θ_d, pairs, pair_radius_m)``."""
