@@ -39,13 +39,13 @@ import numpy as np  # noqa: E402
 import numba as nb  # noqa: E402
 
 from crowd_env.analysis.flow import MeasurementLine, PassageCounter, specific_flow  # noqa: E402
-from crowd_env.core.contacts import active_links  # noqa: E402
+from crowd_env.core.bundles import Bodies, StepInputs, World  # noqa: E402
 from crowd_env.core.state import min_gap_m  # noqa: E402
-from crowd_env.core.step import FUSED_OK, fused_step, leave_at_exits  # noqa: E402
+from crowd_env.core.step import FUSED_OK, active_rows, advance  # noqa: E402
 from crowd_env.core.presets import DEFAULT_PRESET, PRESETS, get_preset  # noqa: E402
-from crowd_env.experiments.runner import _compiled_tuples, run_scenario  # noqa: E402
+from crowd_env.experiments.runner import run_scenario  # noqa: E402
 from crowd_env.scenarios import make_scenario  # noqa: E402
-from crowd_env.walking.agent import AGENT_OK, agent_step  # noqa: E402
+from crowd_env.walking.agent import AGENT_OK, compiled_agent, decide  # noqa: E402
 
 MAX_TIME_S = 300.0
 
@@ -63,35 +63,26 @@ def _summary(name, agent_steps, wall_s, counter, width_m, n, n_left, min_gap):
 
 
 @nb.njit
-def _floor_steps(max_steps, time_s, bodies, world, model, agent):
-    """The compiled work alone: agent_step, the fused step and the exit test per step, nothing else.
-    Returns (steps done, agent-steps, clock, ok); ok False: the next step needs the staged path."""
-    (position, radius, velocity, angular_velocity, heading, mass, inertia, tau, stiffness, damping, desired_speed,
-     active, links, link_offsets, premovement) = bodies
-    walls, wall_owner, exits, exit_destination, period_m = world
-    dt_s, eps_m, k_n, k_tg, k_v, rotation, max_rows, max_bodies, max_projection_rows = model
-    origin, res, tt, dirs, field_of, social, a_n, b_m, lam, cutoff, wa, wb, vision, ttc = agent
+def _floor_steps(max_steps, time_s, bodies, world, params, agent):
+    """The compiled work alone: the agent's decision and the core's step (``advance``: the fused step, the exit
+    test, the clock) per step, nothing else. Returns (steps done, agent-steps, clock, ok); ok False: the next step
+    needs the staged path."""
+    no_force = np.zeros((0, 2))
+    named_bodies, named_world = Bodies(*bodies), World(*world)
     done = 0
     agent_steps = 0
     while done < max_steps:
-        index = np.flatnonzero(active)
+        index = active_rows(named_bodies.active)
         if index.shape[0] == 0:
             break
-        status, intents, theta_d, pairs, pair_radius = agent_step(
-            position, radius, index, origin, res, tt, dirs, field_of, desired_speed, tau, mass, heading, velocity, walls,
-            wall_owner, social, a_n, b_m, lam, cutoff, wa, wb, premovement, time_s, vision, ttc, period_m)
+        status, intents, theta_d, pairs, pair_radius = decide(agent, named_bodies, named_world, index, time_s)
         if status != AGENT_OK:
             return done, agent_steps, time_s, False
-        l_a, l_b, dvec, gi, gj = active_links(position, heading, active, index, links, link_offsets, period_m)
-        previous = position[index]
-        fused = fused_step(position, radius, velocity, angular_velocity, heading, mass, inertia, tau, stiffness,
-                           damping, intents, theta_d, True, np.zeros((0, 2)), False, index, walls, wall_owner, pairs,
-                           pair_radius, l_a, l_b, dvec, gi, gj, dt_s, eps_m, k_n, k_tg, k_v, rotation, max_rows,
-                           max_bodies, max_projection_rows, period_m)[0]
-        if fused != FUSED_OK:
+        step = advance(bodies, world, params, StepInputs(intents, theta_d, True, no_force, False)[:], index, pairs,
+                       pair_radius, time_s)
+        if step[0] != FUSED_OK:
             return done, agent_steps, time_s, False
-        leave_at_exits(position, active, index, previous, exit_destination, *exits)
-        time_s += dt_s
+        time_s = step[-1]
         done += 1
         agent_steps += index.shape[0]
     return done, agent_steps, time_s, True
@@ -103,12 +94,13 @@ def run_floor(scenario, state, params):
 
     sim = scenario.make_simulator(state, params)
     agent = SocialForceAgent(scenario.navigation())
-    tuples = _compiled_tuples(sim, agent.compiled(state.n))
+    compiled = compiled_agent(agent.compiled(state.n), sim.params)
     n_max = int(MAX_TIME_S / params.dt_s)
     agent_steps, wall = 0, 0.0
     while sim.step_count < n_max and state.active.any():
         t0 = time.perf_counter()
-        k, a, clock, ok = _floor_steps(n_max - sim.step_count, sim.time_s, *tuples)
+        k, a, clock, ok = _floor_steps(n_max - sim.step_count, sim.time_s, state.array_fields(), tuple(sim.world),
+                                       tuple(sim.step_params), compiled)
         wall += time.perf_counter() - t0
         sim.advanced(k, clock)
         agent_steps += a

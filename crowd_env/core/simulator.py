@@ -10,10 +10,12 @@ the final velocities; pedestrians whose centre enters an exit leave (with per-pe
 The velocity intent ``(N, 2)`` in m/s is the only behavioural input; external forces (for example
 Helbing's social repulsion, Eq. 16) can be added per step. The core knows nothing of RL.
 
-By default a step runs as one compiled call (:func:`crowd_env.core.step.fused_step`); steps that
-need a solver beyond the dense ones or a re-detection, and every step of a ``Simulator(profile=True)``
-(which times each stage into ``StepResult.timings_s``), run the same compiled stages one by one from
-Python (:meth:`Simulator._staged_step`).
+By default a step runs as one compiled call (:func:`crowd_env.core.step.advance`: the hand links, the fused
+step, the exit test and the clock, the kernel the compiled rollouts run too); steps that need a solver beyond the
+dense ones, and every step of a ``Simulator(profile=True)`` (which times each stage into
+``StepResult.timings_s``), run the same compiled stages one by one from Python (:meth:`Simulator._staged_step`).
+The kernels take the state, the world and the step's numbers as the named bundles of
+:mod:`crowd_env.core.bundles` (:meth:`CrowdState.arrays`, :attr:`Simulator.world`, :attr:`Simulator.step_params`).
 
 Periodic along x (``Simulator.period_m`` L > 0, from ``Geometry(period_x_m=L)``): x and x + L are the same
 place; positions are kept in [0, L) and every pedestrian-pedestrian displacement is taken to its nearest image
@@ -41,8 +43,10 @@ from .solvers.graph import contact_keys, gap_residuals
 from .solvers.impact import solve_clusters
 from .state import CrowdState, StateError, first_overlap, pair_distances
 from .timestep import check_time_step
-from .step import (FUSED_OK, MAX_INPUT_SPEED_M_S, MAX_REDETECT, compact_bodies, detection_reach, finish_step, first_out_of_bound, fused_step, grown_margins,
-                   impact_stage, kinetic_energy, leave_at_exits, redetect_candidates, smooth_update, speeds)
+from .bundles import StepParams, World, empty_exits
+from .step import (FUSED_OK, MAX_INPUT_SPEED_M_S, MAX_REDETECT, advance, compact_bodies, detection_reach,
+                   finish_step, first_out_of_bound, grown_margins, impact_stage, kinetic_energy, leave_at_exits,
+                   redetect_candidates, smooth_update, speeds)
 
 
 
@@ -205,8 +209,47 @@ class Simulator:
         """(N,) int64: each pedestrian's exit (−1: any), as the compiled exit test reads it."""
         return self._exit_destination
 
+    @property
+    def world(self) -> World:
+        """The walls, the exits (packed; none: empty) with each pedestrian's exit and the periodicity, as the
+        compiled step takes them (:class:`~crowd_env.core.bundles.World`; built once)."""
+        world = self.__dict__.get("_world")
+        if world is None:
+            exits = self._exits.arrays if self._exits is not None else empty_exits()
+            world = World(self.walls, self._wall_owner, *exits, np.array(self._exit_destination, np.int64),
+                          float(self.period_m))
+            self._world = world
+        return world
+
+    @property
+    def step_params(self) -> StepParams:
+        """h, ε, the dissipations and the dense solvers' limits (the cascade's, read now) as the compiled step
+        takes them (:class:`~crowd_env.core.bundles.StepParams`)."""
+        return StepParams._make(self._step_fields())
+
+    def _step_fields(self) -> tuple:
+        """:attr:`step_params` as a plain tuple (as :func:`~crowd_env.core.step.advance` takes it), kept while the
+        params object and the cascade's limits stay the same."""
+        p, c = self.params, self.cascade
+        key = (c.reference, c.max_dense_rows, c.max_dense_bodies, c.max_dense_projection_rows)
+        kept = self.__dict__.get("_step_kept")
+        if kept is None or kept[0] is not p or kept[1] != key:
+            max_rows, max_bodies = c.impact_limits()
+            fields = (float(p.dt_s), float(p.contact_tolerance_m), float(p.normal_dissipation_kg),
+                      float(p.tangential_dissipation_kg), float(p.link_dissipation_kg_per_m2), bool(p.rotation),
+                      int(max_rows), int(max_bodies), int(c.max_dense_projection_rows))
+            kept = self._step_kept = (p, key, fields)
+        return kept[2]
+
+    def _world_fields(self) -> tuple:
+        """:attr:`world` as a plain tuple (as :func:`~crowd_env.core.step.advance` takes it)."""
+        fields = self.__dict__.get("_world_kept")
+        if fields is None:
+            fields = self._world_kept = tuple(self.world)
+        return fields
+
     def fused_ready(self) -> bool:
-        """Whether the next step may be tried as one compiled call (:func:`~crowd_env.core.step.fused_step`):
+        """Whether the next step may be tried as one compiled call (:func:`~crowd_env.core.step.advance`):
         not when profiling, nor when the cascade wants its general path (:meth:`SolverCascade.dense_only`).
         A compiled rollout runs fused steps only while this holds, and it holds on after a fused step."""
         return not self.profile and self.cascade.dense_only(self.step_count)
@@ -258,10 +301,11 @@ class Simulator:
                               np.full(idx.shape[0], margin_m))
 
     # ------------------------------------------------------------------ stepping
-    def _check_input(self, name, value, shape, scale=None, bound=np.inf, unit=""):
+    def _check_input(self, name, value, shape, scale=None, bound=np.inf, unit="", bounds=True):
         """``value`` as a contiguous float64 array of ``shape``; raises :class:`InputError` naming ``name``
         and what was given unless it is an array of numbers of that shape, finite, with every row's norm
-        times ``scale[row]`` (empty: 1) at most ``bound`` (:data:`~crowd_env.core.step.MAX_INPUT_SPEED_M_S`)."""
+        times ``scale[row]`` (empty: 1) at most ``bound`` (:data:`~crowd_env.core.step.MAX_INPUT_SPEED_M_S`);
+        ``bounds`` False: the shape and type only (the caller's compiled step checks the rest)."""
         arr = value if isinstance(value, np.ndarray) else None
         if arr is None:
             try:
@@ -275,6 +319,8 @@ class Simulator:
             given = "an array" if isinstance(value, np.ndarray) else f"a {type(value).__name__}"
             raise InputError(f"{name} must have shape {shape} (one row per pedestrian), got {given} of shape {arr.shape}")
         arr = np.ascontiguousarray(arr, dtype=np.float64)
+        if not bounds:
+            return arr
         scale = _EMPTY_1D if scale is None else scale
         first = first_out_of_bound(arr, scale, bound)
         if first >= 0:
@@ -307,53 +353,55 @@ class Simulator:
         Anything else raises :class:`~crowd_env.errors.InputError` naming the argument, the pedestrian and
         the bound, before the state changes.
         """
-        n_all = self.state.n
-        intents = self._check_input("intents_m_s", intents_m_s, (n_all, 2), bound=MAX_INPUT_SPEED_M_S, unit="m/s")
-        theta_d = _EMPTY_1D if desired_heading_rad is None else \
-            self._check_input("desired_heading_rad", desired_heading_rad, (n_all,))
-        force = _EMPTY_2D if external_force_n is None else \
-            self._check_input("external_force_n", external_force_n, (n_all, 2), self.state.tau_s / self.state.mass_kg,
-                              MAX_INPUT_SPEED_M_S, "N")
-        inputs = (intents, theta_d, desired_heading_rad is not None, force, external_force_n is not None)
+        given = (intents_m_s, desired_heading_rad, external_force_n)
         # The cascade says when the dense solvers alone may serve (not right after a large projection, whose
         # staged step skips the dense projection: the fused step waits too, so fused and staged runs stay
-        # bitwise equal).
+        # bitwise equal). The compiled step checks the bounds itself (first_bad_input) and refuses out-of-bound
+        # inputs before it writes anything; the full checks below then raise naming them.
         if not self.profile and self.active_index.shape[0] and self.cascade.dense_only(self.step_count):
-            result = self._fused_step(inputs)
+            result = self._fused_step(self._inputs(*given, bounds=False))
             if result is not None:
                 return result
-        return self._staged_step(inputs)
+        return self._staged_step(self._inputs(*given))
+
+    def _inputs(self, intents_m_s, desired_heading_rad, external_force_n, bounds: bool = True) -> tuple:
+        """The step's inputs checked by :meth:`_check_input` (its bounds too unless ``bounds`` is False), as the
+        fields of :class:`~crowd_env.core.bundles.StepInputs`."""
+        n_all = self.state.n
+        intents = self._check_input("intents_m_s", intents_m_s, (n_all, 2), bound=MAX_INPUT_SPEED_M_S, unit="m/s",
+                                    bounds=bounds)
+        theta_d = _EMPTY_1D if desired_heading_rad is None else \
+            self._check_input("desired_heading_rad", desired_heading_rad, (n_all,), bounds=bounds)
+        force = _EMPTY_2D if external_force_n is None else \
+            self._check_input("external_force_n", external_force_n, (n_all, 2),
+                              self.state.tau_s / self.state.mass_kg if bounds else None, MAX_INPUT_SPEED_M_S, "N",
+                              bounds=bounds)
+        return intents, theta_d, desired_heading_rad is not None, force, external_force_n is not None
 
     def _fused_step(self, inputs):
-        """The whole step as one compiled call; None when a stage needs the general path (nothing changed)."""
-        st = self.state
-        p = self.params
+        """The whole step as one compiled call (:func:`~crowd_env.core.step.advance`); None when a stage needs the
+        general path (nothing changed)."""
         idx = self.active_index
-        links = self._active_links(idx)
         t0 = time.perf_counter()
-        previous = st.position_m[idx]
-        status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect = fused_step(
-            st.position_m, st.radius_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad, st.mass_kg,
-            st.inertia_kg_m2, st.tau_s, st.heading_stiffness, st.heading_damping, *inputs, idx, self.walls,
-            self._wall_owner, *self._cached_pairs(), *links, p.dt_s, p.contact_tolerance_m, p.normal_dissipation_kg,
-            p.tangential_dissipation_kg, p.link_dissipation_kg_per_m2, p.rotation, *self.cascade.impact_limits(),
-            self.cascade.max_dense_projection_rows, self.period_m)
+        status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, _, time_s = advance(
+            self.state.array_fields(), self._world_fields(), self._step_fields(), inputs, idx, *self._cached_pairs(),
+            self.time_s)
         if status != FUSED_OK:
             return None
         self.n_redetections += n_redetect
-        exited = self._leave_at_exits(idx, previous)
+        exited = self._exit_by_test(idx, exited)
+        self._tick(time_s)
         return self._result(contacts, ke0, ke1, ke2, n_clusters, max_cluster, exited,
                             {"fused": time.perf_counter() - t0}, min_gap)
 
     def _staged_step(self, inputs) -> StepResult:
         """The stages of :mod:`crowd_env.core.step` one by one, in the same order and with the same
         functions as :func:`~crowd_env.core.step.fused_step`, timed, with the solver cascade for the
-        problems beyond the dense limits and the re-detection loop of stage 5."""
+        problems beyond the dense limits and the re-detection loop of stage 5 (:meth:`_staged_projection`)."""
         self.n_staged_steps += 1
         st = self.state
         p = self.params
-        h = p.dt_s
-        cascade = self.cascade
+        h, eps_m = p.dt_s, p.contact_tolerance_m
         timings = {}
         t0 = time.perf_counter()
         idx = self.active_index
@@ -364,43 +412,62 @@ class Simulator:
         t1 = time.perf_counter()
         timings["smooth"] = t1 - t0
         # 2. neighbors
-        speed_star, r_max, reach = detection_reach(vel, st.radius_m, idx, p.contact_tolerance_m, h)
+        speed_star, r_max, reach = detection_reach(vel, st.radius_m, idx, eps_m, h)
         pairs = self.neighbor_pairs(reach)
         t2 = time.perf_counter()
         timings["neighbors"] = t2 - t1
         # 3. contacts
         con = dict(zip(CONTACT_FIELDS, contact_candidates(st.position_m, st.radius_m, speed_star, idx, pairs,
-                                                          self.walls, self._wall_owner, p.contact_tolerance_m, h,
-                                                          self.period_m)))
-        links_a, links_b, dvec, gi, gj = self._active_links(idx)
+                                                          self.walls, self._wall_owner, eps_m, h, self.period_m)))
+        links = self._active_links(idx)
         mass, inertia = compact_bodies(st.mass_kg, st.inertia_kg_m2, idx)
         t3 = time.perf_counter()
         timings["contacts"] = t3 - t2
         # 4. impacts: the dense ones compiled, the clusters they leave by the cascade
         ke0, p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = impact_stage(
             vel, mass, inertia, con["a"], con["b"], con["gap"], con["nx"], con["ny"], con["rho_a"], con["rho_b"],
-            links_a, links_b, dvec, gi, gj, p.normal_dissipation_kg, p.tangential_dissipation_kg,
-            p.link_dissipation_kg_per_m2, p.contact_tolerance_m, p.rotation, *cascade.impact_limits())
+            *links, p.normal_dissipation_kg, p.tangential_dissipation_kg, p.link_dissipation_kg_per_m2, eps_m,
+            p.rotation, *self.cascade.impact_limits())
         if unsolved.shape[0]:
             solve_clusters(unsolved, root, vel, mass, inertia, in_impact, con["a"], con["b"], con["nx"], con["ny"],
-                           con["rho_a"], con["rho_b"], links_a, links_b, dvec, gi, gj, p.normal_dissipation_kg,
+                           con["rho_a"], con["rho_b"], *links, p.normal_dissipation_kg,
                            p.tangential_dissipation_kg, p.link_dissipation_kg_per_m2, p.rotation,
-                           cascade.solve_impact_cluster, p_n, p_t)
+                           self.cascade.solve_impact_cluster, p_n, p_t)
         ke1 = kinetic_energy(vel, mass, inertia)
         t4 = time.perf_counter()
         timings["impacts"] = t4 - t3
-        # 5. projection. The candidates were chosen with margins from the pre-impact speeds s_i: a pair
-        # left out has gap > ε + 2h (s_i + s_j), so it cannot close within the step while every speed
-        # satisfies |u_i| ≤ 2 s_i + ε/(2h). Impacts and the projection can speed a pedestrian up beyond
-        # that (a push passed along a jammed chain): then detect again with the larger speeds (before
-        # projecting, and after it if needed) and, if a new candidate binds, project from the
-        # post-impact velocities again.
+        # 5. projection
+        con, p_n, p_t, in_impact, lam_p = self._staged_projection(vel, mass, con, p_n, p_t, in_impact, speed_star, idx,
+                                                                  r_max)
+        ke2 = kinetic_energy(vel, mass, inertia)
+        t5 = time.perf_counter()
+        timings["projection"] = t5 - t4
+        # 6. integrate and leave at exits
+        previous = st.position_m[idx]
+        min_gap, contacts = finish_step(st.position_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad,
+                                        st.radius_m, idx, vel, h, p.rotation, self.walls, con["a"], con["b"],
+                                        con["wall"], p_n, p_t, lam_p, in_impact, self.period_m)
+        exited = self._leave_at_exits(idx, previous)
+        self._tick(self.time_s + self.params.dt_s)
+        timings["integrate"] = time.perf_counter() - t5
+        return self._result(contacts, ke0, ke1, ke2, n_clusters, max_cluster, exited, timings, min_gap)
+
+    def _staged_projection(self, vel, mass, con, p_n, p_t, in_impact, speed_star, idx, r_max):
+        """Stage 5 of the staged step, in place on ``vel``: ``(con, p_n, p_t, in_impact, lam_p)`` with the
+        candidates the re-detection added.
+
+        The candidates were chosen with margins from the pre-impact speeds s_i: a pair left out has
+        gap > ε + 2h (s_i + s_j), so it cannot close within the step while every speed satisfies
+        |u_i| ≤ 2 s_i + ε/(2h). Impacts and the projection can speed a pedestrian up beyond that (a push
+        passed along a jammed chain): then detect again with the larger speeds (before projecting, and
+        after it if needed) and, if a new candidate binds, project from the post-impact velocities again."""
+        h = self.params.dt_s
         v_impact = vel[:, :2].copy()
         det_speed = speed_star
         lam_p = None
         lam_warm = None  # the last projection's multipliers, extended to the new candidates (zeros)
         for _ in range(MAX_REDETECT + 1):
-            grown = grown_margins(vel, det_speed, p.contact_tolerance_m, h)
+            grown = grown_margins(vel, det_speed, self.params.contact_tolerance_m, h)
             if grown.size:
                 det_speed = np.maximum(det_speed, speeds(vel))
                 merged = self._redetect(con, det_speed, grown, idx, r_max, h)
@@ -423,37 +490,35 @@ class Simulator:
                         # on them they are the exact projection over all (its KKT point), nothing to redo
             if lam_p is not None:
                 break
-            lam_p = cascade.project(vel, mass, con, h, self.step_count,
-                                    functools.partial(self._candidate_keys, idx, con), lam_warm)
-        ke2 = kinetic_energy(vel, mass, inertia)
-        t5 = time.perf_counter()
-        timings["projection"] = t5 - t4
-        # 6. integrate and leave at exits
-        previous = st.position_m[idx]
-        min_gap, contacts = finish_step(st.position_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad,
-                                        st.radius_m, idx, vel, h, p.rotation, self.walls, con["a"], con["b"],
-                                        con["wall"], p_n, p_t, lam_p, in_impact, self.period_m)
-        exited = self._leave_at_exits(idx, previous)
-        timings["integrate"] = time.perf_counter() - t5
-        return self._result(contacts, ke0, ke1, ke2, n_clusters, max_cluster, exited, timings, min_gap)
+            lam_p = self.cascade.project(vel, mass, con, h, self.step_count,
+                                         functools.partial(self._candidate_keys, idx, con), lam_warm)
+        return con, p_n, p_t, in_impact, lam_p
 
     def _leave_at_exits(self, idx, previous_m) -> np.ndarray:
         """Deactivate pedestrians whose centre's straight path of the step, from ``previous_m`` ((n, 2)
-        compact), met their exit (:func:`~crowd_env.core.step.leave_at_exits`); advance the clock. Returns
-        their indices. With a bare ``exit_test`` callable (no geometry) only the end points are tested."""
-        st = self.state
+        compact), met their exit (:func:`~crowd_env.core.step.leave_at_exits` through the exits of :attr:`world`,
+        as in the compiled step :func:`~crowd_env.core.step.advance`). Returns their indices. With a bare
+        ``exit_test`` callable (no geometry) only the end points are tested (:meth:`_exit_by_test`)."""
         exited = _NO_INDEX
-        if idx.shape[0]:
-            if self._exits is not None:
-                exited = leave_at_exits(st.position_m, st.active, idx, previous_m, self._exit_destination,
-                                        *self._exits.arrays)
-            elif self._exit_test is not None:
-                out = np.asarray(self._exit_test(st.position_m[idx]), dtype=bool)
-                exited = idx[out]
-                st.active[exited] = False
-        self.time_s += self.params.dt_s
-        self.step_count += 1
+        if idx.shape[0] and self._exits is not None:
+            w = self.world
+            exited = leave_at_exits(self.state.position_m, self.state.active, idx, previous_m, w.exit_destination,
+                                    w.exit_vertices, w.exit_ring_start, w.exit_ring_owner, w.exit_boxes)
+        return self._exit_by_test(idx, exited)
+
+    def _exit_by_test(self, idx, exited) -> np.ndarray:
+        """``exited``, or, without packed exits but with a bare ``exit_test`` callable, the pedestrians ``idx``
+        whose centre it says is in an exit, deactivated."""
+        if self._exits is None and self._exit_test is not None and idx.shape[0]:
+            out = np.asarray(self._exit_test(self.state.position_m[idx]), dtype=bool)
+            exited = idx[out]
+            self.state.active[exited] = False
         return exited
+
+    def _tick(self, time_s: float) -> None:
+        """The clock after a step: ``time_s`` (t + h, accumulated step by step) and one more step."""
+        self.time_s = float(time_s)
+        self.step_count += 1
 
     def _result(self, contacts, ke0, ke1, ke2, n_clusters, max_cluster, exited, timings, min_gap) -> StepResult:
         contact_i, contact_j, contact_wall, p_normal, p_tangent = contacts

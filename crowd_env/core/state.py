@@ -8,10 +8,12 @@ from __future__ import annotations
 
 from crowd_env.errors import StateError
 
+import operator
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .bundles import Bodies
 from .neighbors import grid_pairs
 from .periodic import minimum_image_dx
 from .params import ParameterError, PedestrianDefaults
@@ -161,8 +163,21 @@ class CrowdState:
             raise StateError(f"pedestrians {i} and {j} overlap by {overlap:.4g} m at start "
                              f"(positions {self.position_m[i].tolist()} and {self.position_m[j].tolist()})")
 
+    def arrays(self) -> Bodies:
+        """The state's arrays (the same objects, not copies) as the compiled step takes them
+        (:class:`~crowd_env.core.bundles.Bodies`, fields named as here)."""
+        return Bodies._make(_BODIES_FIELDS(self))
+
+    def array_fields(self) -> tuple:
+        """:meth:`arrays` as a plain tuple (as :func:`~crowd_env.core.step.advance` takes it: numba's dispatcher
+        types a plain tuple fastest)."""
+        return _BODIES_FIELDS(self)
+
     def copy(self) -> "CrowdState":
         return CrowdState(**{k: np.array(v, copy=True) for k, v in self.__dict__.items()})
+
+
+_BODIES_FIELDS = operator.attrgetter(*Bodies._fields)  # the state's arrays in the order of Bodies
 
 
 def _all_pairs_within(position_m, radius_m, period_m=0.0):

@@ -23,11 +23,12 @@ The stages, in order (the names are the keys of ``StepResult.timings_s`` in a st
    step met an exit leave (:func:`leave_at_exits`).
 
 Two paths run these stages with the same functions in this order. By default
-:class:`~crowd_env.core.Simulator` runs :func:`fused_step`: the stages compiled into one call, with the
-dense solvers only. It handles the common case (every cluster within the dense limits, every projection
-within the dense one, re-detections included); otherwise it reports which stage needs the general path
-(``FUSED_*``) and leaves the state
-untouched, and the simulator runs the staged step (``Simulator._staged_step``) from the start: the same
+:class:`~crowd_env.core.Simulator` runs :func:`advance` (the hand links, :func:`fused_step`, the exit test and
+the clock: the one compiled step, which the compiled rollouts of the experiments run too), the stages compiled
+into one call with the dense solvers only; the kernels take the bundles of :mod:`crowd_env.core.bundles`. It
+handles the common case (every cluster within the dense limits, every projection within the dense one,
+re-detections included); otherwise it reports which stage needs the general path (``FUSED_*``) and leaves the
+state untouched, and the simulator runs the staged step (``Simulator._staged_step``) from the start: the same
 stage functions called one by one from Python, timed, with the
 :class:`~crowd_env.core.solvers.cascade.SolverCascade` for large or degenerate problems and the
 re-detection loop. Both paths call the same kernels, so they agree to the last bit
@@ -44,7 +45,8 @@ import numba as nb
 import numpy as np
 
 from .angles import wrap_angle_scalar
-from .contacts import contact_candidates
+from .bundles import Bodies, StepInputs, StepParams, World
+from .contacts import active_links, contact_candidates
 from .neighbors import grid_pairs, grid_pairs_around
 from .periodic import minimum_image_dx, wrap_x
 from .polygons import path_meets_polygon
@@ -57,6 +59,7 @@ from .solvers.status import STATUS_OK
 STAGES = ("smooth", "neighbors", "contacts", "impacts", "projection", "integrate")
 FUSED_OK = 0
 FUSED_LARGE_CLUSTER = 1  # an impact cluster needs the sparse solver
+FUSED_INPUT = 2  # an input beyond the step's bounds (advance): the Python path raises naming it
 FUSED_PROJECTION = 3  # the projection needs the sparse / interior-point path
 MAX_REDETECT = 10  # re-detection rounds per step (speeds are bounded: one or two rounds suffice in practice)
 
@@ -366,13 +369,11 @@ def redetect_candidates(position, radius, index, walls, wall_owner, eps_m, dt_s,
     return a[new], b[new], gap[new], nx[new], ny[new], rho_a[new], rho_b[new], wall[new]
 
 
-@nb.njit(cache=True)
-def fused_step(position, radius, velocity, angular_velocity, heading, mass_all, inertia_all, tau, stiffness,
-               damping, intents, theta_d, has_theta_d, force, has_force, index, walls, wall_owner,
-               cached_pairs, cached_radius_m, l_a, l_b, dvec, gi, gj, dt_s, eps_m, k_n, k_tg, k_v, rotation,
-               max_dense_rows, max_dense_bodies, max_projection_rows, period_m=0.0):
-    """The stages 1-6 (but the exit test) in one compiled call, with the dense solvers only (module docstring;
-    ``period_m``: the periodicity along x, 0 for none).
+@nb.njit(cache=True, inline="always")
+def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached_radius_m):
+    """The stages 1-6 (but the exit test) in one compiled call, with the dense solvers only (module docstring).
+    ``bodies``, ``world``, ``params``, ``inputs``: the bundles of :mod:`crowd_env.core.bundles`; ``index`` the
+    active pedestrians, ``links`` their :func:`~crowd_env.core.contacts.active_links`.
 
     Returns ``(status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetections)``,
     ``contacts`` being :func:`compact_contacts`. With ``status != FUSED_OK`` nothing was written and the caller must run
@@ -380,16 +381,23 @@ def fused_step(position, radius, velocity, angular_velocity, heading, mass_all, 
     from the policy's social forces this step) are reused when they reach far enough, exactly like
     :meth:`Simulator.neighbor_pairs`.
     """
-    vel = smooth_update(velocity, angular_velocity, heading, mass_all, inertia_all, tau, stiffness, damping,
-                        intents, theta_d, has_theta_d, force, has_force, index, dt_s, rotation)
+    position, radius = bodies.position_m, bodies.radius_m
+    walls, wall_owner, period_m = world.walls, world.wall_owner, world.period_m
+    dt_s, eps_m = params.dt_s, params.contact_tolerance_m
+    vel = smooth_update(bodies.velocity_m_s, bodies.angular_velocity_rad_s, bodies.heading_rad, bodies.mass_kg,
+                        bodies.inertia_kg_m2, bodies.tau_s, bodies.heading_stiffness, bodies.heading_damping,
+                        inputs.intents_m_s, inputs.desired_heading_rad, inputs.has_desired_heading,
+                        inputs.external_force_n, inputs.has_external_force, index, dt_s, params.rotation)
     speed_star, r_max, reach = detection_reach(vel, radius, index, eps_m, dt_s)
     pairs = cached_pairs if reach <= cached_radius_m else grid_pairs(position, index, reach, period_m)
     c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall = contact_candidates(
         position, radius, speed_star, index, pairs, walls, wall_owner, eps_m, dt_s, period_m)
-    mass, inertia = compact_bodies(mass_all, inertia_all, index)
+    mass, inertia = compact_bodies(bodies.mass_kg, bodies.inertia_kg_m2, index)
+    l_a, l_b, dvec, gi, gj = links
     ke0, p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = impact_stage(
         vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, l_a, l_b, dvec, gi, gj,
-        k_n, k_tg, k_v, eps_m, rotation, max_dense_rows, max_dense_bodies)
+        params.normal_dissipation_kg, params.tangential_dissipation_kg, params.link_dissipation_kg_per_m2, eps_m,
+        params.rotation, params.max_dense_rows, params.max_dense_bodies)
     none = compact_contacts(index, c_a[:0], c_b[:0], c_wall[:0], p_n[:0], p_t[:0], p_n[:0], in_impact[:0])
     if unsolved.shape[0]:
         return FUSED_LARGE_CLUSTER, none, ke0, 0.0, 0.0, 0, 0, np.inf, 0
@@ -427,11 +435,98 @@ def fused_step(position, radius, velocity, angular_velocity, heading, mass_all, 
         if have_lam:
             break
         lam_p, _, st = project_gaps(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, PROJECTION_TOL_M_S,
-                                    max_projection_rows)
+                                    params.max_dense_projection_rows)
         if st != STATUS_OK:
             return FUSED_PROJECTION, none, ke0, ke1, 0.0, 0, 0, np.inf, 0
         have_lam = True
     ke2 = kinetic_energy(vel, mass, inertia)
-    min_gap, contacts = finish_step(position, velocity, angular_velocity, heading, radius, index, vel, dt_s,
-                                    rotation, walls, c_a, c_b, c_wall, p_n, p_t, lam_p, in_impact, period_m)
+    min_gap, contacts = finish_step(position, bodies.velocity_m_s, bodies.angular_velocity_rad_s, bodies.heading_rad,
+                                    radius, index, vel, dt_s, params.rotation, walls, c_a, c_b, c_wall, p_n, p_t, lam_p,
+                                    in_impact, period_m)
     return FUSED_OK, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect
+
+
+@nb.njit(cache=True)
+def active_rows(active):
+    """The indices of the active pedestrians, ascending (``np.flatnonzero(active)``)."""
+    n = 0
+    for i in range(active.shape[0]):
+        if active[i]:
+            n += 1
+    index = np.empty(n, np.int64)
+    n = 0
+    for i in range(active.shape[0]):
+        if active[i]:
+            index[n] = i
+            n += 1
+    return index
+
+
+@nb.njit(cache=True)
+def first_bad_input(inputs, tau, mass):
+    """Whether a step input (:class:`~crowd_env.core.bundles.StepInputs`) is beyond what
+    :meth:`~crowd_env.core.Simulator.step` accepts (the checks of its ``_check_input``: every entry finite, ‖u_int‖
+    and τ‖f‖/m at most :data:`MAX_INPUT_SPEED_M_S`, with τ ``tau`` and m ``mass`` (N,)); the Python path then
+    raises naming it."""
+    if first_out_of_bound(inputs.intents_m_s, tau[:0], MAX_INPUT_SPEED_M_S) >= 0:  # no scale: empty
+        return True
+    if inputs.has_desired_heading and first_non_finite(inputs.desired_heading_rad) >= 0:
+        return True
+    return inputs.has_external_force and first_out_of_bound(inputs.external_force_n, tau / mass,
+                                                            MAX_INPUT_SPEED_M_S) >= 0
+
+
+@nb.njit(cache=True)
+def advance(bodies, world, params, inputs, index, cached_pairs, cached_radius_m, time_s):
+    """One whole step of the pedestrians ``index`` (active, ascending) from ``time_s``, as
+    :meth:`~crowd_env.core.Simulator.step` runs it when the dense solvers serve: the inputs' bounds
+    (:func:`first_bad_input`), the hand links between active pedestrians
+    (:func:`~crowd_env.core.contacts.active_links`), :func:`fused_step`, the exit test
+    (:func:`leave_at_exits` through the exits of ``world``) and the clock t + h. The one compiled step that the
+    simulator and the compiled rollouts share.
+
+    ``bodies``, ``world``, ``params``, ``inputs``: the bundles :class:`~crowd_env.core.bundles.Bodies`,
+    :class:`~crowd_env.core.bundles.World`, :class:`~crowd_env.core.bundles.StepParams`,
+    :class:`~crowd_env.core.bundles.StepInputs` as plain tuples of their fields (``tuple(bundle)``, e.g.
+    :meth:`CrowdState.array_fields <crowd_env.core.state.CrowdState.array_fields>`), named here. A plain tuple
+    is typed by numba's dispatcher in C (a named one in Python, several µs per call), and one compiled entry
+    serves the callers in Python and in compiled code: each compiled function that calls another generates the
+    machine code of its callees again, so one entry instead of two keeps the first run's compilation short.
+
+    Returns ``(status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetections, exited,
+    previous, time_s)``: :func:`fused_step`'s figures, the pedestrians who left, the positions ``previous``
+    (n, 2) before the move and the new clock. With ``status != FUSED_OK`` (``FUSED_INPUT``: an input out of
+    bounds) nothing was written and the clock is ``time_s``.
+    """
+    return _advance(Bodies(*bodies), World(*world), StepParams(*params), StepInputs(*inputs), index, cached_pairs,
+                    cached_radius_m, time_s)
+
+
+@nb.njit(cache=True, inline="always")
+def _advance(bodies, world, params, inputs, index, cached_pairs, cached_radius_m, time_s):
+    """:func:`advance` on the named bundles (inlined into it)."""
+    n = index.shape[0]
+    previous = np.empty((n, 2))
+    for k in range(n):
+        previous[k, 0] = bodies.position_m[index[k], 0]
+        previous[k, 1] = bodies.position_m[index[k], 1]
+    if first_bad_input(inputs, bodies.tau_s, bodies.mass_kg):
+        no_one = np.zeros(0, np.int64)
+        return (FUSED_INPUT, compact_contacts(index, no_one, no_one, no_one, np.zeros(0), np.zeros(0), np.zeros(0),
+                                              np.zeros(0, np.bool_)),
+                0.0, 0.0, 0.0, 0, 0, np.inf, 0, no_one, previous, time_s)
+    if bodies.links.shape[0]:
+        links = active_links(bodies.position_m, bodies.heading_rad, bodies.active, index, bodies.links,
+                             bodies.link_offsets_m, world.period_m)
+    else:  # what active_links gives without links: empty views, no allocation
+        none_2d = bodies.position_m[:0]
+        links = (index[:0], index[:0], none_2d, none_2d, none_2d)
+    status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect = fused_step(
+        bodies, world, params, inputs, index, links, cached_pairs, cached_radius_m)
+    if status != FUSED_OK:
+        return (status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, np.zeros(0, np.int64),
+                previous, time_s)
+    exited = leave_at_exits(bodies.position_m, bodies.active, index, previous, world.exit_destination,
+                            world.exit_vertices, world.exit_ring_start, world.exit_ring_owner, world.exit_boxes)
+    return (status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, previous,
+            time_s + params.dt_s)

@@ -31,11 +31,11 @@ from ..core.checks import check_integer, check_number
 from ..core.params import ModelParams
 from ..core.polygons import pack_polygons
 from ..core.presets import DEFAULT_PRESET, get_preset
-from ..walking.agent import SocialForceAgent, ttc_parameters, vision_parameters
+from ..walking.agent import SocialForceAgent, compiled_agent
 from crowd_env.files import write_atomic
 from .rollout import (COUNT_FRAMES, COUNT_LATERAL, COUNT_PASSED, COUNT_STEPS, ROLLOUT_CHUNK_STEPS, ROLLOUT_PYTHON_STEP,
                       SCALAR_LAST_EXIT_S, SCALAR_MIN_GAP_M, STALL_LAST_PROGRESS_S, STALL_N, STALL_STALLED, STALL_TIME_S,
-                      measure_step, rollout_steps, stall_update)
+                      Measures, StallRule, measure_step, rollout_steps, stall_update)
 
 # Stationary phase for densities: between the passages of these fractions of the pedestrians (the
 # middle 60 %), see RunResult.density_window_s.
@@ -256,11 +256,11 @@ class StallDetector:
         """The time of the last passage or exit (or the start)."""
         return float(self.state[STALL_LAST_PROGRESS_S])
 
-    @property
-    def kernel_arguments(self) -> tuple:
-        """``(ring, state, window_steps, window_s, speed_m_s)`` for :func:`~crowd_env.experiments.rollout.stall_update`."""
-        return self.ring, self.state, self.window_steps, (np.inf if self.window_s is None else self.window_s), \
-            self.speed_m_s
+    def bundle(self) -> StallRule:
+        """The rule as :func:`~crowd_env.experiments.rollout.stall_update` takes it (its ring and state, not
+        copies; window_s inf when off)."""
+        return StallRule(self.ring, self.state, self.window_steps, np.inf if self.window_s is None else self.window_s,
+                         self.speed_m_s)
 
     def room_for(self, steps: int) -> None:
         """A window ring with room for ``steps`` more steps (it fills from slot 0 until it holds
@@ -275,7 +275,7 @@ class StallDetector:
         """Record one step: ``remaining`` (N,) bool flags the pedestrians left, ``progressed`` says whether
         someone crossed the line or left during it. Returns True when the run is stalled (from then on)."""
         self.room_for(1)
-        return stall_update(*self.kernel_arguments, self.dt_s, float(time_s),
+        return stall_update(self.bundle(), self.dt_s, float(time_s),
                             np.ascontiguousarray(velocity, dtype=np.float64), np.asarray(remaining, dtype=bool),
                             bool(progressed))
 
@@ -360,40 +360,25 @@ class _RunMeasures:
                             self.frame_active[f], ids)
         self.counts[COUNT_FRAMES] = 0
 
-    def measure_arguments(self) -> tuple:
-        """The measurement arguments of :func:`~crowd_env.experiments.rollout.measure_step` after ``step_min_gap``."""
-        return (self.line, self.has_line, self.passed, self.cross_ids, self.cross_times, self.areas,
-                self.area_size_m2, self.lane_area, self.density, self.speed, self.lateral, self.record_every,
-                self.frame_time_s, self.frame_position, self.frame_heading, self.frame_active)
+    def bundle(self) -> Measures:
+        """The arrays as :func:`~crowd_env.experiments.rollout.measure_step` fills them (not copies: rebuild
+        after :meth:`room_for`)."""
+        return Measures(self.line, self.has_line, self.passed, self.cross_ids, self.cross_times, self.areas,
+                        self.area_size_m2, self.lane_area, self.density, self.speed, self.lateral, self.record_every,
+                        self.frame_time_s, self.frame_position, self.frame_heading, self.frame_active, self.counts,
+                        self.scalars)
 
     def lateral_positions(self) -> np.ndarray:
         return np.concatenate([*self.lateral_chunks, self.lateral[:self.counts[COUNT_LATERAL]]])
 
 
-def _compiled_tuples(sim, agent_nav) -> tuple:
-    """``(bodies, world, model, agent)`` of :func:`~crowd_env.experiments.rollout.rollout_steps` (arrays shared
-    with the simulator's state, written in place)."""
-    st = sim.state
-    p = sim.params
-    bodies = (st.position_m, st.radius_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad, st.mass_kg,
-              st.inertia_kg_m2, st.tau_s, st.heading_stiffness, st.heading_damping, st.desired_speed_m_s, st.active,
-              st.links, st.link_offsets_m, st.premovement_s)
-    world = (sim.walls, sim.wall_owner, sim.exit_polygons.arrays, sim.exit_destination, sim.period_m)
-    max_rows, max_bodies = sim.cascade.impact_limits()
-    model = (p.dt_s, p.contact_tolerance_m, p.normal_dissipation_kg, p.tangential_dissipation_kg,
-             p.link_dissipation_kg_per_m2, p.rotation, max_rows, max_bodies, sim.cascade.max_dense_projection_rows)
-    agent = (agent_nav.origin_m, agent_nav.resolution_m, agent_nav.travel_time_s, agent_nav.direction,
-             agent_nav.field_of, bool(p.social_forces), float(p.social_strength_n), float(p.social_range_m),
-             float(p.social_anisotropy), float(p.social_cutoff_m), float(p.wall_strength_n), float(p.wall_range_m),
-             vision_parameters(p), ttc_parameters(p))
-    return bodies, world, model, agent
-
-
-def _rollout_navigation(policy, sim, compiled: bool):
-    """The policy's compiled navigation when the run may be rolled out in compiled code, else None."""
+def _compiled_agent(policy, sim, compiled: bool):
+    """The policy as a :class:`~crowd_env.walking.agent.CompiledAgent` when the run may be rolled out in compiled
+    code, else None."""
     if not compiled or sim.exit_polygons is None or not isinstance(policy, SocialForceAgent):
         return None
-    return policy.compiled(sim.state.n)
+    nav = policy.compiled(sim.state.n)
+    return None if nav is None else compiled_agent(nav, sim.params)
 
 
 def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_time_s: float = 300.0,
@@ -427,12 +412,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     record_every = check_integer("record_every", record_every, error=InputError, minimum=1)
     chunk_steps = check_integer("chunk_steps", chunk_steps, error=InputError, minimum=1)
     max_time_s = check_number("max_time_s", max_time_s, error=InputError, positive=True)
-    step_limit = check_integer("step_limit", step_limit, error=InputError, minimum=1)
-    if round(max_time_s / params.dt_s) > step_limit:
-        raise InputError(f"max_time_s = {max_time_s:g} s at dt_s = {params.dt_s:g} s needs up to "
-                         f"{round(max_time_s / params.dt_s):,} steps, more than step_limit = {step_limit:,} "
-                         f"(default crowd_env.experiments.runner.MAX_RUN_STEPS); shorten max_time_s, take a larger "
-                         f"dt_s (the paper's 0.01 s), or pass a larger step_limit")
+    _check_step_limit(max_time_s, params.dt_s, step_limit)
     state = scenario.make_state(rng=rng) if state is None else state
     sim = scenario.make_simulator(state, params)  # with the scenario's destinations, if any
     width_m = scenario.metadata.get("width_m") if width_m is None else width_m
@@ -451,8 +431,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
         sim.state = state
         if recorder is not None:
             recorder.__dict__.update(kept["recorder"].__dict__)
-    nav = _rollout_navigation(policy, sim, compiled)
-    kernel_tuples = _compiled_tuples(sim, nav) if nav is not None else None
+    agent = _compiled_agent(policy, sim, compiled)
     t_wall = time.perf_counter()
     t_saved = t_wall
     while done < n_steps_max and state.active.any() and not stall.stalled:
@@ -461,53 +440,76 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
                             wall_s=wall_before_s + time.perf_counter() - t_wall)
             t_saved = time.perf_counter()
         python_step = True
-        if kernel_tuples is not None and sim.fused_ready():
-            steps = min(chunk_steps, n_steps_max - done)
-            measures.room_for(steps)
-            stall.room_for(steps)
-            status, k, clock, rounds = rollout_steps(steps, sim.time_s, sim.step_count, *kernel_tuples, *measures.measure_arguments(),
-                                             *stall.kernel_arguments, measures.counts, measures.scalars)
-            sim.advanced(k, clock, rounds)
+        if agent is not None and sim.fused_ready():
+            k, python_step = _compiled_chunk(sim, agent, measures, stall, min(chunk_steps, n_steps_max - done))
             done += k
             measures.pass_frames(recorder)
             if progress is not None and k:
                 progress(sim)
-            python_step = status == ROLLOUT_PYTHON_STEP
         if not python_step:
             continue
-        measures.room_for(1)
-        stall.room_for(1)
-        idx = sim.active_index
-        previous = state.position_m[idx]
-        intents, heading = policy(sim)
-        t_prev = sim.time_s
-        result = sim.step(intents, desired_heading_rad=heading)
-        measure_step(state.position_m, state.velocity_m_s, state.heading_rad, state.active, state.premovement_s, idx,
-                     previous,
-                     result.exited.shape[0], t_prev, sim.time_s, sim.step_count, result.min_gap_m,
-                     *measures.measure_arguments(), *stall.kernel_arguments, params.dt_s, measures.counts,
-                     measures.scalars, sim.period_m)
+        _python_step(sim, policy, measures, stall)
         done += 1
         measures.pass_frames(recorder)
         if progress is not None:
             progress(sim)
+    if checkpoint is not None and checkpoint.remove_when_done:
+        checkpoint.remove()
+    return _run_result(scenario, sim, measures, stall, width_m, wall_before_s + time.perf_counter() - t_wall)
+
+
+def _check_step_limit(max_time_s: float, dt_s: float, step_limit) -> None:
+    """Refuse a run of more than ``step_limit`` steps (:data:`MAX_RUN_STEPS` by default) at once."""
+    step_limit = check_integer("step_limit", step_limit, error=InputError, minimum=1)
+    if round(max_time_s / dt_s) > step_limit:
+        raise InputError(f"max_time_s = {max_time_s:g} s at dt_s = {dt_s:g} s needs up to "
+                         f"{round(max_time_s / dt_s):,} steps, more than step_limit = {step_limit:,} "
+                         f"(default crowd_env.experiments.runner.MAX_RUN_STEPS); shorten max_time_s, take a larger "
+                         f"dt_s (the paper's 0.01 s), or pass a larger step_limit")
+
+
+def _compiled_chunk(sim, agent, measures: _RunMeasures, stall: StallDetector, steps: int) -> tuple:
+    """Up to ``steps`` steps in one compiled call (:func:`~crowd_env.experiments.rollout.rollout_steps`), accounted
+    to ``sim``: ``(steps done, whether the next step needs the Python path)``."""
+    measures.room_for(steps)
+    stall.room_for(steps)
+    status, k, clock, rounds = rollout_steps(steps, sim.time_s, sim.step_count, sim.state.array_fields(),
+                                             tuple(sim.world), tuple(sim.step_params), agent, measures.bundle(),
+                                             stall.bundle())
+    sim.advanced(k, clock, rounds)
+    return k, status == ROLLOUT_PYTHON_STEP
+
+
+def _python_step(sim, policy, measures: _RunMeasures, stall: StallDetector) -> None:
+    """One step from Python (``policy(sim)``, :meth:`~crowd_env.core.Simulator.step`), measured by the same
+    :func:`~crowd_env.experiments.rollout.measure_step` as a compiled one."""
+    measures.room_for(1)
+    stall.room_for(1)
+    idx = sim.active_index
+    previous = sim.state.position_m[idx]
+    intents, heading = policy(sim)
+    t_prev = sim.time_s
+    result = sim.step(intents, desired_heading_rad=heading)
+    measure_step(sim.state.arrays(), idx, previous, result.exited.shape[0], t_prev, sim.time_s, sim.step_count,
+                 result.min_gap_m, sim.step_params.dt_s, sim.world.period_m, measures.bundle(), stall.bundle())
+
+
+def _run_result(scenario, sim, measures: _RunMeasures, stall: StallDetector, width_m, wall_s: float) -> RunResult:
+    """The :class:`RunResult` of a finished run (flows only when complete: module docstring)."""
+    state = sim.state
     n_cross = int(measures.counts[COUNT_PASSED])
     times = np.sort(measures.cross_times[:n_cross])
-    passed = measures.passed
-    n_passed = times.size
-    if n_passed >= 2 and width_m:
+    if times.size >= 2 and width_m:
         flow = specific_flow(times, width_m)
         j, js = flow.flow_per_s, flow.specific_flow_per_m_s
     else:
         j = js = float("nan")
     n_left = int(np.count_nonzero(~state.active))
-    complete = not (state.active & ~passed).any()  # nobody left who has not passed
+    complete = not (state.active & ~measures.passed).any()  # nobody left who has not passed
     n_measured = int(measures.counts[COUNT_STEPS])
-    if checkpoint is not None and checkpoint.remove_when_done:
-        checkpoint.remove()
     return RunResult(
         n_pedestrians=state.n, width_m=width_m, seed=scenario.seed, n_steps=sim.step_count,
-        simulated_time_s=sim.time_s, wall_time_s=wall_before_s + time.perf_counter() - t_wall, n_evacuated=n_left,
+        simulated_time_s=sim.time_s, wall_time_s=wall_s, n_evacuated=n_left,
         evacuation_time_s=float(measures.scalars[SCALAR_LAST_EXIT_S]) if n_left == state.n else float("nan"),
         crossing_times_s=times, flow_per_s=j if complete else float("nan"),
         specific_flow_per_m_s=js if complete else float("nan"), min_gap_m=float(measures.scalars[SCALAR_MIN_GAP_M]),

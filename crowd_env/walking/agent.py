@@ -240,6 +240,44 @@ def agent_step(position, radius, index, origin_m, resolution_m, travel_time, dir
     return AGENT_OK, intents, theta_d, pairs, pair_radius
 
 
+class CompiledAgent(NamedTuple):
+    """:class:`SocialForceAgent` for compiled code (:func:`decide`): its navigation and the parameters of
+    :class:`~crowd_env.core.params.ModelParams` it reads (Eq. 16's A, B, λ and cut-off, the walls' A and B,
+    :func:`vision_parameters`, :func:`ttc_parameters`). Built by :func:`compiled_agent`."""
+
+    navigation: CompiledNavigation
+    social: bool
+    strength_n: float
+    range_m: float
+    anisotropy: float
+    cutoff_m: float
+    wall_strength_n: float
+    wall_range_m: float
+    vision: tuple
+    ttc: tuple
+
+
+def compiled_agent(navigation: CompiledNavigation, params) -> CompiledAgent:
+    """The :class:`CompiledAgent` of a compiled ``navigation`` (:meth:`SocialForceAgent.compiled`) under
+    ``params``."""
+    return CompiledAgent(navigation, bool(params.social_forces), float(params.social_strength_n),
+                         float(params.social_range_m), float(params.social_anisotropy), float(params.social_cutoff_m),
+                         float(params.wall_strength_n), float(params.wall_range_m), vision_parameters(params),
+                         ttc_parameters(params))
+
+
+@nb.njit(cache=True, inline="always")
+def decide(agent, bodies, world, index, time_s):
+    """:func:`agent_step` of the :class:`CompiledAgent` ``agent`` for the pedestrians ``index`` of ``bodies`` in
+    ``world`` (:mod:`crowd_env.core.bundles`) at ``time_s``: ``(status, intents, θ_d, pairs, pair_radius_m)``."""
+    nav = agent.navigation
+    return agent_step(bodies.position_m, bodies.radius_m, index, nav.origin_m, nav.resolution_m, nav.travel_time_s,
+                      nav.direction, nav.field_of, bodies.desired_speed_m_s, bodies.tau_s, bodies.mass_kg,
+                      bodies.heading_rad, bodies.velocity_m_s, world.walls, world.wall_owner, agent.social,
+                      agent.strength_n, agent.range_m, agent.anisotropy, agent.cutoff_m, agent.wall_strength_n,
+                      agent.wall_range_m, bodies.premovement_s, time_s, agent.vision, agent.ttc, world.period_m)
+
+
 def travel_time(navigation, position_m: np.ndarray, index: np.ndarray) -> np.ndarray:
     """T (Eq. 11), (m,), of pedestrians ``index`` at ``position_m[index]`` from ``navigation``, as
     :func:`desired_direction` reads e_d: its ``travel_time(points)``, or ``travel_time(points, index)`` for a
