@@ -1,6 +1,6 @@
 """The solver cascade's projection schedules on the steps of a kept run, in one run.
 
-Loads a run checkpoint (:class:`crowd_env.experiments.runner.RunCheckpoint`: ``crowd-rimea`` writes one
+Loads a run checkpoint (:class:`crowd_env.experiments.running.runner.RunCheckpoint`: ``crowd-rimea`` writes one
 every 10 min beside each crowd_env run it is making, e.g. ``<out>/runs/rimea_4_rho_5_crowd_env.npz.checkpoint.pkl``
 while the full test 4 runs) and, from the same kept state each time, runs ``--steps`` steps of the kept
 policy with:

@@ -3,7 +3,7 @@
 The kernels are compiled on first use and cached (``cache=True``) in the ``__pycache__`` folders beside the
 modules, so only the first run on a machine (or after a kernel changed) pays for it: measured on this project's
 2-core machine, a first N = 60 bottleneck run takes about 70 s of one core, nearly all of it compiling the
-compiled rollout (``experiments.rollout.rollout_steps``, which holds the core's step ``core.step.advance`` with
+compiled rollout (``experiments.running.rollout.rollout_steps``, which holds the core's step ``core.step.advance`` with
 the fused step and the impact solvers),
 and 1 s once cached. Without a word that looks like a hang, so :func:`announce_compilation` prints one line to
 standard error at the first compilation of a crowd_env kernel in a process, and nothing when every kernel comes

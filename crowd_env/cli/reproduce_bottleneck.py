@@ -5,7 +5,7 @@ finished run at once under ``OUT/runs/`` (a rerun skips finished runs: resumable
 ``OUT/results.csv`` (one row per run), ``OUT/summary.csv`` and the figures of Figs. 11-14
 (specific flow vs width against the experiment, densities, flow vs width with linear fits and
 residual norms, lateral-position histograms), and prints the J_s table beside the experiment. A run
-that stalls (:class:`crowd_env.experiments.runner.StallDetector`: nobody passes for 20 s and those left stand
+that stalls (:class:`crowd_env.experiments.running.runner.StallDetector`: nobody passes for 20 s and those left stand
 still) stops there; a run that is not complete (stalled, or people left at ``--max-time``) reports no
 J_s (nan; its partial figure is ``partial_specific_flow_per_m_s``), and every mean of the table is over
 the complete runs only, with the stalled and otherwise incomplete runs counted beside it. With

@@ -1,7 +1,7 @@
 """Why the `paper` preset clogs for good under pressure, and the `calibrated` preset does not.
 
 Runs the Seyfried bottleneck with a large crowd (default b = 1.0 m, N = 180, seeds 0-5) under each
-preset with the runner's stall rule (:class:`crowd_env.experiments.runner.StallDetector`), prints one row per run
+preset with the runner's stall rule (:class:`crowd_env.experiments.running.runner.StallDetector`), prints one row per run
 (complete / stalled, when, passages, J_s of complete runs only, smallest gap) and draws
 ``OUT/stall_mechanism.png``: the crowd in front of the entrance at the moment the first `paper` run
 stalls (or the first run of the first other preset of ``--presets`` that stalls), beside the `calibrated` run

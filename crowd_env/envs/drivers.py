@@ -5,7 +5,7 @@ and action frame as an agent of :mod:`crowd_env.envs.crowd_v0` gets, for any ped
 observation policy (a policy file, a shipped trained policy) and a mask of pedestrians, its options being the
 policy's ``env_overrides`` over the environment's defaults, checked as the environment checks its own; the
 environment drives its learned background with it, and :class:`MixedDriver` drives a crowd for the runner
-(:func:`crowd_env.experiments.runner.run_scenario`): the learned pedestrians by the policy, the others by the
+(:func:`crowd_env.experiments.running.runner.run_scenario`): the learned pedestrians by the policy, the others by the
 calibrated agent (Kabalan et al. 2016, Eq. 14-16), so that a learned policy goes through the experiment's
 instruments as the calibrated model does.
 """

@@ -37,7 +37,7 @@ from crowd_env.cli.reproduce_bottleneck import main as reproduce  # noqa: E402
 from crowd_env.core import ModelParams  # noqa: E402
 from crowd_env.errors import InputError  # noqa: E402
 from crowd_env.experiments.running.recording import record_run  # noqa: E402
-from crowd_env.experiments.runner import run_scenario  # noqa: E402
+from crowd_env.experiments.running.runner import run_scenario  # noqa: E402
 from crowd_env.scenarios import make_scenario  # noqa: E402
 
 FPS = 25.0

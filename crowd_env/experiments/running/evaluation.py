@@ -22,7 +22,7 @@ measures below cover everybody whatever the agents did:
 - ``complete``: nobody remains at the end (each pedestrian crossed the line or left; without a line:
   left); ``partial_specific_flow_per_m_s`` / ``partial_flow_per_s``: Eq. 22 over the passages that
   happened, for incomplete episodes too;
-- ``stalled`` / ``stall_time_s``: the runner's stall rule (:class:`crowd_env.experiments.runner.StallDetector`:
+- ``stalled`` / ``stall_time_s``: the runner's stall rule (:class:`crowd_env.experiments.running.runner.StallDetector`:
   nobody crossed the line or left for 20 s while those remaining stood still, mean speed below
   0.05 m/s) fired at that time. Unlike ``run_scenario`` the episode is not stopped there, so that every
   policy's return covers the same horizon; ``stall_time_s`` is the first detection;
@@ -56,7 +56,7 @@ from scipy.spatial import cKDTree
 from ...analysis.flow import MeasurementLine, PassageCounter, specific_flow
 from ...core.params import ModelParams
 from ...envs.crowd_v0 import CrowdParallelEnv, decisions_for_time
-from ..runner import StallDetector
+from .runner import StallDetector
 
 __all__ = ["DEFAULT_POLICY_RESOLVER", "EpisodeMetrics", "ScenarioSpec", "import_object", "resolve_policy", "run_episode",
            "evaluate", "summarize", "METRICS", "ENV_CONFIG_FILE", "recorded_env_config", "episode_setup",

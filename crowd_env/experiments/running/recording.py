@@ -1,6 +1,6 @@
 """A run of the runner that also records trajectories, for PedPy and the figures (Kabalan et al. 2016, Section 4).
 
-:func:`record_run` is :func:`~crowd_env.experiments.runner.run_scenario` with a
+:func:`record_run` is :func:`~crowd_env.experiments.running.runner.run_scenario` with a
 :class:`~crowd_env.analysis.recorder.TrajectoryRecorder` reading the state every k-th step of h; the
 measurement side (formats, export, PedPy) is :mod:`crowd_env.analysis.trajectories`.
 """
@@ -13,13 +13,13 @@ from ...analysis.trajectories import DEFAULT_FRAME_RATE_PER_S, Trajectories, exp
 from ...core.presets import DEFAULT_PRESET, get_preset
 from ...scenarios import make_scenario
 from ...walking.agent import SocialForceAgent
-from ..runner import run_scenario
+from .runner import run_scenario
 
 __all__ = ["record_run", "record_bottleneck_run"]
 
 
 def record_run(scenario, policy, params=None, *, frame_rate_per_s: float = DEFAULT_FRAME_RATE_PER_S, **run_kwargs):
-    """:func:`~crowd_env.experiments.runner.run_scenario` that also records trajectories every k-th step.
+    """:func:`~crowd_env.experiments.running.runner.run_scenario` that also records trajectories every k-th step.
 
     Frame 0 is the start; frame f is at t = f / ``frame_rate_per_s`` (k = 1/(fps h) steps, see
     :func:`~crowd_env.analysis.trajectories.steps_per_frame`). Only pedestrians still inside are

@@ -29,7 +29,7 @@ from ...scenarios import ScenarioError, make_scenario
 from ..running.backends import ProcessBackend, SerialBackend, execute
 from ..running.crowd_policy import crowd_policy
 from ..running.recording import record_run
-from ..runner import STALL_SPEED_M_S, STALL_WINDOW_S, run_scenario
+from ..running.runner import STALL_SPEED_M_S, STALL_WINDOW_S, run_scenario
 from ..running.store import RunStore, check_record, config_hash, normalise_record
 from crowd_env.files import write_csv_atomic
 
@@ -115,7 +115,7 @@ def run_one(task: dict) -> dict:
     ``trajectory_fps`` (and ``trajectory_stem``, set by the store) the same run is also recorded and
     exported in PedPy's text format. The record holds every measured figure, ``complete`` /
     ``stalled`` / ``stall_time_s`` and, for an incomplete run, nan flows with the partial ones beside
-    them (:mod:`crowd_env.experiments.runner`).
+    them (:mod:`crowd_env.experiments.running.runner`).
     """
     params = ModelParams.from_dict(task["params"])
     scenario = make_scenario("seyfried_bottleneck", width_m=task["width_m"], n_pedestrians=task["n_pedestrians"],

@@ -3,7 +3,7 @@ density, measured after its transient (:mod:`crowd_env.scenarios.periodic_corrid
 :mod:`crowd_env.analysis.periodic`).
 
 The run is :func:`~crowd_env.experiments.running.recording.record_run` (the compiled rollout of
-:func:`~crowd_env.experiments.runner.run_scenario`, no exits, no stall rule, to ``max_time_s``) recording
+:func:`~crowd_env.experiments.running.runner.run_scenario`, no exits, no stall rule, to ``max_time_s``) recording
 frames at ``frame_rate_per_s``; the point is :func:`~crowd_env.analysis.periodic.periodic_corridor_point`
 over [``transient_s``, ``max_time_s``].
 """

@@ -1,7 +1,7 @@
 """Why the ``paper`` preset clogs for good under pressure and ``calibrated`` does not (Kabalan et al. 2016, Eq. 11-16).
 
 The Seyfried bottleneck with a large crowd under each preset and the runner's stall rule
-(:class:`~crowd_env.experiments.runner.StallDetector`): :func:`stall_run` runs one (optionally with a
+(:class:`~crowd_env.experiments.running.runner.StallDetector`): :func:`stall_run` runs one (optionally with a
 snapshot of the crowd, its desired directions e_d, Eq. 13, and social forces, Eq. 16), :func:`run_jobs`
 runs many in worker processes, :func:`figure` draws a `paper` snapshot beside the `calibrated` one.
 The mechanism it shows is told in ``crowd-stall-study --help``.
@@ -16,7 +16,7 @@ from ...core.presets import get_preset
 from ...scenarios import make_scenario
 from ...walking.agent import SocialForceAgent
 from ..running.backends import make_backend, run_all
-from ..runner import run_scenario
+from ..running.runner import run_scenario
 
 __all__ = ["stall_run", "stall_jobs", "run_jobs", "figure"]
 

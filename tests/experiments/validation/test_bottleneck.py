@@ -10,7 +10,7 @@ from crowd_env.analysis.density import force_balance_jam_density_per_m2
 from crowd_env.analysis.experiment import INSIDE_SPEED_RANGE_M_S, seyfried_2009
 from crowd_env.cli.reproduce_bottleneck import main as reproduce
 from crowd_env.core import ModelParams, Simulator
-from crowd_env.experiments.runner import run_scenario
+from crowd_env.experiments.running.runner import run_scenario
 from crowd_env.scenarios import make_scenario
 
 

@@ -11,7 +11,7 @@ from crowd_env.core.geometry import Geometry
 from crowd_env.core.presets import DEFAULT_PRESET, get_preset
 from crowd_env.experiments.validation.periodic import fundamental_diagram_point
 from crowd_env.experiments.running.recording import record_run
-from crowd_env.experiments.runner import run_scenario
+from crowd_env.experiments.running.runner import run_scenario
 from crowd_env.scenarios import Scenario, make_scenario, place_pedestrians
 from crowd_env.walking.agent import SocialForceAgent
 from crowd_env.walking.navigation import NavigationField

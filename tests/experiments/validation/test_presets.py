@@ -8,7 +8,7 @@ from crowd_env.experiments.validation.calibration.objective import CAPACITY_RANG
 def _runs(preset_name, width_m, n, seeds):
     from baselines import SocialForceAgent
     from crowd_env.core.presets import get_preset
-    from crowd_env.experiments.runner import run_scenario
+    from crowd_env.experiments.running.runner import run_scenario
     from crowd_env.scenarios import make_scenario
 
     preset = get_preset(preset_name)

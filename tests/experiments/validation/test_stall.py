@@ -1,4 +1,4 @@
-"""The stall rule (crowd_env.experiments.runner.StallDetector): a constructed clog stops early as stalled and reports no
+"""The stall rule (crowd_env.experiments.running.runner.StallDetector): a constructed clog stops early as stalled and reports no
 J_s; slow but moving Seyfried runs are never called stalled; incomplete runs reach every consumer (the
 reproduction's records and table, older stored records, the calibration's point errors)."""
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 from baselines import SocialForceAgent
 from crowd_env.core import ModelParams
 from crowd_env.core.presets import DEFAULT_PRESET, get_preset
-from crowd_env.experiments.runner import STALL_SPEED_M_S, STALL_WINDOW_S, RunResult, StallDetector, run_scenario
+from crowd_env.experiments.running.runner import STALL_SPEED_M_S, STALL_WINDOW_S, RunResult, StallDetector, run_scenario
 from crowd_env.scenarios import make_scenario
 from crowd_env.scenarios.bottleneck import BottleneckScenario, bottleneck_geometry
 from tests.experiments.conftest import point_field_geometry

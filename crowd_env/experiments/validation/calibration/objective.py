@@ -23,7 +23,7 @@ is; the objective is Σ w_k · term_k with every weight 1 by default (:class:`Ta
 is privileged over the paper's ε_T except by being outside its band. The capacity band is the one
 judgement here: experiments through one door at N = 20 ... 60 give rates independent of N within
 their scatter (Seyfried's N = 20, 40 flows lie *above* N = 60), so the stationary rate (20 % to 80 %
-of the passages, :meth:`crowd_env.experiments.runner.RunResult.stationary_specific_flow_per_m_s`) of twice the
+of the passages, :meth:`crowd_env.experiments.running.runner.RunResult.stationary_specific_flow_per_m_s`) of twice the
 crowd may be at most 10 % higher and 5 % lower. A point with any incomplete run (a stall, or people
 still inside at the time limit) is a failed point: its objective is :data:`FAILED_POINT_OBJECTIVE`
 plus the fraction of incomplete runs, above any objective of a complete point, so that an optimiser

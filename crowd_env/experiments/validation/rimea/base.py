@@ -220,7 +220,7 @@ def exit_times_s(trajectories: Trajectories, left, end_time_s: float) -> np.ndar
 def run_crowd_env(scenario, *, seed: int, max_time_s: float, params=None,
                   frame_rate_per_s: float = FRAME_RATE_PER_S, checkpoint=None) -> BackendRun:
     """Run ``scenario`` with the calibrated agent (default preset) and record it: a :class:`BackendRun`.
-    ``checkpoint``: a :class:`~crowd_env.experiments.runner.RunCheckpoint` (long runs: kept every so often,
+    ``checkpoint``: a :class:`~crowd_env.experiments.running.runner.RunCheckpoint` (long runs: kept every so often,
     resumed after a killed process)."""
     check_number("max_time_s", max_time_s, error=InputError, positive=True)
     params = get_preset(DEFAULT_PRESET).params() if params is None else params

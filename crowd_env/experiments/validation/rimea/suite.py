@@ -20,7 +20,7 @@ from crowd_env.errors import InputError, MissingDependencyError
 
 from ....analysis.trajectories import Trajectories
 from ...output import tables
-from ...runner import RunCheckpoint
+from ...running.runner import RunCheckpoint
 from crowd_env.files import write_json_atomic, write_npz_atomic
 from .base import OVERLAP_LIMIT_M, BackendRun, Verdict, run_crowd_env, select_tests
 

@@ -1,11 +1,11 @@
-"""Run results (crowd_env.experiments.runner.RunResult): the density, speed and stationary-flow windows over
+"""Run results (crowd_env.experiments.running.runner.RunResult): the density, speed and stationary-flow windows over
 the passages."""
 import numpy as np
 import pytest
 
 
 def test_density_windows():
-    from crowd_env.experiments.runner import RunResult
+    from crowd_env.experiments.running.runner import RunResult
 
     times = np.linspace(10.0, 20.0, 11)  # passages every second
     series = np.concatenate([np.full(1500, 4.0), np.full(1500, 1.0)])  # dense until t = 15 s, then thin
@@ -22,7 +22,7 @@ def test_density_windows():
 
 
 def test_speed_and_stationary_flow_windows():
-    from crowd_env.experiments.runner import RunResult
+    from crowd_env.experiments.running.runner import RunResult
 
     # passages every 0.5 s for the first 8, then every 2 s (a draining tail); b = 0.8 m
     times = np.concatenate([np.arange(8) * 0.5 + 10.0, 13.5 + 2.0 * np.arange(1, 4)])
@@ -58,7 +58,7 @@ def test_run_needing_more_steps_than_the_limit_is_refused_with_the_count(dt_s, c
     """dt_s = 1e-9 tried to allocate 4.37 TiB (series sized by max_time / dt); 1e-6 ran for ever."""
     from crowd_env.core import ModelParams
     from crowd_env.errors import InputError
-    from crowd_env.experiments.runner import run_scenario
+    from crowd_env.experiments.running.runner import run_scenario
     from crowd_env.walking.agent import SocialForceAgent
 
     sc = _small_bottleneck()
@@ -74,7 +74,7 @@ def test_series_grow_with_the_steps_run_not_with_max_time():
     about 20 s holds only what it used, and gives the same record as with series that start tiny."""
     import tracemalloc
 
-    import crowd_env.experiments.runner as runner
+    import crowd_env.experiments.running.runner as runner
     from crowd_env.core import ModelParams
     from crowd_env.walking.agent import SocialForceAgent
 
@@ -111,7 +111,7 @@ def test_series_grow_with_the_steps_run_not_with_max_time():
 def test_stall_window_grows_with_the_steps_and_decides_as_a_full_one():
     """The stall rule's window held window_s / dt_s speeds at once (2e10 at dt_s = 1e-9, 160 GB); it now grows
     with the steps recorded, and stalls at the same step as one allocated in full."""
-    import crowd_env.experiments.runner as runner
+    import crowd_env.experiments.running.runner as runner
 
     assert runner.StallDetector(1e-9).ring.nbytes <= 8 * runner.SERIES_START_ROWS
     rng = np.random.default_rng(0)

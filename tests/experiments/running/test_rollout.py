@@ -1,4 +1,4 @@
-"""Compiled rollouts (crowd_env.experiments.rollout): a run rolled out in compiled chunks is the run stepped
+"""Compiled rollouts (crowd_env.experiments.running.rollout): a run rolled out in compiled chunks is the run stepped
 from Python, to the last bit: on the calibrated bottleneck, with hand-holding groups, with per-pedestrian
 destinations, on a jam that hands steps to the staged path and the solver cascade mid-run, with trajectory
 recording and with the stall rule firing."""
@@ -10,7 +10,7 @@ import pytest
 from crowd_env.core import ModelParams
 from crowd_env.core.presets import DEFAULT_PRESET, get_preset
 from crowd_env.experiments.running.recording import record_run
-from crowd_env.experiments.runner import run_scenario
+from crowd_env.experiments.running.runner import run_scenario
 from crowd_env.scenarios import make_scenario
 from crowd_env.walking.agent import SocialForceAgent
 from crowd_env.walking.navigation import RigidlyMovedNavigation

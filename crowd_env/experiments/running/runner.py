@@ -26,12 +26,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..analysis.flow import MeasurementLine, specific_flow
-from ..core.checks import check_integer, check_number
-from ..core.params import ModelParams
-from ..core.polygons import pack_polygons
-from ..core.presets import DEFAULT_PRESET, get_preset
-from ..walking.agent import SocialForceAgent, compiled_agent
+from ...analysis.flow import MeasurementLine, specific_flow
+from ...core.checks import check_integer, check_number
+from ...core.params import ModelParams
+from ...core.polygons import pack_polygons
+from ...core.presets import DEFAULT_PRESET, get_preset
+from ...walking.agent import SocialForceAgent, compiled_agent
 from crowd_env.files import write_atomic
 from .rollout import (COUNT_FRAMES, COUNT_LATERAL, COUNT_PASSED, COUNT_STEPS, ROLLOUT_CHUNK_STEPS, ROLLOUT_PYTHON_STEP,
                       SCALAR_LAST_EXIT_S, SCALAR_MIN_GAP_M, STALL_LAST_PROGRESS_S, STALL_N, STALL_STALLED, STALL_TIME_S,
@@ -73,7 +73,7 @@ class RunCheckpoint:
     measures so far, the stall detector and the recorder's frames. With ``resume``, a run that finds a
     checkpoint made with the same ``key`` (the caller's description of the run: scenario, seed,
     settings, version) goes on from it, and its result is the uninterrupted run's to the last bit
-    (``tests/experiments/test_checkpoint.py``), its wall time the sum of both parts; a checkpoint with
+    (``tests/experiments/running/test_checkpoint.py``), its wall time the sum of both parts; a checkpoint with
     another key is ignored with a :class:`RuntimeWarning` and overwritten. The file is removed once the
     run is over (with ``remove_when_done``; else by the caller, e.g. once it has kept the run's result,
     :meth:`remove`). It is a pickle: load only checkpoints you wrote. ``resumed_wall_s``: after the run,
@@ -238,7 +238,7 @@ class StallDetector:
         self.window_steps = 0 if window_s is None else max(1, int(round(self.window_s / self.dt_s)))
         # per-step mean speeds of the window; grown by room_for up to window_steps as steps are run
         self.ring = np.zeros(max(min(self.window_steps, SERIES_START_ROWS), 1))
-        self.state = np.zeros(5)  # the STALL_* slots of crowd_env.experiments.rollout
+        self.state = np.zeros(5)  # the STALL_* slots of crowd_env.experiments.running.rollout
         self.state[STALL_LAST_PROGRESS_S] = float(start_s)
         self.state[STALL_TIME_S] = np.nan
 
@@ -257,7 +257,7 @@ class StallDetector:
         return float(self.state[STALL_LAST_PROGRESS_S])
 
     def bundle(self) -> StallRule:
-        """The rule as :func:`~crowd_env.experiments.rollout.stall_update` takes it (its ring and state, not
+        """The rule as :func:`~crowd_env.experiments.running.rollout.stall_update` takes it (its ring and state, not
         copies; window_s inf when off)."""
         return StallRule(self.ring, self.state, self.window_steps, np.inf if self.window_s is None else self.window_s,
                          self.speed_m_s)
@@ -281,7 +281,7 @@ class StallDetector:
 
 
 class _RunMeasures:
-    """The arrays :func:`~crowd_env.experiments.rollout.measure_step` fills during one run (both paths)."""
+    """The arrays :func:`~crowd_env.experiments.running.rollout.measure_step` fills during one run (both paths)."""
 
     def __init__(self, scenario, n: int, n_steps_max: int, line, density_areas, lane_area, min_gap_m: float,
                  record_every: int):
@@ -361,7 +361,7 @@ class _RunMeasures:
         self.counts[COUNT_FRAMES] = 0
 
     def bundle(self) -> Measures:
-        """The arrays as :func:`~crowd_env.experiments.rollout.measure_step` fills them (not copies: rebuild
+        """The arrays as :func:`~crowd_env.experiments.running.rollout.measure_step` fills them (not copies: rebuild
         after :meth:`room_for`)."""
         return Measures(self.line, self.has_line, self.passed, self.cross_ids, self.cross_times, self.areas,
                         self.area_size_m2, self.lane_area, self.density, self.speed, self.lateral, self.record_every,
@@ -398,7 +398,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     standing still there is a point of the fundamental diagram (speed 0), not a failed run.
     ``compiled``: when ``policy`` is the calibrated agent (:class:`~crowd_env.walking.agent.SocialForceAgent`
     with a compiled navigation), run the steps in compiled chunks of up to ``chunk_steps``
-    (:mod:`crowd_env.experiments.rollout`; the same result to the last bit as ``compiled=False``, which
+    (:mod:`crowd_env.experiments.running.rollout`; the same result to the last bit as ``compiled=False``, which
     runs every step from Python). ``recorder``: a
     :class:`~crowd_env.analysis.recorder.TrajectoryRecorder` that gets the state every ``record_every``-th
     step (at t = step · h). ``progress(sim)`` is called after every step run from Python and after every
@@ -464,12 +464,12 @@ def _check_step_limit(max_time_s: float, dt_s: float, step_limit) -> None:
     if round(max_time_s / dt_s) > step_limit:
         raise InputError(f"max_time_s = {max_time_s:g} s at dt_s = {dt_s:g} s needs up to "
                          f"{round(max_time_s / dt_s):,} steps, more than step_limit = {step_limit:,} "
-                         f"(default crowd_env.experiments.runner.MAX_RUN_STEPS); shorten max_time_s, take a larger "
+                         f"(default crowd_env.experiments.running.runner.MAX_RUN_STEPS); shorten max_time_s, take a larger "
                          f"dt_s (the paper's 0.01 s), or pass a larger step_limit")
 
 
 def _compiled_chunk(sim, agent, measures: _RunMeasures, stall: StallDetector, steps: int) -> tuple:
-    """Up to ``steps`` steps in one compiled call (:func:`~crowd_env.experiments.rollout.rollout_steps`), accounted
+    """Up to ``steps`` steps in one compiled call (:func:`~crowd_env.experiments.running.rollout.rollout_steps`), accounted
     to ``sim``: ``(steps done, whether the next step needs the Python path)``."""
     measures.room_for(steps)
     stall.room_for(steps)
@@ -482,7 +482,7 @@ def _compiled_chunk(sim, agent, measures: _RunMeasures, stall: StallDetector, st
 
 def _python_step(sim, policy, measures: _RunMeasures, stall: StallDetector) -> None:
     """One step from Python (``policy(sim)``, :meth:`~crowd_env.core.Simulator.step`), measured by the same
-    :func:`~crowd_env.experiments.rollout.measure_step` as a compiled one."""
+    :func:`~crowd_env.experiments.running.rollout.measure_step` as a compiled one."""
     measures.room_for(1)
     stall.room_for(1)
     idx = sim.active_index

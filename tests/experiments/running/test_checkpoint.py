@@ -8,7 +8,7 @@ import pytest
 
 from crowd_env.errors import InputError
 from crowd_env.experiments.running.recording import record_run
-from crowd_env.experiments.runner import RunCheckpoint
+from crowd_env.experiments.running.runner import RunCheckpoint
 from crowd_env.scenarios import make_scenario
 from crowd_env.walking.agent import SocialForceAgent
 

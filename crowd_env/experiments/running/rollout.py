@@ -12,7 +12,7 @@ in compiled code, over
 3. the runner's measurement of the step (:func:`measure_step`: first passages of the measurement line
    with interpolated times, densities and mean speeds in the measurement areas, lateral positions in
    the channel, the smallest gap, trajectory frames at the requested rate, and the stall rule of
-   :class:`~crowd_env.experiments.runner.StallDetector`).
+   :class:`~crowd_env.experiments.running.runner.StallDetector`).
 
 It returns to Python when the steps asked for are done, when nobody is left, when the crowd stalled, or
 when the next step needs the Python path (``ROLLOUT_PYTHON_STEP``: an impact cluster or projection
@@ -20,7 +20,7 @@ beyond the dense solvers, or an input the Python path must reject with its error
 intent beyond :data:`~crowd_env.core.step.MAX_INPUT_SPEED_M_S`); the
 runner then runs that one step through ``policy(sim)`` and ``Simulator.step`` (the staged path and the
 solver cascade) and :func:`measure_step`, and goes on compiled. Both paths call the same kernels in the
-same order, so a run is the same to the last bit either way (``tests/experiments/test_rollout.py``,
+same order, so a run is the same to the last bit either way (``tests/experiments/running/test_rollout.py``,
 with jams that hand steps to the staged path mid-run).
 """
 from __future__ import annotations
@@ -30,12 +30,12 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from ..analysis.flow import crossing_alpha
-from ..core.periodic import minimum_image_dx
-from ..core.polygons import point_in_interior
-from ..core.bundles import Bodies, StepInputs, StepParams, World
-from ..core.step import FUSED_OK, active_rows, advance
-from ..walking.agent import AGENT_OK, decide
+from ...analysis.flow import crossing_alpha
+from ...core.periodic import minimum_image_dx
+from ...core.polygons import point_in_interior
+from ...core.bundles import Bodies, StepInputs, StepParams, World
+from ...core.step import FUSED_OK, active_rows, advance
+from ...walking.agent import AGENT_OK, decide
 
 # Steps per compiled call at most (the runner calls ``progress`` between calls).
 ROLLOUT_CHUNK_STEPS = 2000
@@ -72,7 +72,7 @@ class Measures(NamedTuple):
 
 class StallRule(NamedTuple):
     """The stall rule's window ring of per-step mean speeds and its ``STALL_*`` state, with its settings
-    (:class:`~crowd_env.experiments.runner.StallDetector`; ``window_steps`` 0: off)."""
+    (:class:`~crowd_env.experiments.running.runner.StallDetector`; ``window_steps`` 0: off)."""
 
     ring: np.ndarray
     state: np.ndarray
@@ -108,7 +108,7 @@ def mean_speed_of(velocity, mask):
 
 @nb.njit(cache=True)
 def stall_update(stall, dt_s, time_s, velocity, remaining, progressed):
-    """One step of the stall rule (:class:`~crowd_env.experiments.runner.StallDetector`), in place on the
+    """One step of the stall rule (:class:`~crowd_env.experiments.running.runner.StallDetector`), in place on the
     :class:`StallRule` ``stall``'s ring of per-step mean speeds and its ``STALL_*`` state. Returns whether the
     run is stalled (from then on)."""
     ring, state, window_steps = stall.ring, stall.state, stall.window_steps
