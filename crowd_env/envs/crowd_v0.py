@@ -75,14 +75,16 @@ Rewards
     Default :class:`~crowd_env.envs.rewards.DefaultReward`: progress along the travel-time field
     (T_before − T_after, s of travel) − 0.01 × normal percussion received (kg m/s) − 0.1 per simulated
     second + 1 on leaving: the terms ``progress``, ``contact_percussion``, ``time`` and ``exit``, each
-    agent's share of each in its info (``infos[a]["reward_terms"]["progress"]``). Name other terms and
+    agent's share of each in its info (``infos[a]["reward_terms"]``, in the order of ``env.reward_term_names``;
+    ``env.reward_terms(infos[a])["progress"]``). Name other terms and
     weights with ``reward_terms`` (a term of one's own module as ``"module:Class"``), or pass
     ``reward_fn(env, agent_ids, info) -> rewards`` (:mod:`crowd_env.envs.rewards` lists the info arrays).
 
 Infos
     Per agent: ``contact_percussion_kg_m_s`` (sum of the normal percussions' magnitudes over its contacts this step),
-    ``n_contacts``, ``travel_time_s`` (T after the step), ``speed_m_s``, and after a step ``reward_terms``
-    (a record with one field per reward term: its weighted contribution, the fields summing to the reward).
+    ``n_contacts``, ``travel_time_s`` (T after the step), ``speed_m_s``, and ``reward_terms`` (a float64 array:
+    each term's weighted contribution in the order of ``env.reward_term_names``, summing to the reward; zeros
+    at reset; plain numbers, as TorchRL's PettingZoo wrapper needs them).
 
 Episode end
     A pedestrian whose centre enters an exit (its own destination exit in scenarios with per-pedestrian
@@ -245,6 +247,8 @@ class CrowdParallelEnv(ParallelEnv):
         self.heading_target, self.observation_frame = config.heading_target, config.observation_frame
         self.render_mode = config.render_mode
         self.reward_fn = config.make_reward_fn()
+        # the names of the reward's terms, in the order of each agent's info["reward_terms"] (None: no terms)
+        self.reward_term_names = getattr(self.reward_fn, "names", None)
         background_policy = config.background_policy
         if isinstance(background_policy, (str, os.PathLike)):
             background_policy = load_named_background(background_policy)
@@ -477,6 +481,9 @@ class CrowdParallelEnv(ParallelEnv):
         infos = {a: {"contact_percussion_kg_m_s": 0.0, "n_contacts": 0, "travel_time_s": float(t),
                      "speed_m_s": float(s)}
                  for a, t, s in zip(self.agents, travel.tolist(), speed.tolist())}
+        if self.reward_term_names is not None:  # the same keys as after a step: zero contributions
+            for info in infos.values():
+                info["reward_terms"] = np.zeros(len(self.reward_term_names))
         if self.render_mode == "human":
             self.render()
         return dict(zip(self.agents, obs)), infos
@@ -560,9 +567,10 @@ class CrowdParallelEnv(ParallelEnv):
         if terms is None:
             info_d = {a: {"contact_percussion_kg_m_s": p, "n_contacts": c, "travel_time_s": t, "speed_m_s": v}
                       for a, p, c, t, v in zip(*columns)}
-        else:  # each agent's record of the reward's terms (rewards.TermReward)
+        else:  # each agent's row of the reward's terms (rewards.TermReward), in the order of reward_term_names
+            self.reward_term_names = terms.dtype.names
             info_d = {a: {"contact_percussion_kg_m_s": p, "n_contacts": c, "travel_time_s": t, "speed_m_s": v,
-                          "reward_terms": r} for a, p, c, t, v, r in zip(*columns, terms)}
+                          "reward_terms": r} for a, p, c, t, v, r in zip(*columns, _term_rows(terms))}
         if self.render_mode == "human":
             self.render()
         return obs_d, rew_d, term_d, trunc_d, info_d
@@ -648,6 +656,14 @@ class CrowdParallelEnv(ParallelEnv):
             self._agent_index = idx_c[keep]
             self.agents = [a for a, k in zip(agents, keep.tolist()) if k]
         return obs, rewards, exited, truncated, info
+
+    def reward_terms(self, info: dict) -> dict:
+        """An agent's ``info`` turned into term name -> its contribution to the reward (the names are
+        :attr:`reward_term_names`; ``{}`` without terms)."""
+        values = info.get("reward_terms")
+        if values is None or self.reward_term_names is None:
+            return {}
+        return dict(zip(self.reward_term_names, values.tolist()))
 
     def _background(self, sim):
         return intents_and_headings(self._background_policy(sim), sim.state)
@@ -793,3 +809,14 @@ def env(**options):
     parallel environment raises on invalid actions itself.
     """
     return parallel_to_aec(parallel_env(**options))
+
+
+def _term_rows(terms) -> np.ndarray:
+    """The (n,) structured array of the terms' contributions as (n, T) float64 rows (a view when every field is
+    float64, as TermReward's are)."""
+    dtype = terms.dtype
+    if all(dtype.fields[name][0] == np.float64 for name in dtype.names) and dtype.itemsize == 8 * len(dtype.names):
+        return terms.view(np.float64).reshape(len(terms), len(dtype.names))
+    from numpy.lib import recfunctions
+
+    return recfunctions.structured_to_unstructured(terms, dtype=np.float64)

@@ -44,7 +44,7 @@ class ObservationField:
         for term in self.size.replace(" ", "").split("+"):
             match = _SIZE_TERM.match(term)
             if match is None or term == "":
-                raise ValueError(f"observation field {self.name!r}: size {self.size!r} is not a sum of a, ak, aR")
+                raise EnvOptionError(f"observation field {self.name!r}: size {self.size!r} is not a sum of a, ak, aR")
             coef, symbol = match.groups()
             a = int(coef) if coef else 1
             total += a * {"": 1, "k": int(n_neighbors), "R": int(n_rays)}[symbol]

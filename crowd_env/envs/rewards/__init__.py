@@ -88,6 +88,11 @@ class DefaultReward:
         """The four :class:`~.base.RewardTerm` objects, in order."""
         return self._sum.terms
 
+    @property
+    def names(self) -> tuple:
+        """The terms' names, in order (the fields of ``info["reward_terms"]``)."""
+        return self._sum.names
+
     def __call__(self, env, agent_ids, info):
         """The :class:`~.base.TermReward` of :attr:`terms`, in one compiled loop (the same operations in the
         same order, so the same bits: ``tests/envs/test_components.py``)."""
@@ -154,8 +159,8 @@ def resolve_terms(terms) -> TermReward:
     if isinstance(terms, dict):
         pairs = list(terms.items())
     elif isinstance(terms, (str, RewardTerm)) or not hasattr(terms, "__iter__"):
-        raise EnvOptionError(f"{OPTION} must be the name of a reward ({sorted(REWARDS)}), a sequence of term names "
-                             f"or objects, or a dict of them to weights, got {terms!r}")
+        raise EnvOptionError(f"{OPTION} must be a sequence of term names or objects, a dict of them to weights, or "
+                             f"the name of a reward ({sorted(REWARDS)}), got {terms!r}")
     else:
         pairs = [(t, None) for t in terms]
     out = []
