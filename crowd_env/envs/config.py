@@ -191,6 +191,7 @@ class CrowdEnvConfig:
     reseed_scenario: bool | None = None
     observation_components: tuple | None = None
     reward_terms: object = None
+    reward_terms_in_infos: bool = True
 
     def __post_init__(self):
         self._check_scenario()
@@ -256,6 +257,8 @@ class CrowdEnvConfig:
         return base.name, base.params(**(params or {}))
 
     def _check_reward(self) -> None:
+        if not isinstance(self.reward_terms_in_infos, (bool, np.bool_)):
+            raise EnvOptionError(f"reward_terms_in_infos must be True or False, got {self.reward_terms_in_infos!r}")
         if self.reward_fn is not None and not callable(self.reward_fn):
             raise EnvOptionError(f"reward_fn must be callable reward_fn(env, agent_ids, info), got {self.reward_fn!r}")
         if self.reward_terms is not None:

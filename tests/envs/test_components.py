@@ -105,7 +105,7 @@ def test_reward_terms_in_the_infos_add_up_to_the_reward_to_the_bit():
             break
         obs, rew, term, _, infos = env.step({a: 1.3 * obs[a][ed].astype(float) for a in env.agents})
         for a, r in rew.items():
-            assert env.reward_term_names == DEFAULT_TERMS and infos[a]["reward_terms"].dtype == np.float64
+            assert env.reward_term_names == DEFAULT_TERMS and all(type(x) is float for x in infos[a]["reward_terms"])
             t = env.reward_terms(infos[a])
             assert t["progress"] + t["contact_percussion"] + t["time"] + t["exit"] == r
             assert t["exit"] == (1.0 if term[a] else 0.0)
