@@ -102,3 +102,31 @@ def test_a_planted_lazy_import_cycle_is_found(tmp_path):
     path.write_text(path.read_text() + "\n\ndef _probe():\n    from . import trained  # noqa\n")
     cycles = _import_cycles(tmp_path)
     assert ["baselines.policy", "baselines.trained"] in cycles
+
+
+def _long_functions(roots, limit: int = 80) -> list:
+    """(lines, path, name) of every function longer than ``limit`` lines that numba does not compile."""
+    import ast
+
+    out = []
+    for root in roots:
+        for path in sorted(Path(root).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                    compiled = any("jit" in ast.unparse(d) for d in node.decorator_list)
+                    length = node.end_lineno - node.lineno + 1
+                    if length > limit and not compiled:
+                        out.append((length, str(path), node.name))
+    return out
+
+
+def test_no_python_function_is_over_80_lines():
+    roots = [ROOT / d for d in ("crowd_env", "baselines", "scripts", "benchmarks")]
+    assert _long_functions(roots) == []
+
+
+def test_the_length_rule_sees_a_long_function(tmp_path):
+    body = "\n".join(f"    x{i} = {i}" for i in range(81))
+    (tmp_path / "m.py").write_text(f"def long():\n{body}\n\n\n@nb.njit\ndef kernel():\n{body}\n")
+    found = _long_functions([tmp_path])
+    assert [name for _, _, name in found] == ["long"]
