@@ -2,10 +2,9 @@
 
 The kernels are compiled on first use and cached (``cache=True``) in the ``__pycache__`` folders beside the
 modules, so only the first run on a machine (or after a kernel changed) pays for it: measured on this project's
-2-core machine, a first N = 60 bottleneck run takes about 70 s of one core, nearly all of it compiling the
-compiled rollout (``experiments.running.rollout.rollout_steps``, which holds the core's step ``core.step.advance`` with
-the fused step and the impact solvers),
-and 1 s once cached. Without a word that looks like a hang, so :func:`announce_compilation` prints one line to
+2-core machine, a first N = 20 bottleneck run takes about 73 s of one core (process CPU time), nearly all of
+it compiling the compiled rollout (``experiments.running.rollout.rollout_steps``, which holds the core's step
+``core.step.advance`` with the fused step and the impact solvers), and 1 s once cached. Without a word that looks like a hang, so :func:`announce_compilation` prints one line to
 standard error at the first compilation of a crowd_env kernel in a process, and nothing when every kernel comes
 from the cache. ``CROWD_ENV_QUIET=1`` silences it. Workers on other machines (a Ray cluster) compile their own
 copies unless the package's folders are shared; point ``NUMBA_CACHE_DIR`` at a shared folder to share them.
