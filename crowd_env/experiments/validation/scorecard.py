@@ -22,12 +22,12 @@ never a number, as the calibration's failed points). The interval of each distan
 over seeds: the seeds are drawn with replacement, every run of a drawn seed kept, the distance recomputed,
 :data:`BOOTSTRAP_DRAWS` times (a fixed generator seed, so tables are reproducible). The calibrated agent's row is
 the calibration's own (the same tasks, seeds, store format and code path as ``crowd-calibrate targets --fd``;
-``tests/experiments/validation/test_scorecard.py`` checks it equals :func:`~crowd_env.experiments.validation.
-calibration.preset_targets.preset_targets`' score). Command: ``crowd-scorecard``.
+``tests/experiments/validation/test_scorecard.py`` checks that its tasks are the calibration's target and
+fundamental-diagram tasks and its distances sums of ``target_error``'s and ``fd_terms``' terms of the same
+records). Command: ``crowd-scorecard``.
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -39,11 +39,12 @@ from crowd_env.files import write_csv_atomic, write_json_atomic
 
 from ..output.tables import format_table
 from ..running.backends import execute
+from ...envs.background import CALIBRATED_NAMES
 from ..running.crowd_policy import policy_entry
 from ..running.store import RunStore
 from .bottleneck import run_one
 from .calibration.errors import CalibrationError
-from .calibration.objective import CAPACITY_WIDTHS_M, fd_terms, required_cases, target_error
+from .calibration.objective import CAPACITY_WIDTHS_M, TargetWeights, fd_terms, required_cases, target_error
 from .calibration.tasks import FDPlan, make_fd_tasks, make_task, run_calibration_task
 from .fundamental_diagram import run_fd_one
 
@@ -52,8 +53,7 @@ __all__ = ["EXPERIMENTS", "EXPERIMENT_TERMS", "BOOTSTRAP_DRAWS", "ScorecardPlan"
            "format_scorecard", "write_scorecard"]
 
 EXPERIMENTS = ("bottleneck", "corridor", "single_file")
-EXPERIMENT_TERMS = {"bottleneck": ("epsilon_60", "small_groups", "ordering", "speed_inside", "density_inside",
-                                   "density_front", "capacity"),
+EXPERIMENT_TERMS = {"bottleneck": tuple(TargetWeights().bottleneck_dict()),  # the calibration's bottleneck terms
                     "corridor": ("corridor_fd", "corridor_monotone"),
                     "single_file": ("single_file", "headway_fit")}
 BOOTSTRAP_DRAWS = 1000
@@ -110,18 +110,27 @@ def scorecard_tasks(config: dict, entry: dict | None, plan: ScorecardPlan) -> li
     return tasks if entry is None else [dict(t, policy=entry) for t in tasks]
 
 
-def distances(records: list) -> dict:
-    """Per experiment (:data:`EXPERIMENTS`) its distance, or None for a bottleneck with incomplete runs; and
-    ``"failed_runs"``: how many bottleneck runs did not complete (stalled or out of time)."""
-    bottleneck = [r for r in records if "setup" not in r]
-    fd = [r for r in records if "setup" in r]
-    score = target_error(bottleneck, fd=False)
+def _scores(records: list) -> tuple:
+    """(the bottleneck's :class:`~.calibration.objective.TargetScore`, the fundamental diagram's terms and figures)
+    of ``records``, each scored once."""
+    score = target_error([r for r in records if "setup" not in r], fd=False)
+    terms, figures = fd_terms([r for r in records if "setup" in r])
+    return score, terms, figures
+
+
+def _distances_of(score, terms: dict) -> dict:
     out = {"failed_runs": int(score.n_incomplete)}
     out["bottleneck"] = None if score.failed else float(sum(score.terms[k] for k in EXPERIMENT_TERMS["bottleneck"]))
-    terms, _ = fd_terms(fd)
     for name in ("corridor", "single_file"):
         out[name] = float(sum(terms[k] for k in EXPERIMENT_TERMS[name]))
     return out
+
+
+def distances(records: list) -> dict:
+    """Per experiment (:data:`EXPERIMENTS`) its distance, or None for a bottleneck with incomplete runs; and
+    ``"failed_runs"``: how many bottleneck runs did not complete (stalled or out of time)."""
+    score, terms, _ = _scores(records)
+    return _distances_of(score, terms)
 
 
 def bootstrap_intervals(records: list, seeds, *, draws: int = BOOTSTRAP_DRAWS, seed: int = 0,
@@ -148,12 +157,9 @@ def bootstrap_intervals(records: list, seeds, *, draws: int = BOOTSTRAP_DRAWS, s
 
 def score_records(label: str, records: list, plan: ScorecardPlan, *, draws: int = BOOTSTRAP_DRAWS) -> dict:
     """One row of the scorecard: the distances, their intervals and the key figures of ``records``."""
-    d = distances(records)
+    score, terms, fd_figures = _scores(records)
+    d = _distances_of(score, terms)
     ci = bootstrap_intervals(records, plan.seeds, draws=draws)
-    bottleneck = [r for r in records if "setup" not in r]
-    fd = [r for r in records if "setup" in r]
-    score = target_error(bottleneck, fd=False)
-    _, fd_figures = fd_terms(fd)
     js60 = [score.figures.get(f"specific_flow_per_m_s b{b:g} n60", float("nan")) for b in plan.widths_m]
     row = {"policy": label, "runs": len(records), "failed_runs": d["failed_runs"],
            "stalled_runs": int(score.n_stalled),
@@ -174,7 +180,7 @@ def run_scorecard(out, config: dict, policies, plan: ScorecardPlan, backend, *, 
     ``config``'s set-up: runs missing from ``out/<label>/`` are run on ``backend`` and stored (resumable); returns
     the rows, the calibrated agent's first. A failed run raises :class:`CalibrationError` (rerun to retry it)."""
     specs = [parse_policy(p) for p in policies]
-    if not any(name == "calibrated" and f == 1.0 for _, name, f in specs):
+    if not any(name in CALIBRATED_NAMES and f == 1.0 for _, name, f in specs):
         specs.insert(0, ("calibrated", "calibrated", 1.0))
     labels = [label for label, _, _ in specs]
     if len(set(labels)) != len(labels):
@@ -263,8 +269,3 @@ def _figure(rows: list, path: Path) -> Path:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     return path
-
-
-def read_scorecard(out) -> dict:
-    """The ``scorecard.json`` written by :func:`write_scorecard`."""
-    return json.loads((Path(out) / "scorecard.json").read_text())
