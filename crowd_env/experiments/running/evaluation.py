@@ -37,7 +37,14 @@ measures below cover everybody whatever the agents did:
   for geometries without one), averaged over the simulator steps between the first and the last passage
   at the line (the window of J_s; NaN with fewer than two passages);
 - ``min_gap_m``: smallest gap between two pedestrians or a pedestrian and a wall (negative = overlap);
-- ``mean_return``: mean over agents of the summed environment reward.
+- ``mean_return``: mean over agents of the summed environment reward;
+- ``lane_order`` and ``lane_order_mixed``: in a counterflow whose scenario says each pedestrian's walking
+  direction (metadata ``direction_x``, ±1: the periodic corridor), the lane order parameter Φ
+  (:func:`crowd_env.analysis.lanes.lane_order_parameter`: 1 when every lane carries one direction) of the
+  pedestrians' lateral positions, sampled every :data:`LANE_SAMPLE_S` of simulated time from
+  :data:`LANE_TRANSIENT_S` on and averaged; ``lane_order_mixed`` is the same frames' Φ with the directions
+  shuffled (:func:`~crowd_env.analysis.lanes.mixed_lane_order_parameter`), the value of a crowd without lanes
+  that Φ is read against. NaN elsewhere (one direction, or no directions in the metadata).
 """
 from __future__ import annotations
 
@@ -54,6 +61,7 @@ import shapely
 from scipy.spatial import cKDTree
 
 from ...analysis.flow import MeasurementLine, PassageCounter, specific_flow
+from ...analysis.lanes import lane_order_parameter, mixed_lane_order_parameter
 from ...core.params import ModelParams
 from ...envs.crowd_v0 import CrowdParallelEnv, decisions_for_time
 from .runner import StallDetector
@@ -74,7 +82,9 @@ METRICS = (
     ("density_front_per_m2", "density front (1/m²)"),
     ("min_gap_m", "min gap (m)"),
     ("mean_return", "mean return"),
+    ("lane_order", "lane order"),
 )
+LANE_SAMPLE_S, LANE_TRANSIENT_S = 1.0, 10.0  # the lane order's sampling interval and the transient left out
 
 
 @dataclass
@@ -100,6 +110,8 @@ class EpisodeMetrics:
     partial_specific_flow_per_m_s: float = float("nan")
     partial_flow_per_s: float = float("nan")
     density_front_per_m2: float = float("nan")
+    lane_order: float = field(default=float("nan"), compare=False)  # nan unless a counterflow (nan != nan)
+    lane_order_mixed: float = field(default=float("nan"), compare=False)
 
 
 @dataclass
@@ -228,6 +240,27 @@ class _Probe:
         if self.front is not None:
             shapely.prepare(self.front)  # tested against the crowd at every step
         self.front_density, self.front_time = [], []
+        direction = np.asarray(env.scenario.metadata.get("direction_x", ()), dtype=float)
+        two_ways = direction.shape == (env.n_pedestrians,) and (direction > 0).any() and (direction < 0).any()
+        self.eastbound = direction > 0 if two_ways else None
+        self.lanes, self.lanes_mixed = [], []
+        self.next_lane_s = env.sim.time_s + LANE_TRANSIENT_S
+
+    def _sample_lanes(self, st, time_s: float) -> None:
+        """Φ of this frame and of its shuffled directions, every LANE_SAMPLE_S from the end of the transient."""
+        if self.eastbound is None or time_s < self.next_lane_s - 1e-9:
+            return
+        self.next_lane_s += LANE_SAMPLE_S
+        on = st.active
+        y, east = st.position_m[on, 1], self.eastbound[on]
+        self.lanes.append(lane_order_parameter(y_m=y, eastbound=east))
+        self.lanes_mixed.append(mixed_lane_order_parameter(y_m=y, eastbound=east, draws=50, seed=len(self.lanes)))
+
+    def lane_orders(self) -> tuple:
+        """(mean Φ, mean Φ of the shuffled directions) over the sampled frames; NaN without any."""
+        if not self.lanes or not np.isfinite(self.lanes).any():
+            return float("nan"), float("nan")
+        return float(np.nanmean(self.lanes)), float(np.nanmean(self.lanes_mixed))
 
     def front_density_per_m2(self) -> float:
         """Mean density in the "front" area over the steps between the first and the last passage (NaN
@@ -281,6 +314,7 @@ class _Probe:
             inside = int(np.count_nonzero(shapely.contains_xy(self.front, pos[:, 0], pos[:, 1]))) if pos.size else 0
             self.front_density.append(inside / self.front.area)
             self.front_time.append(env.sim.time_s)
+        self._sample_lanes(st, env.sim.time_s)
 
 
 def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", seed: int = 0, *,
@@ -343,6 +377,7 @@ def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", se
         j = fr.flow_per_s
         js = fr.specific_flow_per_m_s if width else float("nan")
     complete = not (env.sim.state.active & ~probe.passed).any()
+    lanes, lanes_mixed = probe.lane_orders()
     result = EpisodeMetrics(
         policy=getattr(policy, "name", type(policy).__name__), scenario=spec.label, seed=int(seed), n_pedestrians=n,
         n_evacuated=n_out,
@@ -355,7 +390,7 @@ def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", se
         min_gap_m=probe.min_gap, mean_return=float(np.mean(list(returns.values()))),
         wall_time_s=time.perf_counter() - t0, complete=bool(complete), stalled=probe.stall.stalled,
         stall_time_s=probe.stall.stall_time_s, partial_specific_flow_per_m_s=js, partial_flow_per_s=j,
-        density_front_per_m2=probe.front_density_per_m2())
+        density_front_per_m2=probe.front_density_per_m2(), lane_order=lanes, lane_order_mixed=lanes_mixed)
     env.close()
     return result
 

@@ -56,9 +56,15 @@ __all__ = ["Task", "TASKS", "QUICK_TASKS", "POLICIES", "LEARNED", "BUDGETS", "QU
            "train_one", "evaluate_one", "video_one", "video_path", "video_task", "learning_curves",
            "plot_learning_curves", "ship_policies", "compute_seconds", "target_checks", "format_checks"]
 
-POLICIES = ("baseline", "random", "zero", "ppo", "mappo", "bc")
-LEARNED = ("ppo", "mappo", "bc")
+POLICIES = ("baseline", "random", "zero", "ppo", "mappo", "bc", "ppo_le", "mappo_le")
+LEARNED = ("ppo", "mappo", "bc", "ppo_le", "mappo_le")
+# the learned policies trained with another reward than the default (crowd_env.envs.rewards.REWARDS): the
+# algorithm they run and the reward's name
+TRAINED_WITH = {"ppo_le": ("ppo", "least_effort"), "mappo_le": ("mappo", "least_effort")}
 LEARNER_OPTIONS = {"frame_skip": 10}
+# the least-effort policies' mean speed in the corridors: around the reward's optimum sqrt(e_s / e_w) = 1.33 m/s
+LEAST_EFFORT_SPEED_M_S = (1.1, 1.5)
+CORRIDOR_TASKS = ("corridor_bidirectional", "corridor_periodic", "counterflow_periodic")
 
 
 @dataclass(frozen=True)
@@ -81,6 +87,12 @@ def _bottleneck(n: int, controlled="all") -> dict:
             "controlled": controlled, **LEARNER_OPTIONS}
 
 
+def _periodic(density_per_m2: float, westbound_fraction: float) -> dict:
+    return {"scenario": "periodic_corridor", "scenario_options": {"length_m": 20.0, "width_m": 1.8,
+            "density_per_m2": density_per_m2, "westbound_fraction": westbound_fraction}, "controlled": "all",
+            **LEARNER_OPTIONS}
+
+
 TASKS = {
     "bottleneck": Task("bottleneck", "Seyfried bottleneck, b = 1.0 m, N = 60, all controlled", _bottleneck(60), 90.0),
     "bottleneck_learners": Task("bottleneck_learners", "the same bottleneck, 6 learners among 54 calibrated pedestrians",
@@ -89,6 +101,10 @@ TASKS = {
                                    {"scenario": "corridor_bidirectional", "controlled": "all", **LEARNER_OPTIONS}, 60.0),
     "room_pillar": Task("room_pillar", "room with a pillar before the door, 30 pedestrians, all controlled",
                         {"scenario": "room_pillar", "controlled": "all", **LEARNER_OPTIONS}, 60.0),
+    "corridor_periodic": Task("corridor_periodic", "periodic corridor 20 m x 1.8 m, 18 pedestrians (0.5 /m²) walking "
+                              "east, all controlled", _periodic(0.5, 0.0), 60.0),
+    "counterflow_periodic": Task("counterflow_periodic", "periodic corridor 20 m x 1.8 m, 36 pedestrians (1 /m²), "
+                                 "half walking each way, all controlled", _periodic(1.0, 0.5), 60.0),
 }
 QUICK_TASKS = {
     "bottleneck": Task("bottleneck", "Seyfried bottleneck, b = 1.0 m, N = 8, all controlled (quick)", _bottleneck(8),
@@ -110,6 +126,7 @@ MEASURES = (
     ("mean_percussion_kg_m_s", "mean percussion (kg m/s)", "{:.2f}"),
     ("min_gap_m", "min gap (mm)", "mm"),
     ("mean_return", "return per agent", "{:.2f}"),
+    ("lane_order", "lane order", "{:.2f}"),
 )
 
 
@@ -206,7 +223,10 @@ def train_one(job: dict) -> dict:
     task = Task(**job["task"])
     cfg = task.learner_config()
     folder = job["dir"]
-    seed, algo, budgets = int(job["seed"]), job["algorithm"], job["budgets"]
+    seed, name, budgets = int(job["seed"]), job["algorithm"], job["budgets"]
+    algo, reward = TRAINED_WITH.get(name, (name, "default"))
+    if reward != "default":
+        cfg["reward_terms"] = reward
     quiet = lambda *a, **k: None  # noqa: E731
     t0 = time.perf_counter()
     resume = os.path.isdir(os.path.join(folder, "checkpoints"))
@@ -236,11 +256,11 @@ def train_one(job: dict) -> dict:
         agent_steps = int(summary["agent_steps"])
         policy = None  # written by train_behaviour_cloning
     else:
-        raise InputError(f"not a learned policy: {algo!r}")
+        raise InputError(f"not a learned policy: {name!r}")
     if policy is not None:
-        policy.meta.update({"algorithm": algo, "task": task.name, "seed": seed})
+        policy.meta.update({"algorithm": algo, "reward": reward, "task": task.name, "seed": seed})
         save_policy_file(policy, os.path.join(folder, "policy.npz"))
-    cost = {"algorithm": algo, "task": task.name, "seed": seed, "agent_steps": agent_steps,
+    cost = {"algorithm": name, "task": task.name, "seed": seed, "agent_steps": agent_steps,
             "train_wall_s": float(summary.get("train_wall_s", float("nan"))),
             "total_wall_s": time.perf_counter() - t0, "cores": 1}
     write_json_atomic(os.path.join(folder, "cost.json"), cost)
@@ -478,14 +498,21 @@ def compute_seconds(out: str, plan: ReferencePlan) -> dict:
 
 def target_checks(results: dict) -> list:
     """The reference results' targets on its results, one row each (``check``, ``task``, ``policy``, ``measured``,
-    ``target``, ``holds``): every learned policy's return above random's on its task with non-overlapping 95 %
-    intervals; the behaviour clone's J_s within 10 % of the calibrated model's and its number of percussions
-    within a factor 2, on every task where both have a J_s. A cell that is missing is not checked."""
+    ``target``, ``holds``): every policy learned with the default reward returns more than random on its task
+    with non-overlapping 95 % intervals (the returns are the default reward's); the behaviour clone's J_s within
+    10 % of the calibrated model's and its number of percussions within a factor 2, on every task where both
+    have a J_s; the least-effort policies' mean speed within :data:`LEAST_EFFORT_SPEED_M_S` in the corridors
+    (:data:`CORRIDOR_TASKS`). A cell that is missing is not checked."""
     by = {(c["task"], c["policy"]): c["measures"] for c in results["cells"]}
     rows = []
     for (task, policy), m in by.items():
         rand = by.get((task, "random"))
-        if policy in LEARNED and rand is not None:
+        if policy in TRAINED_WITH and task in CORRIDOR_TASKS and m["mean_speed_m_s"]["mean"] is not None:
+            lo, hi = LEAST_EFFORT_SPEED_M_S
+            v = m["mean_speed_m_s"]["mean"]
+            rows.append({"check": "least-effort mean speed", "task": task, "policy": policy,
+                         "measured": f"{v:.2f} m/s", "target": f"{lo:g}-{hi:g} m/s", "holds": bool(lo <= v <= hi)})
+        if policy in LEARNED and policy not in TRAINED_WITH and rand is not None:
             r, q = m["mean_return"], rand["mean_return"]
             holds = None not in (r["low"], q["high"]) and r["low"] > q["high"]
             rows.append({"check": "return above random, intervals apart", "task": task, "policy": policy,
@@ -550,15 +577,16 @@ def format_results(results: dict, *, markdown: bool = False) -> str:
 def learning_curves(out: str, plan: ReferencePlan) -> dict:
     """``{(task, algorithm): [(agent_steps (k,), episode return (k,)) per training seed]}`` from the training
     folders: PPO's ``learning_curve.csv`` (per finished episode of one agent) and MAPPO's ``progress.csv``
-    (mean per-agent return of the episodes ended in each iteration); BC has no return curve (its
-    ``progress.csv`` holds the imitation loss)."""
+    (mean per-agent return of the episodes ended in each iteration), in the reward each was trained with
+    (:data:`TRAINED_WITH`); BC has no return curve (its ``progress.csv`` holds the imitation loss)."""
     curves = {}
     for t in plan.tasks.values():
-        for algo in ("ppo", "mappo"):
-            if algo not in plan.policies:
+        for name in plan.policies:
+            algo = TRAINED_WITH.get(name, (name,))[0]
+            if algo not in ("ppo", "mappo"):
                 continue
             for s in plan.train_seeds:
-                folder = train_dir(out, t.name, algo, s)
+                folder = train_dir(out, t.name, name, s)
                 if algo == "ppo":
                     path = os.path.join(folder, "learning_curve.csv")
                     if not os.path.exists(path):
@@ -573,43 +601,50 @@ def learning_curves(out: str, plan: ReferencePlan) -> dict:
                         rows = list(csv.DictReader(fh))
                     x = np.cumsum([float(r["agent_steps"]) for r in rows])
                     y = np.array([float(r["mean_episode_return"]) for r in rows])
-                curves.setdefault((t.name, algo), []).append((x, y))
+                curves.setdefault((t.name, name), []).append((x, y))
     return curves
+
+
+_COLOURS = {"ppo": "tab:blue", "mappo": "tab:orange", "baseline": "black", "random": "tab:red", "zero": "tab:grey",
+            "bc": "tab:green", "ppo_le": "tab:purple", "mappo_le": "tab:brown"}
 
 
 def plot_learning_curves(out: str, plan: ReferencePlan, results: dict, path: str) -> str:
     """One panel per task: the PPO and MAPPO training returns (running mean per seed) against agent steps,
-    with the evaluation returns of the calibrated model, random and zero policies as horizontal lines."""
+    with the evaluation returns of the policies without training as horizontal lines (all in the default
+    reward; the learned ones' evaluation in the default reward too); below, when the plan has them, the
+    least-effort policies' training returns, in their own reward."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     curves = learning_curves(out, plan)
     tasks = list(plan.tasks)
-    fig = Figure(figsize=(5.0 * len(tasks), 3.8))
+    rows = [("ppo", "mappo"), tuple(p for p in plan.policies if p in TRAINED_WITH)]
+    rows = [r for r in rows if r]
+    fig = Figure(figsize=(5.0 * len(tasks), 3.8 * len(rows)))
     FigureCanvasAgg(fig)
-    colours = {"ppo": "tab:blue", "mappo": "tab:orange", "baseline": "black", "random": "tab:red", "zero": "tab:grey",
-               "bc": "tab:green"}
-    for i, name in enumerate(tasks):
-        ax = fig.add_subplot(1, len(tasks), i + 1)
-        for algo in ("ppo", "mappo"):
-            for k, (x, y) in enumerate(curves.get((name, algo), [])):
-                finite = np.isfinite(y)
-                x, y = x[finite], y[finite]
-                if y.size == 0:
-                    continue
-                w = max(1, y.size // 20)
-                smooth = np.convolve(y, np.ones(w) / w, mode="valid")
-                ax.plot(x[w - 1:], smooth, color=colours[algo], lw=1.2, label=f"{algo} (training)" if k == 0 else None)
-        for c in results["cells"]:
-            if c["task"] == name:
+    for row, algos in enumerate(rows):
+        for i, name in enumerate(tasks):
+            ax = fig.add_subplot(len(rows), len(tasks), row * len(tasks) + i + 1)
+            for algo in algos:
+                for k, (x, y) in enumerate(curves.get((name, algo), [])):
+                    finite = np.isfinite(y)
+                    x, y = x[finite], y[finite]
+                    if y.size == 0:
+                        continue
+                    w = max(1, y.size // 20)
+                    smooth = np.convolve(y, np.ones(w) / w, mode="valid")
+                    ax.plot(x[w - 1:], smooth, color=_COLOURS[algo], lw=1.2,
+                            label=f"{algo} (training)" if k == 0 else None)
+            for c in results["cells"] if row == 0 else ():
                 m = c["measures"]["mean_return"]
-                if m["mean"] is not None:
-                    ax.axhline(m["mean"], color=colours[c["policy"]], ls="--", lw=0.9,
+                if c["task"] == name and c["policy"] not in TRAINED_WITH and m["mean"] is not None:
+                    ax.axhline(m["mean"], color=_COLOURS[c["policy"]], ls="--", lw=0.9,
                                label=f"{c['policy']} (evaluation)")
-        ax.set_title(name, fontsize=9)
-        ax.set_xlabel("agent steps of training")
-        ax.set_ylabel("per-agent episode return")
-        ax.legend(fontsize=6)
+            ax.set_title(name, fontsize=9)
+            ax.set_xlabel("agent steps of training")
+            ax.set_ylabel("per-agent episode return" + (" (least effort)" if row else ""))
+            ax.legend(fontsize=6)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     return path

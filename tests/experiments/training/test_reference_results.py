@@ -45,8 +45,9 @@ def test_the_plan_refuses_unknown_names_bad_budgets_and_seeds_shared_with_traini
         bm.make_plan(eval_seeds=[22_305])  # seed 2's third DAgger round
     assert bm.make_plan(eval_seeds=[22_305], budgets={"bc_dagger_rounds": 2}).eval_seeds == (22_305,)
     plan = bm.make_plan()
-    assert list(plan.tasks) == ["bottleneck", "bottleneck_learners", "corridor_bidirectional", "room_pillar"]
-    assert plan.policies == ("baseline", "random", "zero", "ppo", "mappo", "bc")
+    assert list(plan.tasks) == ["bottleneck", "bottleneck_learners", "corridor_bidirectional", "room_pillar",
+                                "corridor_periodic", "counterflow_periodic"]
+    assert plan.policies == ("baseline", "random", "zero", "ppo", "mappo", "bc", "ppo_le", "mappo_le")
     assert len(plan.train_seeds) >= 3 and len(plan.eval_seeds) >= 10
 
 
@@ -147,7 +148,13 @@ def test_the_quick_reference_results_train_evaluates_resumes_and_ships(quick_run
     # shipping: the policy files load by path and act in the environment with their own options
     shipped = bm.ship_policies(out, plan, str(tmp_path / "ship"))
     assert sorted(os.path.basename(p) for p in shipped) == ["bottleneck_bc.npz", "bottleneck_mappo.npz",
-                                                            "bottleneck_ppo.npz"]
+                                                            "bottleneck_mappo_le.npz", "bottleneck_ppo.npz",
+                                                            "bottleneck_ppo_le.npz"]
+    from crowd_env.envs.policy_files import load_policy_file
+
+    trained = {os.path.basename(p): load_policy_file(p).meta for p in shipped}
+    assert trained["bottleneck_ppo_le.npz"]["reward"] == trained["bottleneck_mappo_le.npz"]["reward"] == "least_effort"
+    assert trained["bottleneck_ppo.npz"]["reward"] == "default" and trained["bottleneck_ppo_le.npz"]["algorithm"] == "ppo"
     policy = as_policy(shipped[0])
     from crowd_env.experiments.running.evaluation import run_episode
 
