@@ -115,6 +115,8 @@ Decision interval
 """
 from __future__ import annotations
 
+import functools
+
 from crowd_env.errors import ActionError, EnvOptionError, EnvStateError, PolicyError, UnknownOptionError
 
 import math
@@ -310,7 +312,7 @@ class CrowdParallelEnv(ParallelEnv):
         self._steps = 0
         self._agent_index = np.zeros(0, np.int64)
         self._travel_time = np.full(self._scenario.n_pedestrians, np.nan)
-        self._speed = np.full(self._scenario.n_pedestrians, np.nan)  # at the end of the last step (start of the next)
+        self._speed_c = np.zeros(0)  # the live agents' speeds (agents' order) at the end of the last step
         self._progress_period_s = _travel_time_period_s(self.navigation, self._scenario.geometry.period_x_m)
         self._renderer = None
         self.substep_hooks = []
@@ -480,8 +482,7 @@ class CrowdParallelEnv(ParallelEnv):
         self._travel_time[:] = np.nan
         self._travel_time[self._agent_index] = travel
         speed = np.hypot(*state.velocity_m_s[self._agent_index].T)
-        self._speed[:] = np.nan
-        self._speed[self._agent_index] = speed
+        self._speed_c = speed
         infos = {a: {"contact_percussion_kg_m_s": 0.0, "n_contacts": 0, "travel_time_s": float(t),
                      "speed_m_s": float(s)}
                  for a, t, s in zip(self.agents, travel.tolist(), speed.tolist())}
@@ -613,7 +614,7 @@ class CrowdParallelEnv(ParallelEnv):
             theta0 = st.heading_rad[idx_c]
             intent_c = to_world_frame(intent_c, np.cos(theta0), np.sin(theta0))
         t_before = self._travel_time[idx_c]
-        speed_before = self._speed[idx_c]
+        speed_before = self._speed_c
         percussion = np.zeros(n)
         contacts = np.zeros(n, np.int64)
         by_intent = self.heading_target == "intent"
@@ -646,7 +647,7 @@ class CrowdParallelEnv(ParallelEnv):
                 hook(self, res, prev_pos, prev_t)
         self._steps += 1
         obs, t_after, speed = self._observer.observe(st, idx_c)
-        self._speed[idx_c] = speed
+        self._speed_c = speed
         progress, perc_c, contacts_c, exited, truncated, n_done = _step_arrays(
             st.active, idx_c, t_before, t_after, self._travel_time, percussion, contacts, self._steps >= self.max_steps)
         if self._progress_period_s > 0.0:  # periodic corridor: T jumps by L/V at the seam (module docstring)
@@ -658,6 +659,7 @@ class CrowdParallelEnv(ParallelEnv):
         if n_done:
             keep = ~(exited | truncated)
             self._agent_index = idx_c[keep]
+            self._speed_c = speed[keep]
             self.agents = [a for a, k in zip(agents, keep.tolist()) if k]
         return obs, rewards, exited, truncated, info
 
@@ -674,13 +676,12 @@ class CrowdParallelEnv(ParallelEnv):
 
     def _rewards(self, agents, info) -> np.ndarray:
         out = self.reward_fn(self, agents, info)
+        n = len(agents)
         terms = info.get("reward_terms")
-        if terms is not None and len(terms) != len(agents):
-            raise PolicyError(f"reward_fn put {len(terms)} rows in info['reward_terms'], expected one per agent "
-                              f"({len(agents)})")
-        if type(out) is np.ndarray and out.dtype == np.float64 and out.shape == (len(agents),) \
-                and _all_finite(out):  # DefaultReward's: nothing to convert
-            return out
+        if terms is not None and len(terms) != n:
+            raise PolicyError(f"reward_fn put {len(terms)} rows in info['reward_terms'], expected one per agent ({n})")
+        if type(out) is np.ndarray and out.shape == (n,) and out.dtype == np.float64 and _all_finite(out):
+            return out  # DefaultReward's: nothing to convert
         if isinstance(out, dict):
             missing = [a for a in agents if a not in out]
             if missing:
@@ -819,8 +820,14 @@ def _term_rows(terms) -> np.ndarray:
     """The (n,) structured array of the terms' contributions as (n, T) float64 rows (a view when every field is
     float64, as TermReward's are)."""
     dtype = terms.dtype
-    if all(dtype.fields[name][0] == np.float64 for name in dtype.names) and dtype.itemsize == 8 * len(dtype.names):
-        return terms.view(np.float64).reshape(len(terms), len(dtype.names))
+    if _plain_float_fields(dtype) and terms.flags.c_contiguous:
+        return np.ndarray((len(terms), len(dtype.names)), np.float64, terms)
     from numpy.lib import recfunctions
 
     return recfunctions.structured_to_unstructured(terms, dtype=np.float64)
+
+
+@functools.lru_cache(maxsize=64)
+def _plain_float_fields(dtype) -> bool:
+    """Whether the structured ``dtype`` is float64 fields packed one after the other (once per dtype)."""
+    return all(dtype.fields[name][0] == np.float64 for name in dtype.names) and dtype.itemsize == 8 * len(dtype.names)

@@ -150,7 +150,10 @@ class ObservationBuilder:
             return None
         first = {type(c): col for c, col, _ in self._parts}
         cols = np.array([first.get(kind, -1) for kind in _DEFAULT_TYPES], np.int64)
-        return cols, ray_table(self.n_rays)
+        ray_cos, ray_sin = ray_table(self.n_rays)
+        spec = self.spec  # the arguments of _default_pass that stay the same at every step, in its order
+        return ((self._search_k, spec.neighbor_radius_m, spec.period_m),
+                (self.frame == "world", self._walls_d, ray_cos, ray_sin, spec.ray_range_m, cols))
 
     def _lay_out(self) -> tuple:
         """The (component, first column, size) of every component with entries, and the bounds."""
@@ -198,16 +201,14 @@ class ObservationBuilder:
             else:
                 e_d, travel = self.navigation.sample(pos)
             nav = _NO_GRID
-        spec = self.spec
         if self._fused is not None:
-            cols, (ray_cos, ray_sin) = self._fused
+            head, tail = self._fused
             bad = _default_pass(state.position_m, state.velocity_m_s, state.heading_rad, state.active, index,
-                                nav[0], nav[1], nav[2], nav is not _NO_GRID, self._search_k, spec.neighbor_radius_m,
-                                spec.period_m, e_d, travel, speed, self.frame == "world", self._walls_d, ray_cos,
-                                ray_sin, spec.ray_range_m, cols, obs)
+                                nav[0], nav[1], nav[2], nav is not _NO_GRID, *head, e_d, travel, speed, *tail, obs)
             if bad >= 0:  # outside the navigation grid: the field raises its own error
                 self.navigation.sample(state.position_m[index[bad:bad + 1]])
             return obs, travel, speed
+        spec = self.spec
         velocity = np.empty((m, 2))
         cos_t = np.empty(m)
         sin_t = np.empty(m)

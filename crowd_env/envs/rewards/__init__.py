@@ -82,6 +82,8 @@ class DefaultReward:
         terms = (Progress(float(self.progress_weight)), ContactPercussion(float(self.collision_weight)),
                  TimeCost(float(self.time_cost_per_s)), ExitBonus(float(self.exit_bonus)))
         object.__setattr__(self, "_sum", TermReward(terms))
+        object.__setattr__(self, "_weights", (float(self.progress_weight), float(self.collision_weight),
+                                              float(self.time_cost_per_s), float(self.exit_bonus)))
 
     @property
     def terms(self) -> tuple:
@@ -98,11 +100,10 @@ class DefaultReward:
         same order, so the same bits: ``tests/envs/test_components.py``)."""
         n = len(agent_ids)
         terms = np.empty(n, self._sum.dtype)
-        total = _default_reward(info["progress_s"], info["contact_percussion_kg_m_s"], info["exited"],
-                                float(self.progress_weight), float(self.collision_weight), float(self.time_cost_per_s),
-                                info["dt_s"], float(self.exit_bonus), terms.view(np.float64).reshape(n, 4))
+        w_progress, w_collision, w_time, w_exit = self._weights
         info["reward_terms"] = terms
-        return total
+        return _default_reward(info["progress_s"], info["contact_percussion_kg_m_s"], info["exited"], w_progress,
+                               w_collision, w_time, info["dt_s"], w_exit, np.ndarray((n, 4), np.float64, terms))
 
 
 @nb.njit(cache=True)
