@@ -78,7 +78,16 @@ def test_scenario_links_and_state():
         Scenario(g, [[1, 1], [1, 1.5]], links=[[0, 0]])
 
 
-def test_registry():
+@pytest.fixture
+def scratch_registry(monkeypatch):
+    """The scenario registry as it is, restored after the test: a scenario a test registers does not leak
+    into later tests (the soak covers every registered scenario, and would soak it too)."""
+    from crowd_env.scenarios import registry
+
+    monkeypatch.setattr(registry, "_REGISTRY", dict(registry._REGISTRY))
+
+
+def test_registry(scratch_registry):
     assert {"seyfried_bottleneck", "bottleneck"} <= set(list_scenarios())
     sc = make_scenario("bottleneck", width_m=0.8, n_pedestrians=20, seed=3)
     assert sc.n_pedestrians == 20 and sc.metadata["width_m"] == 0.8
@@ -95,6 +104,11 @@ def test_registry():
 
     register_scenario("test_tiny", tiny, overwrite=True)
     assert make_scenario("test_tiny").n_pedestrians == 1
+
+
+def test_a_scenario_registered_by_a_test_is_gone_after_it():
+    """Runs after test_registry in this module's order: its scenario did not stay registered."""
+    assert "test_tiny" not in list_scenarios()
 
 
 def test_new_scenarios_are_registered_with_seeds():
