@@ -575,7 +575,7 @@ class CrowdParallelEnv(ParallelEnv):
         else:  # each agent's row of the reward's terms (rewards.TermReward), in the order of reward_term_names
             self.reward_term_names = terms.dtype.names
             info_d = {a: {"contact_percussion_kg_m_s": p, "n_contacts": c, "travel_time_s": t, "speed_m_s": v,
-                          "reward_terms": r} for a, p, c, t, v, r in zip(*columns, _term_rows(terms).tolist())}
+                          "reward_terms": r} for a, p, c, t, v, r in zip(*columns, term_rows(terms).tolist())}
         if self.render_mode == "human":
             self.render()
         return obs_d, rew_d, term_d, trunc_d, info_d
@@ -816,7 +816,7 @@ def env(**options):
     return parallel_to_aec(parallel_env(**options))
 
 
-def _term_rows(terms) -> np.ndarray:
+def term_rows(terms) -> np.ndarray:
     """The (n,) structured array of the terms' contributions as (n, T) float64 rows (a view when every field is
     float64, as TermReward's are)."""
     dtype = terms.dtype

@@ -24,7 +24,11 @@ Automatic reset per copy (Gymnasium's ``AutoresetMode.SAME_STEP``):
 Infos:
     a flat dict of ``(K A, …)`` arrays with the same keys after :meth:`~CrowdVectorEnv.reset` and every
     step (``alive``, ``acted``, ``copy``, ``final_obs``, ``_final_obs``, ``episode_return``,
-    ``episode_length``, ``episode_ended``), so batch readers such as TorchRL's see fixed specs.
+    ``episode_length``, ``episode_ended``, and ``reward_terms`` when the copies report their reward's terms:
+    ``(K A, T)``, each slot's contribution of each term this step, columns in the order of
+    :attr:`CrowdVectorEnv.reward_term_names`, zeros for padding and after a reset), so batch readers such as
+    TorchRL's see fixed specs. A ``reward_fn`` without a ``names`` attribute has no terms known before its first
+    step: its terms stay out of the vector infos.
 Seeding per copy:
     ``reset(seed=s)`` resets copy c with seed ``s + c`` (or ``seed=[s_0, …, s_{K−1}]``); later automatic
     resets continue each copy's stream. Copy c then gives exactly the observations, rewards and
@@ -68,7 +72,7 @@ from crowd_env.errors import ActionError, EnvOptionError, EnvStateError, WorkerE
 
 from ..core.checks import check_integer, check_seed
 from .config import make_config, resolve_options
-from .crowd_v0 import CrowdParallelEnv
+from .crowd_v0 import CrowdParallelEnv, term_rows
 
 __all__ = ["CrowdVectorEnv", "vector_env", "gym_vector_env", "WorkerError"]
 
@@ -102,17 +106,22 @@ def _check_workers(workers, copies: int) -> int:
     return int(workers)
 
 
-# The arrays of a step, per slot: name -> (dtype, columns or None). One buffer holds them all (shared with
-# the workers); the serial path allocates them fresh each step.
-def _fields(dim: int) -> dict:
-    return {"actions": (np.float64, 2), "obs": (np.float32, dim), "rewards": (np.float64, None),
-            "terminated": (np.bool_, None), "truncated": (np.bool_, None), "final_obs": (np.float32, dim),
-            "_final_obs": (np.bool_, None), "episode_return": (np.float64, None),
-            "episode_length": (np.int64, None), "episode_ended": (np.bool_, None), "acted": (np.bool_, None),
-            "alive": (np.bool_, None)}
+# The arrays of a step, per slot: name -> (dtype, columns or None), for ``dim`` = (observation size, number
+# of reward terms reported; 0: none). One buffer holds them all (shared with the workers); the serial path
+# allocates them fresh each step.
+def _fields(dim: tuple) -> dict:
+    obs_dim, n_terms = dim
+    fields = {"actions": (np.float64, 2), "obs": (np.float32, obs_dim), "rewards": (np.float64, None),
+              "terminated": (np.bool_, None), "truncated": (np.bool_, None), "final_obs": (np.float32, obs_dim),
+              "_final_obs": (np.bool_, None), "episode_return": (np.float64, None),
+              "episode_length": (np.int64, None), "episode_ended": (np.bool_, None), "acted": (np.bool_, None),
+              "alive": (np.bool_, None)}
+    if n_terms:
+        fields["reward_terms"] = (np.float64, n_terms)
+    return fields
 
 
-def _arrays(n: int, dim: int, buffer=None) -> dict:
+def _arrays(n: int, dim: tuple, buffer=None) -> dict:
     """The step arrays of ``n`` slots: zeros, or views into ``buffer`` (bytes laid out field by field)."""
     out, offset = {}, 0
     for name, (dtype, cols) in _fields(dim).items():
@@ -126,7 +135,7 @@ def _arrays(n: int, dim: int, buffer=None) -> dict:
     return out
 
 
-def _buffer_size(n: int, dim: int) -> int:
+def _buffer_size(n: int, dim: tuple) -> int:
     total = 0
     for dtype, cols in _fields(dim).values():
         total += -(-(n * (cols or 1) * np.dtype(dtype).itemsize) // 8) * 8
@@ -199,7 +208,10 @@ class _Copies:
         for c, env in enumerate(self.envs):
             base = c * A
             slots = base + self.position[c][env._agent_index]  # the live agents' slots, in env.agents order
-            o, r, te, tr, _ = env._advance(actions[slots])
+            o, r, te, tr, info = env._advance(actions[slots])
+            terms = info.get("reward_terms") if "reward_terms" in out else None
+            if terms is not None:
+                out["reward_terms"][slots] = term_rows(terms)
             _record(slots, o, r, te, tr, obs, out["rewards"], out["terminated"], out["truncated"], out["final_obs"],
                     out["_final_obs"], out["episode_return"], out["episode_length"], out["episode_ended"], self.ret,
                     self.length, self.alive)
@@ -250,7 +262,7 @@ def _serve(copies: _Copies, out: dict, results: list, cmd: str, arg):
     raise EnvStateError(f"unknown worker command {cmd!r}")
 
 
-def _group(envs, buffer, n_slots: int, dim: int, lo: int, hi: int):
+def _group(envs, buffer, n_slots: int, dim: tuple, lo: int, hi: int):
     """A group's copies, its views of slots ``lo:hi`` of the shared buffer and the result arrays zeroed
     before each step."""
     views = _arrays(n_slots, dim, buffer)
@@ -258,7 +270,7 @@ def _group(envs, buffer, n_slots: int, dim: int, lo: int, hi: int):
     return _Copies(envs, out["alive"]), out, [v for k, v in out.items() if k not in ("actions", "alive")]
 
 
-def _worker(conn, buffer, n_slots: int, dim: int, lo: int, hi: int) -> None:
+def _worker(conn, buffer, n_slots: int, dim: tuple, lo: int, hi: int) -> None:
     """Body of a worker process: receives its copies through ``conn`` (cloudpickled, as the geometry's mapping
     proxies need; slots ``lo:hi``), answers ``("ready", None)`` (or ``("error", ...)``), then steps them on
     the parent's commands."""
@@ -297,7 +309,7 @@ class _Workers:
     is stepped in this process (so that it works while the others do, instead of waiting), groups
     1 … W−1 in worker processes."""
 
-    def __init__(self, envs, workers: int, start_method: str, n_slots: int, dim: int, n_agents: int):
+    def __init__(self, envs, workers: int, start_method: str, n_slots: int, dim: tuple, n_agents: int):
         ctx = multiprocessing.get_context(start_method)
         self.n_slots, self.dim = n_slots, dim
         self.buffer = ctx.RawArray("b", _buffer_size(n_slots, dim))
@@ -488,7 +500,9 @@ class CrowdVectorEnv(VectorEnv):
         self.autoreset_mode = AutoresetMode.SAME_STEP
         self.slot_copy = np.repeat(np.arange(self.n_copies), self.n_agents)
         self.slot_agent = np.tile(np.arange(self.n_agents), self.n_copies)
-        self._dim = self.single_observation_space.shape[0]
+        # the names of the reward's terms, the columns of infos["reward_terms"] (None: not reported)
+        self.reward_term_names = envs[0].reward_term_names
+        self._dim = (self.single_observation_space.shape[0], len(self.reward_term_names or ()))
         self._a_max = envs[0]._a_max_check
         self._started = False
         self._pool = None
@@ -529,9 +543,12 @@ class CrowdVectorEnv(VectorEnv):
         return out["obs"], self._infos(out)
 
     def _infos(self, out: dict) -> dict:
-        return {"alive": self._alive.copy(), "acted": out["acted"], "copy": self.slot_copy.copy(),
-                "final_obs": out["final_obs"], "_final_obs": out["_final_obs"], "episode_return": out["episode_return"],
-                "episode_length": out["episode_length"], "episode_ended": out["episode_ended"]}
+        infos = {"alive": self._alive.copy(), "acted": out["acted"], "copy": self.slot_copy.copy(),
+                 "final_obs": out["final_obs"], "_final_obs": out["_final_obs"], "episode_return": out["episode_return"],
+                 "episode_length": out["episode_length"], "episode_ended": out["episode_ended"]}
+        if "reward_terms" in out:
+            infos["reward_terms"] = out["reward_terms"]
+        return infos
 
     def _check_actions(self, actions) -> np.ndarray:
         try:

@@ -51,10 +51,11 @@ def test_each_copy_matches_the_pettingzoo_env_on_its_seed_through_deaths_and_res
         for c, r in enumerate(refs):
             live = list(r.agents)
             acts = {a: actions[c * A + r.possible_agents.index(a)] for a in live}
-            o, rr, te, tr, _ = r.step(acts)
+            o, rr, te, tr, ri = r.step(acts)
             for a in live:
                 i = c * A + r.possible_agents.index(a)
                 assert rew[i] == rr[a] and term[i] == te[a] and trunc[i] == tr[a]
+                assert infos["reward_terms"][i].tolist() == ri[a]["reward_terms"]  # each term, to the bit
                 returns[c, r.possible_agents.index(a)] += rr[a]
                 if te[a] or tr[a]:
                     np.testing.assert_array_equal(infos["final_obs"][i], o[a])
@@ -63,7 +64,7 @@ def test_each_copy_matches_the_pettingzoo_env_on_its_seed_through_deaths_and_res
                     returns[c, r.possible_agents.index(a)] = 0.0
             slots = np.arange(c * A, (c + 1) * A)
             padding = slots[~infos["acted"][slots]]
-            assert not rew[padding].any()
+            assert not rew[padding].any() and not infos["reward_terms"][padding].any()
             if not r.agents:  # the copy reset in the same step; so does the reference
                 episodes_done[c] += 1
                 assert term[padding].all() and not infos["episode_ended"][padding].any()
@@ -73,6 +74,15 @@ def test_each_copy_matches_the_pettingzoo_env_on_its_seed_through_deaths_and_res
                 assert not (term | trunc)[padding].any()
                 ref_obs[c] = o
     assert (episodes_done >= 2).all() and saw_padding
+    assert vec.reward_term_names == refs[0].reward_term_names == ("progress", "contact_percussion", "time", "exit")
+    assert infos["reward_terms"].shape == (K * A, 4)
+
+
+def test_reward_terms_stay_out_of_the_vector_infos_when_the_copies_do_not_report_them():
+    vec = vector_env(2, **OPTIONS, reward_terms_in_infos=False)
+    _, infos = vec.reset(seed=0)
+    _, _, _, _, after = vec.step(np.zeros((vec.num_envs, 2)))
+    assert vec.reward_term_names is None and "reward_terms" not in infos and "reward_terms" not in after
 
 
 def test_vector_state_and_spaces():
