@@ -71,6 +71,7 @@ from gymnasium.vector.utils import batch_space
 from crowd_env.errors import ActionError, EnvOptionError, EnvStateError, WorkerError
 
 from ..core.checks import check_integer, check_seed
+from ..threads import limit_worker_threads
 from .config import make_config, resolve_options
 from .crowd_v0 import CrowdParallelEnv, term_rows
 
@@ -274,6 +275,7 @@ def _worker(conn, buffer, n_slots: int, dim: tuple, lo: int, hi: int) -> None:
     """Body of a worker process: receives its copies through ``conn`` (cloudpickled, as the geometry's mapping
     proxies need; slots ``lo:hi``), answers ``("ready", None)`` (or ``("error", ...)``), then steps them on
     the parent's commands."""
+    limit_worker_threads()  # the copies are spread over the processes: one BLAS thread each (crowd_env.threads)
     try:
         copies, out, results = _group(cloudpickle.loads(conn.recv_bytes()), buffer, n_slots, dim, lo, hi)
     except (EOFError, KeyboardInterrupt):  # the parent is gone

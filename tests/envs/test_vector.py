@@ -309,3 +309,19 @@ def _loads_in_the_parent_only():
     if multiprocessing.parent_process() is not None:
         raise RuntimeError("no copies here")
     return _LoadsInTheParentOnly()
+
+
+def test_vector_workers_run_numpy_s_blas_on_one_thread():
+    """crowd_env.threads: the copies stepped in a worker process see one BLAS thread (the reward pays the
+    count); group 0 steps in this process, which keeps its own."""
+    from tests.envs.user_reward_term import blas_threads_reward
+
+    vec = vector_env(2, workers=2, **OPTIONS, reward_fn=blas_threads_reward)
+    try:
+        vec.reset(seed=0)
+        _, rewards, _, _, infos = vec.step(np.zeros((vec.num_envs, 2)))
+        worker_slots = (vec.slot_copy == 1) & infos["acted"]
+        assert worker_slots.any() and set(rewards[worker_slots].tolist()) == {1.0}
+    finally:
+        vec.close()
+

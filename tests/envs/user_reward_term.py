@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from crowd_env.envs.rewards import RewardTerm
 
 
@@ -16,3 +18,12 @@ class ContactCount(RewardTerm):
 
     def value(self, env, info):
         return -info["n_contacts"]
+
+
+def blas_threads_reward(env, agent_ids, info):
+    """A reward_fn that pays each agent the number of BLAS threads of the process that steps it (for the test
+    that the vector environment's worker processes run one)."""
+    from threadpoolctl import threadpool_info
+
+    n = max(lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas")
+    return np.full(len(agent_ids), float(n))

@@ -20,6 +20,7 @@ import traceback
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from ...core.checks import check_integer
+from ...threads import limit_worker_threads
 
 __all__ = ["BACKENDS", "BackendError", "SerialBackend", "ProcessBackend", "RayBackend", "check_reachable",
            "make_backend", "execute", "run_all"]
@@ -60,7 +61,8 @@ class ProcessBackend(SerialBackend):
         self.n_workers = int(jobs or os.cpu_count() or 1)
         if self.n_workers < 1:
             raise BackendError(f"jobs must be >= 1, got {jobs!r}")
-        self._pool = ProcessPoolExecutor(max_workers=self.n_workers)
+        # one BLAS thread per worker: the pool spreads the work over the cores (crowd_env.threads)
+        self._pool = ProcessPoolExecutor(max_workers=self.n_workers, initializer=limit_worker_threads)
 
     def imap_unordered(self, fn, tasks):
         tasks = list(tasks)
@@ -86,6 +88,12 @@ class ProcessBackend(SerialBackend):
 
     def close(self) -> None:
         self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _in_one_thread(fn, task):
+    """A Ray task: ``fn(task)`` with one BLAS thread (:func:`crowd_env.threads.limit_worker_threads`)."""
+    limit_worker_threads()
+    return fn(task)
 
 
 def check_reachable(address: str, timeout_s: float = 5.0) -> None:
@@ -136,14 +144,14 @@ class RayBackend(SerialBackend):
 
     def imap_unordered(self, fn, tasks):
         ray = self._ray
-        if fn not in self._remote:
-            self._remote[fn] = ray.remote(num_cpus=1, max_retries=1)(fn)
-        remote = self._remote[fn]
+        if "task" not in self._remote:
+            self._remote["task"] = ray.remote(num_cpus=1, max_retries=1)(_in_one_thread)
+        remote = self._remote["task"]
         it = iter(list(tasks))
         pending = {}
         try:
             for task in it:
-                pending[remote.remote(task)] = task
+                pending[remote.remote(fn, task)] = task
                 if len(pending) >= 2 * self.n_workers:
                     break
             while pending:
@@ -159,7 +167,7 @@ class RayBackend(SerialBackend):
                     yield task, False, _error_text(cause if isinstance(cause, BaseException) else exc)
                 nxt = next(it, None)
                 if nxt is not None:
-                    pending[remote.remote(nxt)] = nxt
+                    pending[remote.remote(fn, nxt)] = nxt
         finally:
             for ref in pending:
                 ray.cancel(ref, force=True)

@@ -36,3 +36,19 @@ def test_run_all_refuses_one_task_object_passed_twice():
     task = {"x": 1, "sleep_s": 0.0}
     with pytest.raises(BackendError, match="distinct task objects"):
         run_all([task, task], make_backend("serial"), _slow_square)
+
+
+def _blas_threads(task: dict) -> list:
+    from threadpoolctl import threadpool_info
+
+    return [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+
+
+def test_process_workers_run_numpy_s_blas_on_one_thread():
+    """crowd_env.threads: a pool of one worker per core with every worker's BLAS on every core oversubscribes
+    them (a behaviour clone's forward pass 9 x slower); each worker gets one BLAS thread."""
+    import numpy as np  # noqa: F401 (numpy's BLAS is loaded in this process, and so in the forked workers)
+
+    with make_backend("process", jobs=2) as backend:
+        counts = run_all([{"k": 0}, {"k": 1}], backend, _blas_threads)
+    assert all(c and set(c) == {1} for c in counts), counts
