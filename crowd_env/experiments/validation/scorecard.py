@@ -245,27 +245,33 @@ def write_scorecard(out, rows: list, plan: ScorecardPlan, *, figure: bool = True
 
 
 def _figure(rows: list, path: Path) -> Path:
-    """One panel per experiment: each policy's distance with its 95 % interval (failed: marked, no bar)."""
+    """One panel per experiment, the policies on one shared row axis: each policy's distance with its 95 %
+    interval on a log scale (the distances span orders of magnitude; one inside every band, 0, and a failed
+    one are written instead of drawn)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(4.0 * len(EXPERIMENTS), 0.45 * len(rows) + 1.6))
     FigureCanvasAgg(fig)
     y = np.arange(len(rows))
-    for k, name in enumerate(EXPERIMENTS):
-        ax = fig.add_subplot(1, len(EXPERIMENTS), k + 1)
+    axes = fig.subplots(1, len(EXPERIMENTS), sharey=True, squeeze=False)[0]
+    for ax, name in zip(axes, EXPERIMENTS):
+        drawn = [r[name] for r in rows if r[name] is not None and r[name] > 0]
+        floor = min(drawn) / 3.0 if drawn else 1e-3  # where the words sit and the bars start
         for i, r in enumerate(rows):
-            if r[name] is None:
-                ax.text(0.0, i, "failed", va="center", color="C3", fontsize=8)
+            if r[name] is None or r[name] <= 0:
+                ax.text(floor, i, "failed" if r[name] is None else "0 (in every band)", va="center",
+                        color="C3" if r[name] is None else "C2", fontsize=8)
                 continue
             lo, hi = r[f"{name}_ci"]
-            err = [[r[name] - lo], [hi - r[name]]] if np.isfinite(lo) else None
-            ax.barh(i, r[name], xerr=err, color="C0" if i else "0.5", capsize=2)
-        ax.set_yticks(y)
-        ax.set_yticklabels([r["policy"] for r in rows] if k == 0 else [], fontsize=8)
-        ax.invert_yaxis()
+            err = [[r[name] - max(lo, floor)], [hi - r[name]]] if np.isfinite(lo) else None
+            ax.barh(i, r[name] - floor, left=floor, xerr=err, color="C0" if i else "0.5", capsize=2)
+        ax.set_xscale("log")
         ax.set_title(f"{name} (lower is more human)", fontsize=9)
-        ax.set_xlabel("distance (sum of squared relative misses)", fontsize=8)
+        ax.set_xlabel("distance (sum of squared relative misses, log scale)", fontsize=8)
+    axes[0].set_yticks(y)
+    axes[0].set_yticklabels([r["policy"] for r in rows], fontsize=8)
+    axes[0].set_ylim(len(rows) - 0.5, -0.5)  # the first row on top, every panel the same rows
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     return path
