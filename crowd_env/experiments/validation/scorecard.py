@@ -160,10 +160,10 @@ def score_records(label: str, records: list, plan: ScorecardPlan, *, draws: int 
     score, terms, fd_figures = _scores(records)
     d = _distances_of(score, terms)
     ci = bootstrap_intervals(records, plan.seeds, draws=draws)
-    js60 = [score.figures.get(f"specific_flow_per_m_s b{b:g} n60", float("nan")) for b in plan.widths_m]
+    js60, n_complete, n_runs = _js60_of_complete_runs(records, plan)
     row = {"policy": label, "runs": len(records), "failed_runs": d["failed_runs"],
            "stalled_runs": int(score.n_stalled),
-           "js60_per_m_s": [float(x) for x in js60],
+           "js60_per_m_s": js60, "js60_complete_runs": n_complete, "js60_runs": n_runs,
            "corridor_speeds_m_s": {k.split("rho")[1]: v for k, v in fd_figures.items() if k.startswith("fd_speed_m_s corridor")},
            "single_file_speeds_m_s": {k.split("rho")[1]: v for k, v in fd_figures.items()
                                       if k.startswith("fd_speed_m_s single_file")},
@@ -172,6 +172,20 @@ def score_records(label: str, records: list, plan: ScorecardPlan, *, draws: int 
         row[name] = d[name]
         row[f"{name}_ci"] = list(ci[name])
     return row
+
+
+def _js60_of_complete_runs(records: list, plan: ScorecardPlan) -> tuple:
+    """Per width of ``plan``: the mean J_s of the N = 60 runs that got everybody out (NaN without one), how many
+    those were and how many runs there were; a failed run gives no flow figure, and the table says over how
+    many runs a mean is."""
+    means, counts, runs = [], [], []
+    for b in plan.widths_m:
+        at_b = [r for r in records if "setup" not in r and r["n_pedestrians"] == 60 and abs(r["width_m"] - b) < 1e-9]
+        flows = [r["specific_flow_per_m_s"] for r in at_b if r.get("complete") and not r.get("stalled")]
+        means.append(float(np.mean(flows)) if flows else float("nan"))
+        counts.append(len(flows))
+        runs.append(len(at_b))
+    return means, counts, runs
 
 
 def run_scorecard(out, config: dict, policies, plan: ScorecardPlan, backend, *, draws: int = BOOTSTRAP_DRAWS,
@@ -214,11 +228,13 @@ def _cell(value, ci) -> str:
 
 def format_scorecard(rows: list, *, markdown: bool = False) -> str:
     """The scorecard as a table: per policy each experiment's distance [95 % interval] (lower is more human;
-    "failed" when runs stalled or ran out of time) and the key figures."""
+    "failed" when runs stalled or ran out of time) and the key figures (J_s of N = 60 per width over the runs
+    that got everybody out, "(k of n)" where some did not)."""
     head = ["policy", *[f"{e} distance" for e in EXPERIMENTS], "failed runs", "J_s N=60 (1/(m s))", "headway a, b"]
     lines = []
     for r in rows:
-        js = ", ".join("nan" if not np.isfinite(x) else f"{x:.2f}" for x in r["js60_per_m_s"])
+        js = ", ".join("nan" if not np.isfinite(x) else f"{x:.2f}" + (f" ({k} of {n})" if k < n else "")
+                       for x, k, n in zip(r["js60_per_m_s"], r["js60_complete_runs"], r["js60_runs"]))
         fit = (f"{r['headway_a_m']:.2f} m, {r['headway_b_s']:.2f} s" if np.isfinite(r["headway_a_m"])
                and np.isfinite(r["headway_b_s"]) else "undefined")
         lines.append([r["policy"], *[_cell(r[e], r[f"{e}_ci"]) for e in EXPERIMENTS],

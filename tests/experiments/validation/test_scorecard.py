@@ -121,3 +121,18 @@ def test_bad_policies_are_refused_by_name():
     with pytest.raises(PolicyError, match="no observation policy"):
         policy_entry("math:pi")
     assert policy_entry("calibrated") is None
+
+
+def test_the_flow_per_width_is_the_mean_of_the_runs_that_got_everybody_out():
+    """A failed run gives no flow figure: the table's J_s of N = 60 is the mean of the complete runs, and says
+    over how many (here 1 of 2 at 0.9 m, none at 1.0 m)."""
+    from crowd_env.experiments.validation.scorecard import _js60_of_complete_runs
+
+    def run(b, js, complete=True, stalled=False, n=60):
+        return {"width_m": b, "n_pedestrians": n, "specific_flow_per_m_s": js, "complete": complete, "stalled": stalled}
+
+    records = [run(0.9, 1.8), run(0.9, float("nan"), complete=False), run(0.9, 9.0, n=20),
+               run(1.0, float("nan"), stalled=True), run(1.0, 1.2, complete=False),
+               {"setup": "corridor", "speed_m_s": 1.0}]
+    means, complete, runs = _js60_of_complete_runs(records, ScorecardPlan(widths_m=(0.9, 1.0), seeds=(0, 1)))
+    assert means[0] == 1.8 and np.isnan(means[1]) and complete == [1, 0] and runs == [2, 2]
