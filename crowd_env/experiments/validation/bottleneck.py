@@ -31,7 +31,6 @@ from ..running.crowd_policy import crowd_policy
 from ..running.recording import record_run
 from ..running.runner import STALL_SPEED_M_S, STALL_WINDOW_S, run_scenario
 from ..running.store import RunStore, check_record, config_hash, normalise_record
-from ..running.warm_up import compile_in_parallel
 from crowd_env.files import write_csv_atomic
 
 __all__ = ["GEOMETRY_OPTIONS", "LANE_BIN_M", "RESULT_COLUMNS", "SetupError", "SweepError", "model_params",
@@ -183,9 +182,6 @@ def run_sweep(tasks: list, out: Path, jobs: int, desc: str = "bottleneck runs", 
 
     for t in tasks:
         store_of(t)
-    todo = [t for t in tasks if not store_of(t).done(t)]
-    if todo:  # a cold cache: the kernels compile on two cores at once (crowd_env.experiments.running.warm_up)
-        compile_in_parallel(ModelParams.from_dict(todo[0]["params"]))
     backend = SerialBackend() if jobs <= 1 else ProcessBackend(jobs)
     with backend:
         failed = execute(tasks, store_of, backend, run_one, desc=desc)
