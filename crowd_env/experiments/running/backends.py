@@ -140,13 +140,13 @@ class RayBackend(SerialBackend):
                 raise BackendError(f"cannot start or join Ray (address={address!r}): {exc}") from None
             self._started = True
         self.n_workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
-        self._remote = {}
+        self._remote = None  # the one Ray remote function, _in_one_thread, made on first use
 
     def imap_unordered(self, fn, tasks):
         ray = self._ray
-        if "task" not in self._remote:
-            self._remote["task"] = ray.remote(num_cpus=1, max_retries=1)(_in_one_thread)
-        remote = self._remote["task"]
+        if self._remote is None:
+            self._remote = ray.remote(num_cpus=1, max_retries=1)(_in_one_thread)
+        remote = self._remote
         it = iter(list(tasks))
         pending = {}
         try:

@@ -54,7 +54,8 @@ from ..output.tables import format_table
 __all__ = ["Task", "TASKS", "QUICK_TASKS", "POLICIES", "LEARNED", "BUDGETS", "QUICK_BUDGETS", "ReferencePlan",
            "make_plan", "run_reference_results", "bootstrap_interval", "summarize_cells", "format_results", "MEASURES",
            "train_one", "evaluate_one", "video_one", "video_path", "video_task", "learning_curves",
-           "plot_learning_curves", "ship_policies", "compute_seconds", "target_checks", "format_checks"]
+           "plot_learning_curves", "ship_policies", "compute_seconds", "target_checks", "format_checks",
+           "algorithm_and_reward"]
 
 POLICIES = ("baseline", "random", "zero", "ppo", "mappo", "bc", "ppo_le", "mappo_le")
 LEARNED = ("ppo", "mappo", "bc", "ppo_le", "mappo_le")
@@ -62,9 +63,16 @@ LEARNED = ("ppo", "mappo", "bc", "ppo_le", "mappo_le")
 # algorithm they run and the reward's name
 TRAINED_WITH = {"ppo_le": ("ppo", "least_effort"), "mappo_le": ("mappo", "least_effort")}
 LEARNER_OPTIONS = {"frame_skip": 10}
+
 # the least-effort policies' mean speed in the corridors: around the reward's optimum sqrt(e_s / e_w) = 1.33 m/s
 LEAST_EFFORT_SPEED_M_S = (1.1, 1.5)
 CORRIDOR_TASKS = ("corridor_bidirectional", "corridor_periodic", "counterflow_periodic")
+
+
+def algorithm_and_reward(policy: str) -> tuple:
+    """The trainer a learned policy runs and the name of the reward it is trained with (:data:`TRAINED_WITH`,
+    else its own name and ``"default"``)."""
+    return TRAINED_WITH.get(policy, (policy, "default"))
 
 
 @dataclass(frozen=True)
@@ -224,7 +232,7 @@ def train_one(job: dict) -> dict:
     cfg = task.learner_config()
     folder = job["dir"]
     seed, name, budgets = int(job["seed"]), job["algorithm"], job["budgets"]
-    algo, reward = TRAINED_WITH.get(name, (name, "default"))
+    algo, reward = algorithm_and_reward(name)
     if reward != "default":
         cfg["reward_terms"] = reward
     quiet = lambda *a, **k: None  # noqa: E731
@@ -582,7 +590,7 @@ def learning_curves(out: str, plan: ReferencePlan) -> dict:
     curves = {}
     for t in plan.tasks.values():
         for name in plan.policies:
-            algo = TRAINED_WITH.get(name, (name,))[0]
+            algo, _ = algorithm_and_reward(name)
             if algo not in ("ppo", "mappo"):
                 continue
             for s in plan.train_seeds:
