@@ -517,7 +517,7 @@ class CrowdParallelEnv(ParallelEnv):
                     raise ActionError(f"action of {a} must have shape (2,) (a velocity intent in m/s), got shape "
                                      f"{v.shape}: {actions[a]!r}")
             raise ActionError("actions could not be stacked into an (n, 2) array")  # pragma: no cover
-        if not np.abs(arr).max(initial=0.0) <= self._a_max_check:  # also false for NaN: name the culprits
+        if not actions_within(arr, self._a_max_check, _EVERY_ROW):  # also false for NaN: name the culprits
             finite = np.isfinite(arr).all(axis=1)
             if not finite.all():
                 bad = [live[i] for i in np.flatnonzero(~finite)[:10]]
@@ -791,6 +791,22 @@ def _step_arrays(active, idx_c, t_before, t_after, travel_time, percussion, cont
         truncated[a] = active[i] and at_limit
         n_done += exited[a] or truncated[a]
     return progress, perc, cont, exited, truncated, n_done
+
+
+_EVERY_ROW = np.zeros(0, np.bool_)
+
+
+@nb.njit(cache=True)
+def actions_within(actions, bound, live):
+    """Whether every |component| of the (n, 2) ``actions`` is <= ``bound`` (False for NaN) in the rows where
+    ``live`` is True (every row when ``live`` is empty): the action check of the dict and vector APIs."""
+    every = live.shape[0] == 0
+    for i in range(actions.shape[0]):
+        if every or live[i]:
+            for k in range(actions.shape[1]):
+                if not abs(actions[i, k]) <= bound:
+                    return False
+    return True
 
 
 @nb.njit(cache=True)

@@ -73,7 +73,7 @@ from crowd_env.errors import ActionError, EnvOptionError, EnvStateError, WorkerE
 from ..core.checks import check_integer, check_seed
 from ..threads import limit_worker_threads
 from .config import make_config, resolve_options
-from .crowd_v0 import CrowdParallelEnv, term_rows
+from .crowd_v0 import CrowdParallelEnv, actions_within, term_rows
 
 __all__ = ["CrowdVectorEnv", "vector_env", "gym_vector_env", "WorkerError"]
 
@@ -561,7 +561,7 @@ class CrowdVectorEnv(VectorEnv):
             raise ActionError(f"actions must have shape ({self.num_envs}, 2) (one velocity intent per slot: "
                               f"{self.n_copies} copies x {self.n_agents} agents), got {arr.shape}")
         live = self._alive
-        if np.abs(arr[live]).max(initial=0.0) <= self._a_max:  # the usual case (NaN fails it)
+        if actions_within(arr, self._a_max, live):  # the usual case (NaN fails it)
             return arr
         bad = live & ~np.isfinite(arr).all(axis=1)
         if bad.any():

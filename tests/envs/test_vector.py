@@ -325,3 +325,20 @@ def test_vector_workers_run_numpy_s_blas_on_one_thread():
     finally:
         vec.close()
 
+
+
+def test_the_compiled_action_check_agrees_with_numpy_on_bounds_nan_and_dead_slots():
+    """``actions_within`` (both APIs' fast check) against the plain numpy reading of the same rule."""
+    from crowd_env.envs.crowd_v0 import _EVERY_ROW, actions_within
+
+    rng = np.random.default_rng(3)
+    for trial in range(400):
+        n = int(rng.integers(0, 12))
+        a = rng.uniform(-3.0, 3.0, (n, 2))
+        if n and trial % 3 == 0:
+            a[rng.integers(n), rng.integers(2)] = rng.choice([np.nan, np.inf, -np.inf, 2.5, -2.5, 2.5000001])
+        live = rng.random(n) < 0.7
+        want_all = bool(np.all(np.abs(a) <= 2.5))  # NaN compares False
+        want_live = bool(np.all(np.abs(a[live]) <= 2.5))
+        assert actions_within(a, 2.5, _EVERY_ROW) is want_all
+        assert actions_within(a, 2.5, live) is want_live
