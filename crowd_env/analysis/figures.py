@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from crowd_env.errors import InputError
+from crowd_env.files import save_figure_atomic
 
 from pathlib import Path
 
@@ -24,10 +25,10 @@ def pyplot():
 
 
 def save_figure(fig, path):
-    """Lay out, write (120 dpi) and close ``fig``; returns ``path``. Every figure of the project goes
-    through here."""
+    """Lay out, write (120 dpi, atomically: :func:`crowd_env.files.save_figure_atomic`) and close ``fig``;
+    returns ``path``. The analysis layer's figures go through here."""
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure_atomic(fig, path, dpi=120)
     pyplot().close(fig)
     return path
 

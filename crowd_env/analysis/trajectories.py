@@ -24,7 +24,9 @@ build PedPy objects import it.
 from __future__ import annotations
 
 from crowd_env.errors import InputError, MissingDependencyError, MissingFileError, NotFoundError, TrajectoryFormatError
+from crowd_env.files import write_atomic
 
+import io
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -191,13 +193,12 @@ class Trajectories:
             lines.append(f"# {c}")
         lines.append(f"# framerate: {self.frame_rate_per_s!r}")
         lines.append("# " + " ".join(TXT_COLUMNS))
-        tmp = path.with_name(path.name + ".tmp")
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write("\n".join(lines) + "\n")
-            np.savetxt(fh, np.column_stack([self.id, self.frame, self.x_m, self.y_m, np.zeros(len(self)),
-                                            self.heading_rad]),
-                       fmt=("%d", "%d", "%.6f", "%.6f", "%.1f", "%.6f"))
-        tmp.replace(path)
+        text = io.StringIO()
+        text.write("\n".join(lines) + "\n")
+        np.savetxt(text, np.column_stack([self.id, self.frame, self.x_m, self.y_m, np.zeros(len(self)),
+                                          self.heading_rad]),
+                   fmt=("%d", "%d", "%.6f", "%.6f", "%.1f", "%.6f"))
+        write_atomic(path, text.getvalue())
         return path
 
     @classmethod
@@ -318,9 +319,7 @@ def write_geometry(path, geometry, metadata: dict | None = None) -> list:
         record["period_x_m"] = float(geometry.period_x_m)
     wkt_path = geometry_paths(path)[1]
     for p, text in ((path, json.dumps(record, indent=1)), (wkt_path, record["walkable_area_wkt"] + "\n")):
-        tmp = p.with_name(p.name + ".tmp")
-        tmp.write_text(text, encoding="utf-8")
-        tmp.replace(p)
+        write_atomic(p, text)
     return [path, wkt_path]
 
 

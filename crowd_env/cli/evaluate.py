@@ -36,6 +36,7 @@ import argparse
 import os
 import sys
 
+from crowd_env.files import write_atomic
 from ..experiments.output.evaluation_report import format_intervals, format_table, plot_results, write_csv
 from ..experiments.running.evaluation import (ScenarioSpec, describe_setup, episode_setup, evaluate, import_object,
                                               recorded_env_config, resolve_policy, summarize)
@@ -177,8 +178,8 @@ def main(argv=None) -> int:
     print(table)
     os.makedirs(args.out, exist_ok=True)
     write_csv(results, os.path.join(args.out, "results.csv"))
-    with open(os.path.join(args.out, "summary.txt"), "w") as fh:
-        fh.write(f"evaluation configuration: {source}\n{describe_setup(scenarios, env_options, max_time)}; "
+    write_atomic(os.path.join(args.out, "summary.txt"),
+                 f"evaluation configuration: {source}\n{describe_setup(scenarios, env_options, max_time)}; "
                  f"seeds {args.seeds}\n\n{table}\n")
     plot_results(results, os.path.join(args.out, "metrics.png"))
     print(f"\nwrote {args.out}/results.csv, summary.txt, metrics.png")

@@ -28,7 +28,6 @@ to ``OUT/candidates.jsonl`` as it is done (a point found there is not run again)
 from __future__ import annotations
 
 import argparse
-import csv
 import itertools
 import json
 import sys
@@ -227,12 +226,9 @@ def main(argv=None) -> int:
     traj_data = traj.to_pedpy()
     data = {a: fundamental_diagram_data(traj_data, pedpy_measurement_area(geometry, a), args.speed_window) for a in names}
     csv_path = args.out / "fundamental_diagram.csv"
-    with open(csv_path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(CSV_COLUMNS)
-        for a, d in data.items():
-            for row in zip(d["frame"], d["time_s"], d["density_per_m2"], d["speed_m_s"], d["specific_flow_per_m_s"]):
-                w.writerow([a, int(row[0])] + [f"{v:.6g}" for v in row[1:]])
+    write_csv_atomic(csv_path, CSV_COLUMNS, (
+        [a, int(row[0])] + [f"{v:.6g}" for v in row[1:]] for a, d in data.items()
+        for row in zip(d["frame"], d["time_s"], d["density_per_m2"], d["speed_m_s"], d["specific_flow_per_m_s"])))
     png = fundamental_diagram_figure(data, args.out / "fundamental_diagram.png", title=f"fundamental diagram (PedPy), {label}")
     for a, d in data.items():
         if d["frame"].size:

@@ -22,10 +22,10 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import shutil
 import sys
 
 from crowd_env.errors import BackendError, InputError, MissingDependencyError, RunStoreError
+from crowd_env.files import copy_atomic, write_atomic
 
 
 def _budgets(ap, texts) -> dict:
@@ -115,13 +115,12 @@ def main(argv=None) -> int:
         print(note)
     print(cost)
     plot_learning_curves(args.out, plan, results, os.path.join(args.out, "learning_curves.png"))
-    with open(os.path.join(args.out, "results.md"), "w") as fh:
-        fh.write(f"<!-- written by `crowd-reference-results {' '.join(argv if argv is not None else sys.argv[1:])}` -->\n\n")
-        fh.write(format_results(results, markdown=True) + "\n\n")
-        fh.write("Targets:\n\n" + format_checks(checks, markdown=True) + "\n\n")
-        if note and not all(c["holds"] for c in checks):
-            fh.write(note[0].upper() + note[1:] + "\n\n")
-        fh.write(cost[0].upper() + cost[1:] + ".\n")
+    text = (f"<!-- written by `crowd-reference-results {' '.join(argv if argv is not None else sys.argv[1:])}` -->\n\n"
+            + format_results(results, markdown=True) + "\n\n"
+            + "Targets:\n\n" + format_checks(checks, markdown=True) + "\n\n")
+    if note and not all(c["holds"] for c in checks):
+        text += note[0].upper() + note[1:] + "\n\n"
+    write_atomic(os.path.join(args.out, "results.md"), text + cost[0].upper() + cost[1:] + ".\n")
     if args.ship:
         for p in ship_policies(args.out, plan, args.ship):
             print(f"shipped {p}")
@@ -132,7 +131,7 @@ def main(argv=None) -> int:
             names += [os.path.join("videos", f) for f in sorted(os.listdir(os.path.join(args.out, "videos")))
                       if f.endswith(".mp4")]
         for name in names:
-            shutil.copyfile(os.path.join(args.out, name), os.path.join(args.docs, name))
+            copy_atomic(os.path.join(args.out, name), os.path.join(args.docs, name))
         print(f"copied {', '.join(names)} to {args.docs}")
     print(f"results.json, results.md and learning_curves.png in {args.out}")
     print(json.dumps({"wall_s_this_run": round(results["wall_s_this_run"], 1)}))

@@ -38,6 +38,7 @@ import argparse
 import json
 import sys
 
+from crowd_env.files import write_atomic
 from ..experiments.validation.soak import DEFAULT_AGENT_STEPS, PRESSURE_CASES, SoakError, soak
 
 
@@ -119,8 +120,7 @@ def main(argv=None) -> int:
         raise SystemExit(f"error: {exc}") from None
     print(format_summary(r))
     if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(r, fh, indent=2, default=float)
+        write_atomic(args.json, json.dumps(r, indent=2, default=float))
     return 0 if r["n_violations"] == 0 else 1
 
 

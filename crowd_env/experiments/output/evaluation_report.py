@@ -7,7 +7,7 @@ from dataclasses import asdict, fields
 
 import numpy as np
 
-from crowd_env.files import write_csv_atomic
+from crowd_env.files import save_figure_atomic, write_csv_atomic
 
 from ..running.evaluation import METRICS, EpisodeMetrics, summarize
 from . import tables
@@ -86,4 +86,4 @@ def plot_results(results, path) -> None:
     fig.axes[0].legend(fontsize=7)
     fig.suptitle("; ".join(f"S{s}: {scen}" for s, scen in enumerate(scenarios)) + "  (NaN shown as 0)", fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    save_figure_atomic(fig, path, dpi=100)

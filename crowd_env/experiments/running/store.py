@@ -30,16 +30,14 @@ from crowd_env.errors import RunStoreError
 
 import hashlib
 import json
-import os
 from pathlib import Path
 
 from ...analysis.trajectories import trajectory_frame_rate
-from crowd_env.files import write_atomic
+from crowd_env.files import append_json_line, write_atomic
 from ...core.checks import is_integer, is_number
 from ...core.params import ModelParams
 
 __all__ = ["RunStoreError", "RunStore", "canonical", "config_hash", "normalise_record", "check_record", "run_key", "task_key",
-           "write_atomic", "write_csv_atomic", "write_json_atomic", "write_npz_atomic",
            "CONFIG_NAME", "LAYOUTS"]
 
 CONFIG_NAME = "config.json"
@@ -224,7 +222,4 @@ class RunStore:
 
     def log_error(self, task: dict, message: str) -> None:
         """Append a failed run to ``OUT/errors.jsonl`` (fsync'ed); the next sweep retries it."""
-        with open(self.out / "errors.jsonl", "a") as fh:
-            fh.write(json.dumps({"key": self.key(task), "error": message}) + "\n")
-            fh.flush()
-            os.fsync(fh.fileno())
+        append_json_line(self.out / "errors.jsonl", {"key": self.key(task), "error": message})

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 from crowd_env.errors import TrainingError
 
-import csv
 import json
 import os
 import time
@@ -27,7 +26,7 @@ import numpy as np
 
 from ...envs import crowd_v0
 from ..running.evaluation import ENV_CONFIG_FILE, episode_setup, run_episode
-from crowd_env.files import write_json_atomic
+from crowd_env.files import save_figure_atomic, write_atomic, write_csv_atomic, write_json_atomic
 
 __all__ = ["DEFAULT_SCENARIO_OPTIONS", "SharedPolicy", "TrainingError", "make_vec_env", "mean_return", "read_checkpoints",
            "save_checkpoint", "check_resume", "begin_run", "evaluate_trained", "train", "write_curve", "progress_line"]
@@ -101,11 +100,7 @@ def mean_return(policy, env_config: dict, seeds) -> dict:
 
 def write_progress(out: str, rows, columns) -> None:
     """``out/progress.csv``: one row per training iteration, the fields ``columns`` (the TorchRL and RLlib runs)."""
-    with open(os.path.join(out, "progress.csv"), "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=columns)
-        w.writeheader()
-        for row in rows:
-            w.writerow(row)
+    write_csv_atomic(os.path.join(out, "progress.csv"), columns, rows)
 
 
 def read_checkpoints(out: str) -> list:
@@ -163,8 +158,7 @@ def begin_run(out: str, env_config: dict, *, resume: bool, resolve, eval_seeds, 
     when a run resumes with the same seeds). Returns ``(checkpoint entries, random policy's mean_return dict)``."""
     os.makedirs(out, exist_ok=True)
     entries = check_resume(out, env_config, resume)
-    with open(os.path.join(out, ENV_CONFIG_FILE), "w") as fh:
-        json.dump(env_config, fh, indent=2)
+    write_atomic(os.path.join(out, ENV_CONFIG_FILE), json.dumps(env_config, indent=2))
     random_path = os.path.join(out, "random_eval.json")
     before = None
     if entries and os.path.exists(random_path):
@@ -329,10 +323,8 @@ def progress_line(done: int, total: int, start: int, elapsed_s: float, recent_re
 
 def write_curve(curve, out: str, random_return: float, trained_return: float) -> None:
     """learning_curve.csv (timestep, episode_return, episode_length) and learning_curve.png."""
-    with open(os.path.join(out, "learning_curve.csv"), "w") as fh:
-        fh.write("timestep,episode_return,episode_length\n")
-        for t, r, n in curve:
-            fh.write(f"{t},{r:.6g},{n}\n")
+    write_atomic(os.path.join(out, "learning_curve.csv"), "timestep,episode_return,episode_length\n"
+                 + "".join(f"{t},{r:.6g},{n}\n" for t, r, n in curve))
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -353,4 +345,4 @@ def write_curve(curve, out: str, random_return: float, trained_return: float) ->
     ax.set_ylabel("per-agent episode return")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(os.path.join(out, "learning_curve.png"), dpi=100)
+    save_figure_atomic(fig, os.path.join(out, "learning_curve.png"), dpi=100)

@@ -48,7 +48,7 @@ from ...core.params import ModelParams
 from ...core.checks import check_integer
 from ...envs.crowd_v0 import decisions_for_time
 from ..running.evaluation import DEFAULT_POLICY_RESOLVER, ScenarioSpec, evaluate, import_object
-from crowd_env.files import write_json_atomic
+from crowd_env.files import copy_atomic, save_figure_atomic, write_json_atomic
 from ..output.tables import format_table
 
 __all__ = ["Task", "TASKS", "QUICK_TASKS", "POLICIES", "LEARNED", "BUDGETS", "QUICK_BUDGETS", "ReferencePlan",
@@ -654,15 +654,12 @@ def plot_learning_curves(out: str, plan: ReferencePlan, results: dict, path: str
             ax.set_ylabel("per-agent episode return" + (" (least effort)" if row else ""))
             ax.legend(fontsize=6)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    return path
+    return save_figure_atomic(fig, path, dpi=100)
 
 
 def ship_policies(out: str, plan: ReferencePlan, dest: str, *, seed: int | None = None) -> list:
     """Copy the learned policies trained with ``seed`` (default: the plan's first training seed) into ``dest``
     as ``<task>_<algorithm>.npz`` (the shipped reference policies); returns the paths."""
-    import shutil
-
     seed = plan.train_seeds[0] if seed is None else int(seed)
     os.makedirs(dest, exist_ok=True)
     paths = []
@@ -673,5 +670,5 @@ def ship_policies(out: str, plan: ReferencePlan, dest: str, *, seed: int | None 
             src = os.path.join(train_dir(out, t.name, algo, seed), "policy.npz")
             if not os.path.exists(src):
                 raise RunStoreError(f"no trained {algo} policy for task {t.name} with seed {seed} in {out}")
-            paths.append(shutil.copyfile(src, os.path.join(dest, f"{t.name}_{algo}.npz")))
+            paths.append(copy_atomic(src, os.path.join(dest, f"{t.name}_{algo}.npz")))
     return paths

@@ -12,8 +12,8 @@ exactly the output folder of ``crowd-bottleneck --preset P --corridor-width W --
 from __future__ import annotations
 
 from crowd_env.errors import GeneralisationError
+from crowd_env.files import write_csv_atomic
 
-import csv
 from pathlib import Path
 
 import numpy as np
@@ -102,12 +102,9 @@ def run_counts(records: list) -> dict:
 
 def write_csv(records: list, path: Path) -> None:
     """One row per run (:data:`CSV_COLUMNS`)."""
-    with open(path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
-        w.writeheader()
-        for r in sorted(records, key=lambda r: (r["corridor_width_m"], r["channel_length_m"], r["n_pedestrians"],
-                                                r["width_m"], r["seed"])):
-            w.writerow(r)
+    write_csv_atomic(path, CSV_COLUMNS, sorted(records, key=lambda r: (
+        r["corridor_width_m"], r["channel_length_m"], r["n_pedestrians"], r["width_m"], r["seed"])),
+        extrasaction="ignore")
 
 
 def figure(records: list, geometries: list, path: Path, preset: str) -> Path:

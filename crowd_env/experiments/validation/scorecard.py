@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from crowd_env.errors import InputError
-from crowd_env.files import write_csv_atomic, write_json_atomic
+from crowd_env.files import save_figure_atomic, write_atomic, write_csv_atomic, write_json_atomic
 
 from ..output.tables import format_table
 from ..running.backends import execute
@@ -254,7 +254,7 @@ def write_scorecard(out, rows: list, plan: ScorecardPlan, *, figure: bool = True
                                           **{c: v for e in EXPERIMENTS for c, v in
                                              ((e, r[e]), (f"{e}_ci_low", r[f"{e}_ci"][0]),
                                               (f"{e}_ci_high", r[f"{e}_ci"][1]))}} for r in rows])
-    (out / "scorecard.md").write_text(format_scorecard(rows, markdown=True) + "\n")
+    write_atomic(out / "scorecard.md", format_scorecard(rows, markdown=True) + "\n")
     if figure:
         paths.append(_figure(rows, out / "scorecard.png"))
     return paths
@@ -289,5 +289,4 @@ def _figure(rows: list, path: Path) -> Path:
     axes[0].set_yticklabels([r["policy"] for r in rows], fontsize=8)
     axes[0].set_ylim(len(rows) - 0.5, -0.5)  # the first row on top, every panel the same rows
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    return path
+    return save_figure_atomic(fig, path, dpi=110)

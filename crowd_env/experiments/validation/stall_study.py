@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from crowd_env.files import save_figure_atomic
 from ...core.presets import get_preset
 from ...scenarios import make_scenario
 from ...walking.agent import SocialForceAgent
@@ -119,6 +120,6 @@ def figure(stalled: dict, reference: dict, path: Path, title: str | None = None)
     fig.suptitle(title or f"b = {stalled['width_m']:g} m, N = {stalled['n']}: the point field aims everyone beside the "
                  f"opening at its corners (left); the configuration-space field aims past them (right)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=130)
+    save_figure_atomic(fig, path, dpi=130)
     plt.close(fig)
     return path

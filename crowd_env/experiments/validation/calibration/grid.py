@@ -18,13 +18,13 @@ stall, and the figure marks them.
 """
 from __future__ import annotations
 
-import csv
 import json
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from crowd_env.files import write_atomic, write_csv_atomic
 from .errors import (PAPER_VALLEY_FIT, CalibrationError, ExponentialFit, PointScore, Valley,
                                     best_grid_point, censored_specific_flow, check_grid_values, fit_exponential_valley, point_error,
                                     valley_of_minima)
@@ -192,29 +192,27 @@ def write_grid_outputs(result: GridResult, out, analysis: dict, meta: dict | Non
                                                        "n_stalled"]
               + js_cols)
     path = out / "surface.csv"
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(header)
-        for i, a in enumerate(result.social_strength_n):
-            for j, b in enumerate(result.social_range_m):
-                e = result.errors.get((i, j))
-                if e is None:
-                    w.writerow([a, b] + [""] * (len(header) - 2))
-                    continue
-                js = {(float(bb), int(nn)): v for bb, nn, v in zip(e.width_m, e.n_pedestrians, e.mean_specific_flow_per_m_s)}
-                w.writerow([a, b, e.epsilon_total, e.objective] + [e.epsilon_by_group.get(g, "") for g in groups]
-                           + [e.range_penalty, e.range_all_inside, e.n_runs,
-                              int(result.n_clogged[i, j]) if result.n_clogged is not None else "",
-                              int(result.n_stalled[i, j]) if result.n_stalled is not None else ""]
-                           + [js.get(k, "") for k in keys])
+    rows = []
+    for i, a in enumerate(result.social_strength_n):
+        for j, b in enumerate(result.social_range_m):
+            e = result.errors.get((i, j))
+            if e is None:
+                rows.append([a, b] + [""] * (len(header) - 2))
+                continue
+            js = {(float(bb), int(nn)): v for bb, nn, v in zip(e.width_m, e.n_pedestrians, e.mean_specific_flow_per_m_s)}
+            rows.append([a, b, e.epsilon_total, e.objective] + [e.epsilon_by_group.get(g, "") for g in groups]
+                        + [e.range_penalty, e.range_all_inside, e.n_runs,
+                           int(result.n_clogged[i, j]) if result.n_clogged is not None else "",
+                           int(result.n_stalled[i, j]) if result.n_stalled is not None else ""]
+                        + [js.get(k, "") for k in keys])
+    write_csv_atomic(path, header, rows)
     paths.append(path)
     valley: Valley = analysis["valley"]
     path = out / "valley.csv"
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["social_range_m", "social_strength_n_at_min", "epsilon_min", "at_grid_edge", "used_in_fit"])
-        for row in zip(valley.social_range_m, valley.social_strength_n, valley.epsilon, valley.at_edge, analysis["fit_mask"]):
-            w.writerow([float(row[0]), float(row[1]), float(row[2]), bool(row[3]), bool(row[4])])
+    write_csv_atomic(path, ["social_range_m", "social_strength_n_at_min", "epsilon_min", "at_grid_edge", "used_in_fit"],
+                     ([float(row[0]), float(row[1]), float(row[2]), bool(row[3]), bool(row[4])] for row in
+                      zip(valley.social_range_m, valley.social_strength_n, valley.epsilon, valley.at_edge,
+                          analysis["fit_mask"])))
     paths.append(path)
     fit = analysis["fit"]
     summary = {
@@ -226,7 +224,7 @@ def write_grid_outputs(result: GridResult, out, analysis: dict, meta: dict | Non
         **(meta or {}),
     }
     path = out / "calibration.json"
-    path.write_text(json.dumps(summary, indent=2, default=float))
+    write_atomic(path, json.dumps(summary, indent=2, default=float))
     paths.append(path)
     if figure:
         paths.append(surface_figure(result, analysis, out / "fig10_epsilon_surface.png"))

@@ -8,13 +8,13 @@ the capacity ratio (stationary rate of N = 120 over N = 60) per width.
 """
 from __future__ import annotations
 
-import csv
 import math
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from crowd_env.files import write_csv_atomic
 from .errors import CalibrationError
 from .optimize import FREE_PARAMETERS, PointEvaluator
 
@@ -65,10 +65,7 @@ def write_landscape(name: str, entries: list, out, figure: bool = True) -> list:
     rows = [_row(name, e) for e in entries]
     fields = list(dict.fromkeys(k for r in rows for k in r))
     path = out / f"landscape_{name}.csv"
-    with open(path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=fields)
-        w.writeheader()
-        w.writerows(rows)
+    write_csv_atomic(path, fields, rows)
     paths = [path]
     if figure:
         paths.append(landscape_figure(name, rows, out / f"landscape_{name}.png"))

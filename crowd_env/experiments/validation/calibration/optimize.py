@@ -19,11 +19,9 @@ its weights, and with the fundamental diagram its :class:`~crowd_env.experiments
 """
 from __future__ import annotations
 
-import csv
 import hashlib
 import json
 import math
-import os
 import sys
 from dataclasses import dataclass
 from functools import partial
@@ -31,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from crowd_env.files import append_json_line, write_atomic, write_csv_atomic
 from .errors import CalibrationError
 from ....analysis.experiment import ExperimentTable, seyfried_2009
 from .objective import TargetWeights, required_cases, target_error
@@ -163,11 +162,7 @@ class EvaluationCache:
 
     def add(self, entry: dict) -> None:
         entry = {"setup": self.setup, **entry}
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        with open(self.path, "a") as fh:
-            fh.write(json.dumps(entry) + "\n")
-            fh.flush()
-            os.fsync(fh.fileno())
+        append_json_line(self.path, entry)
         self.entries[self.key(entry["values"])] = entry
 
 
@@ -324,15 +319,12 @@ def write_optimum(result: OptimResult, folder: Path, names: list, method: str) -
     fields = {n: FREE_PARAMETERS[n].field for n in names}
     best = min(result.history, key=lambda h: h["objective"])
     term_names = list(best.get("terms") or {})
-    (folder / "optimum.json").write_text(json.dumps({
+    write_atomic(folder / "optimum.json", json.dumps({
         "best": {fields[n]: v for n, v in result.best.items()}, "objective": result.objective,
         "epsilon_total": result.epsilon_total, "terms": best.get("terms"), "n_evaluations": result.n_evaluations,
         "n_computed": result.n_computed, "method": method, "message": result.message}, indent=2))
-    with open(folder / "history.csv", "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["evaluation"] + [fields[n] for n in names] + ["objective", "epsilon_total"] + term_names)
-        for i, h in enumerate(result.history, 1):
-            terms = h.get("terms") or {}
-            w.writerow([i] + [h["values"][n] for n in names] + [h["objective"], h["epsilon_total"]]
-                       + [terms.get(t, "") for t in term_names])
+    write_csv_atomic(folder / "history.csv",
+                     ["evaluation"] + [fields[n] for n in names] + ["objective", "epsilon_total"] + term_names,
+                     ([i] + [h["values"][n] for n in names] + [h["objective"], h["epsilon_total"]]
+                      + [(h.get("terms") or {}).get(t, "") for t in term_names] for i, h in enumerate(result.history, 1)))
     return [folder / "optimum.json", folder / "history.csv"]

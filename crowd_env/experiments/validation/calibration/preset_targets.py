@@ -18,6 +18,7 @@ import json
 from functools import partial
 from pathlib import Path
 
+from crowd_env.files import write_atomic
 from .errors import CalibrationError
 from .objective import fd_table, target_error, target_table
 from ...running.backends import execute
@@ -65,5 +66,5 @@ def write_targets(path, seeds, widths_m, tables: dict, scores: dict, fd_plan: FD
                "terms": {n: {k: v for k, v in e.terms.items() if k not in e.unscored} for n, e in scores.items()}}
     if fd_plan is not None:
         content["fd"] = fd_plan.as_dict()
-    path.write_text(json.dumps(content, indent=2))
+    write_atomic(path, json.dumps(content, indent=2))
     return path

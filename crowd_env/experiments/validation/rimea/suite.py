@@ -21,7 +21,7 @@ from crowd_env.errors import InputError, MissingDependencyError
 from ....analysis.trajectories import Trajectories
 from ...output import tables
 from ...running.runner import RunCheckpoint
-from crowd_env.files import write_json_atomic, write_npz_atomic
+from crowd_env.files import save_figure_atomic, write_atomic, write_json_atomic, write_npz_atomic
 from .base import OVERLAP_LIMIT_M, BackendRun, Verdict, run_crowd_env, select_tests
 
 __all__ = ["TestResult", "run_suite", "load_test_result", "test_result_path", "run_path", "save_run", "load_run",
@@ -267,15 +267,13 @@ def _figure(test, runs_by_backend, path) -> str:
     test.plot(ax, runs_by_backend)
     ax.set_title(f"RiMEA test {test.number}: {test.title}", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    return path
+    return save_figure_atomic(fig, path, dpi=110)
 
 
 def write_results(results, path, *, seed: int) -> str:
     """``results.json``: every test's figures per backend (machine-readable)."""
-    with open(path, "w") as fh:
-        json.dump({"suite": "RiMEA 4.1.1, Annex 1 (flat tests)", "seed": seed,
-                   "overlap_limit_m": OVERLAP_LIMIT_M, "tests": [r.to_dict() for r in results]}, fh, indent=1)
+    write_atomic(path, json.dumps({"suite": "RiMEA 4.1.1, Annex 1 (flat tests)", "seed": seed,
+                                   "overlap_limit_m": OVERLAP_LIMIT_M, "tests": [r.to_dict() for r in results]}, indent=1))
     return path
 
 
@@ -330,6 +328,5 @@ def write_markdown(results, path, *, command: str, figure_prefix: str = "") -> s
         if r.figure:
             lines += [f"### Test {r.number}: {r.title}", "", f"Source: {r.source}.", "",
                       f"![RiMEA test {r.number}]({figure_prefix}{os.path.basename(r.figure)})", ""]
-    with open(path, "w") as fh:
-        fh.write("\n".join(lines))
+    write_atomic(path, "\n".join(lines))
     return path
