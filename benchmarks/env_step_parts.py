@@ -1,0 +1,119 @@
+#!/usr/bin/env python
+"""Where an environment step's time goes, per part, in thread CPU time: a deterministic A/B measure.
+
+One PettingZoo environment (Seyfried bottleneck, b = 1 m, every pedestrian controlled, ``frame_skip=1``, the
+calibrated agent's intents as actions) is stepped 30 times, then copied 40 times; each copy runs 100 steps
+and the parts are timed with ``time.thread_time`` (the simulator step, the observation pass, the reward, the
+action check, and the whole ``env.step``). Each figure is the minimum over the 40 copies of the mean per
+step, so another load on the machine changes it little (the copies replay the same 100 steps).
+
+``--against PATH`` runs the same measure on another checkout of crowd_env (``PYTHONPATH=PATH``, e.g. a
+``git worktree`` of an older commit) alternately with this one, ``--rounds`` times, and prints both and their
+ratio: how issue 38's "no slower than before" was measured.
+
+    python benchmarks/env_step_parts.py --n 10 100
+    git worktree add /tmp/old 587852c && python benchmarks/env_step_parts.py --against /tmp/old --rounds 2
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+PARTS = ("step", "sim", "obs", "reward", "actions")
+
+
+def measure(n: int, copies: int = 40, steps: int = 100) -> dict:
+    """Per-step thread time (µs) of each of :data:`PARTS` for N = ``n``: the minimum over ``copies``."""
+    import copy
+    import time
+
+    from crowd_env.envs import crowd_v0
+    from crowd_env.walking.agent import SocialForceAgent
+
+    env = crowd_v0.parallel_env(scenario="seyfried_bottleneck", scenario_options={"n_pedestrians": n, "width_m": 1.0},
+                                controlled="all", frame_skip=1, max_steps=10**9, action_max_m_s=50.0)
+    env.reset(seed=0)
+
+    def act(e, agent):
+        intents, _ = agent(e.sim)
+        return {a: intents[j] for a, j in zip(e.agents, e._agent_index)}
+
+    agent = SocialForceAgent(env.navigation)
+    for _ in range(30):
+        env.step(act(env, agent))
+
+    def timed(obj, name, acc):
+        f = getattr(obj, name)
+
+        def g(*a, **k):
+            t = time.thread_time()
+            r = f(*a, **k)
+            acc[0] += time.thread_time() - t
+            return r
+        setattr(obj, name, g)
+
+    best = {}
+    for _ in range(copies):
+        e = copy.deepcopy(env)
+        a = SocialForceAgent(e.navigation)
+        acc = {p: [0.0] for p in PARTS}
+        timed(e.sim, "step", acc["sim"])
+        timed(e._observer, "observe", acc["obs"])
+        timed(e, "_rewards", acc["reward"])
+        timed(e, "_actions_array", acc["actions"])
+        for _ in range(steps):
+            actions = act(e, a)
+            t = time.thread_time()
+            e.step(actions)
+            acc["step"][0] += time.thread_time() - t
+        for p in PARTS:
+            best[p] = min(best.get(p, float("inf")), acc[p][0] / steps * 1e6)
+    return best
+
+
+def _run(path: str | None, n: int) -> dict:
+    env = dict(os.environ)
+    if path:
+        env["PYTHONPATH"] = path
+    out = subprocess.run([sys.executable, __file__, "--json", "--n", str(n)], env=env, cwd=path or os.getcwd(),
+                         capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, nargs="+", default=[10, 100], help="crowd sizes (default 10 100)")
+    ap.add_argument("--against", default=None, metavar="PATH", help="another checkout to compare with, alternately")
+    ap.add_argument("--rounds", type=int, default=2, help="alternations with --against (default 2)")
+    ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)  # one measure, as JSON (the child)
+    args = ap.parse_args(argv)
+    if args.json:
+        print(json.dumps(measure(args.n[0])))
+        return 0
+    head = " ".join(f"{p:>8}" for p in PARTS)
+    for n in args.n:
+        if not args.against:
+            m = _run(None, n)
+            print(f"N = {n:4d}  µs/step: {head}\n{'':13}{' '.join(f'{m[p]:8.1f}' for p in PARTS)}")
+            continue
+        runs = {"this": [], "other": []}
+        for _ in range(args.rounds):
+            runs["other"].append(_run(os.path.abspath(args.against), n))
+            runs["this"].append(_run(None, n))
+        this = {p: min(r[p] for r in runs["this"]) for p in PARTS}
+        other = {p: min(r[p] for r in runs["other"]) for p in PARTS}
+        print(f"N = {n:4d}  µs/step       {head}")
+        print(f"{'':8}{args.against:>12.12} {' '.join(f'{other[p]:8.1f}' for p in PARTS)}")
+        print(f"{'':8}{'this':>12} {' '.join(f'{this[p]:8.1f}' for p in PARTS)}")
+        print(f"{'':8}{'this/other':>12} {' '.join(f'{this[p] / other[p]:8.2f}' for p in PARTS)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
