@@ -3,7 +3,7 @@ fsync'ed and renamed, so a killed process never leaves a half-written file under
 during a run are appended a whole line at a time (``tests/test_files.py`` scans the package for writes that
 bypass this module).
 
-A leaf module (numpy and the standard library only) that every layer may use.
+A leaf module (numpy, the standard library and crowd_env.errors only) that every layer may use.
 """
 from __future__ import annotations
 
@@ -14,6 +14,8 @@ import os
 from pathlib import Path
 
 import numpy as np
+
+from crowd_env.errors import InputError
 
 __all__ = ["write_atomic", "write_json_atomic", "write_csv_atomic", "write_npz_atomic", "save_figure_atomic",
            "copy_atomic", "append_json_line"]
@@ -42,7 +44,8 @@ def write_json_atomic(path, value) -> None:
 def write_csv_atomic(path, fieldnames: list, rows, **options) -> None:
     """``rows`` as CSV at ``path`` under ``fieldnames`` (``options`` go to :class:`csv.DictWriter`), written
     atomically (:func:`write_atomic`): a killed run never leaves half a table. A row is a dict, or a sequence of
-    one value per field in their order (another length raises ValueError naming the row)."""
+    one value per field in their order (another length raises :class:`~crowd_env.errors.InputError` naming the
+    row, before anything is written)."""
     buffer = io.StringIO(newline="")
     w = csv.DictWriter(buffer, fieldnames=fieldnames, **options)
     w.writeheader()
@@ -50,7 +53,7 @@ def write_csv_atomic(path, fieldnames: list, rows, **options) -> None:
         if not isinstance(row, dict):
             row = list(row)
             if len(row) != len(fieldnames):
-                raise ValueError(f"row {k} of {path} has {len(row)} values for {len(fieldnames)} columns")
+                raise InputError(f"row {k} of {path} has {len(row)} values for {len(fieldnames)} columns")
             row = dict(zip(fieldnames, row))
         w.writerow(row)
     write_atomic(path, buffer.getvalue())

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from crowd_env import files
+from crowd_env.errors import InputError
 
 PACKAGE = Path(__file__).resolve().parents[1] / "crowd_env"
 
@@ -81,7 +82,7 @@ def test_csv_rows_as_dicts_or_sequences_and_a_short_row_named(tmp_path):
     path = tmp_path / "t.csv"
     files.write_csv_atomic(path, ["a", "b"], [{"a": 1, "b": 2.5}, [3, "x"], (np.float64(0.1), True)])
     assert list(csv.reader(io.StringIO(path.read_text()))) == [["a", "b"], ["1", "2.5"], ["3", "x"], ["0.1", "True"]]
-    with pytest.raises(ValueError, match=r"row 1 of .*t2.csv has 1 values for 2 columns"):
+    with pytest.raises(InputError, match=r"row 1 of .*t2.csv has 1 values for 2 columns"):
         files.write_csv_atomic(tmp_path / "t2.csv", ["a", "b"], [[1, 2], [3]])
     assert not (tmp_path / "t2.csv").exists()  # nothing under the final name
     assert not list(tmp_path.glob(".*tmp"))
