@@ -22,6 +22,8 @@ import os
 import subprocess
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
@@ -35,6 +37,7 @@ def measure(n: int, copies: int = 40, steps: int = 100) -> dict:
 
     from crowd_env.envs import crowd_v0
     from crowd_env.walking.agent import SocialForceAgent
+    from timing import time_calls
 
     env = crowd_v0.parallel_env(scenario="seyfried_bottleneck", scenario_options={"n_pedestrians": n, "width_m": 1.0},
                                 controlled="all", frame_skip=1, max_steps=10**9, action_max_m_s=50.0)
@@ -48,25 +51,15 @@ def measure(n: int, copies: int = 40, steps: int = 100) -> dict:
     for _ in range(30):
         env.step(act(env, agent))
 
-    def timed(obj, name, acc):
-        f = getattr(obj, name)
-
-        def g(*a, **k):
-            t = time.thread_time()
-            r = f(*a, **k)
-            acc[0] += time.thread_time() - t
-            return r
-        setattr(obj, name, g)
-
     best = {}
     for _ in range(copies):
         e = copy.deepcopy(env)
         a = SocialForceAgent(e.navigation)
         acc = {p: [0.0] for p in PARTS}
-        timed(e.sim, "step", acc["sim"])
-        timed(e._observer, "observe", acc["obs"])
-        timed(e, "_rewards", acc["reward"])
-        timed(e, "_actions_array", acc["actions"])
+        time_calls(e.sim, "step", acc["sim"], time.thread_time)
+        time_calls(e._observer, "observe", acc["obs"], time.thread_time)
+        time_calls(e, "_rewards", acc["reward"], time.thread_time)
+        time_calls(e, "_actions_array", acc["actions"], time.thread_time)
         for _ in range(steps):
             actions = act(e, a)
             t = time.thread_time()
