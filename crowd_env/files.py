@@ -33,12 +33,12 @@ def write_atomic(path: Path, text: str | bytes) -> None:
     tmp.replace(path)
 
 
-def write_json_atomic(path, value) -> None:
-    """``value`` as JSON (indented) at ``path``, its folder made if needed, written atomically
-    (:func:`write_atomic`)."""
+def write_json_atomic(path, value, **dumps_options) -> None:
+    """``value`` as JSON at ``path``, its folder made if needed, written atomically (:func:`write_atomic`);
+    ``dumps_options`` go to :func:`json.dumps` (default ``indent=1``; ``indent=None``: one line)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, json.dumps(value, indent=1))
+    write_atomic(path, json.dumps(value, **{"indent": 1, **dumps_options}))
 
 
 def write_csv_atomic(path, fieldnames: list, rows, **options) -> None:

@@ -7,6 +7,9 @@ import ast
 import csv
 import io
 import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +26,7 @@ STREAMED = {
     ("experiments/output/video.py", "get_writer"): "the same, for the ffmpeg writer",
 }
 _WRITE_METHODS = {"write_text", "write_bytes", "savefig", "to_csv", "imwrite"}
+_IN_MEMORY = ("buffer", "text")  # the names the package gives its io.BytesIO / io.StringIO buffers
 _WRITE_FUNCTIONS = {("json", "dump"), ("np", "save"), ("np", "savez"), ("np", "savez_compressed"), ("np", "savetxt"),
                     ("pickle", "dump"), ("shutil", "copyfile"), ("shutil", "copy"), ("shutil", "copy2"),
                     ("shutil", "copytree"), ("shutil", "move")}
@@ -33,24 +37,19 @@ def _writes(tree: ast.AST):
     methods and functions above (a write into an in-memory buffer is a call on ``io`` objects, which the helpers
     of crowd_env.files then write)."""
     for node in sorted((n for n in ast.walk(tree) if isinstance(n, ast.Call)), key=lambda n: (n.lineno, n.col_offset)):
-        if not isinstance(node, ast.Call):
-            continue
         f = node.func
+        target = node.args[0] if node.args else None
         if isinstance(f, ast.Name) and f.id == "open" or isinstance(f, ast.Attribute) and f.attr == "open":
             mode = node.args[1] if len(node.args) > 1 else next((k.value for k in node.keywords if k.arg == "mode"), None)
             if isinstance(mode, ast.Constant) and isinstance(mode.value, str) and set(mode.value) & set("wax+"):
                 yield node.lineno, f"open(..., {mode.value!r})"
+        elif isinstance(target, ast.Name) and target.id in _IN_MEMORY:
+            continue  # into an in-memory buffer
         elif isinstance(f, ast.Attribute):
             owner = f.value.id if isinstance(f.value, ast.Name) else None
             if (owner, f.attr) in _WRITE_FUNCTIONS:
-                target = node.args[0] if node.args else None
-                if isinstance(target, ast.Name) and target.id in ("buffer", "text", "fh_memory"):
-                    continue  # into an in-memory buffer
                 yield node.lineno, f"{owner}.{f.attr}"
-            elif f.attr in _WRITE_METHODS and owner not in ("io",):
-                target = node.args[0] if node.args else None
-                if f.attr == "savefig" and isinstance(target, ast.Name) and target.id == "buffer":
-                    continue
+            elif f.attr in _WRITE_METHODS:
                 yield node.lineno, f".{f.attr}(...)"
             elif f.attr in ("imopen", "get_writer"):
                 yield node.lineno, f.attr
@@ -104,9 +103,17 @@ def test_a_figure_and_a_copy_are_written_whole(tmp_path):
     assert not list(tmp_path.rglob(".*tmp"))
 
 
-def test_text_is_utf8_whatever_the_locale(tmp_path, monkeypatch):
-    monkeypatch.setenv("PYTHONIOENCODING", "ascii")
-    files.write_atomic(tmp_path / "u.md", "ρ = 2 /m², Φ")
+def test_text_is_utf8_whatever_the_locale(tmp_path):
+    """In a process whose locale encoding is ASCII (the C locale, without UTF-8 mode or locale coercion), where a
+    plain open(..., "w") cannot write "ρ", the writers still write UTF-8."""
+    code = ("import locale, sys; from crowd_env import files; "
+            "assert locale.getpreferredencoding(False).lower() in ('ascii', 'ansi_x3.4-1968'), "
+            "locale.getpreferredencoding(False); "
+            "files.write_atomic(sys.argv[1], '\\u03c1 = 2 /m\\u00b2, \\u03a6'); "
+            "files.write_json_atomic(sys.argv[2], {'\\u03c1': [1, 2]}, ensure_ascii=False)")  # an ASCII command line
+    env = {**os.environ, "LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}
+    out = subprocess.run([sys.executable, "-c", code, str(tmp_path / "u.md"), str(tmp_path / "j.json")], env=env,
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
     assert (tmp_path / "u.md").read_bytes().decode("utf-8") == "ρ = 2 /m², Φ"
-    files.write_json_atomic(tmp_path / "j.json", {"a": [1, 2]})
-    assert json.loads((tmp_path / "j.json").read_text()) == {"a": [1, 2]}
+    assert json.loads((tmp_path / "j.json").read_bytes().decode("utf-8")) == {"ρ": [1, 2]}

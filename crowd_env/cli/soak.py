@@ -38,7 +38,7 @@ import argparse
 import json
 import sys
 
-from crowd_env.files import write_atomic
+from crowd_env.files import write_json_atomic
 from ..experiments.validation.soak import DEFAULT_AGENT_STEPS, PRESSURE_CASES, SoakError, soak
 
 
@@ -120,7 +120,7 @@ def main(argv=None) -> int:
         raise SystemExit(f"error: {exc}") from None
     print(format_summary(r))
     if args.json:
-        write_atomic(args.json, json.dumps(r, indent=2, default=float))
+        write_json_atomic(args.json, r, indent=2, default=float)
     return 0 if r["n_violations"] == 0 else 1
 
 

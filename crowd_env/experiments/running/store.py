@@ -33,7 +33,7 @@ import json
 from pathlib import Path
 
 from ...analysis.trajectories import trajectory_frame_rate
-from crowd_env.files import append_json_line, write_atomic
+from crowd_env.files import append_json_line, write_json_atomic
 from ...core.checks import is_integer, is_number
 from ...core.params import ModelParams
 
@@ -145,7 +145,7 @@ def check_config(out, config: dict) -> None:
         kind = config.get("kind", "bottleneck")
         raise RunStoreError(f"{out}/runs holds runs but no {CONFIG_NAME}: not a {kind} folder; choose another --out")
     out.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, json.dumps(config, indent=2, sort_keys=True))
+    write_json_atomic(path, config, indent=2, sort_keys=True)
 
 
 class RunStore:
@@ -199,7 +199,7 @@ class RunStore:
         """Store ``record`` (:func:`check_record` first: nothing is written for an incomplete record)."""
         check_record(record, f"{self.path(task)} (not written)")
         payload = record if self.keyed_by == "run" else {"task": task, "record": record}
-        write_atomic(self.path(task), json.dumps(payload))
+        write_json_atomic(self.path(task), payload, indent=None)
 
     def load(self, task: dict) -> dict | None:
         """The stored record of ``task`` (normalised) or None; an unreadable file, or one holding another

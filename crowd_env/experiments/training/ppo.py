@@ -158,7 +158,7 @@ def begin_run(out: str, env_config: dict, *, resume: bool, resolve, eval_seeds, 
     when a run resumes with the same seeds). Returns ``(checkpoint entries, random policy's mean_return dict)``."""
     os.makedirs(out, exist_ok=True)
     entries = check_resume(out, env_config, resume)
-    write_atomic(os.path.join(out, ENV_CONFIG_FILE), json.dumps(env_config, indent=2))
+    write_json_atomic(os.path.join(out, ENV_CONFIG_FILE), env_config, indent=2)
     random_path = os.path.join(out, "random_eval.json")
     before = None
     if entries and os.path.exists(random_path):

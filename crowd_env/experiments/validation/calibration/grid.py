@@ -18,13 +18,12 @@ stall, and the figure marks them.
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from crowd_env.files import write_atomic, write_csv_atomic
+from crowd_env.files import write_csv_atomic, write_json_atomic
 from .errors import (PAPER_VALLEY_FIT, CalibrationError, ExponentialFit, PointScore, Valley,
                                     best_grid_point, censored_specific_flow, check_grid_values, fit_exponential_valley, point_error,
                                     valley_of_minima)
@@ -224,7 +223,7 @@ def write_grid_outputs(result: GridResult, out, analysis: dict, meta: dict | Non
         **(meta or {}),
     }
     path = out / "calibration.json"
-    write_atomic(path, json.dumps(summary, indent=2, default=float))
+    write_json_atomic(path, summary, indent=2, default=float)
     paths.append(path)
     if figure:
         paths.append(surface_figure(result, analysis, out / "fig10_epsilon_surface.png"))

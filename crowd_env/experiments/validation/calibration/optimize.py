@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from crowd_env.files import append_json_line, write_atomic, write_csv_atomic
+from crowd_env.files import append_json_line, write_csv_atomic, write_json_atomic
 from .errors import CalibrationError
 from ....analysis.experiment import ExperimentTable, seyfried_2009
 from .objective import TargetWeights, required_cases, target_error
@@ -319,10 +319,10 @@ def write_optimum(result: OptimResult, folder: Path, names: list, method: str) -
     fields = {n: FREE_PARAMETERS[n].field for n in names}
     best = min(result.history, key=lambda h: h["objective"])
     term_names = list(best.get("terms") or {})
-    write_atomic(folder / "optimum.json", json.dumps({
+    write_json_atomic(folder / "optimum.json", {
         "best": {fields[n]: v for n, v in result.best.items()}, "objective": result.objective,
         "epsilon_total": result.epsilon_total, "terms": best.get("terms"), "n_evaluations": result.n_evaluations,
-        "n_computed": result.n_computed, "method": method, "message": result.message}, indent=2))
+        "n_computed": result.n_computed, "method": method, "message": result.message}, indent=2)
     write_csv_atomic(folder / "history.csv",
                      ["evaluation"] + [fields[n] for n in names] + ["objective", "epsilon_total"] + term_names,
                      ([i] + [h["values"][n] for n in names] + [h["objective"], h["epsilon_total"]]

@@ -14,11 +14,10 @@ calibration's ``--objective targets+fd`` scores a point.
 """
 from __future__ import annotations
 
-import json
 from functools import partial
 from pathlib import Path
 
-from crowd_env.files import write_atomic
+from crowd_env.files import write_json_atomic
 from .errors import CalibrationError
 from .objective import fd_table, target_error, target_table
 from ...running.backends import execute
@@ -66,5 +65,5 @@ def write_targets(path, seeds, widths_m, tables: dict, scores: dict, fd_plan: FD
                "terms": {n: {k: v for k, v in e.terms.items() if k not in e.unscored} for n, e in scores.items()}}
     if fd_plan is not None:
         content["fd"] = fd_plan.as_dict()
-    write_atomic(path, json.dumps(content, indent=2))
+    write_json_atomic(path, content, indent=2)
     return path

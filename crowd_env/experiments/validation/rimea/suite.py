@@ -272,8 +272,8 @@ def _figure(test, runs_by_backend, path) -> str:
 
 def write_results(results, path, *, seed: int) -> str:
     """``results.json``: every test's figures per backend (machine-readable)."""
-    write_atomic(path, json.dumps({"suite": "RiMEA 4.1.1, Annex 1 (flat tests)", "seed": seed,
-                                   "overlap_limit_m": OVERLAP_LIMIT_M, "tests": [r.to_dict() for r in results]}, indent=1))
+    write_json_atomic(path, {"suite": "RiMEA 4.1.1, Annex 1 (flat tests)", "seed": seed,
+                             "overlap_limit_m": OVERLAP_LIMIT_M, "tests": [r.to_dict() for r in results]})
     return path
 
 
