@@ -1,13 +1,16 @@
-"""Say so when numba compiles crowd_env's kernels: the first run on a machine spends about a minute compiling.
+"""Say so when numba compiles crowd_env's kernels: the first run on a machine spends up to a minute compiling.
 
 The kernels are compiled on first use and cached (``cache=True``) in the ``__pycache__`` folders beside the
 modules, so only the first run on a machine (or after a kernel changed) pays for it: measured on this project's
-2-core machine, a first N = 20 bottleneck run takes about 73 s of one core (process CPU time), nearly all of
-it compiling the compiled rollout (``experiments.running.rollout.rollout_steps``, which holds the core's step
-``core.step.advance`` with the fused step and the impact solvers), and 1 s once cached. Without a word that looks like a hang, so :func:`announce_compilation` prints one line to
-standard error at the first compilation of a crowd_env kernel in a process, and nothing when every kernel comes
-from the cache. ``CROWD_ENV_QUIET=1`` silences it. Workers on other machines (a Ray cluster) compile their own
-copies unless the package's folders are shared; point ``NUMBA_CACHE_DIR`` at a shared folder to share them.
+2-core machine, a first bottleneck run compiles for about 60 s of one core (process CPU time,
+``benchmarks/compile_profile.py``), nearly all of it the compiled rollout
+(``experiments.running.rollout.rollout_steps``, with the core's step, the fused step and the impact solvers),
+and takes 1 s once cached; the README's main job, whose two worker processes share the compilation
+(:mod:`crowd_env.experiments.running.warmup`), about 52 s cold (``benchmarks/cold_start.py``). Without a word that
+looks like a hang, so :func:`announce_compilation` prints one line to standard error at the first compilation of a
+crowd_env kernel in a process, and nothing when every kernel comes from the cache. ``CROWD_ENV_QUIET=1`` silences
+it. Workers on other machines (a Ray cluster) compile their own copies unless the package's folders are shared;
+point ``NUMBA_CACHE_DIR`` at a shared folder to share them.
 """
 from __future__ import annotations
 
@@ -18,7 +21,7 @@ from numba.core import event
 
 __all__ = ["MESSAGE", "announce_compilation"]
 
-MESSAGE = ("crowd_env: compiling its numerical kernels (the first run on this machine only: about a minute; "
+MESSAGE = ("crowd_env: compiling its numerical kernels (the first run on this machine only: up to a minute; "
            "cached afterwards in crowd_env's __pycache__ folders)")
 
 
@@ -35,6 +38,12 @@ class _FirstCompilation(event.Listener):
         dispatcher = ev.data.get("dispatcher") if isinstance(ev.data, dict) else None
         module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
         if module.split(".")[0] == "crowd_env":
+            self.say()
+
+    def say(self) -> None:
+        """Print :data:`MESSAGE` unless it was printed already (a process pool says it before its workers
+        compile: :func:`crowd_env.experiments.running.warmup.warm_up`)."""
+        if not self.said:
             self.said = True
             print(MESSAGE, file=self.stream or sys.stderr, flush=True)
 

@@ -488,23 +488,25 @@ def advance(bodies, world, params, inputs, index, cached_pairs, cached_radius_m,
     ``bodies``, ``world``, ``params``, ``inputs``: the bundles :class:`~crowd_env.core.bundles.Bodies`,
     :class:`~crowd_env.core.bundles.World`, :class:`~crowd_env.core.bundles.StepParams`,
     :class:`~crowd_env.core.bundles.StepInputs` as plain tuples of their fields (``tuple(bundle)``, e.g.
-    :meth:`CrowdState.array_fields <crowd_env.core.state.CrowdState.array_fields>`), named here. A plain tuple
-    is typed by numba's dispatcher in C (a named one in Python, several µs per call), and one compiled entry
-    serves the callers in Python and in compiled code: each compiled function that calls another generates the
-    machine code of its callees again, so one entry instead of two keeps the first run's compilation short.
+    :meth:`CrowdState.array_fields <crowd_env.core.state.CrowdState.array_fields>`), named here (a plain tuple
+    is typed by numba's dispatcher in C, a named one in Python, several µs per call). The compiled rollouts
+    inline its body, :func:`advance_named`, rather than call it: a compiled function that calls another
+    generates its callees' machine code again, and without this level the rollout's first compilation is
+    about 10 s shorter (``docs/performance.md``).
 
     Returns ``(status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetections, exited,
     previous, time_s)``: :func:`fused_step`'s figures, the pedestrians who left, the positions ``previous``
     (n, 2) before the move and the new clock. With ``status != FUSED_OK`` (``FUSED_INPUT``: an input out of
     bounds) nothing was written and the clock is ``time_s``.
     """
-    return _advance(Bodies(*bodies), World(*world), StepParams(*params), StepInputs(*inputs), index, cached_pairs,
-                    cached_radius_m, time_s)
+    return advance_named(Bodies(*bodies), World(*world), StepParams(*params), StepInputs(*inputs), index,
+                         cached_pairs, cached_radius_m, time_s)
 
 
 @nb.njit(cache=True, inline="always")
-def _advance(bodies, world, params, inputs, index, cached_pairs, cached_radius_m, time_s):
-    """:func:`advance` on the named bundles (inlined into it)."""
+def advance_named(bodies, world, params, inputs, index, cached_pairs, cached_radius_m, time_s):
+    """:func:`advance` on the named bundles: inlined into :func:`advance` and into the compiled rollouts
+    (:func:`crowd_env.experiments.running.rollout.rollout_steps`), so both run the same operations."""
     n = index.shape[0]
     previous = np.empty((n, 2))
     for k in range(n):

@@ -21,6 +21,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from ...core.checks import check_integer
 from ...threads import limit_worker_threads
+from .warmup import warm_up
 
 __all__ = ["BACKENDS", "BackendError", "SerialBackend", "ProcessBackend", "RayBackend", "check_reachable",
            "make_backend", "execute", "run_all"]
@@ -55,7 +56,9 @@ class SerialBackend:
 
 
 class ProcessBackend(SerialBackend):
-    """A local process pool of ``jobs`` workers."""
+    """A local process pool of ``jobs`` workers. On a cold numba cache the workers first compile the compiled
+    rollout's kernels between them, one part each (:func:`~crowd_env.experiments.running.warmup.warm_up`),
+    instead of each compiling all of them at its first run."""
 
     def __init__(self, jobs: int | None = None):
         self.n_workers = int(jobs or os.cpu_count() or 1)
@@ -63,9 +66,13 @@ class ProcessBackend(SerialBackend):
             raise BackendError(f"jobs must be >= 1, got {jobs!r}")
         # one BLAS thread per worker: the pool spreads the work over the cores (crowd_env.threads)
         self._pool = ProcessPoolExecutor(max_workers=self.n_workers, initializer=limit_worker_threads)
+        self._warmed = False
 
     def imap_unordered(self, fn, tasks):
         tasks = list(tasks)
+        if tasks and not self._warmed:
+            self._warmed = True
+            warm_up(self._map, self.n_workers)
         pending = {}
         it = iter(tasks)
         try:
@@ -85,6 +92,10 @@ class ProcessBackend(SerialBackend):
         finally:
             for fut in pending:
                 fut.cancel()
+
+    def _map(self, fn, items) -> list:
+        """``fn(item)`` for every item on the workers at once; the results once all are done."""
+        return [fut.result() for fut in [self._pool.submit(fn, item) for item in items]]
 
     def close(self) -> None:
         self._pool.shutdown(wait=True, cancel_futures=True)
@@ -116,7 +127,9 @@ class RayBackend(SerialBackend):
     """Ray tasks, one per run (``num_cpus=1`` each), at most ``2 × cluster CPUs`` in flight.
 
     ``address=None``: local instance (``ray.init(num_cpus=num_cpus)``); otherwise joins that cluster.
-    Shuts Ray down on close only if it started it.
+    Shuts Ray down on close only if it started it. A local instance on a cold numba cache first compiles the
+    compiled rollout's kernels in its workers, one part each, as :class:`ProcessBackend` does (a cluster's nodes
+    have caches of their own: ``docs/validation/calibration.md``).
     """
 
     def __init__(self, address: str | None = None, num_cpus: int | None = None, connect_timeout_s: float = 5.0):
@@ -141,13 +154,23 @@ class RayBackend(SerialBackend):
             self._started = True
         self.n_workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
         self._remote = None  # the one Ray remote function, _in_one_thread, made on first use
+        # a local instance shares this machine's numba cache: its workers share a cold start's compilation
+        self._warmed = address is not None
+
+    def _map(self, fn, items) -> list:
+        """``fn(item)`` for every item as Ray tasks at once; the results once all are done."""
+        return self._ray.get([self._remote.remote(fn, item) for item in items])
 
     def imap_unordered(self, fn, tasks):
         ray = self._ray
         if self._remote is None:
             self._remote = ray.remote(num_cpus=1, max_retries=1)(_in_one_thread)
         remote = self._remote
-        it = iter(list(tasks))
+        tasks = list(tasks)
+        if tasks and not self._warmed:
+            self._warmed = True
+            warm_up(self._map, self.n_workers)
+        it = iter(tasks)
         pending = {}
         try:
             for task in it:

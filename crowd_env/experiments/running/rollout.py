@@ -6,9 +6,9 @@ in compiled code, over
 
 1. the agent's decision (:func:`~crowd_env.walking.agent.decide`: e_d from the eikonal field,
    Eq. 11-13, and the social forces, Eq. 16);
-2. the model's step, :func:`~crowd_env.core.step.advance` (the inputs' bounds, the hand links, the fused
-   step of Eq. 1-10, 14-15, 17-21, the exit test and the clock): the very kernel
-   :meth:`~crowd_env.core.Simulator.step` runs;
+2. the model's step, :func:`~crowd_env.core.step.advance_named` (the inputs' bounds, the hand links, the fused
+   step of Eq. 1-10, 14-15, 17-21, the exit test and the clock): the body of the very kernel
+   :meth:`~crowd_env.core.Simulator.step` runs (:func:`~crowd_env.core.step.advance`), inlined;
 3. the runner's measurement of the step (:func:`measure_step`: first passages of the measurement line
    with interpolated times, densities and mean speeds in the measurement areas, lateral positions in
    the channel, the smallest gap, trajectory frames at the requested rate, and the stall rule of
@@ -34,7 +34,7 @@ from ...analysis.flow import crossing_alpha
 from ...core.periodic import minimum_image_dx
 from ...core.polygons import point_in_interior
 from ...core.bundles import Bodies, StepInputs, StepParams, World
-from ...core.step import FUSED_OK, active_rows, advance
+from ...core.step import FUSED_OK, active_rows, advance_named
 from ...walking.agent import AGENT_OK, decide
 
 # Steps per compiled call at most (the runner calls ``progress`` between calls).
@@ -216,7 +216,7 @@ def measure_step(bodies, index, previous, n_exited, t_prev_s, time_s, step_count
 def rollout_steps(max_steps, time_s, step_count, bodies, world, params, agent, measures, stall):
     """Up to ``max_steps`` steps of the calibrated crowd from ``time_s`` (step ``step_count``), each the agent's
     decision (:func:`~crowd_env.walking.agent.decide` of the :class:`~crowd_env.walking.agent.CompiledAgent`
-    ``agent``), the core's step (:func:`~crowd_env.core.step.advance` on the bundles ``bodies``, ``world``,
+    ``agent``), the core's step (:func:`~crowd_env.core.step.advance_named` on the bundles ``bodies``, ``world``,
     ``params`` of :mod:`crowd_env.core.bundles`) and :func:`measure_step` (module docstring). Returns
     ``(status, steps done, clock, re-detection rounds)``; the state arrays in ``bodies`` and the measurements
     are updated in place. ``bodies``, ``world``, ``params`` come as :func:`~crowd_env.core.step.advance` takes them,
@@ -233,8 +233,8 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, params, agent, m
         if decided != AGENT_OK:
             return ROLLOUT_PYTHON_STEP, done, time_s, n_redetect
         inputs = StepInputs(intents, theta_d, True, no_force, False)
-        status, _, _, _, _, _, _, min_gap, rounds, exited, previous, t_next = advance(
-            bodies, world, params, inputs[:], index, pairs, pair_radius, time_s)
+        status, _, _, _, _, _, _, min_gap, rounds, exited, previous, t_next = advance_named(
+            named_bodies, named_world, named_params, inputs, index, pairs, pair_radius, time_s)
         if status != FUSED_OK:
             return ROLLOUT_PYTHON_STEP, done, time_s, n_redetect
         n_redetect += rounds
