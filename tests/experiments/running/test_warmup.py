@@ -6,10 +6,10 @@ import os
 import subprocess
 import sys
 
-import numba
 import pytest
 from numba.core import types
 
+from crowd_env.compilation import MESSAGE
 from crowd_env.errors import InputError
 from crowd_env.experiments.running import compile_plan, warmup
 from crowd_env.experiments.running.compile_plan import PARTS
@@ -100,11 +100,30 @@ def test_type_source_writes_every_planned_type_back_exactly():
         warmup.type_source(types.unicode_type)
 
 
+_TINY_KERNELS = ("import numba\n\n@numba.njit(cache=True)\ndef one(x):\n    return x + 1.0\n\n"
+                 "@numba.njit(cache=True)\ndef two(x):\n    return x * 2\n")
+
+_POOL_WARM_UP = r"""
+import json, multiprocessing, sys
+multiprocessing.set_start_method("fork")  # the workers inherit the plan set below, whatever this Python's default
+sys.path.insert(0, sys.argv[1])
+import tiny_kernels
+from numba.core import types
+from crowd_env.experiments.running import compile_plan, warmup
+from crowd_env.experiments.running.backends import ProcessBackend
+
+compile_plan.PARTS = (((tiny_kernels.one, ((types.float64,),)),), ((tiny_kernels.two, ((types.int64,),)),))
+warmup.rollout_is_cached = lambda: False
+backend = ProcessBackend(2)
+with backend:
+    runs = list(backend.imap_unordered(abs, [-1]))
+print(json.dumps({"runs": runs, "warmed": backend._warmed}))
+"""
+
+
 def _tiny_kernels_plan(tmp_path):
     """A plan of two small kernels of a module written under ``tmp_path`` (compiled in seconds)."""
-    (tmp_path / "tiny_kernels.py").write_text(
-        "import numba\n\n@numba.njit(cache=True)\ndef one(x):\n    return x + 1.0\n\n"
-        "@numba.njit(cache=True)\ndef two(x):\n    return x * 2\n", encoding="utf-8")
+    (tmp_path / "tiny_kernels.py").write_text(_TINY_KERNELS, encoding="utf-8")
     import importlib
 
     sys.modules.pop("tiny_kernels", None)
@@ -116,26 +135,26 @@ def _tiny_kernels_plan(tmp_path):
     return ((tiny_kernels.one, ((types.float64,),)), (tiny_kernels.two, ((types.int64,),)))
 
 
-def test_a_pool_on_a_cold_cache_compiles_the_parts_in_its_workers(tmp_path, monkeypatch):
-    """A process pool's first runs on a cold cache: the parts compiled in its workers first (numba's cache then
-    holds both kernels), one line said; on one worker, or with the rollout cached, nothing."""
-    from crowd_env.experiments.running.backends import ProcessBackend
-
+def test_a_pool_on_a_cold_cache_compiles_the_parts_in_its_workers(tmp_path):
+    """A process pool's first runs on an empty numba cache (a fresh process, a plan of two tiny kernels): the
+    parts compiled in its workers before the run (the cache then holds both kernels), the notice said once."""
+    (tmp_path / "tiny_kernels.py").write_text(_TINY_KERNELS, encoding="utf-8")
     cache = tmp_path / "cache"
-    monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))
-    monkeypatch.setattr(numba.config, "CACHE_DIR", str(cache))
-    plan = _tiny_kernels_plan(tmp_path)
-    monkeypatch.setattr(compile_plan, "PARTS", (plan[:1], plan[1:]))
-    said = []
-    monkeypatch.setattr(warmup, "announce_compilation", lambda: type("L", (), {"say": lambda self: said.append(1)})())
-    monkeypatch.setattr(warmup, "rollout_is_cached", lambda: False)
-    backend = ProcessBackend(2)
-    with backend:
-        assert list(backend.imap_unordered(abs, [-1])) == [(-1, True, 1)] and backend._warmed  # warmed first
-    assert said == [1]
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache)}
+    env.pop("CROWD_ENV_QUIET", None)
+    done = subprocess.run([sys.executable, "-c", _POOL_WARM_UP, str(tmp_path)], capture_output=True, text=True,
+                          env=env)
+    assert done.returncode == 0, done.stderr[-3000:]
+    seen = json.loads(done.stdout.strip().splitlines()[-1])
+    assert seen == {"runs": [[-1, True, 1]], "warmed": True}
     index = sorted(p.name.split(".")[1].split("-")[0] for p in cache.rglob("*.nbi"))
     assert index == ["one", "two"], index
+    assert done.stderr.count(MESSAGE) == 1
+
+
+def test_nothing_to_warm_on_one_worker_or_with_the_rollout_cached(monkeypatch):
     calls = []
+    monkeypatch.setattr(warmup, "rollout_is_cached", lambda: False)
     assert not warmup.warm_up(lambda fn, items: calls.append(1), 1)  # one worker: nothing to share
     monkeypatch.setattr(warmup, "rollout_is_cached", lambda: True)
     assert not warmup.warm_up(lambda fn, items: calls.append(1), 2)  # cached: nothing to compile
