@@ -37,6 +37,14 @@ class SerialBackend:
     """Runs in this process, one after another (tests, debugging)."""
 
     n_workers = 1
+    _warmed = True  # a pool sets it False: its workers share a cold start before their first runs
+
+    def _warm_up_once(self, tasks: list) -> None:
+        """Before the first runs of a pool (``_warmed`` False): :func:`~.warmup.warm_up` on its workers
+        (``self._map``)."""
+        if tasks and not self._warmed:
+            self._warmed = True
+            warm_up(self._map, self.n_workers)
 
     def imap_unordered(self, fn, tasks):
         for task in tasks:
@@ -70,9 +78,7 @@ class ProcessBackend(SerialBackend):
 
     def imap_unordered(self, fn, tasks):
         tasks = list(tasks)
-        if tasks and not self._warmed:
-            self._warmed = True
-            warm_up(self._map, self.n_workers)
+        self._warm_up_once(tasks)
         pending = {}
         it = iter(tasks)
         try:
@@ -167,9 +173,7 @@ class RayBackend(SerialBackend):
             self._remote = ray.remote(num_cpus=1, max_retries=1)(_in_one_thread)
         remote = self._remote
         tasks = list(tasks)
-        if tasks and not self._warmed:
-            self._warmed = True
-            warm_up(self._map, self.n_workers)
+        self._warm_up_once(tasks)
         it = iter(tasks)
         pending = {}
         try:

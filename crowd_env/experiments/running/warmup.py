@@ -17,8 +17,10 @@ Figures: ``docs/performance.md`` (cold start).
 from __future__ import annotations
 
 import warnings
+
 from numba.core import types
 
+from crowd_env.errors import InputError
 from ...compilation import announce_compilation
 
 __all__ = ["rollout_is_cached", "compile_part", "warm_up", "type_source", "tuple_source"]
@@ -59,10 +61,10 @@ def warm_up(map_parts, n_workers: int) -> bool:
     one line and compile the plan's parts in the workers at once. ``map_parts(fn, items)`` runs ``fn(item)`` for
     every item on the pool's workers in parallel and returns when all are done (the process pool's futures, Ray's
     tasks). Returns whether it warmed."""
-    from .compile_plan import PARTS
-
     if n_workers < 2 or rollout_is_cached():
         return False
+    from .compile_plan import PARTS
+
     listener = announce_compilation()
     if listener is not None:
         listener.say()  # here, before the workers fork: they inherit that it was said
@@ -74,8 +76,6 @@ def type_source(t) -> str:
     """A numba type as the Python expression the plan module writes (in the names of :mod:`numba.core.types`
     and the bundles' classes): ``Array(float64, 2, 'C')``, ``UniTuple(float64, 4)``, ``Bodies`` named tuples...
     Raises :class:`~crowd_env.errors.InputError` for a type it cannot write."""
-    from crowd_env.errors import InputError
-
     if isinstance(t, types.Array):
         extra = (", readonly=True" if not t.mutable else "") + ("" if t.aligned else ", aligned=False")
         return f"Array({type_source(t.dtype)}, {t.ndim}, {t.layout!r}{extra})"

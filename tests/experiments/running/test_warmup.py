@@ -73,8 +73,8 @@ def test_the_plan_is_what_the_rollout_compiles():
     assert not again, f"compiled again by the rollout (the plan is stale: regenerate it, see compile_plan): {again}"
     missed = sorted({n for n in seen["compiled"][1:] if n.startswith("crowd_env.")})
     assert not missed, f"kernels of crowd_env the rollout compiled that the plan misses (regenerate it): {missed}"
-    unused = [f"{k.py_func.__module__}.{k.__name__}{tuple(s)}" for k, s in _planned()
-              if f"{k.py_func.__module__}.{k.__name__}{tuple(s)}" not in seen["requested"]]
+    planned = [f"{k.py_func.__module__}.{k.__name__}{tuple(s)}" for k, s in _planned()]
+    unused = [key for key in planned if key not in seen["requested"]]
     assert not unused, f"planned but not asked for by the rollout (a stale plan): {unused}"
 
 
