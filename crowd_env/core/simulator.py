@@ -306,6 +306,9 @@ class Simulator:
         and what was given unless it is an array of numbers of that shape, finite, with every row's norm
         times ``scale[row]`` (empty: 1) at most ``bound`` (:data:`~crowd_env.core.step.MAX_INPUT_SPEED_M_S`);
         ``bounds`` False: the shape and type only (the caller's compiled step checks the rest)."""
+        if not bounds and type(value) is np.ndarray and value.dtype is _F64 and value.shape == shape \
+                and value.flags.c_contiguous:
+            return value  # what the step's callers pass: nothing to check or convert here
         arr = value if isinstance(value, np.ndarray) else None
         if arr is None:
             try:
@@ -521,13 +524,9 @@ class Simulator:
         self.step_count += 1
 
     def _result(self, contacts, ke0, ke1, ke2, n_clusters, max_cluster, exited, timings, min_gap) -> StepResult:
-        contact_i, contact_j, contact_wall, p_normal, p_tangent = contacts
-        return StepResult(time_s=self.time_s, contact_i=contact_i, contact_j=contact_j, contact_wall=contact_wall,
-                          percussion_normal=p_normal, percussion_tangent=p_tangent,
-                          n_impact_clusters=int(n_clusters), max_cluster_size=int(max_cluster),
-                          kinetic_energy_before_impact_j=float(ke0), kinetic_energy_after_impact_j=float(ke1),
-                          kinetic_energy_after_projection_j=float(ke2), exited=exited, timings_s=timings,
-                          min_gap_m=float(min_gap))
+        # positional, in the order of the fields (keywords cost 0.4 µs more per step)
+        return StepResult(self.time_s, *contacts, int(n_clusters), int(max_cluster), float(ke0), float(ke1),
+                          float(ke2), exited, timings, float(min_gap))
 
     def _candidate_keys(self, idx, con):
         """:func:`~crowd_env.core.solvers.graph.contact_keys` of the candidates ``con`` (rows into ``idx``):
@@ -581,6 +580,7 @@ def _describe(value) -> str:
     return f"{type(value).__name__} {text if len(text) <= 60 else text[:57] + '...'}"
 
 
+_F64 = np.dtype(np.float64)
 _EMPTY_1D = np.zeros(0)
 _NO_INDEX = np.zeros(0, np.int64)
 _NO_LINKS = (_NO_INDEX, _NO_INDEX, np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 2)))

@@ -628,7 +628,7 @@ class CrowdParallelEnv(ParallelEnv):
                 update(sim)
             if self._has_background and (self._background_mask & st.active).any():
                 intents, heading = self._background(sim)
-            elif not st.active.any():
+            elif not sim.active_index.shape[0]:  # flatnonzero(state.active), kept for the step
                 break
             else:
                 intents = np.zeros((n, 2))
