@@ -254,6 +254,7 @@ class CrowdParallelEnv(ParallelEnv):
         self.reward_fn = config.make_reward_fn()
         # the names of the reward's terms, in the order of each agent's info["reward_terms"] (None: no terms)
         self._terms_in_infos = bool(config.reward_terms_in_infos)
+        self._terms_dtype = None  # the dtype of info["reward_terms"] last checked (_check_terms)
         self.reward_term_names = getattr(self.reward_fn, "names", None) if self._terms_in_infos else None
         background_policy = config.background_policy
         if isinstance(background_policy, (str, os.PathLike)):
@@ -678,8 +679,9 @@ class CrowdParallelEnv(ParallelEnv):
         out = self.reward_fn(self, agents, info)
         n = len(agents)
         terms = info.get("reward_terms")
-        if terms is not None and len(terms) != n:
-            raise PolicyError(f"reward_fn put {len(terms)} rows in info['reward_terms'], expected one per agent ({n})")
+        if terms is not None and (type(terms) is not np.ndarray or terms.dtype is not self._terms_dtype
+                                  or terms.shape != (n,)):
+            self._terms_dtype = _check_terms(terms, n)
         if type(out) is np.ndarray and out.shape == (n,) and out.dtype == np.float64 and _all_finite(out):
             return out  # DefaultReward's: nothing to convert
         if isinstance(out, dict):
@@ -830,6 +832,21 @@ def env(**options):
     parallel environment raises on invalid actions itself.
     """
     return parallel_to_aec(parallel_env(**options))
+
+
+def _check_terms(terms, n: int) -> np.dtype:
+    """The dtype of a reward function's ``info["reward_terms"]``; raises :class:`~crowd_env.errors.PolicyError`
+    naming what was given unless it is an (n,) structured array with one numeric field per term."""
+    expected = (f"info['reward_terms'] must be an ({n},) structured array, one row per agent and one numeric field "
+                "per term (as TermReward writes it)")
+    if not isinstance(terms, np.ndarray) or terms.dtype.names is None:
+        raise PolicyError(f"reward_fn put a {type(terms).__name__} in info['reward_terms']; {expected}")
+    if terms.shape != (n,):
+        raise PolicyError(f"reward_fn put an array of shape {terms.shape} in info['reward_terms']; {expected}")
+    odd = [name for name in terms.dtype.names if terms.dtype.fields[name][0].kind not in "biuf"]
+    if odd:
+        raise PolicyError(f"info['reward_terms'] field(s) {odd} are not numbers; {expected}")
+    return terms.dtype
 
 
 def term_rows(terms) -> np.ndarray:

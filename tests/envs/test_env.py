@@ -14,6 +14,7 @@ import crowd_env  # noqa: F401  (registers the gymnasium ids)
 from crowd_env.core import Simulator
 from crowd_env.envs import OBSERVATION_FIELDS, crowd_v0
 from crowd_env.envs.crowd_v0 import EnvOptionError
+from crowd_env.errors import PolicyError
 from crowd_env.envs.gym_single import CrowdSingleAgentEnv
 from crowd_env.envs.observations import observation_layout, observation_size
 from crowd_env.scenarios import Scenario, make_scenario
@@ -400,6 +401,38 @@ def test_bad_reward_fn_output_raises():
     env.reset(seed=0)
     with pytest.raises(ValueError, match="one per agent"):
         env.step({a: np.zeros(2) for a in env.agents})
+
+
+def _terms_writer(make):
+    """A reward_fn that returns zeros and puts ``make(n)`` in info["reward_terms"]."""
+    def reward_fn(env, ids, info):
+        info["reward_terms"] = make(len(ids))
+        return np.zeros(len(ids))
+    return reward_fn
+
+
+@pytest.mark.parametrize("make, match", [
+    (lambda n: {"progress": np.zeros(n)}, r"put a dict in info\['reward_terms'\]; info\['reward_terms'\] must be an"),
+    (lambda n: np.zeros((n, 2)), r"put a ndarray in info\['reward_terms'\]"),
+    (lambda n: np.zeros(n + 1, [("progress", float)]), r"shape \(\d+,\) in info\['reward_terms'\].*one row per agent"),
+    (lambda n: np.zeros(n, [("progress", float), ("why", "U4")]), r"field\(s\) \['why'\] are not numbers"),
+])
+def test_a_reward_fns_bad_terms_raise_naming_them(make, match):
+    env = small_env(reward_fn=_terms_writer(make))
+    env.reset(seed=0)
+    with pytest.raises(PolicyError, match=match):
+        env.step({a: np.zeros(2) for a in env.agents})
+
+
+def test_a_reward_fns_own_terms_reach_each_agents_info():
+    """Integer fields are numbers too: each agent gets its row as floats, under the reward's field names."""
+    terms_of = lambda n: np.array([(i, 0.5 * i) for i in range(n)], [("count", np.int64), ("half", np.float64)])
+    env = small_env(reward_fn=_terms_writer(terms_of))
+    env.reset(seed=0)
+    *_, infos = env.step({a: np.zeros(2) for a in env.agents})
+    for i, a in enumerate(infos):
+        assert infos[a]["reward_terms"] == [float(i), 0.5 * i]
+        assert env.reward_terms(infos[a]) == {"count": float(i), "half": 0.5 * i}
 
 
 # ---------------------------------------------------------------- inspection, pickling
