@@ -9,7 +9,8 @@ step, so another load on the machine changes it little (the copies replay the sa
 
 ``--against PATH`` runs the same measure on another checkout of crowd_env (``PYTHONPATH=PATH``, e.g. a
 ``git worktree`` of an older commit) alternately with this one, ``--rounds`` times, and prints both and their
-ratio: how issue 38's "no slower than before" was measured.
+ratio: how issue 38's "no slower than before" was measured. ``--no-terms`` runs this checkout with
+``reward_terms_in_infos=False``: the same outputs as a commit before the reward terms.
 
     python benchmarks/env_step_parts.py --n 10 100
     git worktree add /tmp/old 587852c && python benchmarks/env_step_parts.py --against /tmp/old --rounds 2
@@ -30,8 +31,9 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMB
 PARTS = ("step", "sim", "obs", "reward", "actions")
 
 
-def measure(n: int, copies: int = 40, steps: int = 100) -> dict:
-    """Per-step thread time (µs) of each of :data:`PARTS` for N = ``n``: the minimum over ``copies``."""
+def measure(n: int, copies: int = 40, steps: int = 100, terms_in_infos: bool = True) -> dict:
+    """Per-step thread time (µs) of each of :data:`PARTS` for N = ``n``: the minimum over ``copies``;
+    ``terms_in_infos`` False: the environment option ``reward_terms_in_infos=False``."""
     import copy
     import time
 
@@ -40,7 +42,8 @@ def measure(n: int, copies: int = 40, steps: int = 100) -> dict:
     from timing import time_calls
 
     env = crowd_v0.parallel_env(scenario="seyfried_bottleneck", scenario_options={"n_pedestrians": n, "width_m": 1.0},
-                                controlled="all", frame_skip=1, max_steps=10**9, action_max_m_s=50.0)
+                                controlled="all", frame_skip=1, max_steps=10**9, action_max_m_s=50.0,
+                                **({} if terms_in_infos else {"reward_terms_in_infos": False}))
     env.reset(seed=0)
 
     def act(e, agent):
@@ -70,11 +73,12 @@ def measure(n: int, copies: int = 40, steps: int = 100) -> dict:
     return best
 
 
-def _run(path: str | None, n: int) -> dict:
+def _run(path: str | None, n: int, no_terms: bool = False) -> dict:
     env = dict(os.environ)
     if path:
         env["PYTHONPATH"] = path
-    out = subprocess.run([sys.executable, __file__, "--json", "--n", str(n)], env=env, cwd=path or os.getcwd(),
+    cmd = [sys.executable, __file__, "--json", "--n", str(n)] + (["--no-terms"] if no_terms else [])
+    out = subprocess.run(cmd, env=env, cwd=path or os.getcwd(),
                          capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
@@ -84,26 +88,28 @@ def main(argv=None) -> int:
     ap.add_argument("--n", type=int, nargs="+", default=[10, 100], help="crowd sizes (default 10 100)")
     ap.add_argument("--against", default=None, metavar="PATH", help="another checkout to compare with, alternately")
     ap.add_argument("--rounds", type=int, default=2, help="alternations with --against (default 2)")
+    ap.add_argument("--no-terms", action="store_true", help="this checkout with reward_terms_in_infos=False (the "
+                    "infos of a commit before the reward terms: like for like with --against such a commit)")
     ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)  # one measure, as JSON (the child)
     args = ap.parse_args(argv)
     if args.json:
-        print(json.dumps(measure(args.n[0])))
+        print(json.dumps(measure(args.n[0], terms_in_infos=not args.no_terms)))
         return 0
     head = " ".join(f"{p:>8}" for p in PARTS)
     for n in args.n:
         if not args.against:
-            m = _run(None, n)
+            m = _run(None, n, args.no_terms)
             print(f"N = {n:4d}  µs/step: {head}\n{'':13}{' '.join(f'{m[p]:8.1f}' for p in PARTS)}")
             continue
         runs = {"this": [], "other": []}
         for _ in range(args.rounds):
             runs["other"].append(_run(os.path.abspath(args.against), n))
-            runs["this"].append(_run(None, n))
+            runs["this"].append(_run(None, n, args.no_terms))
         this = {p: min(r[p] for r in runs["this"]) for p in PARTS}
         other = {p: min(r[p] for r in runs["other"]) for p in PARTS}
         print(f"N = {n:4d}  µs/step       {head}")
         print(f"{'':8}{args.against:>12.12} {' '.join(f'{other[p]:8.1f}' for p in PARTS)}")
-        print(f"{'':8}{'this':>12} {' '.join(f'{this[p]:8.1f}' for p in PARTS)}")
+        print(f"{'':8}{'this, no terms' if args.no_terms else 'this':>12} {' '.join(f'{this[p]:8.1f}' for p in PARTS)}")
         print(f"{'':8}{'this/other':>12} {' '.join(f'{this[p] / other[p]:8.2f}' for p in PARTS)}")
     return 0
 

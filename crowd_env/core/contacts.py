@@ -24,7 +24,7 @@ import numba as nb
 import numpy as np
 
 from .periodic import minimum_image_dx
-from .segments import wall_proximity
+from .segments import wall_rows
 
 NORMAL, TANGENT, LINK = 0, 1, 2
 
@@ -37,6 +37,14 @@ def pair_candidates(position, radius, speed, pairs, index, eps_m, dt_s, margin_o
     ``(a, b, gap, nx, ny, d)`` with a, b rows into ``index``; also writes each pedestrian's own
     margin ε + 2h‖u_i‖ into ``margin_out`` (used for walls). ``period_m``: nearest images along x.
     """
+    a_out, b_out, geo, m = _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin_out, period_m)
+    return a_out[:m], b_out[:m], geo[:m, 0].copy(), geo[:m, 1].copy(), geo[:m, 2].copy(), geo[:m, 3].copy()
+
+
+@nb.njit(cache=True)
+def _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin_out, period_m):
+    """:func:`pair_candidates` in buffers: ``(a, b, geo, m)``, the first m rows holding the candidates (geo:
+    gap, nx, ny, d)."""
     n = index.shape[0]
     for k in range(n):
         margin_out[k] = eps_m + 2.0 * dt_s * speed[k]
@@ -67,7 +75,7 @@ def pair_candidates(position, radius, speed, pairs, index, eps_m, dt_s, margin_o
             geo[m, 2] = 0.0
         geo[m, 3] = d
         m += 1
-    return a_out[:m], b_out[:m], geo[:m, 0].copy(), geo[:m, 1].copy(), geo[:m, 2].copy(), geo[:m, 3].copy()
+    return a_out, b_out, geo, m
 
 
 CONTACT_FIELDS = ("a", "b", "gap", "nx", "ny", "rho_a", "rho_b", "wall")
@@ -85,17 +93,14 @@ def contact_candidates(position, radius, speed, index, pairs, walls, wall_owner,
     """
     n = index.shape[0]
     margin = np.empty(n)
-    a, b, gap, nx, ny, d = pair_candidates(position, radius, speed, pairs, index, eps_m, dt_s, margin, period_m)
-    npair = a.shape[0]
-    if walls.shape[0]:
-        wa, wseg, wgap, wnx, wny, _, _ = wall_proximity(position, radius, index, walls, wall_owner, margin)
+    a, b, geo, npair = _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin, period_m)
+    if walls.shape[0]:  # read from the two buffers directly (pair_candidates and wall_proximity copy them out)
+        wa, wseg, wout, nwall = wall_rows(position, radius, index, walls, wall_owner, margin)
     else:
-        wa = np.zeros(0, np.int64)
-        wseg = np.zeros(0, np.int64)
-        wgap = np.zeros(0)
-        wnx = np.zeros(0)
-        wny = np.zeros(0)
-    m = npair + wa.shape[0]
+        wa = wseg = np.zeros(0, np.int64)
+        wout = np.zeros((0, 5))
+        nwall = 0
+    m = npair + nwall
     c_a = np.empty(m, np.int64)
     c_b = np.empty(m, np.int64)
     c_gap = np.empty(m)
@@ -109,19 +114,19 @@ def contact_candidates(position, radius, speed, index, pairs, walls, wall_owner,
         rb = radius[index[b[k]]]
         c_a[k] = a[k]
         c_b[k] = b[k]
-        c_gap[k] = gap[k]
-        c_nx[k] = nx[k]
-        c_ny[k] = ny[k]
-        c_rho_a[k] = d[k] * ra / (ra + rb)
-        c_rho_b[k] = d[k] - c_rho_a[k]
+        c_gap[k] = geo[k, 0]
+        c_nx[k] = geo[k, 1]
+        c_ny[k] = geo[k, 2]
+        c_rho_a[k] = geo[k, 3] * ra / (ra + rb)
+        c_rho_b[k] = geo[k, 3] - c_rho_a[k]
         c_wall[k] = -1
-    for k in range(wa.shape[0]):
+    for k in range(nwall):
         c = npair + k
         c_a[c] = wa[k]
         c_b[c] = -1
-        c_gap[c] = wgap[k]
-        c_nx[c] = wnx[k]
-        c_ny[c] = wny[k]
+        c_gap[c] = wout[k, 0]
+        c_nx[c] = wout[k, 1]
+        c_ny[c] = wout[k, 2]
         c_rho_a[c] = radius[index[wa[k]]]
         c_rho_b[c] = 0.0
         c_wall[c] = wseg[k]

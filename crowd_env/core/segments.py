@@ -69,6 +69,23 @@ def closest_point_on_segment(px, py, x0, y0, x1, y1):
 
 
 @nb.njit(cache=True, inline="always")
+def _box_distance2(px, py, x0, y0, x1, y1):
+    """Squared distance from (px, py) to the bounding box of segment (x0, y0)-(x1, y1): at most the squared
+    distance to the segment."""
+    dx = 0.0
+    if px < min(x0, x1):
+        dx = min(x0, x1) - px
+    elif px > max(x0, x1):
+        dx = px - max(x0, x1)
+    dy = 0.0
+    if py < min(y0, y1):
+        dy = min(y0, y1) - py
+    elif py > max(y0, y1):
+        dy = py - max(y0, y1)
+    return dx * dx + dy * dy
+
+
+@nb.njit(cache=True, inline="always")
 def _counts_vertex(px, py, k, end, segments, owner):
     """Whether segment k's clamped endpoint ``end`` (its closest point to (px, py)) is reported:
     only if every other segment sharing that vertex also has it as closest point and k is the
@@ -95,6 +112,15 @@ def wall_proximity(position, radius, index, segments, owner, margin):
     :func:`endpoint_owners`: a shared corner vertex is reported only when it is the closest point of
     every segment meeting there, and then once, so results do not depend on segment order.
     """
+    ped, seg, out, m = wall_rows(position, radius, index, segments, owner, margin)
+    return (ped[:m], seg[:m], out[:m, 0].copy(), out[:m, 1].copy(), out[:m, 2].copy(), out[:m, 3].copy(),
+            out[:m, 4].copy())
+
+
+@nb.njit(cache=True)
+def wall_rows(position, radius, index, segments, owner, margin):
+    """:func:`wall_proximity` in buffers: ``(ped, seg, out, m)``, the first m rows holding the pairs (out: gap,
+    nx, ny, cx, cy); :func:`~crowd_env.core.contacts.contact_candidates` reads them without copies."""
     cap = max(16, 4 * index.shape[0])
     while True:  # more than ~4 walls within the margin of each pedestrian needs a larger buffer
         ped = np.empty(cap, np.int64)
@@ -102,8 +128,7 @@ def wall_proximity(position, radius, index, segments, owner, margin):
         out = np.empty((cap, 5))
         m = _fill_wall_proximity(position, radius, index, segments, owner, margin, ped, seg, out)
         if m >= 0:
-            return (ped[:m], seg[:m], out[:m, 0].copy(), out[:m, 1].copy(), out[:m, 2].copy(), out[:m, 3].copy(),
-                    out[:m, 4].copy())
+            return ped, seg, out, m
         cap *= 4
 
 
@@ -117,7 +142,15 @@ def _fill_wall_proximity(position, radius, index, segments, owner, margin, ped, 
         px = position[i, 0]
         py = position[i, 1]
         r = radius[i]
+        # a wall whose bounding box lies beyond r + margin (+1e-9 m, far above the rounding of the test below) is
+        # skipped before the division and the root: the same walls pass, with the same arithmetic
+        reach = abs(r + margin[a]) + 1e-9
+        reach2 = reach * reach
+        finite = px - px == 0.0 and py - py == 0.0  # a NaN or infinite centre takes the full test, as before
         for k in range(segments.shape[0]):
+            x0, y0, x1, y1 = segments[k, 0], segments[k, 1], segments[k, 2], segments[k, 3]
+            if finite and _box_distance2(px, py, x0, y0, x1, y1) > reach2:
+                continue
             cx, cy, t = closest_point_on_segment(px, py, segments[k, 0], segments[k, 1], segments[k, 2], segments[k, 3])
             dx = px - cx
             dy = py - cy

@@ -88,3 +88,36 @@ def test_closed_polygon_and_contact_detection_order_independent():
     for a in np.unique(pts_a):
         normals = ref[pts_a == a, 2:]
         assert len(np.unique(normals.round(9), axis=0)) == len(normals)
+
+
+def test_wall_proximity_box_skip_changes_nothing(monkeypatch):
+    """The bounding-box skip of wall_proximity (before the division and the root) keeps exactly the pairs of
+    the full test, to the bit: compiled with the skip against the same loop in Python without it, on random
+    walls and centres (far, near, on a wall, NaN), margins from negative to infinite."""
+    from crowd_env.core import segments
+
+    rng = np.random.default_rng(7)
+    walls = as_segments(np.concatenate([rng.uniform(-5, 5, (30, 4)), [[0, 0, 3, 0], [3, 0, 3, 3], [0, 0, 0, 0.5]]]))
+    owner = endpoint_owners(walls)
+    pos = np.concatenate([rng.uniform(-7, 7, (300, 2)), walls[:10, :2], [[1.5, 1e-13], [np.nan, 1.0], [np.inf, 0.0]]])
+    radius = rng.uniform(0.15, 0.3, len(pos))
+    idx = np.arange(len(pos))
+    margins = [rng.uniform(0, 0.5, len(pos)), np.full(len(pos), 1e-12), np.full(len(pos), -0.2), np.full(len(pos), 40.0),
+               np.full(len(pos), np.inf), np.full(len(pos), -1.0)]
+
+    def run(fill, margin):
+        cap = 40 * len(pos)
+        ped, seg, out = np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((cap, 5))
+        m = fill(pos, radius, idx, walls, owner, margin, ped, seg, out)
+        return ped[:m], seg[:m], out[:m].view(np.int64)
+
+    kept = 0
+    for margin in margins:
+        fast = run(segments._fill_wall_proximity, margin)
+        with monkeypatch.context() as patch:
+            patch.setattr(segments, "_box_distance2", lambda *args: -1.0)  # never skip
+            full = run(segments._fill_wall_proximity.py_func, margin)
+        for x, y in zip(fast, full):
+            np.testing.assert_array_equal(x, y)
+        kept += len(fast[0])
+    assert 0 < kept < len(margins) * len(pos) * len(walls)  # some pairs kept, some skipped
