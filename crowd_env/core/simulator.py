@@ -268,7 +268,7 @@ class Simulator:
         """Indices of the pedestrians still in the simulation."""
         if self._index_key != self.step_count:  # pedestrians leave only at the end of a step
             self._index_key = self.step_count
-            self._index = np.flatnonzero(self.state.active)
+            self._index = self.state.active.nonzero()[0]  # = np.flatnonzero, without its 0.8 µs of dispatch
         return self._index
 
     def neighbor_pairs(self, radius_m: float) -> np.ndarray:
@@ -386,11 +386,15 @@ class Simulator:
         general path (nothing changed)."""
         idx = self.active_index
         t0 = time.perf_counter()
-        status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, _, time_s = advance(
+        status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, time_s = advance(
             self.state.array_fields(), self._world_fields(), self._step_fields(), inputs, idx, *self._cached_pairs(),
             self.time_s)
         if status != FUSED_OK:
             return None
+        if contacts is None:  # none carried a percussion: empty arrays of their own, made here (cheaper)
+            contacts = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0), np.empty(0))
+        if exited is None:
+            exited = np.empty(0, np.int64)
         self.n_redetections += n_redetect
         exited = self._exit_by_test(idx, exited)
         self._tick(time_s)

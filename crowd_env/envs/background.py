@@ -165,7 +165,7 @@ class ObservingBackground:
         if self.heading_target == "intent":
             return intents.copy()  # the environment takes θ_d from the intent
         heading = st.heading_rad.copy()
-        idx = np.flatnonzero(self.mask & st.active)
+        idx = (self.mask & st.active).nonzero()[0]
         if idx.size:
             heading[idx] = direction_angles_rad(desired_direction(self.navigation, st.position_m, idx))
         return intents.copy(), heading
@@ -173,7 +173,7 @@ class ObservingBackground:
     def _decide(self, st) -> np.ndarray:
         """World-frame intents (N, 2) of the active background pedestrians at this decision."""
         intents = np.zeros((st.n, 2))
-        idx = np.flatnonzero(self.mask & st.active)
+        idx = (self.mask & st.active).nonzero()[0]
         if idx.size == 0:
             return intents
         obs, _ = self.observer.build(st, idx)

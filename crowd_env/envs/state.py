@@ -112,7 +112,7 @@ class GlobalStateBuilder:
         n = self.controlled.shape[0]
         ped = np.zeros((n, _F))
         ped[:, 1] = self.controlled
-        idx = np.flatnonzero(state.active)
+        idx = state.active.nonzero()[0]
         if idx.size:
             pos = state.position_m[idx]
             if getattr(self.navigation, "per_pedestrian", False):

@@ -313,6 +313,19 @@ def test_exit_removes_pedestrians_and_they_stop_interacting():
     np.testing.assert_array_equal(st.position_m, frozen)
 
 
+def test_a_fused_step_without_contacts_or_exits_gives_empty_arrays_of_its_own():
+    """The fused step hands no empty contact or exit arrays back from the compiled code (None, for speed):
+    the result still holds arrays of the staged step's dtypes, writeable and new at every step."""
+    st = CrowdState.create([[0.0, 0.0], [3.0, 0.0]])
+    sim = Simulator(st, walls=np.zeros((0, 4)))
+    first, second = (sim.step(np.array([[1.0, 0.0], [0.0, 0.0]])) for _ in range(2))
+    assert first.timings_s.keys() == {"fused"}  # the path under test
+    fields = ("contact_i", "contact_j", "contact_wall", "percussion_normal", "percussion_tangent", "exited")
+    for name, dtype in zip(fields, (np.int64,) * 3 + (np.float64,) * 2 + (np.int64,)):
+        a, b = getattr(first, name), getattr(second, name)
+        assert a.shape == (0,) and a.dtype == dtype and a.flags.writeable and a is not b
+
+
 def test_inactive_pedestrian_may_overlap_without_effect():
     st = CrowdState.create([[0.0, 0.0], [5.0, 0.0]])
     st.active[1] = False

@@ -102,18 +102,19 @@ class DefaultReward:
         same order, so the same bits: ``tests/envs/test_components.py``)."""
         n = len(agent_ids)
         terms = np.empty(n, self._sum.dtype)
+        out = np.empty(n)  # made here: numba hands an array back to Python for 0.3 µs
         w_progress, w_collision, w_time, w_exit = self._weights
         info["reward_terms"] = terms
-        return _default_reward(info["progress_s"], info["contact_percussion_kg_m_s"], info["exited"], w_progress,
-                               w_collision, w_time, info["dt_s"], w_exit, np.ndarray((n, 4), np.float64, terms))
+        _default_reward(info["progress_s"], info["contact_percussion_kg_m_s"], info["exited"], w_progress, w_collision,
+                        w_time, info["dt_s"], w_exit, np.ndarray((n, 4), np.float64, terms), out)
+        return out
 
 
 @nb.njit(cache=True)
 def _default_reward(progress, percussion, exited, progress_weight, collision_weight, time_cost_per_s, dt_s,
-                    exit_bonus, parts):
+                    exit_bonus, parts, out):
     """:func:`~.base._weighted_sum` of the four default terms, v = (progress, −P, −Δt, exited): writes the
-    contributions w_t v_t to ``parts`` (n, 4) and returns their sums."""
-    out = np.empty(progress.shape[0])
+    contributions w_t v_t to ``parts`` (n, 4) and their sums to ``out`` (n,)."""
     time_value = -dt_s
     for a in range(out.shape[0]):
         c0 = progress_weight * progress[a]
@@ -125,7 +126,6 @@ def _default_reward(progress, percussion, exited, progress_weight, collision_wei
         parts[a, 2] = c2
         parts[a, 3] = c3
         out[a] = c0 + c1 + c2 + c3
-    return out
 
 
 def _term(item, weight=None):
