@@ -10,7 +10,7 @@ import numpy as np
 
 from .base import ObservationComponent, ObservationField
 
-__all__ = ["WallRays", "cast_rays", "write_rays", "ray_table"]
+__all__ = ["WallRays", "cast_rays", "write_rays", "ray_table", "wall_inverse_lengths2"]
 
 
 @dataclass(frozen=True)
@@ -52,19 +52,31 @@ def write_rays(position, index, cos_t, sin_t, walls, ray_cos, ray_sin, ray_range
     dxs = np.empty(n_rays)
     dys = np.empty(n_rays)
     best = np.empty(n_rays)
+    inv_length2 = wall_inverse_lengths2(walls)
     for a in range(index.shape[0]):
         i = index[a]
-        cast_rays(position[i, 0], position[i, 1], cos_t[a], sin_t[a], walls, ray_cos, ray_sin, ray_range, obs[a],
-                  col, dxs, dys, best)
+        cast_rays(position[i, 0], position[i, 1], cos_t[a], sin_t[a], walls, inv_length2, ray_cos, ray_sin, ray_range,
+                  obs[a], col, dxs, dys, best)
+
+
+@nb.njit(cache=True)
+def wall_inverse_lengths2(walls):
+    """1 / |e|² of each segment of ``walls`` (S, 4: start and direction e), 0 for a point, for :func:`cast_rays`."""
+    out = np.zeros(walls.shape[0])
+    for w in range(walls.shape[0]):
+        ee = walls[w, 2] * walls[w, 2] + walls[w, 3] * walls[w, 3]
+        if ee > 0.0:
+            out[w] = 1.0 / ee
+    return out
 
 
 @nb.njit(cache=True, error_model="numpy")
-def cast_rays(ox, oy, c, s, walls, ray_cos, ray_sin, max_range, out, col, dxs, dys, best):
+def cast_rays(ox, oy, c, s, walls, inv_length2, ray_cos, ray_sin, max_range, out, col, dxs, dys, best):
     """Distance from (ox, oy) to the first wall along each ray R(θ) (cos φ_r, sin φ_r), capped at
     ``max_range``, written to ``out[col + r]``: the ray–segment test of
     :func:`crowd_env.core.segments.ray_distances` (the same arithmetic), branch-free over the rays so that
-    it runs in SIMD lanes; ``walls`` (S, 4): start and direction of each segment; ``dxs``, ``dys``,
-    ``best``: (R,) scratch."""
+    it runs in SIMD lanes; ``walls`` (S, 4): start and direction of each segment, ``inv_length2`` their
+    :func:`wall_inverse_lengths2`; ``dxs``, ``dys``, ``best``: (R,) scratch."""
     n_rays = ray_cos.shape[0]
     for r in range(n_rays):
         dxs[r] = c * ray_cos[r] - s * ray_sin[r]
@@ -76,10 +88,9 @@ def cast_rays(ox, oy, c, s, walls, ray_cos, ray_sin, max_range, out, col, dxs, d
         ey = walls[w, 3]
         wx = walls[w, 0] - ox
         wy = walls[w, 1] - oy
-        # skip a wall farther than the range (no ray reaches it): its point nearest to the origin
-        ee = ex * ex + ey * ey
-        f = -(wx * ex + wy * ey) / ee if ee > 0.0 else 0.0
-        f = min(max(f, 0.0), 1.0)
+        # skip a wall farther than the range (no ray reaches it): its point nearest to the origin (with a product
+        # for the quotient: a wall within the range's 1e-9 margin is cast either way, and none of them can hit)
+        f = min(max(-(wx * ex + wy * ey) * inv_length2[w], 0.0), 1.0)
         qx = wx + f * ex
         qy = wy + f * ey
         if qx * qx + qy * qy > reach2:
