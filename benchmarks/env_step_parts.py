@@ -73,11 +73,41 @@ def measure(n: int, copies: int = 40, steps: int = 100, terms_in_infos: bool = T
     return best
 
 
-def _run(path: str | None, n: int, no_terms: bool = False) -> dict:
+def measure_vector(n: int, copies: int = 8, repeats: int = 12, steps: int = 100) -> dict:
+    """Thread time (µs) per copy and step of the vector environment (``workers=1``, ``copies`` copies of the
+    same environment, seeds 0 … copies−1, 30 steps in first), stepped with vector_speed.py's speed rule:
+    the minimum over ``repeats`` runs, each a new vector environment replaying the same 100 steps."""
+    import time
+
+    from crowd_env.envs.vector import vector_env
+    from vector_speed import act
+
+    best = float("inf")
+    for _ in range(repeats):
+        vec = vector_env(copies, workers=1, scenario="seyfried_bottleneck", controlled="all", frame_skip=1,
+                         scenario_options={"n_pedestrians": n, "width_m": 1.0}, max_steps=10**9, action_max_m_s=5.0)
+        try:
+            obs, _ = vec.reset(seed=0)
+            layout = vec.envs[0].observation_layout
+            total = 0.0
+            for s in range(30 + steps):
+                actions = act(obs, layout, "speed")
+                t = time.thread_time()
+                obs, *_ = vec.step(actions)
+                if s >= 30:
+                    total += time.thread_time() - t
+        finally:
+            vec.close()
+        best = min(best, total / steps / copies * 1e6)
+    return {"vec": best}
+
+
+def _run(path: str | None, n: int, no_terms: bool = False, vector: bool = False) -> dict:
     env = dict(os.environ)
     if path:
         env["PYTHONPATH"] = path
-    cmd = [sys.executable, __file__, "--json", "--n", str(n)] + (["--no-terms"] if no_terms else [])
+    cmd = [sys.executable, __file__, "--json", "--n", str(n)] + (["--no-terms"] if no_terms else []) + \
+        (["--vector"] if vector else [])
     out = subprocess.run(cmd, env=env, cwd=path or os.getcwd(),
                          capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -90,27 +120,31 @@ def main(argv=None) -> int:
     ap.add_argument("--rounds", type=int, default=2, help="alternations with --against (default 2)")
     ap.add_argument("--no-terms", action="store_true", help="this checkout with reward_terms_in_infos=False (the "
                     "infos of a commit before the reward terms: like for like with --against such a commit)")
+    ap.add_argument("--vector", action="store_true", help="also the vector environment (workers=1, 8 copies): "
+                    "thread time per copy and step, column 'vec'")
     ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)  # one measure, as JSON (the child)
     args = ap.parse_args(argv)
     if args.json:
-        print(json.dumps(measure(args.n[0], terms_in_infos=not args.no_terms)))
+        out = measure(args.n[0], terms_in_infos=not args.no_terms)
+        print(json.dumps({**out, **(measure_vector(args.n[0]) if args.vector else {})}))
         return 0
-    head = " ".join(f"{p:>8}" for p in PARTS)
+    parts = PARTS + (("vec",) if args.vector else ())
+    head = " ".join(f"{p:>8}" for p in parts)
     for n in args.n:
         if not args.against:
-            m = _run(None, n, args.no_terms)
-            print(f"N = {n:4d}  µs/step: {head}\n{'':13}{' '.join(f'{m[p]:8.1f}' for p in PARTS)}")
+            m = _run(None, n, args.no_terms, args.vector)
+            print(f"N = {n:4d}  µs/step: {head}\n{'':13}{' '.join(f'{m[p]:8.1f}' for p in parts)}")
             continue
         runs = {"this": [], "other": []}
         for _ in range(args.rounds):
-            runs["other"].append(_run(os.path.abspath(args.against), n))
-            runs["this"].append(_run(None, n, args.no_terms))
-        this = {p: min(r[p] for r in runs["this"]) for p in PARTS}
-        other = {p: min(r[p] for r in runs["other"]) for p in PARTS}
+            runs["other"].append(_run(os.path.abspath(args.against), n, vector=args.vector))
+            runs["this"].append(_run(None, n, args.no_terms, args.vector))
+        this = {p: min(r[p] for r in runs["this"]) for p in parts}
+        other = {p: min(r[p] for r in runs["other"]) for p in parts}
         print(f"N = {n:4d}  µs/step       {head}")
-        print(f"{'':8}{args.against:>12.12} {' '.join(f'{other[p]:8.1f}' for p in PARTS)}")
-        print(f"{'':8}{'this, no terms' if args.no_terms else 'this':>12} {' '.join(f'{this[p]:8.1f}' for p in PARTS)}")
-        print(f"{'':8}{'this/other':>12} {' '.join(f'{this[p] / other[p]:8.2f}' for p in PARTS)}")
+        print(f"{'':8}{args.against:>12.12} {' '.join(f'{other[p]:8.1f}' for p in parts)}")
+        print(f"{'':8}{'this, no terms' if args.no_terms else 'this':>12} {' '.join(f'{this[p]:8.1f}' for p in parts)}")
+        print(f"{'':8}{'this/other':>12} {' '.join(f'{this[p] / other[p]:8.2f}' for p in parts)}")
     return 0
 
 

@@ -136,6 +136,9 @@ def _arrays(n: int, dim: tuple, buffer=None) -> dict:
     return out
 
 
+_NO_TERMS = np.zeros((0, 0))  # no reward terms to file (_record)
+
+
 def _buffer_size(n: int, dim: tuple) -> int:
     total = 0
     for dtype, cols in _fields(dim).values():
@@ -145,11 +148,14 @@ def _buffer_size(n: int, dim: tuple) -> int:
 
 @nb.njit(cache=True)
 def _record(slots, o, r, te, tr, obs, rewards, terminated, truncated, final_obs, has_final, ep_r, ep_l, has_ep,
-            ret, length, alive):
+            ret, length, alive, term_rows, slot_terms):
     """File one copy's step (rows in its live agents' order) into the slot arrays: an agent that ended
-    gets its last observation as the final one, its episode return and length, and turns into padding."""
+    gets its last observation as the final one, its episode return and length, and turns into padding.
+    ``term_rows`` (n, T): each agent's reward terms, copied to ``slot_terms`` (none when T = 0)."""
     for a in range(slots.shape[0]):
         i = slots[a]
+        for t in range(term_rows.shape[1]):
+            slot_terms[i, t] = term_rows[a, t]
         rewards[i] = r[a]
         ret[i] += r[a]
         length[i] += 1
@@ -184,6 +190,7 @@ class _Copies:
             pos = np.full(e.n_pedestrians, -1, np.int64)
             pos[[e._index_of[a] for a in e.possible_agents]] = np.arange(self.n_agents)
             self.position.append(pos)
+        self._kept_slots = [None] * len(envs)  # per copy: (its _agent_index array, their slots) (_slots)
 
     def _reset_copy(self, c: int, seed, options, obs) -> slice:
         env = self.envs[c]
@@ -206,22 +213,30 @@ class _Copies:
         acted[:] = self.alive
         A = self.n_agents
         obs = out["obs"]
+        slot_terms = out.get("reward_terms", _NO_TERMS)
         for c, env in enumerate(self.envs):
-            base = c * A
-            slots = base + self.position[c][env._agent_index]  # the live agents' slots, in env.agents order
+            slots = self._slots(c, env)
             o, r, te, tr, info = env._advance(actions[slots])
-            terms = info.get("reward_terms") if "reward_terms" in out else None
-            if terms is not None:
-                out["reward_terms"][slots] = term_rows(terms)
+            terms = info.get("reward_terms") if slot_terms is not _NO_TERMS else None
             _record(slots, o, r, te, tr, obs, out["rewards"], out["terminated"], out["truncated"], out["final_obs"],
                     out["_final_obs"], out["episode_return"], out["episode_length"], out["episode_ended"], self.ret,
-                    self.length, self.alive)
+                    self.length, self.alive, _NO_TERMS if terms is None else term_rows(terms), slot_terms)
             if not env.agents:  # the copy's episode is over: reset it in this step
+                base = c * A
                 rows = slice(base, base + A)
                 padding = np.arange(base, base + A)[~acted[rows]]
                 out["terminated"][padding] = True
                 out["_final_obs"][padding] = True  # final observation: zeros
                 self._reset_copy(c, None, None, obs)
+
+    def _slots(self, c: int, env) -> np.ndarray:
+        """The slots of copy ``c``'s live agents, in ``env.agents`` order; kept while its agents stay the same
+        (the environment replaces its ``_agent_index`` array when agents leave or at a reset)."""
+        index = env._agent_index
+        kept = self._kept_slots[c]
+        if kept is None or kept[0] is not index:
+            kept = self._kept_slots[c] = (index, c * self.n_agents + self.position[c][index])
+        return kept[1]
 
     def state(self) -> np.ndarray:
         return np.stack([e.state() for e in self.envs])
