@@ -10,10 +10,11 @@ step, so another load on the machine changes it little (the copies replay the sa
 ``--against PATH`` runs the same measure on another checkout of crowd_env (``PYTHONPATH=PATH``, e.g. a
 ``git worktree`` of an older commit) alternately with this one, ``--rounds`` times, and prints both and their
 ratio: how issue 38's "no slower than before" was measured. ``--no-terms`` runs this checkout with
-``reward_terms_in_infos=False``: the same outputs as a commit before the reward terms.
+``reward_terms_in_infos=False``: the same outputs as a commit before the reward terms. ``--vector`` adds the
+vector environment (``workers=1``, 8 copies, vector_speed.py's speed rule) per copy and step, column ``vec``.
 
     python benchmarks/env_step_parts.py --n 10 100
-    git worktree add /tmp/old 587852c && python benchmarks/env_step_parts.py --against /tmp/old --rounds 2
+    git worktree add /tmp/old 587852c && python benchmarks/env_step_parts.py --against /tmp/old --rounds 3 --vector
 """
 from __future__ import annotations
 

@@ -61,7 +61,7 @@ def write_rays(position, index, cos_t, sin_t, walls, ray_cos, ray_sin, ray_range
 
 @nb.njit(cache=True)
 def wall_inverse_lengths2(walls):
-    """1 / ‖e‖² of each segment of ``walls`` (S, 4: start and direction e), 0 for a point, for :func:`cast_rays`."""
+    """1 / ‖e‖² of each segment of ``walls`` (S, 4: start and direction e), 0 for a point (:func:`cast_rays`)."""
     out = np.zeros(walls.shape[0])
     for w in range(walls.shape[0]):
         ee = walls[w, 2] * walls[w, 2] + walls[w, 3] * walls[w, 3]
