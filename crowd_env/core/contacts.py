@@ -60,9 +60,16 @@ def _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin_out, p
         j = index[b]
         dx = minimum_image_dx(position[i, 0] - position[j, 0], period_m)
         dy = position[i, 1] - position[j, 1]
-        d = np.sqrt(dx * dx + dy * dy)
+        d2 = dx * dx + dy * dy
+        limit = margin_out[a] + margin_out[b] - eps_m
+        # a pair beyond the limit by more than 1e-9 m (far above the rounding of the test below) is left before the
+        # root: the superset of pairs a caller passes (e.g. all within the social forces' reach) is mostly such
+        reach = abs(limit + radius[i] + radius[j]) + 1e-9
+        if d2 > reach * reach:
+            continue
+        d = np.sqrt(d2)
         gap = d - radius[i] - radius[j]
-        if gap > margin_out[a] + margin_out[b] - eps_m:
+        if gap > limit:
             continue
         a_out[m] = a
         b_out[m] = b
