@@ -81,12 +81,11 @@ def measure_vector(n: int, copies: int = 8, repeats: int = 12, steps: int = 100)
     import time
 
     from crowd_env.envs.vector import vector_env
-    from vector_speed import act
+    from vector_speed import _options, act
 
     best = float("inf")
     for _ in range(repeats):
-        vec = vector_env(copies, workers=1, scenario="seyfried_bottleneck", controlled="all", frame_skip=1,
-                         scenario_options={"n_pedestrians": n, "width_m": 1.0}, max_steps=10**9, action_max_m_s=5.0)
+        vec = vector_env(copies, workers=1, **_options(n))
         try:
             obs, _ = vec.reset(seed=0)
             layout = vec.envs[0].observation_layout
