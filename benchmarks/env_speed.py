@@ -84,15 +84,14 @@ def bench(n: int, steps: int, warmup: int, n_neighbors: int, n_rays: int, policy
             "mean_live_agents": agent_steps / done, "obs_dim": env.observation_space(env.possible_agents[0]).shape[0]}
 
 
-def dict_floor_ms(m: int, dim: int, repeats: int = 2000, n_terms: int = 4) -> float:
+def dict_floor_ms(m: int, dim: int, repeats: int = 2000) -> float:
     """The PettingZoo API's share that no compiled pass removes: building the five per-agent dicts of a
-    step (observation rows, rewards, terminations, truncations, infos of four measures and the row of
-    ``n_terms`` reward terms, as the environment gives them by default) and stacking an action dict, for ``m``
-    agents from ready arrays, in ms (the mean of ``repeats``)."""
+    step (observation rows, rewards, terminations, truncations, infos of four measures, as the environment
+    gives them by default) and stacking an action dict, for ``m`` agents from ready arrays, in ms (the mean
+    of ``repeats``)."""
     rng = np.random.default_rng(0)
     agents = [f"ped_{i}" for i in range(m)]
     obs = rng.random((m, dim)).astype(np.float32)
-    terms = rng.random((m, n_terms))
     rew, perc, speed, travel = rng.random((4, m))
     count = rng.integers(0, 3, m)
     actions = dict(zip(agents, rng.random((m, 2)).astype(np.float32)))
@@ -103,9 +102,8 @@ def dict_floor_ms(m: int, dim: int, repeats: int = 2000, n_terms: int = 4) -> fl
         dict(zip(agents, rew.tolist()))
         term = dict.fromkeys(agents, False)
         term.copy()
-        {a: {"contact_percussion_kg_m_s": p, "n_contacts": c, "travel_time_s": tt, "speed_m_s": v, "reward_terms": r}
-         for a, p, c, tt, v, r in zip(agents, perc.tolist(), count.tolist(), travel.tolist(), speed.tolist(),
-                                      terms.tolist())}
+        {a: {"contact_percussion_kg_m_s": p, "n_contacts": c, "travel_time_s": tt, "speed_m_s": v}
+         for a, p, c, tt, v in zip(agents, perc.tolist(), count.tolist(), travel.tolist(), speed.tolist())}
     return 1e3 * (time.perf_counter() - t) / repeats
 
 
@@ -136,7 +134,7 @@ def main(argv=None) -> int:
               f"{(floor + r['obs_ms_per_step']) / r['sim_ms_per_step']:>9.2f}", flush=True)
     print("env ms: everything in env.step but sim.step (observations, validation, rewards, infos, dicts); env/sim: "
           "its ratio to the simulator's time (target at N = 100); dicts ms: the part of it\nthat is the PettingZoo dict API "
-          "itself (five per-agent dicts built from ready arrays, the infos with their reward terms, and one action dict "
+          "itself (five per-agent dicts built from ready arrays and one action dict "
           "stacked, for the mean live agents);\n"
           "obs ms: the compiled observation pass (neighbours, wall rays, navigation sampling) within env ms; floor/sim: "
           "(obs ms + dicts ms) / sim ms, the environment's own work without its Python glue")

@@ -9,8 +9,9 @@ step, so another load on the machine changes it little (the copies replay the sa
 
 ``--against PATH`` runs the same measure on another checkout of crowd_env (``PYTHONPATH=PATH``, e.g. a
 ``git worktree`` of an older commit) alternately with this one, ``--rounds`` times, and prints both and their
-ratio: how issue 38's "no slower than before" was measured. ``--no-terms`` runs this checkout with
-``reward_terms_in_infos=False``: the same outputs as a commit before the reward terms. ``--vector`` adds the
+ratio: how issue 38's "no slower than before" was measured. ``--terms`` runs this checkout with
+``reward_terms_in_infos=True`` (each agent's reward terms in its info; off by default): the price of that
+option. ``--vector`` adds the
 vector environment (``workers=1``, 8 copies, vector_speed.py's speed rule) per copy and step, column ``vec``.
 
     python benchmarks/env_step_parts.py --n 10 100
@@ -32,9 +33,9 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMB
 PARTS = ("step", "sim", "obs", "reward", "actions")
 
 
-def measure(n: int, copies: int = 40, steps: int = 100, terms_in_infos: bool = True) -> dict:
+def measure(n: int, copies: int = 40, steps: int = 100, terms_in_infos: bool = False) -> dict:
     """Per-step thread time (µs) of each of :data:`PARTS` for N = ``n``: the minimum over ``copies``;
-    ``terms_in_infos`` False: the environment option ``reward_terms_in_infos=False``."""
+    ``terms_in_infos`` True: the environment option ``reward_terms_in_infos=True``."""
     import copy
     import time
 
@@ -44,7 +45,7 @@ def measure(n: int, copies: int = 40, steps: int = 100, terms_in_infos: bool = T
 
     env = crowd_v0.parallel_env(scenario="seyfried_bottleneck", scenario_options={"n_pedestrians": n, "width_m": 1.0},
                                 controlled="all", frame_skip=1, max_steps=10**9, action_max_m_s=50.0,
-                                **({} if terms_in_infos else {"reward_terms_in_infos": False}))
+                                **_terms_option(terms_in_infos))
     env.reset(seed=0)
 
     def act(e, agent):
@@ -74,10 +75,16 @@ def measure(n: int, copies: int = 40, steps: int = 100, terms_in_infos: bool = T
     return best
 
 
-def measure_vector(n: int, copies: int = 8, repeats: int = 12, steps: int = 100) -> dict:
+def _terms_option(terms_in_infos: bool) -> dict:
+    """The option only when asked for (a checkout from before the option does not know it)."""
+    return {"reward_terms_in_infos": True} if terms_in_infos else {}
+
+
+def measure_vector(n: int, copies: int = 8, repeats: int = 12, steps: int = 100, terms_in_infos: bool = False) -> dict:
     """Thread time (µs) per copy and step of the vector environment (``workers=1``, ``copies`` copies of the
     same environment, seeds 0 … copies−1, 30 steps in first), stepped with vector_speed.py's speed rule:
-    the minimum over ``repeats`` runs, each a new vector environment replaying the same 100 steps."""
+    the minimum over ``repeats`` runs, each a new vector environment replaying the same 100 steps
+    (``terms_in_infos``: as in :func:`measure`)."""
     import time
 
     from crowd_env.envs.vector import vector_env
@@ -85,7 +92,7 @@ def measure_vector(n: int, copies: int = 8, repeats: int = 12, steps: int = 100)
 
     best = float("inf")
     for _ in range(repeats):
-        vec = vector_env(copies, workers=1, **_options(n))
+        vec = vector_env(copies, workers=1, **_options(n), **_terms_option(terms_in_infos))
         try:
             obs, _ = vec.reset(seed=0)
             layout = vec.envs[0].observation_layout
@@ -102,11 +109,11 @@ def measure_vector(n: int, copies: int = 8, repeats: int = 12, steps: int = 100)
     return {"vec": best}
 
 
-def _run(path: str | None, n: int, no_terms: bool = False, vector: bool = False) -> dict:
+def _run(path: str | None, n: int, terms: bool = False, vector: bool = False) -> dict:
     env = dict(os.environ)
     if path:
         env["PYTHONPATH"] = path
-    cmd = [sys.executable, __file__, "--json", "--n", str(n)] + (["--no-terms"] if no_terms else []) + \
+    cmd = [sys.executable, __file__, "--json", "--n", str(n)] + (["--terms"] if terms else []) + \
         (["--vector"] if vector else [])
     out = subprocess.run(cmd, env=env, cwd=path or os.getcwd(),
                          capture_output=True, text=True, check=True)
@@ -118,32 +125,32 @@ def main(argv=None) -> int:
     ap.add_argument("--n", type=int, nargs="+", default=[10, 100], help="crowd sizes (default 10 100)")
     ap.add_argument("--against", default=None, metavar="PATH", help="another checkout to compare with, alternately")
     ap.add_argument("--rounds", type=int, default=2, help="alternations with --against (default 2)")
-    ap.add_argument("--no-terms", action="store_true", help="this checkout with reward_terms_in_infos=False (the "
-                    "infos of a commit before the reward terms: like for like with --against such a commit)")
+    ap.add_argument("--terms", action="store_true", help="this checkout with reward_terms_in_infos=True (each "
+                    "agent's reward terms in its info; what that option costs)")
     ap.add_argument("--vector", action="store_true", help="also the vector environment (workers=1, 8 copies): "
                     "thread time per copy and step, column 'vec'")
     ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)  # one measure, as JSON (the child)
     args = ap.parse_args(argv)
     if args.json:
-        out = measure(args.n[0], terms_in_infos=not args.no_terms)
-        print(json.dumps({**out, **(measure_vector(args.n[0]) if args.vector else {})}))
+        out = measure(args.n[0], terms_in_infos=args.terms)
+        print(json.dumps({**out, **(measure_vector(args.n[0], terms_in_infos=args.terms) if args.vector else {})}))
         return 0
     parts = PARTS + (("vec",) if args.vector else ())
     head = " ".join(f"{p:>8}" for p in parts)
     for n in args.n:
         if not args.against:
-            m = _run(None, n, args.no_terms, args.vector)
+            m = _run(None, n, args.terms, args.vector)
             print(f"N = {n:4d}  µs/step: {head}\n{'':13}{' '.join(f'{m[p]:8.1f}' for p in parts)}")
             continue
         runs = {"this": [], "other": []}
         for _ in range(args.rounds):
             runs["other"].append(_run(os.path.abspath(args.against), n, vector=args.vector))
-            runs["this"].append(_run(None, n, args.no_terms, args.vector))
+            runs["this"].append(_run(None, n, args.terms, args.vector))
         this = {p: min(r[p] for r in runs["this"]) for p in parts}
         other = {p: min(r[p] for r in runs["other"]) for p in parts}
         print(f"N = {n:4d}  µs/step       {head}")
         print(f"{'':8}{args.against:>12.12} {' '.join(f'{other[p]:8.1f}' for p in parts)}")
-        print(f"{'':8}{'this, no terms' if args.no_terms else 'this':>12} {' '.join(f'{this[p]:8.1f}' for p in parts)}")
+        print(f"{'':8}{'this, terms' if args.terms else 'this':>12} {' '.join(f'{this[p]:8.1f}' for p in parts)}")
         print(f"{'':8}{'this/other':>12} {' '.join(f'{this[p] / other[p]:8.2f}' for p in parts)}")
     return 0
 

@@ -191,7 +191,7 @@ class CrowdEnvConfig:
     reseed_scenario: bool | None = None
     observation_components: tuple | None = None
     reward_terms: object = None
-    reward_terms_in_infos: bool = True
+    reward_terms_in_infos: bool = False
 
     def __post_init__(self):
         self._check_scenario()

@@ -74,17 +74,18 @@ State
 Rewards
     Default :class:`~crowd_env.envs.rewards.DefaultReward`: progress along the travel-time field
     (T_before − T_after, s of travel) − 0.01 × normal percussion received (kg m/s) − 0.1 per simulated
-    second + 1 on leaving: the terms ``progress``, ``contact_percussion``, ``time`` and ``exit``, each
-    agent's share of each in its info (``infos[a]["reward_terms"]``, in the order of ``env.reward_term_names``;
-    ``env.reward_terms(infos[a])["progress"]``). Name other terms and
+    second + 1 on leaving: the terms ``progress``, ``contact_percussion``, ``time`` and ``exit``; with
+    ``reward_terms_in_infos=True``, each agent's share of each in its info (``infos[a]["reward_terms"]``, in the
+    order of ``env.reward_term_names``; ``env.reward_terms(infos[a])["progress"]``). Name other terms and
     weights with ``reward_terms`` (a term of one's own module as ``"module:Class"``), or pass
     ``reward_fn(env, agent_ids, info) -> rewards`` (:mod:`crowd_env.envs.rewards` lists the info arrays).
 
 Infos
     Per agent: ``contact_percussion_kg_m_s`` (sum of the normal percussions' magnitudes over its contacts this step),
-    ``n_contacts``, ``travel_time_s`` (T after the step), ``speed_m_s``, and ``reward_terms`` (a list of floats:
-    each term's weighted contribution in the order of ``env.reward_term_names``, summing to the reward; zeros
-    at reset; plain numbers, as TorchRL's PettingZoo wrapper needs them).
+    ``n_contacts``, ``travel_time_s`` (T after the step), ``speed_m_s``; with ``reward_terms_in_infos=True``
+    also ``reward_terms`` (a list of floats: each term's weighted contribution in the order of
+    ``env.reward_term_names``, summing to the reward; zeros at reset; plain numbers, as TorchRL's PettingZoo
+    wrapper needs them).
 
 Episode end
     A pedestrian whose centre enters an exit (its own destination exit in scenarios with per-pedestrian
@@ -198,9 +199,10 @@ class CrowdParallelEnv(ParallelEnv):
       :class:`~crowd_env.envs.rewards.DefaultReward`); or ``reward_terms``: the terms of a
       :class:`~crowd_env.envs.rewards.TermReward` (names, ``"module:Class"`` paths, term objects, or a dict
       of them to weights, or ``"least_effort"``; :func:`~crowd_env.envs.rewards.resolve_terms`).
-    - ``reward_terms_in_infos``: each agent's share of each term in its info (default True); False leaves
-      them out of the per-agent dicts (they cost about 15 µs a step at N = 100 in this dict API) and keeps
-      them in the reward function's info arrays.
+    - ``reward_terms_in_infos``: True puts each agent's share of each term in its info (and
+      :attr:`reward_term_names`; the vector environment then reports them as one array). Off by default:
+      the reward function's info arrays always hold them, but the agents' lists of plain floats cost about
+      8 % of a step in this dict API (15 µs at N = 100; ``benchmarks/env_step_parts.py --terms``).
     - ``observation_components``: the observation's components, in order (names, ``"module:Class"``
       paths or component objects; default the seven fields above:
       :func:`~crowd_env.envs.observations.resolve_components`).

@@ -96,7 +96,7 @@ def test_default_reward_is_the_old_formula_to_the_bit_for_any_weights():
 
 def test_reward_terms_in_the_infos_add_up_to_the_reward_to_the_bit():
     env = crowd_v0.parallel_env(scenario_options={"n_pedestrians": 8, "width_m": 1.2}, frame_skip=10,
-                                heading_target="desired_direction")
+                                heading_target="desired_direction", reward_terms_in_infos=True)
     obs, _ = env.reset(seed=3)
     ed = env.observation_layout["desired_direction"]
     exits = 0
@@ -131,7 +131,7 @@ def test_naming_the_default_terms_gives_the_default_rewards():
 # ---------------------------------------------------------------- a user's component and term
 def test_a_user_component_and_term_of_their_own_modules_named_in_the_options():
     env = crowd_v0.parallel_env(**SMALL, observation_components=[*DEFAULT_COMPONENTS, USER_COMPONENT],
-                                reward_terms=["progress", "time", USER_TERM])
+                                reward_terms=["progress", "time", USER_TERM], reward_terms_in_infos=True)
     L = env.observation_layout
     assert list(L)[-2:] == ["velocity_error", "velocity_error_norm"] and L["velocity_error_norm"].stop == 48
     space = env.observation_space("ped_0")

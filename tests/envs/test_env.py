@@ -427,7 +427,7 @@ def test_a_reward_fns_bad_terms_raise_naming_them(make, match):
 def test_a_reward_fns_own_terms_reach_each_agents_info():
     """Integer fields are numbers too: each agent gets its row as floats, under the reward's field names."""
     terms_of = lambda n: np.array([(i, 0.5 * i) for i in range(n)], [("count", np.int64), ("half", np.float64)])
-    env = small_env(reward_fn=_terms_writer(terms_of))
+    env = small_env(reward_fn=_terms_writer(terms_of), reward_terms_in_infos=True)
     env.reset(seed=0)
     *_, infos = env.step({a: np.zeros(2) for a in env.agents})
     for i, a in enumerate(infos):

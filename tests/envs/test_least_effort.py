@@ -57,7 +57,7 @@ def test_the_effort_is_the_trapezoid_of_the_squared_speeds():
 
 def test_the_environment_runs_the_least_effort_reward_and_reports_its_terms():
     env = crowd_v0.parallel_env(scenario_options={"n_pedestrians": 8}, reward_terms="least_effort", frame_skip=5,
-                                max_steps=30)
+                                max_steps=30, reward_terms_in_infos=True)
     obs, infos = env.reset(seed=1)
     assert all(info["reward_terms"] == [0.0] * 4 for info in infos.values())  # the same keys at reset
     speeds = {a: infos[a]["speed_m_s"] for a in env.agents}
@@ -84,10 +84,13 @@ def test_an_unknown_reward_name_lists_the_named_rewards():
     assert math.isclose(resolve_terms("least_effort").weights[0], COST_OF_TRANSPORT_J_KG_M)
 
 
-def test_reward_terms_can_be_left_out_of_the_infos():
-    env = crowd_v0.parallel_env(scenario_options={"n_pedestrians": 4}, reward_terms_in_infos=False)
+@pytest.mark.parametrize("option", [{}, {"reward_terms_in_infos": False}])
+def test_reward_terms_stay_out_of_the_infos_unless_asked_for(option):
+    env = crowd_v0.parallel_env(scenario_options={"n_pedestrians": 4}, **option)
     obs, infos = env.reset(seed=0)
+    assert all("reward_terms" not in i for i in infos.values())
     obs, rewards, *_, infos = env.step({a: np.zeros(2) for a in env.agents})
     assert env.reward_term_names is None and all("reward_terms" not in i for i in infos.values())
+    assert env.reward_terms(infos["ped_0"]) == {}
     with pytest.raises(EnvOptionError, match="reward_terms_in_infos"):
         crowd_v0.parallel_env(reward_terms_in_infos="yes")

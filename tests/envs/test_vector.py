@@ -26,8 +26,8 @@ def _walk(obs_rows, layout, rng, scale=1.6):
 
 def test_each_copy_matches_the_pettingzoo_env_on_its_seed_through_deaths_and_resets():
     K, seed = 3, 11
-    vec = vector_env(K, **OPTIONS)
-    refs = [crowd_v0.parallel_env(**OPTIONS) for _ in range(K)]
+    vec = vector_env(K, **OPTIONS, reward_terms_in_infos=True)
+    refs = [crowd_v0.parallel_env(**OPTIONS, reward_terms_in_infos=True) for _ in range(K)]
     A = vec.n_agents
     obs, infos = vec.reset(seed=seed)
     ref_obs = [r.reset(seed=seed + c)[0] for c, r in enumerate(refs)]
@@ -78,8 +78,9 @@ def test_each_copy_matches_the_pettingzoo_env_on_its_seed_through_deaths_and_res
     assert infos["reward_terms"].shape == (K * A, 4)
 
 
-def test_reward_terms_stay_out_of_the_vector_infos_when_the_copies_do_not_report_them():
-    vec = vector_env(2, **OPTIONS, reward_terms_in_infos=False)
+@pytest.mark.parametrize("option", [{}, {"reward_terms_in_infos": False}])
+def test_reward_terms_stay_out_of_the_vector_infos_when_the_copies_do_not_report_them(option):
+    vec = vector_env(2, **OPTIONS, **option)
     _, infos = vec.reset(seed=0)
     _, _, _, _, after = vec.step(np.zeros((vec.num_envs, 2)))
     assert vec.reward_term_names is None and "reward_terms" not in infos and "reward_terms" not in after

@@ -5,9 +5,10 @@ the list of agents that acted this step (live at its start), ``info`` a dict of 
 it (see :data:`REWARD_INFO_KEYS`), and the result a sequence of ``len(agent_ids)`` finite numbers
 (or a dict agent -> number). Every quantity covers the whole environment step (all ``frame_skip``
 simulator steps). A reward function may also put ``info["reward_terms"]``, an (n,) structured array with one
-numeric field per term (as :class:`~.base.TermReward` does): the environment then hands each agent its row, a
-list of floats in the order of ``env.reward_term_names``, in its info under ``"reward_terms"`` (anything else
-there raises :class:`~crowd_env.errors.PolicyError`).
+numeric field per term (as :class:`~.base.TermReward` does; anything else there raises
+:class:`~crowd_env.errors.PolicyError`). With the environment option ``reward_terms_in_infos=True``, the
+environment hands each agent its row, a list of floats in the order of ``env.reward_term_names``, in its info
+under ``"reward_terms"``.
 
 The default reward (:class:`DefaultReward`) is a :class:`~.base.TermReward` of four terms
 (:mod:`.terms`): ``progress``, ``contact_percussion``, ``time`` and ``exit``, summed in that order. The

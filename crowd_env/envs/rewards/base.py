@@ -41,8 +41,8 @@ class TermReward:
     """``reward_fn(env, agent_ids, info)`` that sums its ``terms`` (:class:`RewardTerm` objects, names unique):
     r = Σ_t w_t v_t, added in the terms' order. Also writes ``info["reward_terms"]``: the contributions
     w_t v_t as an (n,) structured array with one float64 field per term (``info["reward_terms"]["progress"]``:
-    (n,)); the environment hands each agent its row as a list of floats in the order of the names
-    (``infos[agent]["reward_terms"]``; ``env.reward_terms(infos[agent])["progress"]``)."""
+    (n,)); with ``reward_terms_in_infos=True`` the environment hands each agent its row as a list of floats
+    in the order of the names (``infos[agent]["reward_terms"]``; ``env.reward_terms(infos[agent])["progress"]``)."""
 
     def __init__(self, terms):
         self.terms = tuple(terms)
