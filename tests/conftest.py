@@ -7,10 +7,24 @@ same name in different folders do not clash and import the helpers of a conftest
 """
 import functools
 import importlib.util
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]  # the repository root
 DATA = ROOT / "tests" / "data"  # stored states and matrices of regressions
+
+
+def pytest_sessionstart(session):
+    """On a cold numba cache (a fresh clone): the compiled rollout's kernels compiled in two processes at once
+    before the first test, as the README's main job shares them between its workers
+    (:func:`crowd_env.experiments.running.warmup.warm_up`); the first test to run a rollout would otherwise compile
+    them all on one core (about 60 s). Nothing when the rollout is cached; a stale plan costs time, never a result."""
+    from crowd_env.experiments.running.warmup import rollout_is_cached, warm_up
+
+    if rollout_is_cached():
+        return
+    with ProcessPoolExecutor(max_workers=2) as pool:
+        warm_up(lambda fn, items: list(pool.map(fn, items)), 2)
 
 
 def load_script(name):
