@@ -1,5 +1,5 @@
 """MAPPO / IPPO through TorchRL (crowd_env.experiments.training.marl, crowd-train-mappo): agents leaving at different
-times through TorchRL's PettingZoo wrapper, per-agent GAE, smoke trainings with reload and resume, bad input."""
+times through TorchRL's PettingZoo wrapper, per-agent GAE, the reward terms as info tensors, smoke trainings with reload and resume, bad input."""
 import csv
 import json
 import os
@@ -68,6 +68,24 @@ def test_agents_leaving_at_different_times_run_through_the_wrapper():
         for a, r in rew.items():
             direct[a] += r
     np.testing.assert_allclose(returns, [direct[a] for a in base.possible_agents], rtol=1e-5)
+
+
+@pytest.mark.parametrize("terms", [False, True])
+def test_the_reward_terms_reach_torchrl_as_tensors_only_when_asked_for(terms):
+    """``reward_terms_in_infos=True``: TorchRL's wrapper turns each agent's list of floats into
+    ``("agents", "info", "reward_terms")`` [n, T], summing to the reward while the agent acts (float32); without
+    it the info has no such key."""
+    env = marl.make_env({**TINY, "reward_terms_in_infos": terms}, seed=3)
+    td = env.rollout(12, policy=_walker(env))
+    info = td["next", "agents", "info"]
+    assert ("reward_terms" in info.keys()) is terms
+    if terms:
+        parts = info["reward_terms"].numpy()
+        assert parts.shape == (len(td), N, 4)
+        acting = td["agents", "mask"].numpy()
+        reward = td["next", "agents", "reward"].squeeze(-1).numpy()
+        np.testing.assert_allclose(parts.sum(axis=-1)[acting], reward[acting], rtol=1e-5, atol=1e-6)
+        assert np.abs(parts[acting]).sum() > 0
 
 
 def test_gae_is_per_agent_and_stops_at_each_agents_exit():
