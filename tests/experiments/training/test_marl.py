@@ -1,5 +1,6 @@
 """MAPPO / IPPO through TorchRL (crowd_env.experiments.training.marl, crowd-train-mappo): agents leaving at different
-times through TorchRL's PettingZoo wrapper, per-agent GAE, the reward terms as info tensors, smoke trainings with reload and resume, bad input."""
+times through TorchRL's PettingZoo wrapper, the reward terms as info tensors, per-agent GAE, smoke trainings with
+reload and resume, bad input."""
 import csv
 import json
 import os
