@@ -166,8 +166,8 @@ def _reward_failing_at_step_3(env, agent_ids, info):
 
 def test_workers_give_bitwise_the_serial_results_and_close_stops_them():
     K, seed = 3, 5
-    serial = vector_env(K, **OPTIONS)
-    par = vector_env(K, workers=2, **OPTIONS)
+    serial = vector_env(K, **OPTIONS, reward_terms_in_infos=True)  # the terms' columns in the shared buffer too
+    par = vector_env(K, workers=2, **OPTIONS, reward_terms_in_infos=True)
     procs = par._pool.procs[1:]  # group 0 steps in this process, group 1 in a worker process
     assert len(procs) == 1 and all(p.is_alive() for p in procs)
     layout = serial.envs[0].observation_layout
@@ -180,6 +180,7 @@ def test_workers_give_bitwise_the_serial_results_and_close_stops_them():
                 assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
         actions = _walk(out_s[0], layout, rng)
         out_s, out_p = serial.step(actions), par.step(actions)
+        assert out_p[4]["reward_terms"].shape == (par.num_envs, 4)
         n_resets += int(out_s[2][~out_s[4]["acted"]].any())
     assert n_resets >= 1  # copies reset inside the workers too
     np.testing.assert_array_equal(serial.state(), par.state())
