@@ -11,8 +11,8 @@ step, so another load on the machine changes it little (the copies replay the sa
 ``git worktree`` of an older commit) alternately with this one, ``--rounds`` times, and prints both and their
 ratio: how issue 38's "no slower than before" was measured. ``--terms`` runs this checkout with
 ``reward_terms_in_infos=True`` (each agent's reward terms in its info; off by default): the price of that
-option. ``--vector`` adds the
-vector environment (``workers=1``, 8 copies, vector_speed.py's speed rule) per copy and step, column ``vec``.
+option. ``--vector`` adds the vector environment (``workers=1``, 8 copies, vector_speed.py's speed rule) per
+copy and step, column ``vec``.
 
     python benchmarks/env_step_parts.py --n 10 100
     git worktree add /tmp/old 587852c && python benchmarks/env_step_parts.py --against /tmp/old --rounds 3 --vector

@@ -19,11 +19,9 @@ def pytest_sessionstart(session):
     before the first test, as the README's main job shares them between its workers
     (:func:`crowd_env.experiments.running.warmup.warm_up`); the first test to run a rollout would otherwise compile
     them all on one core (about 60 s). Nothing when the rollout is cached; a stale plan costs time, never a result."""
-    from crowd_env.experiments.running.warmup import rollout_is_cached, warm_up
+    from crowd_env.experiments.running.warmup import warm_up
 
-    if rollout_is_cached():
-        return
-    with ProcessPoolExecutor(max_workers=2) as pool:
+    with ProcessPoolExecutor(max_workers=2) as pool:  # its processes start at the first task: none when cached
         warm_up(lambda fn, items: list(pool.map(fn, items)), 2)
 
 
