@@ -93,3 +93,47 @@ class TrajectoryRecorder:
             "active": it[keep, 2].astype(bool),
             "time": self.frame_time_s[frame],
         }
+
+
+class ResampledRecorder(TrajectoryRecorder):
+    """A :class:`TrajectoryRecorder` whose frames fall at t = k / ``frame_rate_per_s`` (k = 0, 1, ...) whatever
+    the times it is given: called at every step of h (e.g. 16 frames/s from h = 0.01 s, 6.25 steps a frame),
+    it interpolates positions and headings linearly between the two calls that bracket each frame time. A
+    pedestrian is in a frame when it is active at both calls (one that leaves within the interval is not); the
+    calls must give the same ids in the same order."""
+
+    def __init__(self, frame_rate_per_s: float, chunk_rows: int = 1 << 16, only_active: bool = False):
+        super().__init__(chunk_rows, only_active)
+        if not (isinstance(frame_rate_per_s, (int, float, np.integer, np.floating)) and np.isfinite(frame_rate_per_s)
+                and frame_rate_per_s > 0):
+            raise RecorderError(f"frame_rate_per_s must be a positive finite number, got {frame_rate_per_s!r}")
+        self.frame_rate_per_s = float(frame_rate_per_s)
+        self._last = None  # (time, positions, headings, active, ids) of the previous call
+
+    def record(self, time_s: float, position_m, heading_rad=None, active=None, ids=None) -> None:
+        """Take the state at ``time_s`` (non-decreasing) and append every frame whose time lies in (the previous
+        call's time, ``time_s``] (the first call: a frame when ``time_s`` is a frame time)."""
+        pos = np.array(position_m, dtype=np.float64)
+        n = pos.shape[0] if pos.ndim == 2 else -1
+        head = np.full(n, np.nan) if heading_rad is None else np.array(heading_rad, dtype=np.float64)
+        act = np.ones(n, dtype=bool) if active is None else np.array(active, dtype=bool)
+        pid = np.arange(n, dtype=np.int64) if ids is None else np.array(ids, dtype=np.int64)
+        t = float(time_s)
+        fps = self.frame_rate_per_s
+        if self._last is None:
+            k = round(t * fps)
+            if abs(k / fps - t) <= 1e-9 * max(1.0, abs(t)):
+                super().record(k / fps, pos, head, act, pid)
+            self._last = (t, pos, head, act, pid)
+            return
+        t0, p0, h0, a0, i0 = self._last
+        if t < t0 or pos.shape != p0.shape or not np.array_equal(pid, i0):
+            raise RecorderError(f"ResampledRecorder needs non-decreasing times and the same ids at every call "
+                                f"(got t = {t:g} s after {t0:g} s, {pos.shape} after {p0.shape})")
+        k = int(np.floor(t0 * fps + 1e-9)) + 1
+        while k / fps <= t + 1e-9 * max(1.0, abs(t)):
+            w = (k / fps - t0) / (t - t0) if t > t0 else 1.0
+            turn = np.angle(np.exp(1j * (head - h0)))  # the shorter way round
+            super().record(k / fps, p0 + w * (pos - p0), h0 + w * turn, a0 & act, pid)
+            k += 1
+        self._last = (t, pos, head, act, pid)

@@ -37,7 +37,7 @@ import shapely
 from ..core.checks import check_number
 from .recorder import TrajectoryRecorder
 
-__all__ = ["TrajectoryFormatError", "Trajectories", "steps_per_frame", "write_geometry",
+__all__ = ["TrajectoryFormatError", "Trajectories", "require_pedpy", "steps_per_frame", "write_geometry",
            "read_geometry", "geometry_paths", "export_run", "trajectory_frame_rate", "pedpy_walkable_area",
            "pedpy_measurement_line", "pedpy_measurement_area", "fundamental_diagram_data"]
 
@@ -45,7 +45,8 @@ TXT_COLUMNS = ("id", "frame", "x/m", "y/m", "z/m", "heading/rad")
 DEFAULT_FRAME_RATE_PER_S = 25.0
 
 
-def _pedpy():
+def require_pedpy():
+    """The pedpy module; :class:`MissingDependencyError` with the install command when it is missing."""
     try:
         import pedpy
     except ImportError as exc:  # optional dependency
@@ -158,7 +159,7 @@ class Trajectories:
         """A ``pedpy.TrajectoryData`` (columns id, frame, x, y; coordinates in metres)."""
         import pandas as pd
 
-        pedpy = _pedpy()
+        pedpy = require_pedpy()
         if not len(self):
             raise TrajectoryFormatError("no trajectory rows: PedPy cannot analyse an empty trajectory")
         data = pd.DataFrame({"id": self.id, "frame": self.frame, "x": self.x_m, "y": self.y_m})
@@ -366,21 +367,21 @@ def export_run(stem, trajectories: Trajectories, geometry, comments=(), metadata
 
 def pedpy_walkable_area(geometry):
     """``pedpy.WalkableArea`` of a Geometry's navigable area (walkable area with the exits)."""
-    return _pedpy().WalkableArea(geometry.navigable_area)
+    return require_pedpy().WalkableArea(geometry.navigable_area)
 
 
 def pedpy_measurement_line(geometry, name: str = "bottleneck"):
     """``pedpy.MeasurementLine`` of the geometry's measurement line ``name``."""
     if name not in geometry.measurement_lines:
         raise NotFoundError(f"geometry has no measurement line {name!r}; it has {sorted(geometry.measurement_lines)}")
-    return _pedpy().MeasurementLine(np.asarray(geometry.measurement_lines[name]).tolist())
+    return require_pedpy().MeasurementLine(np.asarray(geometry.measurement_lines[name]).tolist())
 
 
 def pedpy_measurement_area(geometry, name: str):
     """``pedpy.MeasurementArea`` of the geometry's (convex) measurement area ``name``."""
     if name not in geometry.measurement_areas:
         raise NotFoundError(f"geometry has no measurement area {name!r}; it has {sorted(geometry.measurement_areas)}")
-    return _pedpy().MeasurementArea(geometry.measurement_areas[name])
+    return require_pedpy().MeasurementArea(geometry.measurement_areas[name])
 
 
 # -- PedPy measures --------------------------------------------------------------------------------
@@ -393,7 +394,7 @@ def fundamental_diagram_data(traj_data, measurement_area, speed_window_s: float 
     and mean speeds from ``compute_mean_speed_per_frame``. Frames with nobody in the area are dropped.
     Returns arrays ``frame``, ``time_s``, ``density_per_m2``, ``speed_m_s``, ``specific_flow_per_m_s``.
     """
-    pedpy = _pedpy()
+    pedpy = require_pedpy()
     if isinstance(traj_data, Trajectories):
         traj_data = traj_data.to_pedpy()
     check_number("speed_window_s", speed_window_s, error=InputError, positive=True)

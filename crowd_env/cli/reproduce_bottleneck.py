@@ -5,8 +5,8 @@ finished run at once under ``OUT/runs/`` (a rerun skips finished runs: resumable
 ``OUT/results.csv`` (one row per run), ``OUT/summary.csv`` and the figures of Figs. 11-14
 (specific flow vs width against the experiment, densities, flow vs width with linear fits and
 residual norms, lateral-position histograms), and prints the J_s table beside the experiment. A run
-that stalls (:class:`crowd_env.experiments.running.runner.StallDetector`: nobody passes for 20 s and those left stand
-still) stops there; a run that is not complete (stalled, or people left at ``--max-time``) reports no
+that stalls (:class:`crowd_env.experiments.running.runner.StallDetector`: nobody passes for 20 s and those left get
+nowhere) stops there; a run that is not complete (stalled, or people left at ``--max-time``) reports no
 J_s (nan; its partial figure is ``partial_specific_flow_per_m_s``), and every mean of the table is over
 the complete runs only, with the stalled and otherwise incomplete runs counted beside it. With
 ``--trajectories`` every run's trajectories also go to ``OUT/trajectories/`` in PedPy's text format
@@ -57,10 +57,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--max-time", type=float, default=300.0, help="simulated time limit per run (s)")
     ap.add_argument("--stall-window", type=float, default=None, metavar="S",
                     help="stall rule: a run stops as stalled when nobody has crossed the line or left for S seconds "
-                         "and those left moved slower than --stall-speed on average over them (default 20; 0 "
+                         "and those left got no farther than --stall-speed times S, net (default 20; 0 "
                          "switches the rule off; part of the configuration when given)")
     ap.add_argument("--stall-speed", type=float, default=None, metavar="V",
-                    help="stall rule's mean speed threshold in m/s (default 0.05)")
+                    help="stall rule's mean net speed threshold in m/s: net displacement over the window / S (default 0.05)")
     ap.add_argument("--quick", action="store_true",
                     help="quick check for a fresh machine: N = 60, the 5 widths, 2 seeds (overrides --sizes/--seeds)")
     add_geometry_arguments(ap.add_argument_group("geometry (Seyfried 2009 defaults)"),

@@ -55,7 +55,7 @@ def main(argv=None) -> int:
     rows = run_jobs(stall_jobs(args.presets, args.width, args.n, args.corridor_width, args.seeds, args.max_time,
                                changes), args.jobs)
     print(f"b = {args.width:g} m, N = {args.n}, corridor {args.corridor_width:g} m; stall rule: no passage for "
-          f"20 s while the mean speed of those left is < 0.05 m/s")
+          f"20 s while those left get nowhere (mean net displacement < 0.05 m/s x 20 s)")
     print(f"{'preset':>12} {'seed':>4} {'result':>10} {'at (s)':>7} {'passed':>7} {'J_s':>6} {'min gap (m)':>12}")
     for r in rows:
         result = "stalled" if r["stalled"] else ("complete" if r["complete"] else "time limit")

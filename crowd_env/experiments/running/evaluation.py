@@ -23,7 +23,7 @@ measures below cover everybody whatever the agents did:
   left); ``partial_specific_flow_per_m_s`` / ``partial_flow_per_s``: Eq. 22 over the passages that
   happened, for incomplete episodes too;
 - ``stalled`` / ``stall_time_s``: the runner's stall rule (:class:`crowd_env.experiments.running.runner.StallDetector`:
-  nobody crossed the line or left for 20 s while those remaining stood still, mean speed below
+  nobody crossed the line or left for 20 s while those remaining got nowhere, mean net speed below
   0.05 m/s) fired at that time. Unlike ``run_scenario`` the episode is not stopped there, so that every
   policy's return covers the same horizon; ``stall_time_s`` is the first detection;
 - ``evacuation_time_s``: time of the last exit if everybody left, else NaN (``n_evacuated`` says
@@ -235,7 +235,7 @@ class _Probe:
         self.last_exit_s = float("nan")
         self.min_gap = self._gap(env)
         self.passed = np.zeros(env.n_pedestrians, dtype=bool)
-        self.stall = StallDetector(env.sim.params.dt_s, start_s=env.sim.time_s)
+        self.stall = StallDetector(env.sim.params.dt_s, start_s=env.sim.time_s, n_pedestrians=env.n_pedestrians)
         self.front = geom.measurement_areas.get("front")
         if self.front is not None:
             shapely.prepare(self.front)  # tested against the crowd at every step
@@ -297,7 +297,7 @@ class _Probe:
             if new:
                 self.passed[self.counter.ids[-new:]] = True
                 progressed = True
-        self.stall.update(env.sim.time_s, st.velocity_m_s, st.active & ~self.passed, progressed)
+        self.stall.update(env.sim.time_s, st.position_m, st.active & ~self.passed, progressed)
         v = st.velocity_m_s[st.active]
         if v.shape[0]:
             self.speed_sum += float(np.hypot(v[:, 0], v[:, 1]).sum())

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...analysis.recorder import TrajectoryRecorder
-from ...analysis.trajectories import DEFAULT_FRAME_RATE_PER_S, Trajectories, export_run, steps_per_frame
+from ...analysis.recorder import ResampledRecorder, TrajectoryRecorder
+from ...analysis.trajectories import (DEFAULT_FRAME_RATE_PER_S, Trajectories, TrajectoryFormatError, export_run,
+                                      steps_per_frame)
 from ...core.presets import DEFAULT_PRESET, get_preset
 from ...scenarios import make_scenario
 from ...walking.agent import SocialForceAgent
@@ -19,23 +20,31 @@ __all__ = ["record_run", "record_bottleneck_run"]
 
 
 def record_run(scenario, policy, params=None, *, frame_rate_per_s: float = DEFAULT_FRAME_RATE_PER_S, **run_kwargs):
-    """:func:`~crowd_env.experiments.running.runner.run_scenario` that also records trajectories every k-th step.
+    """:func:`~crowd_env.experiments.running.runner.run_scenario` that also records trajectories at ``frame_rate_per_s``.
 
-    Frame 0 is the start; frame f is at t = f / ``frame_rate_per_s`` (k = 1/(fps h) steps, see
-    :func:`~crowd_env.analysis.trajectories.steps_per_frame`). Only pedestrians still inside are
-    recorded. The run itself is unchanged (recording only reads the state). ``run_kwargs`` go to
-    ``run_scenario`` (``state``, ``rng`` and ``progress`` are honoured). Returns
+    Frame 0 is the start; frame f is at t = f / ``frame_rate_per_s``. When a frame lasts a whole number k of
+    steps h (k = 1/(fps h), see :func:`~crowd_env.analysis.trajectories.steps_per_frame`) every k-th step is
+    recorded; otherwise (16 frames/s, as the Jülich recordings, from h = 0.01 s) every step is read and the frames
+    are interpolated between the two steps around them (:class:`~crowd_env.analysis.recorder.ResampledRecorder`).
+    Only pedestrians still inside are recorded. The run itself is unchanged (recording only reads the state).
+    ``run_kwargs`` go to ``run_scenario`` (``state``, ``rng`` and ``progress`` are honoured). Returns
     ``(RunResult, Trajectories)``.
     """
     params = get_preset(DEFAULT_PRESET).params() if params is None else params
-    every = steps_per_frame(frame_rate_per_s, params.dt_s)
+    try:
+        every = steps_per_frame(frame_rate_per_s, params.dt_s)
+        recorder = TrajectoryRecorder(only_active=True)
+        fps = 1.0 / (every * params.dt_s)
+    except TrajectoryFormatError:  # not a whole number of steps a frame: interpolate between steps
+        every = 1
+        recorder = ResampledRecorder(frame_rate_per_s, only_active=True)
+        fps = recorder.frame_rate_per_s
     state = run_kwargs.pop("state", None)
     rng = run_kwargs.pop("rng", None)
     state = scenario.make_state(rng=rng) if state is None else state
-    recorder = TrajectoryRecorder(only_active=True)
     recorder.record(0.0, state.position_m, state.heading_rad, state.active, np.arange(state.n))
     result = run_scenario(scenario, policy, params, state=state, recorder=recorder, record_every=every, **run_kwargs)
-    return result, Trajectories.from_recorder(recorder, frame_rate_per_s=1.0 / (every * params.dt_s))
+    return result, Trajectories.from_recorder(recorder, frame_rate_per_s=fps)
 
 
 def record_bottleneck_run(width_m: float, n_pedestrians: int, seed: int, stem, *,

@@ -71,18 +71,22 @@ class Measures(NamedTuple):
 
 
 class StallRule(NamedTuple):
-    """The stall rule's window ring of per-step mean speeds and its ``STALL_*`` state, with its settings
-    (:class:`~crowd_env.experiments.running.runner.StallDetector`; ``window_steps`` 0: off)."""
+    """The stall rule's ring of position snapshots and its ``STALL_*`` state, with its settings
+    (:class:`~crowd_env.experiments.running.runner.StallDetector`; ``window_steps`` 0: off). ``snapshots`` (K, N, 2)
+    holds the positions every ``snapshot_every`` steps, ``snapshot_time_s`` (K,) their times (nan: empty slot)."""
 
-    ring: np.ndarray
+    snapshots: np.ndarray
+    snapshot_time_s: np.ndarray
     state: np.ndarray
     window_steps: int
+    snapshot_every: int
     window_s: float
     speed_m_s: float
 
 
-# Slots of the stall rule's state array (StallDetector.state).
-STALL_N, STALL_SUM, STALL_LAST_PROGRESS_S, STALL_STALLED, STALL_TIME_S = range(5)
+# Slots of the stall rule's state array (StallDetector.state): steps seen, snapshots taken, the last passage or
+# exit, stalled (0/1) and when.
+STALL_STEPS, STALL_SNAPSHOTS, STALL_LAST_PROGRESS_S, STALL_STALLED, STALL_TIME_S = range(5)
 # Slots of the run's counters (RunMeasures.counts) and scalars (RunMeasures.scalars).
 COUNT_PASSED, COUNT_STEPS, COUNT_LATERAL, COUNT_FRAMES = range(4)
 SCALAR_MIN_GAP_M, SCALAR_LAST_EXIT_S = range(2)
@@ -95,25 +99,35 @@ def _in_box(x, y, k, boxes):
 
 
 @nb.njit(cache=True)
-def mean_speed_of(velocity, mask):
-    """Mean ‖u‖ over the pedestrians flagged in ``mask`` (N,); nan when none is."""
+def mean_displacement_of(position, snapshot, mask):
+    """Mean distance between ``position`` and ``snapshot`` (N, 2) over the pedestrians flagged in ``mask`` (N,);
+    nan when none is."""
     total = 0.0
     count = 0
     for i in range(mask.shape[0]):
         if mask[i]:
-            total += np.sqrt(velocity[i, 0] ** 2 + velocity[i, 1] ** 2)
+            total += np.sqrt((position[i, 0] - snapshot[i, 0]) ** 2 + (position[i, 1] - snapshot[i, 1]) ** 2)
             count += 1
     return total / count if count else np.nan
 
 
 @nb.njit(cache=True)
-def stall_update(stall, dt_s, time_s, velocity, remaining, progressed):
+def stall_update(stall, dt_s, time_s, position, remaining, progressed):
     """One step of the stall rule (:class:`~crowd_env.experiments.running.runner.StallDetector`), in place on the
-    :class:`StallRule` ``stall``'s ring of per-step mean speeds and its ``STALL_*`` state. Returns whether the
-    run is stalled (from then on)."""
-    ring, state, window_steps = stall.ring, stall.state, stall.window_steps
-    if state[STALL_STALLED] != 0.0 or window_steps == 0:
+    :class:`StallRule` ``stall``'s snapshots and its ``STALL_*`` state: every ``snapshot_every`` steps the positions
+    go into the ring; once nobody has passed or left for ``window_s``, the run is stalled when the remaining
+    pedestrians' mean net displacement since the newest snapshot at least ``window_s`` old is below ``speed_m_s``
+    times its age (their mean net speed, whatever they jitter). Returns whether the run is stalled (from then on)."""
+    state = stall.state
+    if state[STALL_STALLED] != 0.0 or stall.window_steps == 0:
         return state[STALL_STALLED] != 0.0
+    steps = int(state[STALL_STEPS])
+    if steps % stall.snapshot_every == 0:
+        slot = int(state[STALL_SNAPSHOTS]) % stall.snapshots.shape[0]
+        stall.snapshots[slot, :, :] = position
+        stall.snapshot_time_s[slot] = time_s
+        state[STALL_SNAPSHOTS] += 1.0
+    state[STALL_STEPS] = steps + 1
     anyone = False
     for i in range(remaining.shape[0]):
         if remaining[i]:
@@ -121,20 +135,18 @@ def stall_update(stall, dt_s, time_s, velocity, remaining, progressed):
             break
     if progressed or not anyone:
         state[STALL_LAST_PROGRESS_S] = time_s
-        state[STALL_N] = 0.0
-        state[STALL_SUM] = 0.0
         return False
-    v = mean_speed_of(velocity, remaining)
-    n = int(state[STALL_N])
-    slot = n % window_steps
-    if n >= window_steps:
-        state[STALL_SUM] -= ring[slot]
-    ring[slot] = v
-    state[STALL_SUM] += v
-    n += 1
-    state[STALL_N] = n
-    if n >= window_steps and time_s - state[STALL_LAST_PROGRESS_S] >= stall.window_s - 0.5 * dt_s \
-            and state[STALL_SUM] / window_steps < stall.speed_m_s:
+    if time_s - state[STALL_LAST_PROGRESS_S] < stall.window_s - 0.5 * dt_s:
+        return False
+    best = -1
+    for k in range(stall.snapshot_time_s.shape[0]):  # the newest snapshot at least a window old
+        t = stall.snapshot_time_s[k]
+        if t <= time_s - stall.window_s + 0.5 * dt_s and (best < 0 or t > stall.snapshot_time_s[best]):
+            best = k
+    if best < 0:
+        return False
+    age = time_s - stall.snapshot_time_s[best]
+    if mean_displacement_of(position, stall.snapshots[best], remaining) < stall.speed_m_s * age:
         state[STALL_STALLED] = 1.0
         state[STALL_TIME_S] = time_s
     return state[STALL_STALLED] != 0.0
@@ -209,7 +221,7 @@ def measure_step(bodies, index, previous, n_exited, t_prev_s, time_s, step_count
     remaining = np.empty_like(active)  # those left who have started to walk (a waiting crowd is no stall)
     for i in range(active.shape[0]):
         remaining[i] = active[i] and not passed[i] and time_s >= bodies.premovement_s[i]
-    return stall_update(stall, dt_s, time_s, velocity, remaining, progressed)
+    return stall_update(stall, dt_s, time_s, position, remaining, progressed)
 
 
 @nb.njit(cache=True)

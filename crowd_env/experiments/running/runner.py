@@ -5,7 +5,7 @@ One function serves the bottleneck reproduction, the calibration and the benchma
 limit), detects passages of the measurement line within each step (interpolated crossing times),
 records densities and mean speeds in the scenario's measurement areas and lateral positions inside
 the channel, and tracks the minimum gap. It stops early when the crowd has *stalled*
-(:class:`StallDetector`): nobody passes any more, and those left stand still.
+(:class:`StallDetector`): nobody passes any more, and those left get nowhere.
 
 Complete and incomplete runs. A run is *complete* when nobody remains: every pedestrian crossed the
 measurement line or left (without a line: left). Only a complete run reports a flow: ``flow_per_s`` and
@@ -34,24 +34,23 @@ from ...core.presets import DEFAULT_PRESET, get_preset
 from ...walking.agent import SocialForceAgent, compiled_agent
 from crowd_env.files import write_atomic
 from .rollout import (COUNT_FRAMES, COUNT_LATERAL, COUNT_PASSED, COUNT_STEPS, ROLLOUT_CHUNK_STEPS, ROLLOUT_PYTHON_STEP,
-                      SCALAR_LAST_EXIT_S, SCALAR_MIN_GAP_M, STALL_LAST_PROGRESS_S, STALL_N, STALL_STALLED, STALL_TIME_S,
+                      SCALAR_LAST_EXIT_S, SCALAR_MIN_GAP_M, STALL_LAST_PROGRESS_S, STALL_STALLED, STALL_TIME_S,
                       Measures, StallRule, measure_step, rollout_steps, stall_update)
 
 # Stationary phase for densities: between the passages of these fractions of the pedestrians (the
 # middle 60 %), see RunResult.density_window_s.
 STATIONARY_PASSAGE_FRACTIONS = (0.2, 0.8)
 
-# Stall rule (StallDetector). Measured on 630 Seyfried runs that all complete (b = 0.8-1.2 m, N = 20, 40,
-# 60, seeds 0-9; presets paper and recalibrated, and lambda = 0.1, A = 300 N, B = 0.03 m; recalibrated at
-# b = 0.8-0.9 m also seeds 10-39): with paper and the lambda = 0.1 point the longest time without a
-# passage is 6.3 s, and during pauses over 5 s the pedestrians not yet passed still move at 0.12-0.57 m/s
-# on average; the calibrated preset (150 runs, b = 0.8-1.2 m, N = 20/40/60, seeds 0-9): 3.3 s. A crowd that clogs for good stands at 0-5 mm/s (paper, b = 1.0 m, N = 180, seed 0: 158 of
-# 180 at 4 mm/s after 22 passages; a pair beside the entrance at A = 752.5 N, B = 0.2 m: 0 m/s). The
-# recalibrated preset clogs intermittently at b = 0.8 m (86 pauses over 5 s in 330 runs, at 3 mm/s to
-# 0.3 m/s); 3 of them lasted 27, 29 and 133 s at 1-3 cm/s before the arch broke, and this rule reports
-# those three as stalled (the experiment never stood still for 20 s). See README, "Stalls".
+# Stall rule (StallDetector). Measured on 630 Seyfried runs (b = 0.8-1.2 m, N = 20, 40, 60, seeds 0-9; presets
+# calibrated, paper, recalibrated and calibrated with lambda = 0.1, A = 300 N, B = 0.03 m; recalibrated at b = 0.8-0.9 m
+# also seeds 10-39): the longest time without a passage in a run that completes is 3.3 s (calibrated), 6.3 s (paper),
+# 4.3 s (the lambda = 0.1 point); recalibrated clogs intermittently at b = 0.8 m and 3 of its 330 runs stall (the
+# experiment never stood still for 20 s). The net displacement, not the speed: a crowd wedged for good at the Jülich
+# corridor's 0.70 m exit shakes in place and got reported as neither stalled nor complete by a mean-speed rule.
+# docs/validation/bottleneck.md, "Stalls and incomplete runs".
 STALL_WINDOW_S = 20.0
 STALL_SPEED_M_S = 0.05
+STALL_SNAPSHOTS_PER_WINDOW = 20  # positions kept every window / 20 (1 s by default) for the net displacement
 
 CHECKPOINT_EVERY_S = 600.0  # wall seconds between two checkpoints of a long run (RunCheckpoint)
 
@@ -212,7 +211,7 @@ class RunResult:
 
 
 class StallDetector:
-    """The stall rule: a crowd that no longer passes and stands still.
+    """The stall rule: a crowd that no longer passes and no longer gets anywhere.
 
     At the end of every step, the run is *stalled* when
 
@@ -220,27 +219,38 @@ class StallDetector:
        stall) and, with a measurement line, not yet across it;
     2. nobody has crossed the line or left during the last ``window_s`` seconds (the window runs from
        the last passage or exit, or from the start); and
-    3. the mean speed ‖u‖ of the remaining pedestrians, averaged over the steps of that window, is below
-       ``speed_m_s``.
+    3. the remaining pedestrians' mean *net* displacement over the last window (from the newest position
+       snapshot at least ``window_s`` old; a snapshot every ``window_s`` / :data:`STALL_SNAPSHOTS_PER_WINDOW`)
+       is below ``speed_m_s`` times the window: their mean net speed is below ``speed_m_s``.
 
     Defaults :data:`STALL_WINDOW_S` = 20 s and :data:`STALL_SPEED_M_S` = 0.05 m/s (measurements beside
-    them): 3x the longest pause of runs that keep moving, and 10x the speed of a crowd clogged for good.
-    The averaged speed separates a standstill from a slow crowd: pedestrians who still move, even a few
-    centimetres per second, keep the mean above the threshold. ``window_s`` None switches the rule off.
+    them). The net displacement separates a crowd that gets somewhere, however slowly, from one that only
+    jitters in place: a wedged crowd whose members shake at several centimetres per second, back and forth,
+    is stalled all the same (the mean of instantaneous speeds, the rule before, never fired on the Jülich
+    corridor's 0.70 m exit clogged for good). ``window_s`` None switches the rule off. The snapshots are
+    allocated for ``n_pedestrians`` (None: at the first :meth:`update`).
     """
 
     def __init__(self, dt_s: float, window_s: float | None = STALL_WINDOW_S, speed_m_s: float = STALL_SPEED_M_S,
-                 start_s: float = 0.0):
+                 start_s: float = 0.0, n_pedestrians: int | None = None):
         self.window_s = None if window_s is None else check_number("stall window_s", window_s, error=InputError,
                                                                    positive=True, suffix=" or None")
         self.speed_m_s = check_number("stall speed_m_s", speed_m_s, error=InputError, minimum=0.0)
         self.dt_s = float(dt_s)
         self.window_steps = 0 if window_s is None else max(1, int(round(self.window_s / self.dt_s)))
-        # per-step mean speeds of the window; grown by room_for up to window_steps as steps are run
-        self.ring = np.zeros(max(min(self.window_steps, SERIES_START_ROWS), 1))
+        self.snapshot_every = max(1, self.window_steps // STALL_SNAPSHOTS_PER_WINDOW)
         self.state = np.zeros(5)  # the STALL_* slots of crowd_env.experiments.running.rollout
         self.state[STALL_LAST_PROGRESS_S] = float(start_s)
         self.state[STALL_TIME_S] = np.nan
+        self.snapshots = self.snapshot_time_s = None
+        if n_pedestrians is not None:
+            self._allocate(int(n_pedestrians))
+
+    def _allocate(self, n: int) -> None:
+        """Room for the snapshots of ``n`` pedestrians over a window and two snapshots more (none when off)."""
+        slots = self.window_steps // self.snapshot_every + 2 if self.window_steps else 1
+        self.snapshots = np.zeros((slots, n, 2))
+        self.snapshot_time_s = np.full(slots, np.nan)
 
     @property
     def stalled(self) -> bool:
@@ -257,26 +267,21 @@ class StallDetector:
         return float(self.state[STALL_LAST_PROGRESS_S])
 
     def bundle(self) -> StallRule:
-        """The rule as :func:`~crowd_env.experiments.running.rollout.stall_update` takes it (its ring and state, not
-        copies; window_s inf when off)."""
-        return StallRule(self.ring, self.state, self.window_steps, np.inf if self.window_s is None else self.window_s,
-                         self.speed_m_s)
+        """The rule as :func:`~crowd_env.experiments.running.rollout.stall_update` takes it (its snapshots and state,
+        not copies; window_s inf when off)."""
+        if self.snapshots is None:
+            raise InputError("StallDetector: the number of pedestrians is not known yet (pass n_pedestrians)")
+        return StallRule(self.snapshots, self.snapshot_time_s, self.state, self.window_steps, self.snapshot_every,
+                         np.inf if self.window_s is None else self.window_s, self.speed_m_s)
 
-    def room_for(self, steps: int) -> None:
-        """A window ring with room for ``steps`` more steps (it fills from slot 0 until it holds
-        ``window_steps`` speeds, then wraps): grown, keeping what it holds, up to ``window_steps``."""
-        need = min(self.window_steps, int(self.state[STALL_N]) + int(steps))
-        if need > self.ring.shape[0]:
-            ring = np.zeros(min(self.window_steps, max(need, 2 * self.ring.shape[0])))
-            ring[:self.ring.shape[0]] = self.ring
-            self.ring = ring
-
-    def update(self, time_s: float, velocity, remaining, progressed: bool) -> bool:
-        """Record one step: ``remaining`` (N,) bool flags the pedestrians left, ``progressed`` says whether
-        someone crossed the line or left during it. Returns True when the run is stalled (from then on)."""
-        self.room_for(1)
-        return stall_update(self.bundle(), self.dt_s, float(time_s),
-                            np.ascontiguousarray(velocity, dtype=np.float64), np.asarray(remaining, dtype=bool),
+    def update(self, time_s: float, position, remaining, progressed: bool) -> bool:
+        """Record one step: ``position`` (N, 2) the positions after it, ``remaining`` (N,) bool flags the
+        pedestrians left, ``progressed`` says whether someone crossed the line or left during it. Returns True
+        when the run is stalled (from then on)."""
+        position = np.ascontiguousarray(position, dtype=np.float64)
+        if self.snapshots is None:
+            self._allocate(position.shape[0])
+        return stall_update(self.bundle(), self.dt_s, float(time_s), position, np.asarray(remaining, dtype=bool),
                             bool(progressed))
 
 
@@ -420,7 +425,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     measures = _RunMeasures(scenario, state.n, n_steps_max, line, density_areas, lane_area, sim.min_gap_m(),
                             record_every if recorder is not None else 0)
     stall = StallDetector(params.dt_s, None if sim.period_m > 0.0 else stall_window_s, stall_speed_m_s,
-                          start_s=sim.time_s)
+                          start_s=sim.time_s, n_pedestrians=state.n)
     done, wall_before_s = 0, 0.0
     kept = checkpoint.load() if checkpoint is not None else None
     if kept is not None:  # go on from the kept run: the caller's state and recorder become its own
@@ -472,7 +477,6 @@ def _compiled_chunk(sim, agent, measures: _RunMeasures, stall: StallDetector, st
     """Up to ``steps`` steps in one compiled call (:func:`~crowd_env.experiments.running.rollout.rollout_steps`), accounted
     to ``sim``: ``(steps done, whether the next step needs the Python path)``."""
     measures.room_for(steps)
-    stall.room_for(steps)
     status, k, clock, rounds = rollout_steps(steps, sim.time_s, sim.step_count, sim.state.array_fields(),
                                              tuple(sim.world), tuple(sim.step_params), agent, measures.bundle(),
                                              stall.bundle())
@@ -484,7 +488,6 @@ def _python_step(sim, policy, measures: _RunMeasures, stall: StallDetector) -> N
     """One step from Python (``policy(sim)``, :meth:`~crowd_env.core.Simulator.step`), measured by the same
     :func:`~crowd_env.experiments.running.rollout.measure_step` as a compiled one."""
     measures.room_for(1)
-    stall.room_for(1)
     idx = sim.active_index
     previous = sim.state.position_m[idx]
     intents, heading = policy(sim)

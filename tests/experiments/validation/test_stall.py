@@ -79,28 +79,34 @@ def test_slow_seyfried_runs_are_not_stalled(preset, width_m, n, seed):
 
 
 def test_stall_detector_rule():
+    """The rule reads the remaining pedestrians' net displacement over the window: a crowd creeping on at 1.2x the
+    threshold speed never stalls, one at 0.8x stalls one window (and a step) after the start, one that shakes in
+    place at 0.5 m/s without getting anywhere stalls too (the mean of instantaneous speeds did not: it was 0.5 m/s),
+    a passage restarts the window, a pedestrian who passed does not count."""
     dt = 0.01
     k = int(round(STALL_WINDOW_S / dt))
-    v = np.zeros((3, 2))
     remaining = np.array([True, True, False])
 
-    def run(speed, steps, progress_at=()):
+    def run(net_speed, steps, progress_at=(), shake_m=0.0):
         d = StallDetector(dt)
-        v[:2, 0] = speed
-        v[2, 0] = 5.0  # not remaining (already passed): must not count
         for i in range(steps):
-            if d.update((i + 1) * dt, v, remaining, i in progress_at):
+            t = (i + 1) * dt
+            p = np.array([[net_speed * t + shake_m * (-1) ** i, 0.0], [0.0, net_speed * t - shake_m * (-1) ** i],
+                          [5.0 * t, 0.0]])  # the third has passed and walks on: it must not count
+            if d.update(t, p, remaining, i in progress_at):
                 return d
         return d
 
-    slow = run(1.2 * STALL_SPEED_M_S, 2 * k)
-    assert not slow.stalled  # slow but moving: never
-    still = run(0.8 * STALL_SPEED_M_S, 2 * k)
-    assert still.stalled and still.stall_time_s == pytest.approx(STALL_WINDOW_S)
-    reset = run(0.0, 2 * k, progress_at=(k // 2,))  # a passage restarts the window
+    slow = run(1.2 * STALL_SPEED_M_S, 3 * k)
+    assert not slow.stalled  # slow but getting somewhere: never
+    still = run(0.8 * STALL_SPEED_M_S, 3 * k)
+    assert still.stalled and still.stall_time_s == pytest.approx(STALL_WINDOW_S + dt)
+    shaking = run(0.0, 3 * k, shake_m=0.0025)  # 5 mm back and forth every step: 0.5 m/s, net 0
+    assert shaking.stalled and shaking.stall_time_s == pytest.approx(STALL_WINDOW_S + dt)
+    reset = run(0.0, 3 * k, progress_at=(k // 2,))  # a passage restarts the window
     assert reset.stall_time_s == pytest.approx((k // 2 + 1) * dt + STALL_WINDOW_S)
     d = StallDetector(dt)
-    assert not d.update(100.0, v, np.zeros(3, dtype=bool), False)  # nobody remains: never stalled
+    assert not d.update(100.0, np.zeros((3, 2)), np.zeros(3, dtype=bool), False)  # nobody remains: never stalled
     off = StallDetector(dt, window_s=None)
     assert not any(off.update((i + 1) * dt, np.zeros((3, 2)), remaining, False) for i in range(2 * k))
     for bad in (0.0, -1.0, float("nan")):
@@ -108,6 +114,16 @@ def test_stall_detector_rule():
             StallDetector(dt, window_s=bad)
     with pytest.raises(ValueError, match="stall speed"):
         StallDetector(dt, speed_m_s=-0.1)
+
+
+def test_stall_detector_memory_does_not_grow_with_the_window_in_steps():
+    """The rule keeps a position snapshot every window / 20, whatever the step: at dt_s = 1e-9 (2e10 steps a
+    window) it holds 22 snapshots, as at the paper's 0.01 s."""
+    from crowd_env.experiments.running.runner import STALL_SNAPSHOTS_PER_WINDOW
+
+    for dt in (0.01, 1e-9):
+        d = StallDetector(dt, n_pedestrians=100)
+        assert d.snapshots.shape == (STALL_SNAPSHOTS_PER_WINDOW + 2, 100, 2)
 
 
 def test_run_result_defaults_keep_older_constructions_valid():

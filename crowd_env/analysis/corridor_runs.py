@@ -1,0 +1,203 @@
+"""The Jülich corridor runs (UO) as they were measured: the per-run table, the recordings, and one measurement for
+the recordings and the model alike.
+
+Zhang, Klingsch, Schadschneider, Seyfried (2011), J. Stat. Mech. P06004: nine unidirectional runs in a 1.8 m
+corridor, each with its entrance and exit (``data/juelich_uo_runs_1.8m.csv``, one row per run, PedPy 1.5 on the
+recordings; the recordings in ``data/juelich_uo/``, PedPy's example data, 16 frames/s, cm). The measurement,
+:func:`measure_uo_run`, is the one PedPy's fundamental-diagram notebook applies to these recordings:
+
+- the Voronoi density and speed (method D, no cut-off) in the area x in [0, b_c], y in [−2, 0], the Voronoi
+  cells bounded by :func:`uo_measurement_walkable_area` (the notebook's walkable area: the corridor with 1 m
+  of floor beside it before y = 4 m and after y = −4 m), individual speeds over ±5 frames (one-sided at the
+  ends of a trajectory), averaged over the frames of the steady state;
+- the flows: first crossings of y = 0 and of the exit line y = −4 m (towards −y) per second of the steady
+  state, counted between its first and last frame.
+
+The steady state of the shipped rows was chosen by hand for each run (PedPy's notebook). A model run has no such
+hand: :func:`steady_frames` takes it from the passage of the 15 % to the 90 % of the walkers across y = 0
+(:data:`STEADY_CROSSING_FRACTIONS`), the mean of where the hand-chosen windows lie in the nine recordings
+(from 5-27 % to 80-94 %). Measured this way, the nine recordings give their shipped rows within 7 % in density,
+0.05 m/s in speed and 7 % in exit flow (``tests/analysis/test_corridor_runs.py``, which also checks the
+hand-chosen windows to the shipped figures). Only rows inside the walkable area count, as the camera saw them.
+
+PedPy is an optional dependency (``pip install 'crowd_env[analysis]'``); :func:`measure_uo_run` needs it.
+"""
+from __future__ import annotations
+
+import gzip
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import resources
+
+import numpy as np
+import shapely
+from shapely.geometry import Polygon
+
+from crowd_env.errors import ExperimentError, InputError, NotFoundError
+
+from .flow import MeasurementLine, trajectory_crossings
+from .trajectories import Trajectories, require_pedpy
+
+__all__ = ["UORun", "juelich_uo_runs", "uo_run", "recorded_uo_trajectories", "uo_measurement_walkable_area",
+           "uo_measurement_area", "steady_frames", "UORunMeasures", "measure_uo_run", "crossing_times_s",
+           "STEADY_CROSSING_FRACTIONS", "UO_FRAME_RATE_PER_S", "UO_SPEED_FRAME_STEP"]
+
+UO_FRAME_RATE_PER_S = 16.0  # the recordings' frame rate
+UO_SPEED_FRAME_STEP = 5  # individual speeds over ±5 frames (±0.3125 s), PedPy's notebook
+STEADY_CROSSING_FRACTIONS = (0.15, 0.90)  # the steady state of a run without a hand-chosen one (module docstring)
+_EXIT_Y_M = -4.0
+_MEASUREMENT_Y_M = (-2.0, 0.0)
+_COLUMNS = ["run", "b_entrance_m", "b_corridor_m", "b_exit_m", "n_pedestrians", "steady_from_frame", "steady_to_frame",
+            "density_voronoi_per_m2", "density_sd", "speed_voronoi_m_s", "speed_sd", "flow_at_y0_per_s",
+            "flow_exit_per_s", "specific_flow_corridor", "specific_flow_exit"]
+
+
+@dataclass(frozen=True)
+class UORun:
+    """One run of the shipped table: its set-up (entrance, corridor, exit widths in m, N), the hand-chosen steady
+    frames and the figures measured over them (Voronoi density and speed with their spread over frames, flows
+    across y = 0 and the exit)."""
+
+    name: str
+    entrance_width_m: float
+    corridor_width_m: float
+    exit_width_m: float
+    n_pedestrians: int
+    steady_from_frame: int
+    steady_to_frame: int
+    density_per_m2: float
+    density_sd_per_m2: float
+    speed_m_s: float
+    speed_sd_m_s: float
+    flow_y0_per_s: float
+    flow_exit_per_s: float
+
+
+@lru_cache(maxsize=1)
+def juelich_uo_runs() -> tuple:
+    """The nine runs (:class:`UORun`), in the file's order: five with a narrowed entrance, three with a narrowed exit,
+    and the open one."""
+    text = resources.files("crowd_env.analysis").joinpath("data", "juelich_uo_runs_1.8m.csv").read_text(encoding="utf-8")
+    rows = [ln.split(",") for ln in text.splitlines() if ln.strip()]
+    if rows[0] != _COLUMNS:
+        raise ExperimentError(f"juelich_uo_runs_1.8m.csv: expected columns {_COLUMNS}, got {rows[0]}")
+    return tuple(UORun(r[0], float(r[1]), float(r[2]), float(r[3]), int(r[4]), int(r[5]), int(r[6]), float(r[7]),
+                       float(r[8]), float(r[9]), float(r[10]), float(r[11]), float(r[12])) for r in rows[1:])
+
+
+def uo_run(name: str) -> UORun:
+    """The run called ``name`` (e.g. ``"uo-180-180-070"``); :class:`NotFoundError` listing the names otherwise."""
+    for run in juelich_uo_runs():
+        if run.name == name:
+            return run
+    raise NotFoundError(f"no Jülich corridor run {name!r}; the runs are {[r.name for r in juelich_uo_runs()]}")
+
+
+def recorded_uo_trajectories(name: str) -> Trajectories:
+    """The recording of run ``name`` (16 frames/s, positions converted from cm to m; headings unknown)."""
+    uo_run(name)
+    raw = resources.files("crowd_env.analysis").joinpath("data", "juelich_uo", f"{name}.txt.gz").read_bytes()
+    data = np.loadtxt(gzip.decompress(raw).decode("ascii").splitlines(), comments="#", usecols=(0, 1, 2, 3))
+    return Trajectories(data[:, 1], data[:, 0], data[:, 2] / 100.0, data[:, 3] / 100.0, None, UO_FRAME_RATE_PER_S)
+
+
+def uo_measurement_walkable_area(corridor_width_m: float = 1.8) -> Polygon:
+    """The area the Voronoi cells are bounded by (PedPy's notebook for these runs, for any corridor width): the
+    corridor x in [0, b_c], y in [−4, 4], and 1 m of floor beside it on both sides for y in [4, 8] and
+    [−6.5, −4]."""
+    b = float(corridor_width_m)
+    if not b > 0:
+        raise InputError(f"corridor_width_m must be > 0, got {corridor_width_m!r}")
+    return Polygon([(b + 1.0, -6.5), (b + 1.0, -4.0), (b, -4.0), (b, 4.0), (b + 1.0, 4.0), (b + 1.0, 8.0), (-1.0, 8.0),
+                    (-1.0, 4.0), (0.0, 4.0), (0.0, -4.0), (-1.0, -4.0), (-1.0, -6.5)])
+
+
+def uo_measurement_area(corridor_width_m: float = 1.8) -> Polygon:
+    """The measurement area: x in [0, b_c], y in [−2, 0]."""
+    return shapely.box(0.0, _MEASUREMENT_Y_M[0], float(corridor_width_m), _MEASUREMENT_Y_M[1])
+
+
+def crossing_times_s(trajectories: Trajectories, *, y_m: float, x_range_m: tuple) -> np.ndarray:
+    """Sorted times of the first crossings of the line y = ``y_m``, x in ``x_range_m``, towards −y (interpolated
+    between frames)."""
+    line = MeasurementLine((x_range_m[0], y_m), (x_range_m[1], y_m), direction=(0.0, -1.0))
+    _, times = trajectory_crossings(trajectories.frame, trajectories.id, trajectories.x_m, trajectories.y_m,
+                                    trajectories.frame_time_s, line)
+    return np.sort(times)
+
+
+def steady_frames(y0_crossing_times_s, *, frame_rate_per_s: float, fractions=STEADY_CROSSING_FRACTIONS) -> tuple:
+    """``(first, last)`` frame of the steady state: from the passage of the ``fractions[0]`` part of the walkers
+    across y = 0 to that of the ``fractions[1]`` part (ranks rounded to the nearest). Raises :class:`InputError`
+    with fewer than two passages."""
+    times = np.sort(np.asarray(y0_crossing_times_s, dtype=np.float64))
+    lo, hi = (float(f) for f in fractions)
+    if not 0.0 <= lo < hi <= 1.0:
+        raise InputError(f"fractions must satisfy 0 <= lo < hi <= 1, got {fractions!r}")
+    if times.size < 2:
+        raise InputError(f"a steady state needs at least two passages of y = 0, got {times.size}")
+    k0 = int(round(lo * (times.size - 1)))
+    k1 = max(int(round(hi * (times.size - 1))), k0 + 1)
+    return int(np.ceil(times[k0] * frame_rate_per_s - 1e-9)), int(np.ceil(times[k1] * frame_rate_per_s - 1e-9))
+
+
+@dataclass(frozen=True)
+class UORunMeasures:
+    """A run measured as the shipped rows (module docstring): the steady frames, Voronoi density and speed (means
+    over its frames, ``*_sd`` their spread), the flows across y = 0 and the exit, and the passages counted."""
+
+    steady_from_frame: int
+    steady_to_frame: int
+    density_per_m2: float
+    density_sd_per_m2: float
+    speed_m_s: float
+    speed_sd_m_s: float
+    flow_y0_per_s: float
+    flow_exit_per_s: float
+    n_crossings_y0: int
+    n_crossings_exit: int
+
+
+def measure_uo_run(trajectories: Trajectories, *, corridor_width_m: float = 1.8, exit_width_m: float | None = None,
+                   steady: tuple | None = None, fractions=STEADY_CROSSING_FRACTIONS) -> UORunMeasures:
+    """Measure a UO run (recorded or simulated) as the shipped rows were measured (module docstring).
+
+    ``steady``: ``(first, last)`` frame of the steady state (the shipped row's for a recording); None takes it
+    from the passages across y = 0 (:func:`steady_frames` with ``fractions``). ``exit_width_m``: the exit line's
+    width, centred on the corridor (default the corridor's). Rows outside :func:`uo_measurement_walkable_area`
+    are left out (beyond the camera). Raises :class:`InputError` for a window without frames or a run with
+    fewer than two passages of y = 0 when the window is to be found."""
+    pedpy = require_pedpy()
+    import pandas as pd
+
+    b = float(corridor_width_m)
+    bx = b if exit_width_m is None else float(exit_width_m)
+    walkable = uo_measurement_walkable_area(b)
+    inside = shapely.contains_xy(walkable, trajectories.x_m, trajectories.y_m)
+    fps = trajectories.frame_rate_per_s
+    t_y0 = crossing_times_s(trajectories, y_m=0.0, x_range_m=(0.0, b))
+    t_exit = crossing_times_s(trajectories, y_m=_EXIT_Y_M, x_range_m=(0.5 * (b - bx), 0.5 * (b + bx)))
+    f0, f1 = steady_frames(t_y0, frame_rate_per_s=fps, fractions=fractions) if steady is None else \
+        (int(steady[0]), int(steady[1]))
+    in_window = inside & (trajectories.frame >= f0) & (trajectories.frame <= f1)
+    if f1 <= f0 or not np.any(in_window):
+        raise InputError(f"the steady state, frames {f0} to {f1}, holds no recorded frame inside the corridor's area")
+    data = pd.DataFrame({"id": trajectories.id[in_window], "frame": trajectories.frame[in_window],
+                         "x": trajectories.x_m[in_window], "y": trajectories.y_m[in_window]})
+    traj = pedpy.TrajectoryData(data=data, frame_rate=fps)
+    area = pedpy.MeasurementArea(uo_measurement_area(b))
+    cells = pedpy.compute_individual_voronoi_polygons(traj_data=traj, walkable_area=pedpy.WalkableArea(walkable))
+    density, intersecting = pedpy.compute_voronoi_density(individual_voronoi_data=cells, measurement_area=area)
+    speed = pedpy.compute_individual_speed(traj_data=traj, frame_step=UO_SPEED_FRAME_STEP,
+                                           speed_calculation=pedpy.SpeedCalculation.BORDER_SINGLE_SIDED)
+    voronoi_speed = pedpy.compute_voronoi_speed(traj_data=traj, individual_voronoi_intersection=intersecting,
+                                                individual_speed=speed, measurement_area=area)
+    rho = density["density"].to_numpy(dtype=np.float64)
+    v = voronoi_speed["speed"].to_numpy(dtype=np.float64)
+    duration_s = (f1 - f0) / fps
+
+    def rate(times):
+        return float(np.count_nonzero((times >= f0 / fps) & (times < f1 / fps)) / duration_s)
+
+    return UORunMeasures(f0, f1, float(rho.mean()), float(rho.std()), float(v.mean()), float(v.std()), rate(t_y0),
+                         rate(t_exit), int(t_y0.size), int(t_exit.size))

@@ -1,0 +1,120 @@
+"""The nine Jülich corridor runs simulated as they were run and measured as they were measured.
+
+Each task is one UO run (:mod:`crowd_env.scenarios.juelich_corridor`: the waiting area, the entrance, the 8 m
+corridor and its exit, N as in the experiment) with a seed and a model: :func:`run_corridor_one` records it at the
+recordings' 16 frames/s and measures it with :func:`~crowd_env.analysis.corridor_runs.measure_uo_run`, the
+measurement that gives the shipped rows from the recordings (Voronoi density and speed in y in [−2, 0], flows
+across y = 0 and the exit over the steady state). A run that is not complete (stalled: nobody passed the exit
+for 20 s and those left got nowhere, the runner's stall rule; or people left at the time limit) reports no
+figure, only why. :func:`summarise_corridor` sets the seed means of the complete runs beside each experiment.
+
+Task format (JSON): ``run`` (the experiment's name), ``entrance_width_m``, ``corridor_width_m``, ``exit_width_m``,
+``width_m`` (the exit's, for the run store's file names), ``n_pedestrians``, ``seed``, ``params``
+(:class:`~crowd_env.core.params.ModelParams` fields), ``geometry`` (``juelich_corridor`` options beyond the widths
+and N), ``max_time_s``; optional ``pedestrian`` (overrides of :class:`~crowd_env.core.params.PedestrianDefaults`)
+and ``policy`` (:mod:`crowd_env.experiments.running.crowd_policy`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from crowd_env.errors import InputError
+
+from ...analysis.corridor_runs import (UO_FRAME_RATE_PER_S, juelich_uo_runs, measure_uo_run, uo_run)
+from ...core.params import ModelParams, PedestrianDefaults
+from ...scenarios import make_scenario
+from ..running.crowd_policy import crowd_policy
+from ..running.recording import record_run
+from .bottleneck import params_dict
+
+__all__ = ["CORRIDOR_RUN_NAMES", "CORRIDOR_TOLERANCES", "corridor_tasks", "run_corridor_one", "summarise_corridor"]
+
+CORRIDOR_RUN_NAMES = tuple(r.name for r in juelich_uo_runs())
+# The issue's targets for each run: speed within ±0.10 m/s, density within ±15 %, exit flow within ±10 %.
+CORRIDOR_TOLERANCES = {"speed_m_s": 0.10, "density_relative": 0.15, "flow_exit_relative": 0.10}
+_MEASURED = ("density_per_m2", "density_sd_per_m2", "speed_m_s", "speed_sd_m_s", "flow_y0_per_s", "flow_exit_per_s",
+             "steady_from_frame", "steady_to_frame")
+
+
+def corridor_tasks(params: ModelParams, *, runs=CORRIDOR_RUN_NAMES, seeds=(0,), geometry: dict | None = None,
+                   pedestrian: dict | None = None, max_time_s: float = 300.0) -> list:
+    """One task per run name of ``runs`` and seed (module docstring), with the experiment's widths and N."""
+    if isinstance(runs, str):
+        runs = (runs,)
+    if not runs:
+        raise InputError("corridor_tasks needs at least one run")
+    tasks = []
+    for name in runs:
+        run = uo_run(name)
+        for seed in seeds:
+            task = {"experiment": "corridor", "run": run.name, "entrance_width_m": run.entrance_width_m,
+                    "corridor_width_m": run.corridor_width_m, "exit_width_m": run.exit_width_m,
+                    "width_m": run.exit_width_m, "n_pedestrians": run.n_pedestrians, "seed": int(seed),
+                    "params": params_dict(params), "geometry": dict(geometry or {}), "max_time_s": float(max_time_s)}
+            if pedestrian:
+                task["pedestrian"] = dict(pedestrian)
+            tasks.append(task)
+    return tasks
+
+
+def run_corridor_one(task: dict) -> dict:
+    """One corridor run of the task format; a JSON-able record: the measured figures (nan unless the run is
+    complete), ``complete`` / ``stalled`` / ``stall_time_s``, the exit's passages, the smallest gap and the cost."""
+    params = ModelParams.from_dict(task["params"])
+    scenario = make_scenario("juelich_corridor", entrance_width_m=task["entrance_width_m"],
+                             exit_width_m=task["exit_width_m"], corridor_width_m=task["corridor_width_m"],
+                             n_pedestrians=task["n_pedestrians"], seed=task["seed"], **task["geometry"])
+    state = None
+    if task.get("pedestrian"):
+        state = scenario.make_state(defaults=dataclasses.replace(PedestrianDefaults(), **task["pedestrian"]))
+    policy = crowd_policy(task, scenario, params)
+    result, traj = record_run(scenario, policy, params, frame_rate_per_s=UO_FRAME_RATE_PER_S, state=state,
+                              max_time_s=task["max_time_s"], line="exit", density_areas=(), lane_area=None)
+    record = {"experiment": "corridor", "run": task["run"], "seed": task["seed"], "n_pedestrians": task["n_pedestrians"],
+              "width_m": task["width_m"], "complete": bool(result.complete), "stalled": bool(result.stalled),
+              "stall_time_s": result.stall_time_s, "n_passages": int(result.n_passed),
+              "n_evacuated": int(result.n_evacuated), "min_gap_m": result.min_gap_m,
+              "simulated_time_s": result.simulated_time_s, "wall_time_s": result.wall_time_s, "n_steps": result.n_steps}
+    measured = dict.fromkeys(_MEASURED, math.nan)
+    if result.complete:
+        m = measure_uo_run(traj, corridor_width_m=task["corridor_width_m"], exit_width_m=task["exit_width_m"])
+        measured = {k: getattr(m, k) for k in _MEASURED}
+    record.update(measured)
+    return record
+
+
+def _mean(values) -> float:
+    v = np.asarray(values, dtype=np.float64)
+    v = v[np.isfinite(v)]
+    return float(v.mean()) if v.size else math.nan
+
+
+def summarise_corridor(records: list) -> list:
+    """One row per run: the seed means of the complete runs (density, speed, exit and y = 0 flows) beside the
+    experiment, the misses against :data:`CORRIDOR_TOLERANCES` (``*_miss`` in units of the tolerance: within
+    it when at most 1), and how many runs were complete, stalled or otherwise incomplete."""
+    rows = []
+    for run in juelich_uo_runs():
+        rs = [r for r in records if r.get("experiment") == "corridor" and r["run"] == run.name]
+        if not rs:
+            continue
+        done = [r for r in rs if r["complete"]]
+        rho, v = _mean([r["density_per_m2"] for r in done]), _mean([r["speed_m_s"] for r in done])
+        j_exit, j_y0 = _mean([r["flow_exit_per_s"] for r in done]), _mean([r["flow_y0_per_s"] for r in done])
+        rows.append({
+            "run": run.name, "entrance_width_m": run.entrance_width_m, "exit_width_m": run.exit_width_m,
+            "n_pedestrians": run.n_pedestrians, "runs": len(rs), "complete": len(done),
+            "stalled": sum(bool(r["stalled"]) for r in rs),
+            "incomplete": sum(not r["complete"] and not r["stalled"] for r in rs),
+            "density_per_m2": rho, "density_exp": run.density_per_m2, "speed_m_s": v, "speed_exp": run.speed_m_s,
+            "flow_exit_per_s": j_exit, "flow_exit_exp": run.flow_exit_per_s, "flow_y0_per_s": j_y0,
+            "flow_y0_exp": run.flow_y0_per_s,
+            "density_miss": abs(rho / run.density_per_m2 - 1.0) / CORRIDOR_TOLERANCES["density_relative"],
+            "speed_miss": abs(v - run.speed_m_s) / CORRIDOR_TOLERANCES["speed_m_s"],
+            "flow_exit_miss": abs(j_exit / run.flow_exit_per_s - 1.0) / CORRIDOR_TOLERANCES["flow_exit_relative"],
+            "min_gap_m": float(min(r["min_gap_m"] for r in rs)),
+        })
+    return rows

@@ -1,0 +1,105 @@
+"""The Jülich corridor runs as measured (crowd_env.analysis.corridor_runs): a hand-made lattice whose Voronoi density,
+speed and flows are known exactly, and the nine recordings measured back to their shipped rows."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import shapely
+
+pytest.importorskip("pedpy")
+
+from crowd_env.analysis.corridor_runs import (STEADY_CROSSING_FRACTIONS, UO_FRAME_RATE_PER_S, crossing_times_s,
+                                              juelich_uo_runs, measure_uo_run, recorded_uo_trajectories,
+                                              steady_frames, uo_measurement_walkable_area, uo_run)
+from crowd_env.analysis.trajectories import Trajectories
+from crowd_env.errors import InputError, NotFoundError
+
+
+def _lattice(*, columns_x_m, row_spacing_m, speed_m_s, frames, fps=UO_FRAME_RATE_PER_S):
+    """Columns of walkers at ``columns_x_m``, rows ``row_spacing_m`` apart, all walking towards −y at ``speed_m_s``,
+    from y = 7.9 m down to −6.4 m (inside the measurement's walkable area); ids follow each walker."""
+    frame, ids, x, y = [], [], [], []
+    n_rows = int(np.ceil((7.9 + 6.4 + speed_m_s * frames / fps) / row_spacing_m)) + 1
+    for f in range(frames):
+        t = f / fps
+        for row in range(n_rows):
+            yy = 7.9 - row * row_spacing_m + speed_m_s * frames / fps - speed_m_s * t
+            if -6.4 <= yy <= 7.9:
+                for c, xx in enumerate(columns_x_m):
+                    frame.append(f)
+                    ids.append(row * len(columns_x_m) + c)
+                    x.append(xx)
+                    y.append(yy)
+    return Trajectories(np.array(frame), np.array(ids), np.array(x), np.array(y), None, fps)
+
+
+def test_a_lattice_measures_its_exact_density_speed_and_flows():
+    """Three columns 0.6 m apart (cells 0.6 m wide between the walls x = 0 and 1.8 m), rows 0.5 m apart, all at
+    1 m/s: every Voronoi cell in the area is 0.6 m x 0.5 m, so ρ = 1 / 0.3 m² exactly, v = 1 m/s, and each
+    column passes a line every 0.5 s: 6 per second across y = 0 and the exit."""
+    traj = _lattice(columns_x_m=(0.3, 0.9, 1.5), row_spacing_m=0.5, speed_m_s=1.0, frames=400)
+    m = measure_uo_run(traj, corridor_width_m=1.8, steady=(80, 320))
+    assert m.density_per_m2 == pytest.approx(1 / 0.3, rel=1e-9) and m.density_sd_per_m2 == pytest.approx(0.0, abs=1e-9)
+    assert m.speed_m_s == pytest.approx(1.0, rel=1e-9) and m.speed_sd_m_s == pytest.approx(0.0, abs=1e-9)
+    duration = (320 - 80) / UO_FRAME_RATE_PER_S
+    for flow in (m.flow_y0_per_s, m.flow_exit_per_s):
+        assert abs(flow - 6.0) <= 3 / duration  # 6 per second, to the crossing at each end of the window
+    # an exit line narrower than the corridor counts only the columns through it
+    narrow = measure_uo_run(traj, corridor_width_m=1.8, exit_width_m=0.7, steady=(80, 320))
+    assert abs(narrow.flow_exit_per_s - 2.0) <= 1 / duration and narrow.flow_y0_per_s == m.flow_y0_per_s
+    # the window from the passages: the 15 % to the 90 % passage across y = 0
+    auto = measure_uo_run(traj, corridor_width_m=1.8)
+    times = crossing_times_s(traj, y_m=0.0, x_range_m=(0.0, 1.8))
+    k0, k1 = (int(round(f * (times.size - 1))) for f in STEADY_CROSSING_FRACTIONS)
+    assert (auto.steady_from_frame, auto.steady_to_frame) == (int(np.ceil(times[k0] * 16 - 1e-9)),
+                                                              int(np.ceil(times[k1] * 16 - 1e-9)))
+    assert auto.density_per_m2 == pytest.approx(1 / 0.3, rel=1e-9)
+
+
+def test_rows_outside_the_camera_view_are_left_out():
+    """A walker outside the measurement's walkable area (beside the floor, x = 3.5 m) would make PedPy refuse the
+    frame; it is left out, and the figures are the lattice's."""
+    traj = _lattice(columns_x_m=(0.3, 0.9, 1.5), row_spacing_m=0.5, speed_m_s=1.0, frames=200)
+    extra = Trajectories(np.concatenate([traj.frame, np.arange(200)]), np.concatenate([traj.id, np.full(200, 10_000)]),
+                         np.concatenate([traj.x_m, np.full(200, 3.5)]), np.concatenate([traj.y_m, np.full(200, 6.0)]),
+                         None, UO_FRAME_RATE_PER_S)
+    assert not uo_measurement_walkable_area(1.8).contains(shapely.Point(3.5, 6.0))
+    m = measure_uo_run(extra, corridor_width_m=1.8, steady=(40, 160))
+    assert m.density_per_m2 == pytest.approx(1 / 0.3, rel=1e-9)
+
+
+def test_steady_frames_and_bad_input():
+    assert steady_frames([1.0, 2.0, 3.0], frame_rate_per_s=16.0, fractions=(0.0, 1.0)) == (16, 48)
+    with pytest.raises(InputError, match="at least two passages"):
+        steady_frames([1.0], frame_rate_per_s=16.0)
+    with pytest.raises(InputError, match="fractions"):
+        steady_frames([1.0, 2.0], frame_rate_per_s=16.0, fractions=(0.5, 0.5))
+    with pytest.raises(NotFoundError, match="uo-180-180-070"):
+        uo_run("uo-999")
+    traj = _lattice(columns_x_m=(0.9,), row_spacing_m=0.5, speed_m_s=1.0, frames=50)
+    with pytest.raises(InputError, match="holds no recorded frame"):
+        measure_uo_run(traj, steady=(500, 600))
+
+
+def test_the_recordings_measure_back_to_their_rows():
+    """Reference data: with each run's hand-chosen steady frames the measurement gives the shipped row (PedPy 1.5);
+    with the rule a model run is measured by (the 15 % to 90 % passages across y = 0) it stays within 7 % in
+    density, 0.05 m/s in speed and 7 % in exit flow of every row."""
+    runs = juelich_uo_runs()
+    assert [r.name for r in runs][:1] == ["uo-050-180-180"] and len(runs) == 9
+    for run in runs:
+        traj = recorded_uo_trajectories(run.name)
+        assert traj.n_pedestrians == run.n_pedestrians
+        hand = measure_uo_run(traj, corridor_width_m=run.corridor_width_m, exit_width_m=run.exit_width_m,
+                              steady=(run.steady_from_frame, run.steady_to_frame))
+        duration = (run.steady_to_frame - run.steady_from_frame) / UO_FRAME_RATE_PER_S
+        # the low-density runs' cells differ in the third digit from the shipped ones (1.4 % at most)
+        assert hand.density_per_m2 == pytest.approx(run.density_per_m2, rel=0.015), run.name
+        assert hand.speed_m_s == pytest.approx(run.speed_m_s, abs=1e-3), run.name
+        assert hand.flow_exit_per_s == pytest.approx(run.flow_exit_per_s, abs=1e-3), run.name
+        assert abs(hand.flow_y0_per_s - run.flow_y0_per_s) <= 1.01 / duration, run.name
+        assert hand.n_crossings_y0 == hand.n_crossings_exit == run.n_pedestrians
+        rule = measure_uo_run(traj, corridor_width_m=run.corridor_width_m, exit_width_m=run.exit_width_m)
+        assert rule.density_per_m2 == pytest.approx(run.density_per_m2, rel=0.07), run.name
+        assert rule.speed_m_s == pytest.approx(run.speed_m_s, abs=0.05), run.name
+        assert rule.flow_exit_per_s == pytest.approx(run.flow_exit_per_s, rel=0.07), run.name
