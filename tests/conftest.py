@@ -7,11 +7,19 @@ same name in different folders do not clash and import the helpers of a conftest
 """
 import functools
 import importlib.util
+import os
+import tempfile
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]  # the repository root
 DATA = ROOT / "tests" / "data"  # stored states and matrices of regressions
+
+
+def pytest_configure(config):
+    """The signing key of checkpoints (crowd_env.files.secret_path) in a temporary folder of this session, not in
+    the account's own data folder; the commands the tests start in other processes inherit it."""
+    os.environ.setdefault("CROWD_ENV_SECRET_FILE", os.path.join(tempfile.mkdtemp(prefix="crowd_env_key_"), "secret.key"))
 
 
 def pytest_sessionstart(session):
@@ -23,6 +31,17 @@ def pytest_sessionstart(session):
 
     with ProcessPoolExecutor(max_workers=2) as pool:  # its processes start at the first task: none when cached
         warm_up(lambda fn, items: list(pool.map(fn, items)), 2)
+
+
+class CodeRunningPayload:
+    """An object whose unpickling creates the file ``flag``: a stand-in for the code a crafted pickle runs (the
+    file-loading tests plant it and check that ``flag`` never appears)."""
+
+    def __init__(self, flag):
+        self.flag = str(flag)
+
+    def __reduce__(self):
+        return (open, (self.flag, "w"))
 
 
 def load_script(name):
