@@ -44,6 +44,32 @@ class CodeRunningPayload:
         return (open, (self.flag, "w"))
 
 
+def plant_in_sb3_archive(path, flag, part: str = "data") -> None:
+    """Rewrite the SB3 archive ``path`` with a :class:`CodeRunningPayload` in ``part``: ``"data"`` as its pickled
+    policy class (which SB3's loader unpickles), ``"policy.pth"`` as a weight of its state dict."""
+    import base64
+    import io
+    import json
+    import pickle
+    import zipfile
+
+    import torch
+
+    with zipfile.ZipFile(path) as z:
+        parts = {name: z.read(name) for name in z.namelist()}
+    if part == "data":
+        data = json.loads(parts["data"])
+        data["policy_class"][":serialized:"] = base64.b64encode(pickle.dumps(CodeRunningPayload(flag))).decode()
+        parts["data"] = json.dumps(data).encode()
+    else:
+        buffer = io.BytesIO()
+        torch.save({"mlp_extractor.policy_net.0.weight": CodeRunningPayload(flag)}, buffer)
+        parts[part] = buffer.getvalue()
+    with zipfile.ZipFile(path, "w") as z:
+        for name, blob in parts.items():
+            z.writestr(name, blob)
+
+
 def load_script(name):
     """The thin entry point ``scripts/<name>.py`` imported as a module (to call its ``main``)."""
     spec = importlib.util.spec_from_file_location(f"_script_{name}", ROOT / "scripts" / f"{name}.py")

@@ -112,9 +112,9 @@ def _variants():
     return select_tests(["1"])[0].scenarios(True, 0)
 
 
-def test_a_checkpoint_this_account_did_not_sign_is_refused_unread(tmp_path, monkeypatch):
-    """A code-running pickle planted as the checkpoint (a shared run folder, a checkpoint from before they were
-    signed) and a checkpoint signed under another account's key are refused: UntrustedFileError, nothing runs."""
+def test_a_checkpoint_signed_under_another_key_is_refused_unread(tmp_path, monkeypatch):
+    """A checkpoint signed by another account's crowd_env (its key elsewhere) is refused: UntrustedFileError,
+    nothing in it runs (a plain pickle planted as the checkpoint: tests/test_untrusted_files.py)."""
     import pickle
 
     from crowd_env.errors import UntrustedFileError
@@ -122,12 +122,9 @@ def test_a_checkpoint_this_account_did_not_sign_is_refused_unread(tmp_path, monk
     from tests.conftest import CodeRunningPayload
 
     path, flag = tmp_path / "run.checkpoint.pkl", tmp_path / "ran.flag"
-    path.write_bytes(pickle.dumps({"key": "a", "evil": CodeRunningPayload(flag)}))
-    with pytest.raises(UntrustedFileError, match=r"run.checkpoint.pkl is not a file crowd_env signed.*delete it"):
-        _run(RunCheckpoint(str(path), key="a", every_s=0.0))
     monkeypatch.setenv(SECRET_FILE_ENV, str(tmp_path / "someone_else.key"))
     write_signed_atomic(path, pickle.dumps({"key": "a", "evil": CodeRunningPayload(flag)}))
     monkeypatch.setenv(SECRET_FILE_ENV, str(tmp_path / "mine.key"))
-    with pytest.raises(UntrustedFileError, match="was not signed with this account's key"):
-        read_checkpoint(str(path))
+    with pytest.raises(UntrustedFileError, match="run.checkpoint.pkl was not signed with this account's key"):
+        _run(RunCheckpoint(str(path), key="a", every_s=0.0))
     assert not flag.exists()

@@ -131,7 +131,7 @@ def _deterministic_actions(out, algorithm, obs):
     actor, _ = marl.build_networks(env, algorithm)
     with open(os.path.join(out, "checkpoints", "index.json")) as fh:
         latest = json.load(fh)["checkpoints"][-1]["model"]
-    actor.load_state_dict(torch.load(os.path.join(out, "checkpoints", latest), weights_only=False)["actor"])
+    actor.load_state_dict(torch.load(os.path.join(out, "checkpoints", latest), weights_only=True)["actor"])
     td = env.reset()
     td["agents", "observation"] = torch.as_tensor(obs)
     with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
