@@ -112,6 +112,16 @@ def test_the_scan_finds_each_kind_of_unpickling_call():
                      "from_checkpoint", "restore_from_path"]
 
 
+def test_the_commands_that_take_a_saved_model_say_it_may_run_code():
+    from crowd_env.cli import evaluate, video
+    from crowd_env.cli.options import PICKLED_MODELS_NOTE
+
+    rollout = video.build_parser()._subparsers._group_actions[0].choices["rollout"]
+    for parser in (evaluate.build_parser(), rollout):
+        assert "".join(PICKLED_MODELS_NOTE.split()) in "".join(parser.format_help().split()), parser.prog  # rewrapped
+    assert "pickles, which run code when loaded" in PICKLED_MODELS_NOTE
+
+
 # --- each format, planted ------------------------------------------------------------------------------------
 TINY = {"scenario": "polygon", "controlled": "all", "frame_skip": 10, "max_steps": 20,
         "scenario_options": {"walkable_area": [[0, 0], [1.6, 0], [1.6, 2.0], [0, 2.0]],
