@@ -140,8 +140,11 @@ def _secret(create: bool) -> bytes | None:
             os.link(tmp, path)  # fails if another process made one first: theirs is kept
         except FileExistsError:
             pass
+        except OSError:  # a file system without hard links: renamed into place unless one appeared meanwhile
+            if not path.exists():
+                os.replace(tmp, path)
         finally:
-            tmp.unlink()
+            tmp.unlink(missing_ok=True)
     if not path.exists():
         return None
     key = path.read_bytes()

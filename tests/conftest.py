@@ -8,6 +8,7 @@ same name in different folders do not clash and import the helpers of a conftest
 import functools
 import importlib.util
 import os
+import shutil
 import tempfile
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -16,10 +17,20 @@ ROOT = Path(__file__).resolve().parents[1]  # the repository root
 DATA = ROOT / "tests" / "data"  # stored states and matrices of regressions
 
 
+_KEY_FOLDER = []  # the temporary folder of the session's signing key, when pytest_configure made one
+
+
 def pytest_configure(config):
     """The signing key of checkpoints (crowd_env.files.secret_path) in a temporary folder of this session, not in
     the account's own data folder; the commands the tests start in other processes inherit it."""
-    os.environ.setdefault("CROWD_ENV_SECRET_FILE", os.path.join(tempfile.mkdtemp(prefix="crowd_env_key_"), "secret.key"))
+    if not os.environ.get("CROWD_ENV_SECRET_FILE"):
+        _KEY_FOLDER.append(tempfile.mkdtemp(prefix="crowd_env_key_"))
+        os.environ["CROWD_ENV_SECRET_FILE"] = os.path.join(_KEY_FOLDER[0], "secret.key")
+
+
+def pytest_unconfigure(config):
+    for folder in _KEY_FOLDER:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def pytest_sessionstart(session):

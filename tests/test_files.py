@@ -173,3 +173,19 @@ def test_a_files_digest_covers_names_and_contents_of_files_and_folders(tmp_path,
     monkeypatch.setenv(files.SECRET_FILE_ENV, str(tmp_path / "other.key"))
     with pytest.raises(UntrustedFileError, match="do not match"):
         files.check_files_digest(paths, digest, "retrain")
+
+
+def test_the_key_is_made_once_also_where_the_file_system_has_no_hard_links(tmp_path, monkeypatch):
+    monkeypatch.setenv(files.SECRET_FILE_ENV, str(tmp_path / "k" / "secret.key"))
+    files.write_signed_atomic(tmp_path / "a", b"a")
+    key = (tmp_path / "k" / "secret.key").read_bytes()
+
+    def no_links(*args):
+        raise OSError("hard links not supported")
+
+    monkeypatch.setattr(os, "link", no_links)
+    files.write_signed_atomic(tmp_path / "b", b"b")  # the key exists: kept
+    assert (tmp_path / "k" / "secret.key").read_bytes() == key and files.read_signed(tmp_path / "a", "") == b"a"
+    monkeypatch.setenv(files.SECRET_FILE_ENV, str(tmp_path / "k2" / "secret.key"))
+    files.write_signed_atomic(tmp_path / "c", b"c")  # made by renaming
+    assert files.read_signed(tmp_path / "c", "") == b"c" and os.listdir(tmp_path / "k2") == ["secret.key"]
