@@ -89,7 +89,10 @@ class ZeroIntentPolicy(EnvPolicy):
 
 class SB3Policy(EnvPolicy):
     """A Stable-Baselines3 model (or the path of a saved one) shared by all agents; one batched
-    ``predict`` per step. The observation space must match the environment's (raises otherwise)."""
+    ``predict`` per step. The observation space must match the environment's (raises otherwise).
+
+    A saved SB3 model (``.zip``) holds pickles, which run code when ``PPO.load`` reads them: load only models
+    from sources you trust, and share a policy as a policy file (``.npz``: ``crowd-convert-policy``)."""
 
     def __init__(self, model, deterministic: bool = True, name: str | None = None):
         if isinstance(model, (str, os.PathLike)):
@@ -102,9 +105,8 @@ class SB3Policy(EnvPolicy):
                                        + f" (looked in {os.path.dirname(os.path.abspath(path))})")
             from stable_baselines3 import PPO
 
-            algo = PPO
             try:
-                model = algo.load(path, device="cpu")
+                model = PPO.load(path, device="cpu")  # SB3's pickles: a model the user chose to trust (docstring)
             except Exception as exc:
                 raise ValueError(f"cannot load an SB3 PPO model from {path!r}: {exc}") from exc
             self.name = name or os.path.splitext(os.path.basename(path))[0]
@@ -159,7 +161,10 @@ _NAMED = {"baseline": CalibratedPolicy, "calibrated": CalibratedPolicy, "social_
 def as_policy(spec, name: str | None = None) -> EnvPolicy:
     """An :class:`EnvPolicy` from a name (``baseline``, ``random``, ``zero`` or a shipped trained policy:
     ``baselines.trained.list_trained()``), a policy file (``.npz``), a saved model (SB3 ``.zip``; ``crowd-train-mappo``'s ``policy.pt`` or its
-    run folder; ``crowd-train-rllib``'s run folder), an SB3 model, a policy or a callable."""
+    run folder; ``crowd-train-rllib``'s run folder), an SB3 model, a policy or a callable.
+
+    Policy files and ``policy.pt`` are read as data only (nothing in them runs); an SB3 ``.zip`` and an RLlib run
+    folder hold pickles, which run code when loaded: load those only from sources you trust."""
     if isinstance(spec, EnvPolicy):
         if name:
             spec.name = name

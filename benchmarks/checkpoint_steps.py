@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import pickle
 import sys
 import time
 
@@ -32,6 +31,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from timing import time_calls  # noqa: E402
 
 from crowd_env.core.solvers import cascade as cascade_module  # noqa: E402
+from crowd_env.experiments.running.runner import read_checkpoint  # noqa: E402
 
 METHODS = ("project_gaps_alm", "project_gaps_working_set", "project_gaps_interior_point", "project_gaps_ipm",
            "project_gaps_large")
@@ -42,8 +42,7 @@ COUNTERS = ("n_alm_newton_steps", "n_ipm_projections", "n_working_set_solves", "
 def run_schedule(path: str, steps: int, ipm_skip_after_miss, clocks: dict) -> dict:
     """``steps`` steps from the checkpoint at ``path`` with the cascade's ``ipm_skip_after_miss`` (None:
     its default); the times of the methods go to ``clocks``."""
-    with open(path, "rb") as fh:
-        kept = pickle.load(fh)
+    kept = read_checkpoint(path)  # unpickled only when this account's crowd_env signed it
     sim, policy = kept["sim"], kept["policy"]
     cascade = sim.cascade
     if ipm_skip_after_miss is not None:  # the schedule from this step on, whatever back-off the kept run was in

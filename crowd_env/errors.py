@@ -32,6 +32,12 @@ class MissingFileError(CrowdEnvError, FileNotFoundError):
     """A file the call needs does not exist (the message names it)."""
 
 
+class UntrustedFileError(CrowdEnvError, ValueError):
+    """A file that could run code when read, refused unread: a pickle (a run or training checkpoint) that this
+    account's crowd_env did not sign (:func:`crowd_env.files.read_signed`), or a ``.pt`` policy or checkpoint holding
+    more than numbers, strings, lists, dicts and tensors."""
+
+
 class MissingDependencyError(CrowdEnvError, ImportError):
     """An optional dependency is not installed (the message names the extra that provides it)."""
 

@@ -7,11 +7,30 @@ same name in different folders do not clash and import the helpers of a conftest
 """
 import functools
 import importlib.util
+import os
+import shutil
+import tempfile
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]  # the repository root
 DATA = ROOT / "tests" / "data"  # stored states and matrices of regressions
+
+
+_KEY_FOLDER = []  # the temporary folder of the session's signing key, when pytest_configure made one
+
+
+def pytest_configure(config):
+    """The signing key of checkpoints (crowd_env.files.secret_path) in a temporary folder of this session, not in
+    the account's own data folder; the commands the tests start in other processes inherit it."""
+    if not os.environ.get("CROWD_ENV_SECRET_FILE"):
+        _KEY_FOLDER.append(tempfile.mkdtemp(prefix="crowd_env_key_"))
+        os.environ["CROWD_ENV_SECRET_FILE"] = os.path.join(_KEY_FOLDER[0], "secret.key")
+
+
+def pytest_unconfigure(config):
+    for folder in _KEY_FOLDER:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def pytest_sessionstart(session):
@@ -23,6 +42,43 @@ def pytest_sessionstart(session):
 
     with ProcessPoolExecutor(max_workers=2) as pool:  # its processes start at the first task: none when cached
         warm_up(lambda fn, items: list(pool.map(fn, items)), 2)
+
+
+class CodeRunningPayload:
+    """An object whose unpickling creates the file ``flag``: a stand-in for the code a crafted pickle runs (the
+    file-loading tests plant it and check that ``flag`` never appears)."""
+
+    def __init__(self, flag):
+        self.flag = str(flag)
+
+    def __reduce__(self):
+        return (open, (self.flag, "w"))
+
+
+def plant_in_sb3_archive(path, flag, part: str = "data") -> None:
+    """Rewrite the SB3 archive ``path`` with a :class:`CodeRunningPayload` in ``part``: ``"data"`` as its pickled
+    policy class (which SB3's loader unpickles), ``"policy.pth"`` as a weight of its state dict."""
+    import base64
+    import io
+    import json
+    import pickle
+    import zipfile
+
+    import torch
+
+    with zipfile.ZipFile(path) as z:
+        parts = {name: z.read(name) for name in z.namelist()}
+    if part == "data":
+        data = json.loads(parts["data"])
+        data["policy_class"][":serialized:"] = base64.b64encode(pickle.dumps(CodeRunningPayload(flag))).decode()
+        parts["data"] = json.dumps(data).encode()
+    else:
+        buffer = io.BytesIO()
+        torch.save({"mlp_extractor.policy_net.0.weight": CodeRunningPayload(flag)}, buffer)
+        parts[part] = buffer.getvalue()
+    with zipfile.ZipFile(path, "w") as z:
+        for name, blob in parts.items():
+            z.writestr(name, blob)
 
 
 def load_script(name):

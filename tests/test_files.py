@@ -117,3 +117,75 @@ def test_text_is_utf8_whatever_the_locale(tmp_path):
     assert out.returncode == 0, out.stderr
     assert (tmp_path / "u.md").read_bytes().decode("utf-8") == "ρ = 2 /m², Φ"
     assert json.loads((tmp_path / "j.json").read_bytes().decode("utf-8")) == {"ρ": [1, 2]}
+
+
+def test_a_signed_file_reads_back_and_anything_else_is_refused_unread(tmp_path, monkeypatch):
+    """read_signed gives back what write_signed_atomic wrote under this account's key (made on first use, mode
+    0600, outside the file's folder); an unsigned pickle, a file signed under another key and an altered one are
+    refused before anything in them is unpickled, naming the file and the remedy."""
+    import pickle
+
+    from crowd_env.errors import UntrustedFileError
+    from tests.conftest import CodeRunningPayload
+
+    monkeypatch.setenv(files.SECRET_FILE_ENV, str(tmp_path / "keys" / "mine.key"))
+    path = tmp_path / "run" / "c.pkl"
+    path.parent.mkdir()
+    files.write_signed_atomic(path, b"payload")
+    assert files.read_signed(path, "delete it") == b"payload"
+    assert (tmp_path / "keys" / "mine.key").stat().st_mode & 0o777 == 0o600
+    flag = tmp_path / "ran.flag"
+    path.write_bytes(pickle.dumps(CodeRunningPayload(flag)))  # someone else's plain pickle
+    with pytest.raises(UntrustedFileError, match=r"c.pkl is not a file crowd_env signed.*refused unread.*delete it"):
+        files.read_signed(path, "delete it")
+    files.write_signed_atomic(path, pickle.dumps(CodeRunningPayload(flag)))  # signed, but under another key
+    monkeypatch.setenv(files.SECRET_FILE_ENV, str(tmp_path / "keys" / "other.key"))
+    with pytest.raises(UntrustedFileError, match=r"c.pkl was not signed with this account's key"):
+        files.read_signed(path, "delete it")
+    assert not (tmp_path / "keys" / "other.key").exists()  # reading never makes a key
+    files.write_signed_atomic(path, b"payload")
+    data = bytearray(path.read_bytes())
+    data[-1] ^= 1  # one bit of the payload changed
+    path.write_bytes(bytes(data))
+    with pytest.raises(UntrustedFileError, match="was not signed with this account's key"):
+        files.read_signed(path, "delete it")
+    assert not flag.exists()
+
+
+def test_a_files_digest_covers_names_and_contents_of_files_and_folders(tmp_path, monkeypatch):
+    from crowd_env.errors import UntrustedFileError
+
+    monkeypatch.setenv(files.SECRET_FILE_ENV, str(tmp_path / "mine.key"))
+    (tmp_path / "ck" / "sub").mkdir(parents=True)
+    (tmp_path / "ck" / "sub" / "a.pkl").write_bytes(b"aa")
+    (tmp_path / "m.zip").write_bytes(b"zz")
+    paths = [tmp_path / "m.zip", tmp_path / "ck"]
+    digest = files.files_digest(paths)
+    files.check_files_digest(paths, digest, "retrain")
+    for change in (lambda: (tmp_path / "ck" / "sub" / "b.pkl").write_bytes(b""),  # a file added to the folder
+                   lambda: (tmp_path / "m.zip").write_bytes(b"zy")):  # a file altered
+        change()
+        with pytest.raises(UntrustedFileError, match=r"m.zip, .*ck do not match their digest.*retrain"):
+            files.check_files_digest(paths, digest, "retrain")
+        digest = files.files_digest(paths)
+    with pytest.raises(UntrustedFileError, match="carry no digest"):
+        files.check_files_digest(paths, None, "retrain")
+    monkeypatch.setenv(files.SECRET_FILE_ENV, str(tmp_path / "other.key"))
+    with pytest.raises(UntrustedFileError, match="do not match"):
+        files.check_files_digest(paths, digest, "retrain")
+
+
+def test_the_key_is_made_once_also_where_the_file_system_has_no_hard_links(tmp_path, monkeypatch):
+    monkeypatch.setenv(files.SECRET_FILE_ENV, str(tmp_path / "k" / "secret.key"))
+    files.write_signed_atomic(tmp_path / "a", b"a")
+    key = (tmp_path / "k" / "secret.key").read_bytes()
+
+    def no_links(*args):
+        raise OSError("hard links not supported")
+
+    monkeypatch.setattr(os, "link", no_links)
+    files.write_signed_atomic(tmp_path / "b", b"b")  # the key exists: kept
+    assert (tmp_path / "k" / "secret.key").read_bytes() == key and files.read_signed(tmp_path / "a", "") == b"a"
+    monkeypatch.setenv(files.SECRET_FILE_ENV, str(tmp_path / "k2" / "secret.key"))
+    files.write_signed_atomic(tmp_path / "c", b"c")  # made by renaming
+    assert files.read_signed(tmp_path / "c", "") == b"c" and os.listdir(tmp_path / "k2") == ["secret.key"]

@@ -42,7 +42,7 @@ from ..experiments.running.evaluation import (ScenarioSpec, describe_setup, epis
                                               recorded_env_config, resolve_policy, summarize)
 from ..experiments.output.video import per_policy
 from ..errors import CrowdEnvError, InputError, OptionError, PolicyError, ScenarioError
-from .options import DEFAULT_POLICY_RESOLVER, key_values, policy_env_options
+from .options import DEFAULT_POLICY_RESOLVER, PICKLED_MODELS_NOTE, key_values, policy_env_options
 
 DEFAULT_SCENARIO = "seyfried_bottleneck"
 DEFAULT_MAX_TIME_S = 90.0
@@ -51,8 +51,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="crowd-evaluate", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--policies", nargs="*", default=["baseline", "random", "zero"],
-                    help="policies: names the resolver knows (baseline, random, zero) or import paths module:attribute")
-    ap.add_argument("--model", action="append", default=[], help="saved SB3 PPO model (.zip); repeatable")
+                    help="policies: names the resolver knows (baseline, random, zero, shipped trained policies), "
+                         "policy files (.npz), saved models or import paths module:attribute")
+    ap.add_argument("--model", action="append", default=[],
+                    help=f"saved SB3 PPO model (.zip); repeatable. {PICKLED_MODELS_NOTE}")
     ap.add_argument("--policy-resolver", default=DEFAULT_POLICY_RESOLVER, metavar="MODULE:FUNCTION",
                     help=f"resolve(spec, name=None) -> policy for names and models (default {DEFAULT_POLICY_RESOLVER})")
     ap.add_argument("--no-recorded-config", action="store_true",

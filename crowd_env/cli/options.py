@@ -15,7 +15,12 @@ from ..experiments.validation.bottleneck import GEOMETRY_OPTIONS, bottleneck_con
 from ..experiments.running.evaluation import DEFAULT_POLICY_RESOLVER
 
 __all__ = ["add_geometry_arguments", "model_params_from_args", "navigation_clearance_from_args", "config_of",
-           "DEFAULT_POLICY_RESOLVER", "key_values", "policy_env_options", "MODEL_ENV_KEYS"]
+           "DEFAULT_POLICY_RESOLVER", "key_values", "policy_env_options", "MODEL_ENV_KEYS", "PICKLED_MODELS_NOTE"]
+
+# Said wherever a command takes a saved model (the --help of crowd-evaluate, crowd-video, crowd-scorecard).
+PICKLED_MODELS_NOTE = ("SB3 .zip models and crowd-train-rllib run folders are pickles, which run code when loaded: load "
+                       "them only from sources you trust; share a policy as .npz (crowd-convert-policy), which holds "
+                       "data only, as does crowd-train-mappo's policy.pt")
 
 
 

@@ -31,8 +31,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="crowd-scorecard", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--policies", nargs="+", default=[], metavar="POLICY",
-                    help="policies to score besides the calibrated model: names, .npz files, module:attribute, "
-                         "NAME@FRACTION for the mixed case")
+                    help="policies to score besides the calibrated model: names, policy files (.npz: data only, "
+                         "nothing in them runs; crowd-convert-policy makes one of a trained SB3 or MAPPO model), "
+                         "module:attribute, NAME@FRACTION for the mixed case")
     ap.add_argument("--shipped", action="store_true", help="also every shipped trained policy")
     ap.add_argument("--quick", action="store_true",
                     help="the small plan (b = 0.9 m, 2 seeds, two corridor and two single-file bins, short runs): a "

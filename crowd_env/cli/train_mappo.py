@@ -12,8 +12,9 @@ the episodes that ended in it, the PPO losses (objective, critic, entropy) and t
 the trained policy (deterministic) and the uniform random policy run on the same ``--eval-seeds``
 through the evaluation harness; ``summary.json`` holds both mean per-agent episode returns.
 
-Outputs in ``--out``: ``progress.csv``, ``policy.pt`` (the policy's weights and shapes; reload it with
-``crowd_env.experiments.training.marl.load_policy(out)``, a policy of the evaluation harness),
+Outputs in ``--out``: ``progress.csv``, ``policy.pt`` (the policy's weights and shapes, data only; reload it with
+``crowd_env.experiments.training.marl.load_policy(out)``, a policy of the evaluation harness, or convert it to a
+policy file with ``crowd-convert-policy``),
 ``env_config.json``, ``summary.json`` and ``checkpoints/`` (every ``--checkpoint-every`` iterations and at
 the end: networks, optimiser and progress, ``index.json`` written last). A run stopped midway continues
 with ``--resume`` up to ``--frames`` in all; without it a folder holding checkpoints is refused, and so is

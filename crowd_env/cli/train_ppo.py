@@ -7,7 +7,8 @@ padding until their copy resets), so every pedestrian's experience trains the sa
 ``black_death_v3`` → ``pettingzoo_env_to_vec_env_v1`` → ``concat_vec_envs_v1`` chain instead.
 
 Outputs in ``--out``: ``model.zip`` (load with ``stable_baselines3.PPO.load`` or evaluate with
-``crowd-evaluate --model``), ``env_config.json`` (the environment options, so that ``crowd-evaluate
+``crowd-evaluate --model``; SB3's archive holds pickles, which run code when loaded, so share the policy as a
+policy file: ``crowd-convert-policy OUT/model.zip --out policy.npz``), ``env_config.json`` (the environment options, so that ``crowd-evaluate
 --model`` evaluates on the problem trained on), ``learning_curve.csv`` / ``.png`` (per-agent
 episode returns against timesteps) and ``summary.json`` with the mean per-agent episode return of a
 uniform random policy and of the trained policy (deterministic) on the same evaluation seeds. The two
@@ -20,7 +21,9 @@ update, and at the end): ``checkpoints/ppo_<t>_steps.zip`` (model, optimiser and
 so far) and ``index.json`` (the checkpoints in order, written last and atomically, so it only names
 complete files). A run killed midway continues with ``--resume`` from the latest checkpoint up to
 ``--timesteps`` in all (the rollout in progress at the kill is collected again; the environment
-streams restart from ``seed + t``). Without ``--resume`` a folder holding checkpoints is refused.
+streams restart from ``seed + t``). Without ``--resume`` a folder holding checkpoints is refused; with it, a
+checkpoint whose digest under this account's key does not match (someone else's, or older than signed
+checkpoints) is refused before anything in it is loaded.
 
 Needs the ``train`` extra (``pip install 'crowd_env[train]'``: torch, Stable-Baselines3, SuperSuit).
 ``--observation-frame egocentric`` trains in the pedestrians' body frames (:mod:`crowd_env.envs.crowd_v0`).

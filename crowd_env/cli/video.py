@@ -31,7 +31,7 @@ import sys
 
 from ..errors import CrowdEnvError
 from ..experiments.output.video import record_rollout, record_trajectory_file
-from .options import DEFAULT_POLICY_RESOLVER, key_values, policy_env_options
+from .options import DEFAULT_POLICY_RESOLVER, PICKLED_MODELS_NOTE, key_values, policy_env_options
 
 
 def _timing(ap) -> None:
@@ -50,8 +50,9 @@ def build_parser() -> argparse.ArgumentParser:
     ro = sub.add_parser("rollout", help="one episode of a policy on a scenario", description=__doc__,
                         formatter_class=argparse.RawDescriptionHelpFormatter)
     ro.add_argument("--policy", default="baseline",
-                    help="a name the resolver knows (baseline, random, zero), a saved SB3 model (.zip; its "
-                         "env_config.json sets the observation layout) or an import path module:attribute")
+                    help="a name the resolver knows (baseline, random, zero), a policy file (.npz), a saved SB3 "
+                         "model (.zip; its env_config.json sets the observation layout) or an import path "
+                         f"module:attribute. {PICKLED_MODELS_NOTE}")
     ro.add_argument("--policy-resolver", default=DEFAULT_POLICY_RESOLVER, metavar="MODULE:FUNCTION",
                     help=f"resolve(spec, name=None) -> policy for names and models (default {DEFAULT_POLICY_RESOLVER})")
     ro.add_argument("--scenario", default="seyfried_bottleneck", help="a registered scenario name")

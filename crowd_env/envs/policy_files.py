@@ -16,21 +16,27 @@ them one way, without torch:
 
 :func:`from_sb3` and :func:`from_torchrl` convert trained models; tests check each against the framework's
 own forward pass on the same observations (two independent implementations).
+
+A policy file is data: it is read with ``allow_pickle=False``, so nothing in it runs. The ``.pt`` files of
+``crowd-train-mappo`` are read with torch's weights-only loader (:func:`load_weights`), which refuses anything but
+numbers, strings, lists, dicts and tensors before any of it runs.
 """
 from __future__ import annotations
 
 import json
 import os
+import pickle
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from crowd_env.errors import PolicyError
+from crowd_env.errors import PolicyError, UntrustedFileError
 
 from crowd_env.files import write_npz_atomic
 
 __all__ = ["POLICY_FILE_FORMAT", "OUTPUTS", "ACTIVATIONS", "MLPPolicyFile", "save_policy_file", "load_policy_file",
-           "from_sb3", "from_torchrl"]
+           "load_weights", "from_sb3", "from_torchrl"]
 
 POLICY_FILE_FORMAT = "crowd_env.mlp_policy/1"
 OUTPUTS = ("clip_box", "tanh_box", "linear")
@@ -137,6 +143,27 @@ def load_policy_file(path: str) -> MLPPolicyFile:
                                  data["obs_std"], meta.get("env_config", {}), meta.get("meta", {}))
     except (OSError, ValueError, KeyError) as exc:
         raise PolicyError(f"{path} is not a crowd_env policy file: {exc}") from None
+
+
+def load_weights(source, what: str):
+    """What ``torch.save`` wrote to ``source`` (a path, or a file object read from one), read with torch's
+    weights-only loader: numbers, strings, lists, dicts and tensors only (``what``: the kind of file, for the
+    messages). Anything else in it, e.g. an object that would run code when unpickled, raises
+    :class:`~crowd_env.errors.UntrustedFileError` naming the file and what it holds before any of it runs; what
+    torch cannot read raises :class:`~crowd_env.errors.PolicyError`."""
+    import torch
+
+    name = getattr(source, "name", source)
+    try:
+        return torch.load(source, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError as exc:
+        found = re.search(r"GLOBAL (\S+)", str(exc))
+        held = f"a reference to {found.group(1)}" if found else "objects other than data"
+        raise UntrustedFileError(f"{name} holds {held}, not only the numbers, strings, lists, dicts and tensors of a "
+                                 f"{what}: refused without running anything in it (load only files from sources "
+                                 f"you trust; share policies as .npz: crowd-convert-policy)") from None
+    except Exception as exc:  # torch raises RuntimeError, KeyError, EOFError ... for what is no torch file
+        raise PolicyError(f"{name} is not a {what} (torch cannot read it: {type(exc).__name__}: {exc})") from None
 
 
 def _linear_layers(modules) -> tuple:

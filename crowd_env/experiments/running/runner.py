@@ -32,7 +32,7 @@ from ...core.params import ModelParams
 from ...core.polygons import pack_polygons
 from ...core.presets import DEFAULT_PRESET, get_preset
 from ...walking.agent import SocialForceAgent, compiled_agent
-from crowd_env.files import write_atomic
+from crowd_env.files import read_signed, write_signed_atomic
 from .rollout import (COUNT_FRAMES, COUNT_LATERAL, COUNT_PASSED, COUNT_STEPS, ROLLOUT_CHUNK_STEPS, ROLLOUT_PYTHON_STEP,
                       SCALAR_LAST_EXIT_S, SCALAR_MIN_GAP_M, STALL_LAST_PROGRESS_S, STALL_STALLED, STALL_TIME_S,
                       Measures, StallRule, measure_step, rollout_steps, stall_update)
@@ -75,8 +75,14 @@ class RunCheckpoint:
     (``tests/experiments/running/test_checkpoint.py``), its wall time the sum of both parts; a checkpoint with
     another key is ignored with a :class:`RuntimeWarning` and overwritten. The file is removed once the
     run is over (with ``remove_when_done``; else by the caller, e.g. once it has kept the run's result,
-    :meth:`remove`). It is a pickle: load only checkpoints you wrote. ``resumed_wall_s``: after the run,
-    the wall time its kept part had taken (0 when it started afresh)."""
+    :meth:`remove`). ``resumed_wall_s``: after the run, the wall time its kept part had taken (0 when it
+    started afresh).
+
+    The run is a pickle, which runs code when read, so the file is signed with this account's key
+    (:func:`crowd_env.files.write_signed_atomic`) and :func:`read_checkpoint` unpickles it only when the
+    signature matches: a checkpoint this account's crowd_env did not write (from a shared run folder, from
+    before checkpoints were signed, or altered) raises :class:`~crowd_env.errors.UntrustedFileError`
+    without being read."""
 
     path: str
     key: str
@@ -92,8 +98,7 @@ class RunCheckpoint:
         """The kept run (a dict), or None when there is none to resume."""
         if not self.resume or not os.path.exists(self.path):
             return None
-        with open(self.path, "rb") as fh:
-            kept = pickle.load(fh)
+        kept = read_checkpoint(self.path)
         if kept.get("key") != self.key:
             warnings.warn(f"checkpoint {self.path} was made for another run ({kept.get('key')!r}, not {self.key!r}): "
                           "starting afresh", RuntimeWarning, stacklevel=3)
@@ -102,11 +107,20 @@ class RunCheckpoint:
 
     def save(self, **run) -> None:
         os.makedirs(os.path.dirname(os.path.abspath(self.path)), exist_ok=True)
-        write_atomic(self.path, pickle.dumps({"key": self.key, **run}, protocol=pickle.HIGHEST_PROTOCOL))
+        write_signed_atomic(self.path, pickle.dumps({"key": self.key, **run}, protocol=pickle.HIGHEST_PROTOCOL))
 
     def remove(self) -> None:
         if os.path.exists(self.path):
             os.remove(self.path)
+
+
+def read_checkpoint(path: str) -> dict:
+    """The run a :class:`RunCheckpoint` kept at ``path`` (a dict: ``key``, ``sim``, ``policy``, ``measures``,
+    ``stall``, ``done``, ``recorder``, ``wall_s``), unpickled only once its signature shows that this account's
+    crowd_env wrote it (:func:`crowd_env.files.read_signed`: :class:`~crowd_env.errors.UntrustedFileError`
+    otherwise, and nothing in it runs)."""
+    payload = read_signed(path, "delete it to start that run afresh")
+    return pickle.loads(payload)  # signed by this account's crowd_env: its own pickle
 
 
 @dataclass

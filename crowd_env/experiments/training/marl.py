@@ -32,6 +32,9 @@ policy of the evaluation harness), ``env_config.json``, ``summary.json`` (mean p
 return of the random policy and of the trained one, deterministic, on the same evaluation seeds, through
 :mod:`crowd_env.experiments.running.evaluation`) and ``checkpoints/`` (networks, optimiser, progress, indexed
 last and atomically as :mod:`crowd_env.experiments.training.ppo` does; ``resume`` continues from the latest).
+Both are data only (numbers, strings, lists, dicts and tensors) and are read back with torch's weights-only
+loader (:func:`~crowd_env.envs.policy_files.load_weights`): a ``.pt`` file holding anything else, e.g. an object that would run code when
+unpickled, is refused (:class:`~crowd_env.errors.UntrustedFileError`) without anything in it running.
 
 Needs the ``marl`` extra (torchrl, tensordict), imported inside the functions. Command line:
 ``crowd-train-mappo``; docs/training.md compares it with the other training stacks.
@@ -40,6 +43,7 @@ from __future__ import annotations
 
 import functools
 import importlib.util
+import io
 import os
 import time
 import warnings
@@ -48,8 +52,9 @@ import numpy as np
 
 from ...core.checks import check_integer
 from ...envs import crowd_v0
+from ...envs.policy_files import load_weights
 from crowd_env.errors import MissingDependencyError, TrainingError
-from crowd_env.files import write_json_atomic
+from crowd_env.files import write_atomic, write_json_atomic
 from .ppo import SharedPolicy, begin_run, evaluate_trained, read_checkpoints, write_progress
 
 __all__ = ["ALGORITHMS", "GROUP", "CSV_COLUMNS", "DEFAULT_PPO", "TorchRLPolicy", "check_algorithm", "make_env",
@@ -230,20 +235,32 @@ def _policy_payload(actor, algorithm: str, hidden, obs_dim: int, low, high) -> d
             "low": [float(v) for v in low], "high": [float(v) for v in high], "actor": net.state_dict()}
 
 
-def load_policy(path: str, name: str | None = None) -> TorchRLPolicy:
-    """The policy saved by :func:`train`: ``path`` is its ``policy.pt`` or the run folder holding it."""
-    _require()
+def _save_weights(path: str, payload: dict) -> None:
+    """``payload`` (numbers, strings, lists, dicts, tensors) as ``torch.save`` writes it, atomically."""
     import torch
 
+    buffer = io.BytesIO()
+    torch.save(payload, buffer)
+    write_atomic(path, buffer.getvalue())
+
+
+def load_policy(path: str, name: str | None = None) -> TorchRLPolicy:
+    """The policy saved by :func:`train`: ``path`` is its ``policy.pt`` or the run folder holding it. Read as
+    data only (:func:`~crowd_env.envs.policy_files.load_weights`); a file of another kind raises :class:`~crowd_env.errors.TrainingError`."""
+    _require()
     if os.path.isdir(path):
         path = os.path.join(path, "policy.pt")
     if not os.path.exists(path):
         raise TrainingError(f"no saved policy at {path}")
-    payload = torch.load(path, map_location="cpu", weights_only=False)
+    payload = load_weights(path, "policy saved by crowd-train-mappo")
     if not isinstance(payload, dict) or payload.get("format") != POLICY_FORMAT:
-        raise TrainingError(f"{path} is not a policy saved by crowd_env.experiments.training.marl")
-    net = _actor_net(payload["obs_dim"], len(payload["low"]), payload["hidden"])
-    net.load_state_dict(payload["actor"])
+        raise TrainingError(f"{path} is not a policy saved by crowd_env.experiments.training.marl (it holds "
+                            f"{type(payload).__name__} without format {POLICY_FORMAT!r})")
+    try:
+        net = _actor_net(int(payload["obs_dim"]), len(payload["low"]), [int(h) for h in payload["hidden"]])
+        net.load_state_dict(payload["actor"])
+    except (KeyError, TypeError, ValueError, RuntimeError) as exc:
+        raise TrainingError(f"{path} is a malformed {POLICY_FORMAT} policy: {type(exc).__name__}: {exc}") from None
     return TorchRLPolicy(net, payload["obs_dim"], payload["low"], payload["high"], name=name or payload["algorithm"],
                          meta={k: payload[k] for k in ("algorithm", "hidden")})
 
@@ -273,19 +290,31 @@ def valid_transitions(data, state: bool):
 
 
 def _save_checkpoint(out: str, algorithm: str, frames: int, actor, critic, optim, rows) -> None:
-    import torch
-
     entries = read_checkpoints(out)
     if entries and entries[-1]["timesteps"] >= frames:
         return
     folder = os.path.join(out, "checkpoints")
     os.makedirs(folder, exist_ok=True)
     name = f"{algorithm}_{frames}_frames.pt"
-    torch.save({"algorithm": algorithm, "frames": frames, "actor": actor.state_dict(), "critic": critic.state_dict(),
-                "optim": optim.state_dict(), "progress": rows}, os.path.join(folder, name + ".tmp"))
-    os.replace(os.path.join(folder, name + ".tmp"), os.path.join(folder, name))
+    _save_weights(os.path.join(folder, name), {"algorithm": algorithm, "frames": frames, "actor": actor.state_dict(),
+                                               "critic": critic.state_dict(), "optim": optim.state_dict(),
+                                               "progress": rows})
     write_json_atomic(os.path.join(folder, "index.json"),
                        {"checkpoints": entries + [{"timesteps": frames, "model": name, "algorithm": algorithm}]})
+
+
+def _resume(path: str, actor, critic, optim) -> list:
+    """``actor``, ``critic`` and ``optim`` brought to the checkpoint at ``path`` (read as data only:
+    :func:`~crowd_env.envs.policy_files.load_weights`); its progress rows. A malformed checkpoint raises :class:`~crowd_env.errors.TrainingError`."""
+    ckpt = load_weights(path, "crowd-train-mappo checkpoint")
+    try:
+        actor.load_state_dict(ckpt["actor"])
+        critic.load_state_dict(ckpt["critic"])
+        optim.load_state_dict(ckpt["optim"])
+        return [dict(row) for row in ckpt["progress"]]
+    except (KeyError, TypeError, ValueError, RuntimeError) as exc:
+        raise TrainingError(f"cannot resume from {path}: not a crowd-train-mappo checkpoint of these networks "
+                            f"({type(exc).__name__}: {exc})") from None
 
 
 def train(env_config: dict, frames: int, out: str, *, algorithm: str = "mappo", resolve, seed: int = 0,
@@ -327,12 +356,7 @@ def train(env_config: dict, frames: int, out: str, *, algorithm: str = "mappo", 
     optim = torch.optim.Adam(loss.parameters(), lr=learning_rate)
     rows = []
     if entries:
-        ckpt = torch.load(os.path.join(out, "checkpoints", entries[-1]["model"]), map_location="cpu",
-                          weights_only=False)
-        actor.load_state_dict(ckpt["actor"])
-        critic.load_state_dict(ckpt["critic"])
-        optim.load_state_dict(ckpt["optim"])
-        rows = list(ckpt["progress"])
+        rows = _resume(os.path.join(out, "checkpoints", entries[-1]["model"]), actor, critic, optim)
         progress(f"resuming from the checkpoint at {start} frames")
 
     t1 = time.perf_counter()
@@ -346,8 +370,8 @@ def train(env_config: dict, frames: int, out: str, *, algorithm: str = "mappo", 
 
     obs_dim = env.observation_spec[GROUP, "observation"].shape[-1]
     space = env.full_action_spec[GROUP, "action"].space
-    torch.save(_policy_payload(actor, algorithm, hidden, obs_dim, space.low[0].tolist(), space.high[0].tolist()),
-               os.path.join(out, "policy.pt"))
+    _save_weights(os.path.join(out, "policy.pt"),
+                  _policy_payload(actor, algorithm, hidden, obs_dim, space.low[0].tolist(), space.high[0].tolist()))
     env.close()
     trained = load_policy(out, name=algorithm)
     after = evaluate_trained(trained, env_config, eval_seeds, progress)

@@ -10,7 +10,10 @@ copy resets, see :mod:`crowd_env.envs.vector`); ``"supersuit"`` the SuperSuit ch
 trains both). :func:`train` writes ``model.zip``,
 ``env_config.json``, ``learning_curve.csv`` / ``.png``, ``summary.json`` (mean per-agent episode return
 of a random policy and of the trained one on the same evaluation seeds) and resumable checkpoints
-(``checkpoints/``, indexed last and atomically). Needs the ``train`` extra (torch, SB3; SuperSuit for its vectoriser),
+(``checkpoints/``, indexed last and atomically, each entry with the digest of its files under this account's
+key, checked before a resume loads them: :func:`check_checkpoint`). SB3's ``.zip`` archives hold pickles, which
+run code when loaded: load ``model.zip`` only from a source you trust, and share a policy as ``.npz``
+(``crowd-convert-policy``). Needs the ``train`` extra (torch, SB3; SuperSuit for its vectoriser),
 imported inside the functions that use it. Command line: ``crowd-train-ppo``.
 """
 from __future__ import annotations
@@ -26,10 +29,12 @@ import numpy as np
 
 from ...envs import crowd_v0
 from ..running.evaluation import ENV_CONFIG_FILE, episode_setup, run_episode
-from crowd_env.files import save_figure_atomic, write_atomic, write_csv_atomic, write_json_atomic
+from crowd_env.files import (check_files_digest, files_digest, save_figure_atomic, write_atomic, write_csv_atomic,
+                             write_json_atomic)
 
 __all__ = ["DEFAULT_SCENARIO_OPTIONS", "SharedPolicy", "TrainingError", "make_vec_env", "mean_return", "read_checkpoints",
-           "save_checkpoint", "check_resume", "begin_run", "evaluate_trained", "train", "write_curve", "progress_line"]
+           "save_checkpoint", "check_resume", "begin_run", "evaluate_trained", "train", "write_curve", "progress_line",
+           "checkpoint_files", "sign_checkpoint", "check_checkpoint"]
 
 DEFAULT_SCENARIO_OPTIONS = {"width_m": 1.0, "n_pedestrians": 10}
 VECTORISERS = ("native", "supersuit")
@@ -112,8 +117,28 @@ def read_checkpoints(out: str) -> list:
         return json.load(fh)["checkpoints"]
 
 
+def checkpoint_files(out: str, entry: dict) -> list:
+    """The files (or folders) of the checkpoint ``entry`` of ``out``: its model and, for SB3, VecNormalize's."""
+    return [os.path.join(out, "checkpoints", entry[k]) for k in ("model", "vecnormalize") if entry.get(k)]
+
+
+def sign_checkpoint(out: str, entry: dict) -> dict:
+    """``entry`` with the digest of its files under this account's key (:func:`crowd_env.files.files_digest`),
+    for the index: resuming checks it before any of them, which are pickles, is loaded."""
+    return {**entry, "digest": files_digest(checkpoint_files(out, entry))}
+
+
+def check_checkpoint(out: str, entry: dict) -> None:
+    """Refuse (:class:`~crowd_env.errors.UntrustedFileError`) to resume from the checkpoint ``entry`` unless this
+    account's crowd_env wrote its files (:func:`sign_checkpoint`): a training folder someone else shared, or one
+    from before checkpoints were signed, is never unpickled."""
+    check_files_digest(checkpoint_files(out, entry), entry.get("digest"),
+                       f"to train afresh delete {os.path.join(out, 'checkpoints')} or choose another --out")
+
+
 def save_checkpoint(model, out: str, curve: list) -> dict | None:
-    """Save ``model`` (and VecNormalize statistics if any) and the curve; append to the index last.
+    """Save ``model`` (and VecNormalize statistics if any) and the curve; append to the index last, signed
+    (:func:`sign_checkpoint`).
 
     Returns the new entry, or None when the latest checkpoint already has this step count."""
     entries = read_checkpoints(out)
@@ -131,6 +156,7 @@ def save_checkpoint(model, out: str, curve: list) -> dict | None:
         norm.save(os.path.join(folder, entry["vecnormalize"] + ".tmp"))
         os.replace(os.path.join(folder, entry["vecnormalize"] + ".tmp"), os.path.join(folder, entry["vecnormalize"]))
     write_json_atomic(os.path.join(folder, "curve.json"), curve)
+    entry = sign_checkpoint(out, entry)
     write_json_atomic(os.path.join(folder, "index.json"), {"checkpoints": entries + [entry]})
     return entry
 
@@ -252,6 +278,7 @@ def _model(entries: list, out: str, vec, curve: list, progress, **ppo):
         return PPO("MlpPolicy", vec, device="cpu", policy_kwargs={"net_arch": [64, 64]}, **ppo)
     latest = entries[-1]
     folder = os.path.join(out, "checkpoints")
+    check_checkpoint(out, latest)  # the files are pickles: loaded only when this account's crowd_env wrote them
     if latest["vecnormalize"]:
         vec = VecNormalize.load(os.path.join(folder, latest["vecnormalize"]), vec)
     model = PPO.load(os.path.join(folder, latest["model"]), env=vec, device="cpu")

@@ -225,7 +225,8 @@ def eval_path(out: str, task: str, policy: str, seed) -> str:
 def train_one(job: dict) -> dict:
     """Train one policy (``job``: task, algorithm, seed, budgets, out, resolver) and write its policy file
     ``policy.npz`` and ``cost.json`` in its folder; resumes a training run a kill interrupted."""
-    from ...envs.policy_files import from_sb3, from_torchrl, save_policy_file
+    from ...envs.policy_files import from_torchrl, save_policy_file
+    from .conversion import sb3_policy_file
 
     resolve = import_object(job["resolver"])
     task = Task(**job["task"])
@@ -243,9 +244,7 @@ def train_one(job: dict) -> dict:
         summary = training.train(cfg, int(budgets["ppo_timesteps"]), folder, resolve=resolve, seed=_train_env_seed(seed),
                                  copies=2, eval_seeds=(_train_env_seed(seed) + 500,), resume=resume, progress=quiet,
                                  checkpoint_every=max(10_000, int(budgets["ppo_timesteps"]) // 10))
-        from stable_baselines3 import PPO
-
-        policy = from_sb3(PPO.load(os.path.join(folder, "model.zip"), device="cpu"), env_config=cfg)
+        policy = sb3_policy_file(os.path.join(folder, "model.zip"), env_config=cfg)  # read without unpickling
         agent_steps = int(summary["timesteps"])
     elif algo == "mappo":
         from . import marl

@@ -23,7 +23,10 @@ per-agent episode return of the random policy and of the trained one, determinis
 evaluation seeds, through :mod:`crowd_env.experiments.running.evaluation`) and ``checkpoints/`` (RLlib
 algorithm checkpoints, ``index.json`` written last: ``resume`` continues from the latest; a folder with
 checkpoints is refused without it, and resuming with other environment options is refused, by
-:func:`crowd_env.experiments.training.ppo.check_resume`).
+:func:`crowd_env.experiments.training.ppo.check_resume`; each checkpoint's index entry carries the digest of its
+files under this account's key, and one without a matching digest is never restored:
+:func:`~crowd_env.experiments.training.ppo.check_checkpoint`). ``policy/`` is RLlib's own format, which holds
+pickles: load a run folder only from a source you trust.
 
 Needs the ``marl`` extra (``ray[rllib]``), imported inside the functions. Command line:
 ``crowd-train-rllib``; docs/training.md compares it with the other training stacks.
@@ -43,7 +46,8 @@ from ...envs import crowd_v0
 from crowd_env.errors import MissingDependencyError, TrainingError
 from ..running.backends import RayBackend, check_reachable
 from crowd_env.files import write_json_atomic
-from .ppo import SharedPolicy, begin_run, evaluate_trained, read_checkpoints, write_progress
+from .ppo import (SharedPolicy, begin_run, check_checkpoint, evaluate_trained, read_checkpoints, sign_checkpoint,
+                  write_progress)
 
 __all__ = ["ENV_NAME", "MODULE_ID", "CSV_COLUMNS", "DEFAULT_PPO", "RLlibPolicy", "env_creator", "ppo_config",
            "load_policy", "train"]
@@ -124,7 +128,8 @@ class RLlibPolicy(SharedPolicy):
 
 
 def load_policy(path: str, name: str | None = None) -> RLlibPolicy:
-    """The policy saved by :func:`train` (``path``: the run folder, holding ``policy/`` and ``policy.json``)."""
+    """The policy saved by :func:`train` (``path``: the run folder, holding ``policy/`` and ``policy.json``).
+    RLlib's checkpoint holds pickles, which run code when loaded: load only run folders you trust."""
     _require()
     from ray.rllib.core.rl_module.rl_module import RLModule
 
@@ -169,8 +174,8 @@ def _save_checkpoint(algo, out: str, env_steps: int, iteration: int, rows) -> No
     write_json_atomic(os.path.join(tmp, "progress.json"), rows)
     shutil.rmtree(os.path.join(folder, name), ignore_errors=True)
     os.replace(tmp, os.path.join(folder, name))
-    write_json_atomic(os.path.join(folder, "index.json"),
-                       {"checkpoints": entries + [{"timesteps": env_steps, "model": name, "iteration": iteration}]})
+    entry = sign_checkpoint(out, {"timesteps": env_steps, "model": name, "iteration": iteration})
+    write_json_atomic(os.path.join(folder, "index.json"), {"checkpoints": entries + [entry]})
 
 
 def train(env_config: dict, timesteps: int, out: str, *, resolve, address: str | None = None,
@@ -277,6 +282,7 @@ def _restore(algo, out: str, entries: list, progress) -> tuple:
     if not entries:
         return [], 0
     path = os.path.join(out, "checkpoints", entries[-1]["model"])
+    check_checkpoint(out, entries[-1])  # RLlib's checkpoints hold pickles: restored only when this account wrote them
     algo.restore_from_path(os.path.abspath(path))
     with open(os.path.join(path, "progress.json")) as fh:
         rows = json.load(fh)

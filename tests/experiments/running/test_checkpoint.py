@@ -1,14 +1,13 @@
 """Checkpoints of long runs (RunCheckpoint): a run killed part-way and resumed from its checkpoint gives the
 uninterrupted run's result to the last bit, through the compiled rollout and the staged path alike."""
 import json
-import pickle
 
 import numpy as np
 import pytest
 
 from crowd_env.errors import InputError
 from crowd_env.experiments.running.recording import record_run
-from crowd_env.experiments.running.runner import RunCheckpoint
+from crowd_env.experiments.running.runner import RunCheckpoint, read_checkpoint
 from crowd_env.scenarios import make_scenario
 from crowd_env.walking.agent import SocialForceAgent
 
@@ -55,8 +54,7 @@ def test_a_killed_run_resumes_to_the_last_bit(tmp_path, compiled):
     # every_s = 0: a checkpoint before every chunk (compiled) or step (Python); killed after the 5th
     with pytest.raises(Killed):
         _run(RunCheckpoint(path, key="bottleneck-0.8-60-3", every_s=0.0), kill_after_calls=5, compiled=compiled)
-    with open(path, "rb") as fh:
-        kept = pickle.load(fh)
+    kept = read_checkpoint(path)
     assert kept["key"] == "bottleneck-0.8-60-3" and 0 < kept["done"] < 800
     cp = RunCheckpoint(path, key="bottleneck-0.8-60-3", every_s=0.0)
     resumed = _run(cp)
@@ -112,3 +110,21 @@ def _variants():
     from crowd_env.experiments.validation.rimea.base import select_tests
 
     return select_tests(["1"])[0].scenarios(True, 0)
+
+
+def test_a_checkpoint_signed_under_another_key_is_refused_unread(tmp_path, monkeypatch):
+    """A checkpoint signed by another account's crowd_env (its key elsewhere) is refused: UntrustedFileError,
+    nothing in it runs (a plain pickle planted as the checkpoint: tests/test_untrusted_files.py)."""
+    import pickle
+
+    from crowd_env.errors import UntrustedFileError
+    from crowd_env.files import SECRET_FILE_ENV, write_signed_atomic
+    from tests.conftest import CodeRunningPayload
+
+    path, flag = tmp_path / "run.checkpoint.pkl", tmp_path / "ran.flag"
+    monkeypatch.setenv(SECRET_FILE_ENV, str(tmp_path / "someone_else.key"))
+    write_signed_atomic(path, pickle.dumps({"key": "a", "evil": CodeRunningPayload(flag)}))
+    monkeypatch.setenv(SECRET_FILE_ENV, str(tmp_path / "mine.key"))
+    with pytest.raises(UntrustedFileError, match="run.checkpoint.pkl was not signed with this account's key"):
+        _run(RunCheckpoint(str(path), key="a", every_s=0.0))
+    assert not flag.exists()

@@ -131,7 +131,7 @@ def _deterministic_actions(out, algorithm, obs):
     actor, _ = marl.build_networks(env, algorithm)
     with open(os.path.join(out, "checkpoints", "index.json")) as fh:
         latest = json.load(fh)["checkpoints"][-1]["model"]
-    actor.load_state_dict(torch.load(os.path.join(out, "checkpoints", latest), weights_only=False)["actor"])
+    actor.load_state_dict(torch.load(os.path.join(out, "checkpoints", latest), weights_only=True)["actor"])
     td = env.reset()
     td["agents", "observation"] = torch.as_tensor(obs)
     with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
@@ -168,6 +168,12 @@ def test_mappo_smoke_training_reload_and_resume(tmp_path):
         resolved = as_policy(spec, name="mappo_run")
         assert resolved.name == "mappo_run"
         np.testing.assert_allclose(resolved.actions(obs), policy.actions(obs), atol=0)
+    # the fresh policy as a policy file to share (crowd-convert-policy; env_config.json from the run folder): it acts
+    # as the policy does to float32 rounding (numpy in float64 from the float32 weights, torch in float32)
+    assert load_script("convert_policy").main([out, "--out", os.path.join(out, "shared.npz")]) == 0
+    shared = as_policy(os.path.join(out, "shared.npz"))
+    assert shared.file.env_config == TINY and shared.env_overrides == {"frame_skip": 10}
+    np.testing.assert_allclose(shared.file.actions(obs), policy.actions(obs), rtol=1e-5, atol=2e-6)
 
     # refused: checkpoints without --resume, other environment options, the other algorithm
     with pytest.raises(TrainingError, match="--resume"):

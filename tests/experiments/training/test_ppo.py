@@ -77,6 +77,36 @@ def test_ppo_smoke_training_saves_model_and_curve(tmp_path):
     assert rc == 0 and (tmp_path / "eval" / "results.csv").exists()
 
 
+def test_a_resume_loads_only_checkpoints_this_account_signed(tmp_path, monkeypatch):
+    """crowd-train-ppo's checkpoints are SB3 archives (pickles): each index entry carries their digest under this
+    account's key and a resume checks it before loading. A checkpoint altered to hold a code-running pickle, or a
+    folder signed under another key, is refused (UntrustedFileError) and nothing runs; the folder as written
+    resumes."""
+    from crowd_env.errors import UntrustedFileError
+    from crowd_env.files import SECRET_FILE_ENV
+    from tests.conftest import plant_in_sb3_archive
+
+    out, flag = tmp_path / "ppo", tmp_path / "ran.flag"
+    kw = dict(resolve=as_policy, seed=0, copies=1, n_steps=32, batch_size=64, n_epochs=1, eval_seeds=(5,),
+              checkpoint_every=32, progress=lambda *a: None)
+    train(TINY, timesteps=100, out=str(out), **kw)
+    latest = json.loads((out / "checkpoints" / "index.json").read_text())["checkpoints"][-1]
+    archive = out / "checkpoints" / latest["model"]
+    written = archive.read_bytes()
+    plant_in_sb3_archive(archive, flag)
+    with pytest.raises(UntrustedFileError, match=r"ppo_\d+_steps.zip do not match their digest.*delete .*checkpoints"):
+        train(TINY, timesteps=400, out=str(out), resume=True, **kw)
+    assert not flag.exists()
+    archive.write_bytes(written)
+    key = os.environ[SECRET_FILE_ENV]
+    monkeypatch.setenv(SECRET_FILE_ENV, str(tmp_path / "someone_else.key"))
+    with pytest.raises(UntrustedFileError, match="do not match their digest"):
+        train(TINY, timesteps=400, out=str(out), resume=True, **kw)
+    monkeypatch.setenv(SECRET_FILE_ENV, key)
+    more = train(TINY, timesteps=400, out=str(out), resume=True, **kw)
+    assert more["resumed_from_timesteps"] == latest["timesteps"] and more["timesteps"] >= 400
+
+
 def test_sb3_policy_rejects_mismatched_observations(tmp_path):
     from stable_baselines3 import PPO
 

@@ -1,9 +1,12 @@
 """RLlib PPO with one shared module (crowd_env.experiments.training.rllib, crowd-train-rllib): a smoke training on a
 room where agents leave at different times, the saved policy reloaded, resume, and the refusals (an
-unreachable cluster, checkpoints without --resume, other environment options)."""
+unreachable cluster, checkpoints without --resume, other environment options, a checkpoint altered since it was
+signed)."""
 import csv
+import glob
 import json
 import os
+import pickle
 import subprocess
 import sys
 import time
@@ -17,9 +20,9 @@ import ray  # noqa: E402
 
 from baselines.reference_policies import as_policy  # noqa: E402
 from crowd_env.envs import crowd_v0  # noqa: E402
-from crowd_env.errors import BackendError, TrainingError  # noqa: E402
+from crowd_env.errors import BackendError, TrainingError, UntrustedFileError  # noqa: E402
 from crowd_env.experiments.training import rllib  # noqa: E402
-from tests.conftest import ROOT, load_script  # noqa: E402
+from tests.conftest import ROOT, CodeRunningPayload, load_script  # noqa: E402
 from tests.experiments.training.test_marl import N, TINY  # noqa: E402
 
 SMALL = {"train_batch_size": 200, "minibatch_size": 100, "num_epochs": 2, "eval_seeds": (5,), "num_env_runners": 0,
@@ -89,6 +92,21 @@ def test_rllib_smoke_training_reload_and_resume(tmp_path, local_ray):
     with pytest.raises(TrainingError, match="max_steps"):
         rllib.train({**TINY, "max_steps": 20}, 600, out, resolve=as_policy, resume=True, **SMALL)
 
+    # RLlib's checkpoints hold pickles: with its pickles replaced by a code-running one the latest checkpoint no
+    # longer matches its digest (this account's key), and the resume is refused before RLlib reads any of it
+    folder = os.path.join(out, "checkpoints", latest)
+    kept = {p: open(p, "rb").read() for p in glob.glob(os.path.join(folder, "**", "*.pkl"), recursive=True)}
+    assert kept
+    flag = tmp_path / "ran.flag"
+    for p in kept:
+        with open(p, "wb") as fh:
+            pickle.dump(CodeRunningPayload(flag), fh)
+    with pytest.raises(UntrustedFileError, match=f"{latest} do not match their digest"):
+        rllib.train(TINY, 600, out, resolve=as_policy, resume=True, **SMALL)
+    assert not flag.exists()
+    for p, blob in kept.items():
+        with open(p, "wb") as fh:
+            fh.write(blob)
     more = rllib.train(TINY, 600, out, resolve=as_policy, resume=True, **SMALL)
     assert more["resumed_from_env_steps"] == 400 and more["env_steps"] == 600 and more["iterations"] == 3
     with open(os.path.join(out, "checkpoints", "index.json")) as fh:

@@ -174,17 +174,24 @@ def save_run(run: BackendRun, path: str, settings: dict) -> None:
 
 
 def load_run(path: str, settings: dict):
-    """The run kept at ``path`` when it was made with ``settings``; None otherwise."""
+    """The run kept at ``path`` when it was made with ``settings``; None otherwise. Read as data only (arrays and
+    JSON, ``allow_pickle=False``); a file that is not such a run raises :class:`~crowd_env.errors.InputError`
+    naming it."""
     if not os.path.exists(path):
         return None
-    with np.load(path, allow_pickle=False) as data:
-        meta = json.loads(str(data["meta"]))
-        if meta["settings"] != settings:
-            return None
-        traj = Trajectories(data["frame"], data["id"], data["x_m"], data["y_m"], data["heading_rad"],
-                            meta["frame_rate_per_s"])
-        return BackendRun(meta["backend"], meta["scenario_name"], traj, data["exit_time_s"], meta["min_gap_m"],
-                          meta["outside_m"], meta["complete"], meta["stalled"], meta["wall_time_s"], meta["max_time_s"])
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            if meta["settings"] != settings:
+                return None
+            traj = Trajectories(data["frame"], data["id"], data["x_m"], data["y_m"], data["heading_rad"],
+                                meta["frame_rate_per_s"])
+            return BackendRun(meta["backend"], meta["scenario_name"], traj, data["exit_time_s"], meta["min_gap_m"],
+                              meta["outside_m"], meta["complete"], meta["stalled"], meta["wall_time_s"],
+                              meta["max_time_s"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise InputError(f"{path} is not a run kept by crowd-rimea ({type(exc).__name__}: {exc}); delete it to make "
+                         "that run again") from None
 
 
 def run_suite(numbers=None, *, quick: bool = False, jupedsim: bool = False, seed: int = 0, out_dir=None,
