@@ -1,0 +1,85 @@
+"""crowd-virtual-experiments: every shipped experiment run as it was run, for a preset or a parameter point, beside
+its data (crowd_env.experiments.validation.virtual_experiments).
+
+Seyfried's bottleneck at its widths and group sizes, the nine Jülich corridor runs with their entrance and exit
+(Voronoi density and speed in y in [−2, 0], exit flow), the single-file ring at its bins: one table row per case and
+quantity with the experiment's value, the tolerance and whether the model's mean over the complete runs lies within
+it; runs that stalled or stayed incomplete are counted, never averaged in. Writes ``OUT/virtual_experiments.csv``,
+``.md`` and ``.png`` (the density-speed plane, each run's model and experiment points joined). Runs are stored under
+``OUT/runs/``: a stopped command resumes. The corridor runs are measured with PedPy (``pip install
+'crowd_env[analysis]'``).
+
+Examples::
+
+    crowd-virtual-experiments --quick --out out/virtual_quick                # two corridor runs, one door, one bin
+    crowd-virtual-experiments --preset calibrated --seeds 5 --out out/virtual
+    crowd-virtual-experiments --param social_range_m=0.1 --experiments corridor --out out/virtual_B0.1
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+from ..core.presets import DEFAULT_PRESET, PRESETS, get_preset
+from ..errors import CrowdEnvError
+from ..experiments.running.backends import make_backend
+from ..experiments.validation.virtual_experiments import (EXPERIMENTS, QUICK_PLAN, VirtualPlan, format_rows,
+                                                          run_virtual_experiments, virtual_config, virtual_rows,
+                                                          write_virtual_outputs)
+from .options import key_values
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="crowd-virtual-experiments", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--preset", choices=sorted(PRESETS), default=DEFAULT_PRESET, help="the model (default: %(default)s)")
+    ap.add_argument("--param", nargs="+", default=[], metavar="NAME=VALUE",
+                    help="ModelParams fields on top of the preset (values as JSON)")
+    ap.add_argument("--pedestrian", nargs="+", default=[], metavar="NAME=VALUE",
+                    help="per-pedestrian defaults on top of Kabalan's Table 2: tau_s, desired_speed_mean_m_s, "
+                         "desired_speed_std_m_s")
+    ap.add_argument("--experiments", nargs="+", choices=EXPERIMENTS, default=list(EXPERIMENTS),
+                    help="which experiments (default: all three)")
+    ap.add_argument("--seeds", type=int, default=5, help="seeds 0..S-1, the same in every experiment (default 5)")
+    ap.add_argument("--quick", action="store_true",
+                    help="the reduced plan: two corridor runs (uo-070-180-180, uo-180-180-095), b = 1.0 m at N = 60, "
+                         "one single-file bin, seeds 0 and 1: a first look, not a verdict")
+    ap.add_argument("--max-time", type=float, default=300.0,
+                    help="simulated time limit of a bottleneck or corridor run (s; default 300)")
+    ap.add_argument("--out", type=Path, default=Path("out/virtual_experiments"), help="output folder (resumable)")
+    ap.add_argument("--backend", choices=["ray", "process", "serial"], default="process")
+    ap.add_argument("--jobs", type=int, default=None, help="processes of the pool / CPUs of local Ray")
+    ap.add_argument("--address", default=None, help="Ray cluster to join (with --backend ray)")
+    ap.add_argument("--no-figure", action="store_true", help="skip virtual_experiments.png")
+    return ap
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        if args.seeds < 1:
+            raise CrowdEnvError(f"--seeds must be at least 1, got {args.seeds}")
+        preset = get_preset(args.preset)
+        params = preset.params(**key_values(args.param, "--param expects NAME=VALUE"))
+        pedestrian = key_values(args.pedestrian, "--pedestrian expects NAME=VALUE")
+        plan = QUICK_PLAN if args.quick else VirtualPlan(seeds=tuple(range(args.seeds)))
+        plan = replace(plan, experiments=tuple(args.experiments), max_time_s=args.max_time)
+        config = virtual_config(params, navigation_clearance_m=preset.navigation_clearance_m, pedestrian=pedestrian)
+        print(f"virtual experiments of {args.preset}{' with ' + ' '.join(args.param) if args.param else ''}: "
+              f"{', '.join(plan.experiments)}; seeds {list(plan.seeds)}{' (quick plan)' if args.quick else ''}")
+        with make_backend(args.backend, address=args.address, jobs=args.jobs) as backend:
+            records = run_virtual_experiments(args.out, config, plan, backend)
+        rows = virtual_rows(records)
+        print(format_rows(rows))
+        for path in write_virtual_outputs(args.out, records, rows, figure=not args.no_figure):
+            print(f"wrote {path}")
+    except CrowdEnvError as exc:
+        print(f"crowd-virtual-experiments: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,341 @@
+"""Virtual experiments: every shipped experiment run as it was run, for one model, side by side with its data.
+
+Three experiments (:data:`EXPERIMENTS`), each in its own geometry, population and measurement:
+
+- ``bottleneck``: Seyfried et al. (2009), N = 20, 40, 60 in front of a 2.8 m channel of width b = 0.8-1.2 m
+  (:mod:`crowd_env.experiments.validation.bottleneck`): J_s (Eq. 22, first to last passage of the channel's middle),
+  the density and speed inside the channel over the stationary phase; the experiment's J_s for N = 60, the range
+  [1.77, 2.31] for N = 20 and 40, and the ranges of density (1.42-1.73 /m²) and speed (0.94-1.22 m/s) inside;
+- ``corridor``: the nine Jülich corridor runs with their entrance and exit (:mod:`.corridor_runs`): the Voronoi
+  density and speed in y in [−2, 0] and the exit flow over the steady state, each run against its row;
+- ``single_file``: the single-file ring (Seyfried et al. 2005), a periodic strip 0.7 m wide at each bin's 1D
+  density (:mod:`.fundamental_diagram`): mean speed against the bin's.
+
+:func:`virtual_tasks` makes the runs of a :class:`VirtualPlan` for one model (the same seeds in every experiment:
+common random numbers between models); :func:`run_virtual_experiments` runs those not yet stored on the project's
+executor (a :class:`~crowd_env.experiments.running.store.RunStore` per output folder, keyed by task: a stopped run
+resumes); :func:`virtual_rows` puts each measured quantity beside the experiment with its tolerance, over the complete
+runs only, and counts the runs that stalled or stayed incomplete; :func:`virtual_figure` draws each run's model point
+and experiment point in the density-speed plane, joined.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from crowd_env.errors import InputError, SweepError
+
+from ...analysis.experiment import (INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RANGE_M_S,
+                                    SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, seyfried_2009)
+from ...analysis.fd_reference import single_file
+from ...analysis.figures import pyplot, save_figure
+from ...core.params import ModelParams
+from ..running.backends import execute
+from ..running.store import RunStore
+from .bottleneck import GEOMETRY_OPTIONS, params_dict, run_one
+from .corridor_runs import CORRIDOR_RUN_NAMES, CORRIDOR_TOLERANCES, corridor_tasks, run_corridor_one, summarise_corridor
+from .fundamental_diagram import SINGLE_FILE_DENSITIES, fd_tasks, run_fd_one
+from crowd_env.files import write_atomic, write_csv_atomic
+
+__all__ = ["EXPERIMENTS", "VirtualPlan", "QUICK_PLAN", "virtual_config", "virtual_tasks", "run_virtual_task",
+           "run_virtual_experiments", "virtual_rows", "ROW_COLUMNS", "format_rows", "write_virtual_outputs",
+           "virtual_figure", "BOTTLENECK_TOLERANCE", "SINGLE_FILE_TOLERANCE_M_S"]
+
+EXPERIMENTS = ("bottleneck", "corridor", "single_file")
+BOTTLENECK_TOLERANCE = 0.05  # J_s of N = 60 within ±5 % of Seyfried's
+SINGLE_FILE_TOLERANCE_M_S = 0.10  # single-file speed within ±0.10 m/s of each bin
+BOTTLENECK_WIDTHS_M = (0.8, 0.9, 1.0, 1.1, 1.2)
+BOTTLENECK_SIZES = (20, 40, 60)
+
+
+@dataclass(frozen=True)
+class VirtualPlan:
+    """Which runs: the experiments, the seeds (the same in each), the bottleneck's widths and N, the corridor runs by
+    name, the single file's 1D densities (shipped bins), and the time limit of a bottleneck or corridor run."""
+
+    experiments: tuple = EXPERIMENTS
+    seeds: tuple = (0, 1, 2, 3, 4)
+    widths_m: tuple = BOTTLENECK_WIDTHS_M
+    sizes: tuple = BOTTLENECK_SIZES
+    corridor_runs: tuple = CORRIDOR_RUN_NAMES
+    single_file_densities: tuple = SINGLE_FILE_DENSITIES
+    max_time_s: float = 300.0
+
+    def __post_init__(self) -> None:
+        unknown = sorted(set(self.experiments) - set(EXPERIMENTS))
+        if unknown or not self.experiments:
+            raise InputError(f"unknown experiment(s) {unknown}; choose among {list(EXPERIMENTS)}")
+        seeds = tuple(int(s) for s in self.seeds)
+        if not seeds or min(seeds) < 0 or len(set(seeds)) != len(seeds):
+            raise InputError(f"seeds must be distinct integers >= 0, at least one, got {list(self.seeds)}")
+        object.__setattr__(self, "seeds", seeds)
+        unknown_runs = sorted(set(self.corridor_runs) - set(CORRIDOR_RUN_NAMES))
+        if unknown_runs:
+            raise InputError(f"unknown corridor run(s) {unknown_runs}; the runs are {list(CORRIDOR_RUN_NAMES)}")
+        off = [d for d in self.single_file_densities if not np.any(np.isclose(SINGLE_FILE_DENSITIES, d))]
+        if off:
+            raise InputError(f"single-file densities {off} are no shipped bins; choose among {list(SINGLE_FILE_DENSITIES)}")
+        if not (math.isfinite(self.max_time_s) and self.max_time_s > 0):
+            raise InputError(f"max_time_s must be finite and > 0, got {self.max_time_s!r}")
+
+
+# the default suite's reduced plan: two corridor runs (a narrow entrance, a narrowed exit), one door, one bin
+QUICK_PLAN = VirtualPlan(seeds=(0, 1), widths_m=(1.0,), sizes=(60,), corridor_runs=("uo-070-180-180", "uo-180-180-095"),
+                         single_file_densities=(SINGLE_FILE_DENSITIES[2],))
+
+
+def virtual_config(params: ModelParams, *, navigation_clearance_m: float, pedestrian: dict | None = None) -> dict:
+    """The configuration of a folder of virtual experiments: the model, the navigation clearance of the bottleneck
+    (the corridor uses the disk centres' field, as every other scenario) and per-pedestrian overrides."""
+    return {"kind": "virtual_experiments", "params": params_dict(params),
+            "navigation_clearance_m": float(navigation_clearance_m), "pedestrian": dict(pedestrian or {})}
+
+
+def virtual_tasks(config: dict, plan: VirtualPlan) -> list:
+    """Every run of ``plan`` for the model of ``config`` (tasks of :func:`run_virtual_task`, each with its
+    ``experiment``)."""
+    params = ModelParams.from_dict(config["params"])
+    pedestrian = config.get("pedestrian") or {}
+    tasks = []
+    if "bottleneck" in plan.experiments:
+        geometry = {opt: float(default) for opt, default in GEOMETRY_OPTIONS.values()}
+        geometry["navigation_clearance_m"] = config["navigation_clearance_m"]
+        for b in plan.widths_m:
+            for n in plan.sizes:
+                for s in plan.seeds:
+                    tasks.append({"experiment": "bottleneck", "width_m": float(b), "n_pedestrians": int(n), "seed": s,
+                                  "geometry": geometry, "params": params_dict(params), "max_time_s": plan.max_time_s,
+                                  "pedestrian": dict(pedestrian)})
+    if "corridor" in plan.experiments:
+        tasks += corridor_tasks(params, runs=plan.corridor_runs, seeds=plan.seeds, pedestrian=pedestrian or None,
+                                max_time_s=plan.max_time_s)
+    if "single_file" in plan.experiments:
+        for t in fd_tasks(["single_file"], {"single_file": plan.single_file_densities}, plan.seeds, params):
+            tasks.append(dict(t, experiment="single_file", pedestrian=dict(pedestrian)))
+    return tasks
+
+
+def run_virtual_task(task: dict) -> dict:
+    """One run of any experiment (its ``experiment`` picks the runner); the record carries ``experiment``."""
+    kind = task["experiment"]
+    if kind == "bottleneck":
+        record = run_one({k: v for k, v in task.items() if k != "experiment"})
+    elif kind == "corridor":
+        record = run_corridor_one(task)
+    elif kind == "single_file":
+        record = run_fd_one(task)
+    else:
+        raise InputError(f"unknown experiment {kind!r}; choose among {list(EXPERIMENTS)}")
+    record["experiment"] = kind
+    return record
+
+
+def run_virtual_experiments(out, config: dict, plan: VirtualPlan, backend, *, desc: str = "virtual experiments") -> list:
+    """Run the tasks of ``plan`` not stored in ``out`` on ``backend``; all records, in the order of the tasks. A
+    failed run raises :class:`~crowd_env.errors.SweepError` with its reason once the others are stored."""
+    store = RunStore(out, config, keyed_by="task")
+    tasks = virtual_tasks(config, plan)
+    failed = execute(tasks, store, backend, run_virtual_task, desc=desc)
+    if failed:
+        raise SweepError(f"{failed} run(s) failed: {_first_error(Path(out))} (all in {Path(out) / 'errors.jsonl'})")
+    return [store.load(t) for t in tasks]
+
+
+def _first_error(out: Path) -> str:
+    import json
+
+    path = out / "errors.jsonl"
+    lines = path.read_text().splitlines() if path.exists() else []
+    return json.loads(lines[-1])["error"] if lines else "no reason recorded"
+
+
+ROW_COLUMNS = ["experiment", "case", "quantity", "model", "model_sd", "experiment_value", "tolerance", "within",
+               "runs", "complete", "stalled", "incomplete"]
+
+
+def _stats(values) -> tuple:
+    v = np.asarray([x for x in values if x is not None and np.isfinite(x)], dtype=np.float64)
+    if not v.size:
+        return math.nan, math.nan
+    return float(v.mean()), float(v.std(ddof=1)) if v.size > 1 else math.nan
+
+
+def _row(experiment, case, quantity, values, exp_value, tolerance, within, counts) -> dict:
+    mean, sd = _stats(values)
+    return {"experiment": experiment, "case": case, "quantity": quantity, "model": mean, "model_sd": sd,
+            "experiment_value": exp_value, "tolerance": tolerance, "within": bool(within(mean)) if np.isfinite(mean)
+            else False, **counts}
+
+
+def _counts(records) -> dict:
+    return {"runs": len(records), "complete": sum(bool(r["complete"]) for r in records),
+            "stalled": sum(bool(r.get("stalled")) for r in records),
+            "incomplete": sum(not r["complete"] and not r.get("stalled") for r in records)}
+
+
+def _bottleneck_rows(records: list) -> list:
+    exp = seyfried_2009()
+    rows = []
+    lo, hi = SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S
+    for (b, n) in sorted({(r["width_m"], r["n_pedestrians"]) for r in records}):
+        rs = [r for r in records if r["width_m"] == b and r["n_pedestrians"] == n]
+        done = [r for r in rs if r["complete"]]
+        counts = _counts(rs)
+        case = f"b = {b:g} m, N = {n}"
+        js = [r["specific_flow_per_m_s"] for r in done]
+        if n == 60:
+            ref = float(exp.specific_flow_per_m_s[exp.lookup(b, 60)[0]])
+            rows.append(_row("bottleneck", case, "J_s (1/(m s))", js, ref, f"±{BOTTLENECK_TOLERANCE:.0%}",
+                             lambda m, ref=ref: abs(m / ref - 1.0) <= BOTTLENECK_TOLERANCE, counts))
+        else:
+            rows.append(_row("bottleneck", case, "J_s (1/(m s))", js, math.nan, f"[{lo}, {hi}]",
+                             lambda m: lo <= m <= hi, counts))
+        for quantity, key, (qlo, qhi) in (("density inside (1/m²)", "density_inside_per_m2", INSIDE_DENSITY_RANGE_PER_M2),
+                                          ("speed inside (m/s)", "speed_inside_m_s", INSIDE_SPEED_RANGE_M_S)):
+            if n == 60:
+                rows.append(_row("bottleneck", case, quantity, [r[key] for r in done], math.nan, f"[{qlo}, {qhi}]",
+                                 lambda m, qlo=qlo, qhi=qhi: qlo <= m <= qhi, counts))
+    return rows
+
+
+def _corridor_rows(records: list) -> list:
+    rows = []
+    tol = CORRIDOR_TOLERANCES
+    for s in summarise_corridor(records):
+        rs = [r for r in records if r["run"] == s["run"]]
+        done = [r for r in rs if r["complete"]]
+        counts = _counts(rs)
+        case = f"{s['run']} (entrance {s['entrance_width_m']:g} m, exit {s['exit_width_m']:g} m, N = {s['n_pedestrians']})"
+        for quantity, key, exp_key, tolerance, within in (
+                ("density (1/m²)", "density_per_m2", "density_exp", f"±{tol['density_relative']:.0%}",
+                 lambda m, e: abs(m / e - 1.0) <= tol["density_relative"]),
+                ("speed (m/s)", "speed_m_s", "speed_exp", f"±{tol['speed_m_s']:g} m/s",
+                 lambda m, e: abs(m - e) <= tol["speed_m_s"]),
+                ("exit flow (1/s)", "flow_exit_per_s", "flow_exit_exp", f"±{tol['flow_exit_relative']:.0%}",
+                 lambda m, e: abs(m / e - 1.0) <= tol["flow_exit_relative"])):
+            e = s[exp_key]
+            rows.append(_row("corridor", case, quantity, [r[key] for r in done], e, tolerance,
+                             lambda m, e=e, within=within: within(m, e), counts))
+    return rows
+
+
+def _single_file_rows(records: list) -> list:
+    table = single_file()
+    rows = []
+    for d in sorted({r["density"] for r in records}):
+        rs = [r for r in records if r["density"] == d]
+        ref = float(table.speed_at(d))
+        rows.append(_row("single_file", f"ρ = {d:g} /m", "speed (m/s)", [r["speed_m_s"] for r in rs], ref,
+                         f"±{SINGLE_FILE_TOLERANCE_M_S:g} m/s",
+                         lambda m, ref=ref: abs(m - ref) <= SINGLE_FILE_TOLERANCE_M_S, _counts(rs)))
+    return rows
+
+
+def virtual_rows(records: list) -> list:
+    """One row per experiment case and quantity (:data:`ROW_COLUMNS`): the model's mean and spread over the
+    complete runs, the experiment's value (nan where it is a range), the tolerance, whether the mean lies within
+    it (never for a case without a complete run), and the runs that were complete, stalled or otherwise
+    incomplete."""
+    by_kind = {k: [r for r in records if r.get("experiment") == k] for k in EXPERIMENTS}
+    rows = []
+    if by_kind["bottleneck"]:
+        rows += _bottleneck_rows(by_kind["bottleneck"])
+    if by_kind["corridor"]:
+        rows += _corridor_rows(by_kind["corridor"])
+    if by_kind["single_file"]:
+        rows += _single_file_rows(by_kind["single_file"])
+    return rows
+
+
+def _cell(value, sd=math.nan) -> str:
+    if not np.isfinite(value):
+        return "–"
+    return f"{value:.3g}" + (f" ± {sd:.2g}" if np.isfinite(sd) else "")
+
+
+def format_rows(rows: list, *, markdown: bool = False) -> str:
+    """The rows as a table (plain text for the console, or Markdown), and a closing line counting the quantities
+    within tolerance and the runs that did not complete."""
+    head = ["experiment", "case", "quantity", "model", "experiment", "tolerance", "within", "runs (stalled/incomplete)"]
+    body = [[r["experiment"], r["case"], r["quantity"], _cell(r["model"], r["model_sd"]), _cell(r["experiment_value"]),
+             r["tolerance"], "yes" if r["within"] else "NO",
+             f"{r['complete']}/{r['runs']}" + (f" ({r['stalled']}/{r['incomplete']})" if r["stalled"] or r["incomplete"]
+                                               else "")] for r in rows]
+    if markdown:
+        lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)] + ["| " + " | ".join(b) + " |" for b in body]
+    else:
+        widths = [max(len(str(x)) for x in col) for col in zip(head, *body)]
+        lines = ["  ".join(str(x).ljust(w) for x, w in zip(line, widths)) for line in [head, *body]]
+    n_in = sum(r["within"] for r in rows)
+    cases = {(r["experiment"], r["case"]): r for r in rows}
+    stalled = sum(r["stalled"] for r in cases.values())
+    incomplete = sum(r["incomplete"] for r in cases.values())
+    lines.append(f"{n_in} of {len(rows)} quantities within tolerance; {stalled} run(s) stalled, {incomplete} otherwise "
+                 f"incomplete (means are over complete runs only)")
+    return "\n".join(lines)
+
+
+def _corridor_points(records: list) -> list:
+    return [(s["run"], s["density_per_m2"], s["speed_m_s"], s["density_exp"], s["speed_exp"], s["complete"] < s["runs"])
+            for s in summarise_corridor([r for r in records if r.get("experiment") == "corridor"])]
+
+
+def virtual_figure(records: list, path) -> Path:
+    """The density-speed plane (left: the corridor runs, each model point joined to its experiment point, and the
+    bottleneck channel of N = 60 beside the experiment's ranges; right: the single file against its bins)."""
+    plt = pyplot()
+    fig, (ax, ax1) = plt.subplots(1, 2, figsize=(12, 5.2), gridspec_kw={"width_ratios": [1.6, 1]})
+    for name, rho, v, rho_e, v_e, failed in _corridor_points(records):
+        ax.plot([rho_e, rho], [v_e, v], color="0.6", lw=1, zorder=1)
+        ax.scatter([rho_e], [v_e], marker="o", facecolor="white", edgecolor="k", zorder=2)
+        if np.isfinite(rho):
+            ax.scatter([rho], [v], marker="x" if failed else "o", color="C3", zorder=3)
+        ax.annotate(name.removeprefix("uo-"), (rho_e, v_e), fontsize=7, xytext=(3, 3), textcoords="offset points")
+    neck = [r for r in records if r.get("experiment") == "bottleneck" and r["n_pedestrians"] == 60 and r["complete"]]
+    if neck:
+        (dlo, dhi), (vlo, vhi) = INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RANGE_M_S
+        ax.add_patch(plt.Rectangle((dlo, vlo), dhi - dlo, vhi - vlo, fill=False, ls="--", ec="C0",
+                                   label="Seyfried channel, N = 60 (experiment's ranges)"))
+        for b in sorted({r["width_m"] for r in neck}):
+            rs = [r for r in neck if r["width_m"] == b]
+            ax.scatter([np.mean([r["density_inside_per_m2"] for r in rs])], [np.mean([r["speed_inside_m_s"] for r in rs])],
+                       marker="s", color="C0", s=20)
+    ax.scatter([], [], marker="o", facecolor="white", edgecolor="k", label="Jülich corridor run (experiment)")
+    ax.scatter([], [], marker="o", color="C3", label="model (mean of complete runs; x: some incomplete)")
+    ax.scatter([], [], marker="s", color="C0", label="model, Seyfried channel per width")
+    ax.set_xlabel("density (1/m²)")
+    ax.set_ylabel("speed (m/s)")
+    ax.set_xlim(0, None)
+    ax.set_ylim(0, 1.6)
+    ax.legend(fontsize=7, loc="upper right")
+    ax.set_title("corridor runs as run (Voronoi, y in [−2, 0]) and the bottleneck channel", fontsize=9)
+    sf = [r for r in records if r.get("experiment") == "single_file"]
+    table = single_file()
+    ax1.plot(table.density, table.speed_m_s, "o-", mfc="white", color="k", label="Seyfried 2005 (bins)")
+    for d in sorted({r["density"] for r in sf}):
+        v = float(np.mean([r["speed_m_s"] for r in sf if r["density"] == d]))
+        ax1.plot([d, d], [float(table.speed_at(d)), v], color="0.6", lw=1)
+        ax1.scatter([d], [v], color="C3")
+    ax1.scatter([], [], color="C3", label="model")
+    ax1.set_xlabel("1D density (1/m)")
+    ax1.set_ylabel("speed (m/s)")
+    ax1.set_ylim(0, 1.6)
+    ax1.legend(fontsize=7)
+    ax1.set_title("single file on a ring", fontsize=9)
+    fig.tight_layout()
+    return save_figure(fig, Path(path))
+
+
+def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True) -> list:
+    """``OUT/virtual_experiments.csv`` (the rows), ``.md`` (the table in Markdown) and, with ``figure``,
+    ``.png``; returns the paths."""
+    out = Path(out)
+    paths = [out / "virtual_experiments.csv", out / "virtual_experiments.md"]
+    write_csv_atomic(paths[0], ROW_COLUMNS, rows)
+    write_atomic(paths[1], format_rows(rows, markdown=True) + "\n")
+    if figure:
+        paths.append(virtual_figure(records, out / "virtual_experiments.png"))
+    return paths

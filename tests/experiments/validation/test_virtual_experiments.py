@@ -1,0 +1,86 @@
+"""Virtual experiments (crowd_env.experiments.validation.virtual_experiments): the runs of a plan, each case's
+quantities beside the experiment with the tolerance decided on the complete runs only, stalled runs counted apart,
+the command's table and files."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from crowd_env.analysis.corridor_runs import uo_run
+from crowd_env.core.presets import get_preset
+from crowd_env.errors import InputError
+from crowd_env.experiments.validation.virtual_experiments import (QUICK_PLAN, VirtualPlan, format_rows, virtual_config,
+                                                                  virtual_rows, virtual_tasks)
+
+
+def _config():
+    p = get_preset("calibrated")
+    return virtual_config(p.params(), navigation_clearance_m=p.navigation_clearance_m)
+
+
+def test_the_quick_plan_runs_two_corridor_runs_one_door_and_one_bin_on_the_same_seeds():
+    tasks = virtual_tasks(_config(), QUICK_PLAN)
+    kinds = [t["experiment"] for t in tasks]
+    assert kinds.count("bottleneck") == 2 and kinds.count("corridor") == 4 and kinds.count("single_file") == 2
+    assert {t["seed"] for t in tasks} == {0, 1}
+    corridor = [t for t in tasks if t["experiment"] == "corridor"]
+    assert {(t["run"], t["entrance_width_m"], t["exit_width_m"], t["n_pedestrians"]) for t in corridor} == {
+        ("uo-070-180-180", 0.7, 1.8, 111), ("uo-180-180-095", 1.8, 0.95, 159)}
+    neck = [t for t in tasks if t["experiment"] == "bottleneck"]
+    assert all(t["geometry"]["navigation_clearance_m"] == 0.23 and t["width_m"] == 1.0 for t in neck)
+
+
+def test_plans_refuse_what_no_experiment_has():
+    with pytest.raises(InputError, match="unknown experiment"):
+        VirtualPlan(experiments=("ring",))
+    with pytest.raises(InputError, match="unknown corridor run"):
+        VirtualPlan(corridor_runs=("uo-999",))
+    with pytest.raises(InputError, match="no shipped bins"):
+        VirtualPlan(single_file_densities=(0.5,))
+    with pytest.raises(InputError, match="seeds"):
+        VirtualPlan(seeds=())
+
+
+def _corridor_record(run, seed, rho, v, flow, complete=True, stalled=False):
+    nan = math.nan
+    return {"experiment": "corridor", "run": run, "seed": seed, "complete": complete, "stalled": stalled,
+            "density_per_m2": rho if complete else nan, "speed_m_s": v if complete else nan,
+            "flow_exit_per_s": flow if complete else nan, "flow_y0_per_s": flow if complete else nan, "min_gap_m": 0.0}
+
+
+def test_rows_decide_on_the_complete_runs_and_count_the_others():
+    run = uo_run("uo-180-180-070")
+    records = [_corridor_record(run.name, 0, run.density_per_m2 * 1.14, run.speed_m_s + 0.09, run.flow_exit_per_s * 1.2),
+               _corridor_record(run.name, 1, run.density_per_m2 * 1.14, run.speed_m_s + 0.09, run.flow_exit_per_s * 1.0),
+               _corridor_record(run.name, 2, 99.0, 9.0, 99.0, complete=False, stalled=True),
+               _corridor_record(run.name, 3, 99.0, 9.0, 99.0, complete=False)]
+    rows = {r["quantity"]: r for r in virtual_rows(records)}
+    assert rows["density (1/m²)"]["model"] == pytest.approx(run.density_per_m2 * 1.14)  # the stalled run left out
+    assert rows["density (1/m²)"]["within"] and rows["speed (m/s)"]["within"]
+    assert rows["exit flow (1/s)"]["model"] == pytest.approx(run.flow_exit_per_s * 1.1)  # +10 %: at the edge
+    assert (rows["exit flow (1/s)"]["runs"], rows["exit flow (1/s)"]["complete"], rows["exit flow (1/s)"]["stalled"],
+            rows["exit flow (1/s)"]["incomplete"]) == (4, 2, 1, 1)
+    off = virtual_rows([_corridor_record(run.name, 0, run.density_per_m2 * 1.16, run.speed_m_s + 0.11, 1.0)])
+    assert not any(r["within"] for r in off)
+    never = virtual_rows([_corridor_record(run.name, 0, 0, 0, 0, complete=False, stalled=True)])
+    assert all(not r["within"] and np.isnan(r["model"]) for r in never)  # nothing complete: no figure, no pass
+    text = format_rows(virtual_rows(records))
+    assert "2/4 (1/1)" in text and text.splitlines()[-1].startswith("2 of 3 quantities within tolerance; 1 run(s) stalled")
+
+
+def test_the_command_runs_resumes_and_writes_its_table(tmp_path, capsys):
+    from crowd_env.cli.virtual_experiments import main
+
+    argv = ["--quick", "--experiments", "single_file", "--backend", "serial", "--out", str(tmp_path), "--no-figure"]
+    assert main(argv) == 0
+    first = capsys.readouterr().out
+    assert "single_file" in first and "quantities within tolerance" in first
+    assert (tmp_path / "virtual_experiments.csv").exists() and (tmp_path / "virtual_experiments.md").exists()
+    stored = sorted((tmp_path / "runs").iterdir())
+    assert len(stored) == 2
+    assert main(argv) == 0  # resumes: nothing run again, the same table
+    assert capsys.readouterr().out.splitlines()[-3:] == first.splitlines()[-3:]
+    assert main(["--param", "bogus=1", "--out", str(tmp_path / "x")]) == 2
+    assert "unknown model parameter" in capsys.readouterr().err
