@@ -25,9 +25,10 @@ from pathlib import Path
 from ..core.presets import DEFAULT_PRESET, PRESETS, get_preset
 from ..errors import CrowdEnvError
 from ..experiments.running.backends import make_backend
+from ..experiments.validation.corridor_runs import CORRIDOR_RUN_NAMES, corridor_snapshot
 from ..experiments.validation.virtual_experiments import (EXPERIMENTS, QUICK_PLAN, VirtualPlan, format_rows,
-                                                          run_virtual_experiments, virtual_config, virtual_rows,
-                                                          write_virtual_outputs)
+                                                          run_virtual_experiments, snapshot_figure, virtual_config,
+                                                          virtual_rows, virtual_tasks, write_virtual_outputs)
 from .options import key_values
 
 
@@ -53,6 +54,11 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--jobs", type=int, default=None, help="processes of the pool / CPUs of local Ray")
     ap.add_argument("--address", default=None, help="Ray cluster to join (with --backend ray)")
     ap.add_argument("--no-figure", action="store_true", help="skip virtual_experiments.png")
+    ap.add_argument("--snapshot", choices=CORRIDOR_RUN_NAMES, default=None, metavar="RUN",
+                    help="instead: follow corridor run RUN (seed 0) step by step to --at and write OUT/snapshot_RUN.png: "
+                         "the crowd near the exit and, over time, those out, their mean speed and mean net speed "
+                         "(how a crowd wedged for good still shakes)")
+    ap.add_argument("--at", type=float, default=60.0, help="time of the snapshot (s; default 60)")
     return ap
 
 
@@ -67,6 +73,8 @@ def main(argv=None) -> int:
         plan = QUICK_PLAN if args.quick else VirtualPlan(seeds=tuple(range(args.seeds)))
         plan = replace(plan, experiments=tuple(args.experiments), max_time_s=args.max_time)
         config = virtual_config(params, navigation_clearance_m=preset.navigation_clearance_m, pedestrian=pedestrian)
+        if args.snapshot:
+            return _snapshot(args, config, plan)
         print(f"virtual experiments of {args.preset}{' with ' + ' '.join(args.param) if args.param else ''}: "
               f"{', '.join(plan.experiments)}; seeds {list(plan.seeds)}{' (quick plan)' if args.quick else ''}")
         with make_backend(args.backend, address=args.address, jobs=args.jobs) as backend:
@@ -78,6 +86,20 @@ def main(argv=None) -> int:
     except CrowdEnvError as exc:
         print(f"crowd-virtual-experiments: {exc}", file=sys.stderr)
         return 2
+    return 0
+
+
+def _snapshot(args, config: dict, plan: VirtualPlan) -> int:
+    task = next(t for t in virtual_tasks(config, replace(plan, experiments=("corridor",), corridor_runs=(args.snapshot,),
+                                                          seeds=(0,))))
+    study = corridor_snapshot(task, at_s=args.at)
+    args.out.mkdir(parents=True, exist_ok=True)
+    path = snapshot_figure(study, args.out / f"snapshot_{args.snapshot}.png")
+    s = study["series"]
+    print(f"{args.snapshot}, seed 0, to t = {s['time_s'][-1]:.1f} s: {s['left'][-1]} of {task['n_pedestrians']} out; "
+          f"those left move at {s['mean_speed_m_s'][-1]:.3f} m/s on average, {s['net_displacement_m'][-1]:.3f} m net "
+          f"over the last 20 s")
+    print(f"wrote {path}")
     return 0
 
 

@@ -42,7 +42,7 @@ from crowd_env.files import write_atomic, write_csv_atomic
 
 __all__ = ["EXPERIMENTS", "VirtualPlan", "QUICK_PLAN", "virtual_config", "virtual_tasks", "run_virtual_task",
            "run_virtual_experiments", "virtual_rows", "ROW_COLUMNS", "format_rows", "write_virtual_outputs",
-           "virtual_figure", "BOTTLENECK_TOLERANCE", "SINGLE_FILE_TOLERANCE_M_S"]
+           "virtual_figure", "snapshot_figure", "BOTTLENECK_TOLERANCE", "SINGLE_FILE_TOLERANCE_M_S"]
 
 EXPERIMENTS = ("bottleneck", "corridor", "single_file")
 BOTTLENECK_TOLERANCE = 0.05  # J_s of N = 60 within ±5 % of Seyfried's
@@ -283,11 +283,31 @@ def _corridor_points(records: list) -> list:
             for s in summarise_corridor([r for r in records if r.get("experiment") == "corridor"])]
 
 
+def _flow_points(records: list) -> tuple:
+    """(model, experiment) flows (1/s) against the width of the opening that limits each corridor run (the narrower of
+    its entrance and exit), and the bottleneck's J = J_s b at N = 60: lists of (width, flow, label)."""
+    model, exp = [], []
+    for s in summarise_corridor([r for r in records if r.get("experiment") == "corridor"]):
+        b = min(s["entrance_width_m"], s["exit_width_m"])
+        label = "exit" if s["exit_width_m"] < s["entrance_width_m"] else "entrance"
+        model.append((b, s["flow_exit_per_s"], label))
+        exp.append((b, s["flow_exit_exp"], label))
+    neck = [r for r in records if r.get("experiment") == "bottleneck" and r["n_pedestrians"] == 60 and r["complete"]]
+    ref = seyfried_2009()
+    for b in sorted({r["width_m"] for r in neck}):
+        js = np.mean([r["specific_flow_per_m_s"] for r in neck if r["width_m"] == b])
+        model.append((b, float(js * b), "channel"))
+        exp.append((b, float(ref.specific_flow_per_m_s[ref.lookup(b, 60)[0]] * b), "channel"))
+    return model, exp
+
+
 def virtual_figure(records: list, path) -> Path:
-    """The density-speed plane (left: the corridor runs, each model point joined to its experiment point, and the
-    bottleneck channel of N = 60 beside the experiment's ranges; right: the single file against its bins)."""
+    """Three panels: the density-speed plane of the corridor runs (each model point joined to its experiment point)
+    and of the bottleneck channel at N = 60 beside the experiment's ranges; the flow against the width of the
+    opening that limits it (the corridor runs' entrance or exit, Seyfried's 2.8 m channel); the single file against
+    its bins."""
     plt = pyplot()
-    fig, (ax, ax1) = plt.subplots(1, 2, figsize=(12, 5.2), gridspec_kw={"width_ratios": [1.6, 1]})
+    fig, (ax, ax2, ax1) = plt.subplots(1, 3, figsize=(16, 5.2), gridspec_kw={"width_ratios": [1.5, 1.1, 1]})
     for name, rho, v, rho_e, v_e, failed in _corridor_points(records):
         ax.plot([rho_e, rho], [v_e, v], color="0.6", lw=1, zorder=1)
         ax.scatter([rho_e], [v_e], marker="o", facecolor="white", edgecolor="k", zorder=2)
@@ -312,6 +332,23 @@ def virtual_figure(records: list, path) -> Path:
     ax.set_ylim(0, 1.6)
     ax.legend(fontsize=7, loc="upper right")
     ax.set_title("corridor runs as run (Voronoi, y in [−2, 0]) and the bottleneck channel", fontsize=9)
+    model, exp = _flow_points(records)
+    styles = {"entrance": ("^", "corridor run, narrowed entrance"), "exit": ("v", "corridor run, narrowed exit"),
+              "channel": ("s", "Seyfried channel, N = 60")}
+    for kind, (marker, label) in styles.items():
+        m = [(b, j) for b, j, k in model if k == kind]
+        e = [(b, j) for b, j, k in exp if k == kind]
+        if e:
+            ax2.scatter(*zip(*e), marker=marker, facecolor="white", edgecolor="k", label=f"{label}: experiment")
+        if m:
+            ax2.scatter(*zip(*m), marker=marker, color="C3", label=f"{label}: model")
+        for (b, jm), (_, je) in zip(m, e):
+            ax2.plot([b, b], [je, jm], color="0.6", lw=1)
+    ax2.set_xlabel("width of the limiting opening (m)")
+    ax2.set_ylabel("flow (1/s)")
+    ax2.set_ylim(0, None)
+    ax2.legend(fontsize=6)
+    ax2.set_title("flow against the opening that limits it", fontsize=9)
     sf = [r for r in records if r.get("experiment") == "single_file"]
     table = single_file()
     ax1.plot(table.density, table.speed_m_s, "o-", mfc="white", color="k", label="Seyfried 2005 (bins)")
@@ -325,7 +362,6 @@ def virtual_figure(records: list, path) -> Path:
     ax1.set_ylim(0, 1.6)
     ax1.legend(fontsize=7)
     ax1.set_title("single file on a ring", fontsize=9)
-    fig.tight_layout()
     return save_figure(fig, Path(path))
 
 
@@ -339,3 +375,44 @@ def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True
     if figure:
         paths.append(virtual_figure(records, out / "virtual_experiments.png"))
     return paths
+
+
+def snapshot_figure(study: dict, path, *, window_y_m: tuple = (-5.0, 0.0)) -> Path:
+    """A corridor run followed step by step (:func:`~.corridor_runs.corridor_snapshot`): left, the crowd in
+    ``window_y_m`` at the snapshot (disks, velocities in red, the agent's intents in blue); right, over time, how
+    many have left, the mean speed of those left and their mean net speed over the stall rule's window (net
+    displacement / 20 s) beside the rule's threshold."""
+    from ..running.runner import STALL_SPEED_M_S, STALL_WINDOW_S
+
+    plt = pyplot()
+    fig, (ax, ax1) = plt.subplots(1, 2, figsize=(12, 5.5), gridspec_kw={"width_ratios": [1, 1.3]})
+    snap = study["snapshot"]
+    ax.plot(*study["outline_m"].T, color="k", lw=1)
+    if snap:
+        for i in np.flatnonzero(snap["active"]):
+            p = snap["position_m"][i]
+            if not window_y_m[0] - 0.5 <= p[1] <= window_y_m[1] + 0.5:
+                continue
+            ax.add_patch(plt.Circle(p, snap["radius_m"][i], fill=False, lw=0.8))
+            ax.arrow(*p, *(0.3 * snap["velocity_m_s"][i]), color="C3", width=0.006, length_includes_head=True)
+            ax.arrow(*p, *(0.15 * snap["intent_m_s"][i]), color="C0", width=0.003, alpha=0.6, length_includes_head=True)
+        ax.set_title(f"{study['run']} at t = {snap['time_s']:.1f} s: velocity × 0.3 s (red), intent × 0.15 s (blue)",
+                     fontsize=9)
+    ax.set_xlim(-1.0, 2.8)
+    ax.set_ylim(*window_y_m)
+    ax.set_aspect("equal")
+    s = study["series"]
+    ax1.plot(s["time_s"], s["left"], color="k", label="left through the exit")
+    ax1.set_xlabel("time (s)")
+    ax1.set_ylabel("pedestrians out")
+    ax2 = ax1.twinx()
+    ax2.plot(s["time_s"], s["mean_speed_m_s"], color="C3", label="mean speed of those left")
+    ax2.plot(s["time_s"], s["net_displacement_m"] / STALL_WINDOW_S, color="C0",
+             label=f"their mean net speed over {STALL_WINDOW_S:g} s")
+    ax2.axhline(STALL_SPEED_M_S, color="C0", ls=":", label="stall threshold (net)")
+    ax2.set_ylabel("m/s")
+    ax2.set_ylim(0, None)
+    lines = ax1.get_legend_handles_labels()
+    lines2 = ax2.get_legend_handles_labels()
+    ax2.legend(lines[0] + lines2[0], lines[1] + lines2[1], fontsize=7, loc="center right")
+    return save_figure(fig, Path(path))
