@@ -26,7 +26,7 @@ from crowd_env.errors import InputError
 from ...analysis.fd_reference import JUELICH_CORRIDOR_WIDTH_M, juelich_corridor, single_file
 from ...analysis.periodic import MIN_FIT_SPEED_M_S, headway_fit, trajectory_frames, unwrap_x
 from ...core.checks import check_number
-from ...core.params import ModelParams
+from ...core.params import ModelParams, PedestrianDefaults
 from ...core.periodic import minimum_image_dx
 from ..running.crowd_policy import crowd_policy
 from .bottleneck import bottleneck_config, params_dict, run_one
@@ -47,11 +47,13 @@ SINGLE_FILE_DENSITIES = tuple(float(d) for d in single_file().density)
 
 def fd_tasks(setups, densities: dict, seeds, params: ModelParams, *, length_m: float = 20.0,
              max_time_s: float = 40.0, transient_s: float = 15.0,
-             corridor_width_m: float = JUELICH_CORRIDOR_WIDTH_M) -> list:
+             corridor_width_m: float = JUELICH_CORRIDOR_WIDTH_M, radius_m: float | None = None) -> list:
     """Tasks of :func:`run_fd_one`, one per set-up, density of ``densities[setup]`` and seed.
 
     ``corridor_width_m``: the periodic corridor's width (default the Jülich experiment's 1.8 m; the width of a
-    door's channel measures the channel's own fundamental diagram)."""
+    door's channel measures the channel's own fundamental diagram). ``radius_m``: the pedestrians' radius (None:
+    Kabalan's Table 2, 0.23 m, the tasks as before); the single file's strip then keeps its ratio to the body,
+    :data:`SINGLE_FILE_WIDTH_M` × r / 0.23 m (one file, no passing, whatever the body)."""
     unknown = sorted(set(setups) - set(SETUPS))
     if unknown:
         raise InputError(f"unknown set-up(s) {unknown}; choose among {list(SETUPS)}")
@@ -59,6 +61,10 @@ def fd_tasks(setups, densities: dict, seeds, params: ModelParams, *, length_m: f
     base = {"params": params_dict(params), "length_m": float(length_m),
             "max_time_s": float(max_time_s), "transient_s": float(transient_s)}
     width = {"corridor": corridor_width_m, "single_file": SINGLE_FILE_WIDTH_M}
+    if radius_m is not None:
+        radius_m = check_number("radius_m", radius_m, error=InputError, positive=True)
+        base["radius_m"] = radius_m
+        width["single_file"] = SINGLE_FILE_WIDTH_M * radius_m / PedestrianDefaults().radius_m
     area = {"corridor": length_m * width["corridor"], "single_file": length_m}  # N = round(ρ · area)
     return [dict(base, setup=s, density=float(d), seed=int(seed), width_m=width[s],
                  n_pedestrians=int(round(d * area[s]))) for s in setups for d in densities[s] for seed in seeds]
@@ -96,6 +102,7 @@ def run_fd_one(task: dict) -> dict:
     point, result, traj = fundamental_diagram_point(
         task["density"] / width if single else task["density"], length_m=task["length_m"], width_m=width,
         seed=task["seed"], max_time_s=task["max_time_s"], transient_s=task["transient_s"], params=params,
+        radius_m=task.get("radius_m", PedestrianDefaults().radius_m),
         frame_rate_per_s=FRAME_RATE_PER_S, pedestrian=task.get("pedestrian"),
         driver=(lambda scenario: crowd_policy(task, scenario, params)) if task.get("policy") else None)
     n = point.n_pedestrians

@@ -77,7 +77,8 @@ __all__ = ["CAPACITY_RANGE", "CAPACITY_SIZES", "CAPACITY_WIDTHS_M", "FAILED_POIN
            "TargetWeights", "band_miss", "required_cases", "target_error", "FD_TERMS", "FD_SETUPS",
            "FD_SPEED_TOLERANCE_M_S", "CORRIDOR_FD_RANGE_PER_M2", "HEADWAY_A_RANGE_M", "HEADWAY_B_RANGE_S",
            "UNDEFINED_FIT_MISS", "DENSITY_MATCH", "corridor_fd_bins", "single_file_bins", "speed_band_miss", "fd_terms",
-           "FD_PEAK_FLOW_RANGE_PER_M_S", "FD_PEAK_DENSITY_RANGE_PER_M2", "FD_ROUNDING_M_S", "fd_table"]
+           "FD_PEAK_FLOW_RANGE_PER_M_S", "FD_PEAK_DENSITY_RANGE_PER_M2", "FD_ROUNDING_M_S", "fd_table",
+           "single_file_terms", "corridor_runs_term", "virtual_error", "VIRTUAL_TERMS"]
 
 # Stationary discharge rate of the larger crowd over the smaller one, at these widths.
 CAPACITY_SIZES = (60, 120)
@@ -114,13 +115,21 @@ class TargetWeights:
     corridor_monotone: float = 1.0
     single_file: float = 1.0
     headway_fit: float = 1.0
+    corridor_runs: float = 1.0
 
     def __post_init__(self) -> None:
         for f in fields(self):
             check_number(f"weight {f.name}", getattr(self, f.name), error=CalibrationError, minimum=0.0)
 
     def as_dict(self) -> dict:
-        return {f.name: float(getattr(self, f.name)) for f in fields(self)}
+        """Every weight but ``corridor_runs``, which only the objective of every shipped experiment reads
+        (:func:`virtual_error`; its set-up hashes :meth:`virtual_dict`)."""
+        return {f.name: float(getattr(self, f.name)) for f in fields(self) if f.name != "corridor_runs"}
+
+    def virtual_dict(self) -> dict:
+        """The weights :func:`virtual_error` reads: the bottleneck's, the single file's and the corridor runs'."""
+        return {**self.bottleneck_dict(), "single_file": self.single_file, "headway_fit": self.headway_fit,
+                "corridor_runs": self.corridor_runs}
 
     def bottleneck_dict(self) -> dict:
         """The weights of the bottleneck's terms only (what a bottleneck-only set-up hashes, as before)."""
@@ -252,6 +261,21 @@ def _single_file_fit(records: list) -> tuple:
                        np.concatenate([np.asarray(r["speed_samples_m_s"], dtype=np.float64) for r in single]))
 
 
+def single_file_terms(records: list) -> tuple:
+    """``(terms, figures)`` of the single file alone (``single_file`` and ``headway_fit``, module docstring) from
+    the single-file runs among ``records``."""
+    terms, figures = {}, {}
+    rho, v_exp, v = _fd_speeds(records, "single_file", single_file_bins())
+    figures.update({f"fd_speed_m_s single_file rho{d:g}": float(x) for d, x in zip(rho, v)})
+    terms["single_file"] = float(np.mean(speed_band_miss(v, v_exp) ** 2))
+    a, b, k = _single_file_fit(records)
+    miss = (np.array([band_miss(a, *HEADWAY_A_RANGE_M), band_miss(b, *HEADWAY_B_RANGE_S)])
+            if np.isfinite(a) and np.isfinite(b) else np.full(2, UNDEFINED_FIT_MISS))
+    terms["headway_fit"] = float(np.mean(miss ** 2))
+    figures.update({"headway_a_m": a, "headway_b_s": b, "headway_samples": k})
+    return terms, figures
+
+
 def fd_terms(records: list) -> tuple:
     """``(terms, figures)`` of the fundamental diagram (module docstring) from the sweep's run records (each
     with ``setup``, ``density``, ``speed_m_s``; single-file ones with ``headway_samples_m`` and
@@ -263,15 +287,31 @@ def fd_terms(records: list) -> tuple:
     terms["corridor_fd"] = float(np.mean(speed_band_miss(v, v_exp) ** 2))
     rises = _excess_rises(v, v_exp) / v_exp[1:]
     terms["corridor_monotone"] = float(np.mean(rises ** 2)) if rises.size else 0.0
-    rho, v_exp, v = _fd_speeds(records, "single_file", single_file_bins())
-    figures.update({f"fd_speed_m_s single_file rho{d:g}": float(x) for d, x in zip(rho, v)})
-    terms["single_file"] = float(np.mean(speed_band_miss(v, v_exp) ** 2))
-    a, b, k = _single_file_fit(records)
-    miss = (np.array([band_miss(a, *HEADWAY_A_RANGE_M), band_miss(b, *HEADWAY_B_RANGE_S)])
-            if np.isfinite(a) and np.isfinite(b) else np.full(2, UNDEFINED_FIT_MISS))
-    terms["headway_fit"] = float(np.mean(miss ** 2))
-    figures.update({"headway_a_m": a, "headway_b_s": b, "headway_samples": k})
-    return terms, figures
+    more_terms, more_figures = single_file_terms(records)
+    return {**terms, **more_terms}, {**figures, **more_figures}
+
+
+def corridor_runs_term(records: list) -> tuple:
+    """``(term, figures)`` of the Jülich corridor runs as run (:mod:`crowd_env.experiments.validation.corridor_runs`):
+    per run the seed means of the Voronoi density, speed and exit flow, each's miss beyond its tolerance
+    (density and exit flow relative, ±15 % and ±10 %; speed ±0.10 m/s, relative to the experiment's speed: the
+    convention of the other terms), squared, the mean over runs and the three quantities. Every run of the
+    experiment must be present (:class:`CalibrationError` naming the missing ones)."""
+    from ..corridor_runs import CORRIDOR_RUN_NAMES, CORRIDOR_TOLERANCES, summarise_corridor
+
+    rows = summarise_corridor(records)
+    missing = sorted(set(CORRIDOR_RUN_NAMES) - {r["run"] for r in rows})
+    if missing:
+        raise CalibrationError(f"the corridor runs' term needs every run of the experiment; none of {missing}")
+    tol = CORRIDOR_TOLERANCES
+    misses, figures = [], {}
+    for r in rows:
+        misses += [max(abs(r["density_per_m2"] / r["density_exp"] - 1.0) - tol["density_relative"], 0.0),
+                   float(speed_band_miss(r["speed_m_s"], r["speed_exp"], tol["speed_m_s"])),
+                   max(abs(r["flow_exit_per_s"] / r["flow_exit_exp"] - 1.0) - tol["flow_exit_relative"], 0.0)]
+        for key in ("density_per_m2", "speed_m_s", "flow_exit_per_s"):
+            figures[f"{key} {r['run']}"] = r[key]
+    return float(np.mean(np.square(misses))), figures
 
 
 def _complete(record: dict) -> bool:
@@ -357,6 +397,46 @@ def target_error(records: list, *, weights: TargetWeights | None = None,
     wd = w.as_dict()
     objective = float(sum(wd[k] * v for k, v in terms.items()))
     return TargetScore(objective, terms, n_runs, 0, n_stalled, False, figures, ratios, unscored)
+
+
+VIRTUAL_TERMS = ("single_file", "headway_fit", "corridor_runs")
+
+
+def virtual_error(records: list, *, weights: TargetWeights | None = None,
+                  reference: ExperimentTable | None = None) -> TargetScore:
+    """Score one parameter point on every shipped experiment as it was run: the bottleneck's terms of
+    :func:`target_error` (its runs: records with neither ``setup`` nor ``experiment`` = ``"corridor"``), the single
+    file's (``single_file``, ``headway_fit``: runs with ``setup`` = ``"single_file"``) and the corridor runs'
+    (:func:`corridor_runs_term`: records with ``experiment`` = ``"corridor"``), Σ weight · term. The periodic
+    corridor's terms are not part of it: the corridor runs as run replace them. Any incomplete run of any
+    experiment makes a failed point (:data:`FAILED_POINT_OBJECTIVE` + the incomplete fraction)."""
+    w = TargetWeights() if weights is None else weights
+    corridor = [r for r in records if r.get("experiment") == "corridor"]
+    single = [r for r in records if r.get("setup") == "single_file"]
+    neck = [r for r in records if r.get("experiment") != "corridor" and "setup" not in r]
+    if not corridor or not single:
+        raise CalibrationError("the objective of every shipped experiment needs corridor runs and single-file runs "
+                               f"(got {len(corridor)} and {len(single)})")
+    if len(neck) + len(corridor) + len(single) != len(records):
+        raise CalibrationError("records of the periodic corridor's sweep have no place in the objective of every "
+                               "shipped experiment")
+    bottleneck = target_error(neck, weights=w, reference=reference, fd=False)
+    n_incomplete = sum(not _complete(r) for r in corridor + single)
+    n_stalled = bottleneck.n_stalled + sum(bool(r.get("stalled", False)) for r in corridor + single)
+    n_runs = len(records)
+    if bottleneck.failed or n_incomplete:
+        bad = bottleneck.n_incomplete + n_incomplete
+        return TargetScore(FAILED_POINT_OBJECTIVE + bad / n_runs, {}, n_runs, bad, n_stalled, True, {}, {})
+    terms = {k: v for k, v in bottleneck.terms.items() if k not in FD_TERMS}
+    figures = dict(bottleneck.figures)
+    more, more_figures = single_file_terms(single)
+    terms.update(more)
+    figures.update(more_figures)
+    terms["corridor_runs"], corridor_figures = corridor_runs_term(corridor)
+    figures.update(corridor_figures)
+    wd = w.virtual_dict()
+    return TargetScore(float(sum(wd[k] * v for k, v in terms.items())), terms, n_runs, 0, n_stalled, False, figures,
+                       bottleneck.capacity_ratio)
 
 
 # --- the issue's acceptance table: every target with its figure and verdict ------------------------

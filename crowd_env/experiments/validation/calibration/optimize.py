@@ -32,14 +32,16 @@ import numpy as np
 from crowd_env.files import append_json_line, write_csv_atomic, write_json_atomic
 from .errors import CalibrationError
 from ....analysis.experiment import ExperimentTable, seyfried_2009
-from .objective import TargetWeights, required_cases, target_error
+from .objective import TargetWeights, required_cases, target_error, virtual_error
+from ..corridor_runs import CORRIDOR_RUN_NAMES
+from ..fundamental_diagram import SINGLE_FILE_DENSITIES
 from ....core.checks import check_integer
 from ...running.backends import execute
 from ..bottleneck import run_one
 from ..fundamental_diagram import run_fd_one
 from ...running.store import RunStore
 from .grid import INCOMPLETE_RULES, check_run_plan, n_stalled_runs, point_error_of, point_tasks
-from .tasks import FDPlan, canonical, make_fd_tasks, make_task, run_calibration_task
+from .tasks import FDPlan, canonical, make_fd_tasks, make_task, make_virtual_tasks, run_calibration_task
 
 FAILED_OBJECTIVE = 1.0e6  # objective of a point whose runs failed (not cached: retried next time)
 
@@ -73,13 +75,18 @@ FREE_PARAMETERS = {
     # the time-to-collision interaction (crowd_env.walking.time_to_collision; defaults: the paper's fit)
     "ttc_strength_m2_s2": FreeParameter("ttc_strength_m2_s2", "model", False, (0.0, 10.0), 1.5, 0.5),
     "ttc_horizon_s": FreeParameter("ttc_horizon_s", "model", True, (0.3, 10.0), 3.0, 0.3),
+    # the body: every pedestrian's radius (Kabalan's Table 2: 0.23 m), in every scenario of the point's runs
+    # (tasks.with_body; the navigation's clearance follows it where it is the disk centres' field)
+    "radius": FreeParameter("radius_m", "body", False, (0.12, 0.26), 0.23, 0.02),
 }
 METHODS = ("Nelder-Mead", "Powell")
 # "epsilon": Eq. 24-25 (+ the optional N = 20/40 range penalty), the paper's objective; "targets": every
 # figure the experiment measured (crowd_env.experiments.validation.calibration.objective), on the runs of its required_cases;
 # "targets+fd": those runs plus the fundamental diagram's (an FDPlan), the same objective with its FD terms.
-OBJECTIVES = ("epsilon", "targets", "targets+fd")
-TARGET_OBJECTIVES = ("targets", "targets+fd")
+# "virtual": every shipped experiment as it was run (the bottleneck's required cases, the nine Jülich corridor runs
+# with their entrance and exit, the single file), objective.virtual_error.
+OBJECTIVES = ("epsilon", "targets", "targets+fd", "virtual")
+TARGET_OBJECTIVES = ("targets", "targets+fd", "virtual")
 
 
 @dataclass
@@ -104,6 +111,9 @@ def _setup_hash(widths, sizes, seeds, reference: ExperimentTable | None, range_w
         setup.update(objective=objective, weights=w.bottleneck_dict())
     elif objective == "targets+fd":
         setup.update(objective=objective, weights=w.as_dict(), fd=(fd_plan or FDPlan()).as_dict())
+    elif objective == "virtual":
+        setup.update(objective=objective, weights=w.virtual_dict(), corridor_runs=list(CORRIDOR_RUN_NAMES),
+                     single_file=list(SINGLE_FILE_DENSITIES))
     blob = json.dumps(setup, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
@@ -193,6 +203,8 @@ class PointEvaluator:
             self.fd_plan = FDPlan(seeds=tuple(self.seeds)) if fd_plan is None else fd_plan
             make_fd_tasks(config, {}, {}, self.fd_plan)  # a configuration the sweep cannot run fails before any run
             run_fn = partial(run_calibration_task, run_fn=run_fn, fd_run_fn=fd_run_fn)
+        elif objective == "virtual":
+            run_fn = partial(run_calibration_task, run_fn=run_fn, fd_run_fn=fd_run_fn)
         self.sizes, self.config, self.backend, self.run_fn = sizes, config, backend, run_fn
         self.reference, self.range_weight, self.incomplete = reference, range_weight, incomplete
         self.objective, self.weights = objective, weights
@@ -205,6 +217,12 @@ class PointEvaluator:
     def tasks(self, values: dict) -> list:
         model = {FREE_PARAMETERS[n].field: v for n, v in values.items() if FREE_PARAMETERS[n].target == "model"}
         ped = {FREE_PARAMETERS[n].field: v for n, v in values.items() if FREE_PARAMETERS[n].target == "pedestrian"}
+        radius = values.get("radius")
+        if self.objective == "virtual":
+            return make_virtual_tasks(self.config, model, ped, self.widths_m, self.seeds, radius_m=radius)
+        if radius is not None:
+            raise CalibrationError("the radius is calibrated with --objective virtual (every scenario's body changes "
+                                   "with it, the corridor runs' and the single file's too)")
         if self.objective == "targets+fd":
             return (target_tasks(self.config, model, ped, self.widths_m, self.seeds)
                     + make_fd_tasks(self.config, model, ped, self.fd_plan))
@@ -226,7 +244,9 @@ class PointEvaluator:
         if failed:
             return {"values": values, "objective": FAILED_OBJECTIVE, "epsilon_total": float("nan"), "failed_runs": failed}
         records = [self.store.load(t) for t in tasks]
-        if self.objective in TARGET_OBJECTIVES:
+        if self.objective == "virtual":
+            entry = target_entry(values, virtual_error(records, weights=self.weights, reference=self.reference))
+        elif self.objective in TARGET_OBJECTIVES:
             entry = target_entry(values, target_error(records, weights=self.weights, reference=self.reference,
                                                       fd=self.objective == "targets+fd"))
         else:

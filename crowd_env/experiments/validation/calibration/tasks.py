@@ -27,7 +27,7 @@ from ..bottleneck import params_dict, run_one
 from ..fundamental_diagram import CORRIDOR_DENSITIES, SETUPS, SINGLE_FILE_DENSITIES, fd_tasks, run_fd_one
 
 __all__ = ["PEDESTRIAN_FIELDS", "SIGNIFICANT_DIGITS", "canonical", "check_pedestrian", "base_config", "make_task",
-           "FDPlan", "make_fd_tasks", "run_calibration_task"]
+           "FDPlan", "make_fd_tasks", "run_calibration_task", "with_body", "make_virtual_tasks"]
 
 # PedestrianDefaults fields a calibration may vary (per-pedestrian, drawn/set in Scenario.make_state).
 PEDESTRIAN_FIELDS = ("tau_s", "desired_speed_mean_m_s", "desired_speed_std_m_s")
@@ -142,7 +142,50 @@ def make_fd_tasks(config: dict, model: dict, pedestrian: dict, plan: FDPlan) -> 
     return [dict(t, pedestrian=ped) for t in tasks]
 
 
+def with_body(task: dict, radius_m: float | None) -> dict:
+    """A bottleneck task (:func:`make_task`) with the pedestrians' radius ``radius_m`` (None: unchanged): the
+    geometry's ``radius_m``, and its navigation clearance with it where the field is the disk centres' (clearance
+    = radius), as the presets' is; a point field (clearance 0) stays one."""
+    if radius_m is None:
+        return task
+    geometry = dict(task["geometry"])
+    old = float(geometry.get("radius_m", PedestrianDefaults().radius_m))
+    if abs(float(geometry.get("navigation_clearance_m", old)) - old) < 1e-12:
+        geometry["navigation_clearance_m"] = float(radius_m)
+    geometry["radius_m"] = float(radius_m)
+    return dict(task, geometry=geometry)
+
+
+def make_virtual_tasks(config: dict, model: dict, pedestrian: dict, widths_m, seeds, *, radius_m: float | None = None,
+                       single_file_densities=SINGLE_FILE_DENSITIES, max_time_s: float | None = None) -> list:
+    """The runs of one parameter point on every shipped experiment as it was run (the objective
+    :func:`~crowd_env.experiments.validation.calibration.objective.virtual_error`): the bottleneck's
+    :func:`~crowd_env.experiments.validation.calibration.objective.required_cases` at ``widths_m``, the nine Jülich
+    corridor runs (:func:`~crowd_env.experiments.validation.corridor_runs.corridor_tasks`) and the single file at
+    ``single_file_densities``, every one at ``seeds`` (common random numbers), with ``config``'s model and the
+    overrides ``model`` (ModelParams fields), ``pedestrian`` (PedestrianDefaults fields) and ``radius_m`` (the
+    body; None: the configuration's)."""
+    from ..corridor_runs import corridor_tasks
+    from .objective import required_cases
+
+    params = _point_params(config, model)
+    ped = check_pedestrian(pedestrian)
+    limit = float(config["max_time_s"] if max_time_s is None else max_time_s)
+    neck = [with_body(make_task(config, model, pedestrian, b, n, s), radius_m) for b, n in required_cases(widths_m)
+            for s in seeds]
+    corridor = corridor_tasks(params, seeds=seeds, pedestrian=ped or None, max_time_s=limit,
+                              geometry={} if radius_m is None else {"radius_m": float(radius_m)})
+    single = [dict(t, pedestrian=ped) for t in fd_tasks(["single_file"], {"single_file": single_file_densities}, seeds,
+                                                       params, radius_m=radius_m)]
+    return neck + corridor + single
+
+
 def run_calibration_task(task: dict, run_fn=run_one, fd_run_fn=run_fd_one) -> dict:
-    """Run a calibration task of either kind: ``fd_run_fn`` for a fundamental-diagram run (a ``setup`` key),
-    ``run_fn`` for a bottleneck run (bind them with :func:`functools.partial` for an executor)."""
+    """Run a calibration task of any kind: ``fd_run_fn`` for a fundamental-diagram run (a ``setup`` key), a Jülich
+    corridor run for one with ``experiment`` = ``"corridor"``, ``run_fn`` for a bottleneck run (bind them with
+    :func:`functools.partial` for an executor)."""
+    if task.get("experiment") == "corridor":
+        from ..corridor_runs import run_corridor_one
+
+        return run_corridor_one(task)
     return fd_run_fn(task) if "setup" in task else run_fn(task)
