@@ -17,7 +17,7 @@ import numpy as np
 
 from crowd_env.errors import InputError
 
-__all__ = ["write_atomic", "write_json_atomic", "write_csv_atomic", "write_npz_atomic", "save_figure_atomic",
+__all__ = ["write_atomic", "write_json_atomic", "write_csv_atomic", "write_npz_atomic", "save_figure_atomic", "read_json_lines",
            "copy_atomic", "append_json_line"]
 
 
@@ -97,3 +97,18 @@ def append_json_line(path, value) -> None:
         fh.write(json.dumps(value) + "\n")
         fh.flush()
         os.fsync(fh.fileno())
+
+
+def read_json_lines(path) -> list:
+    """The values of the JSON lines of ``path`` (:func:`append_json_line`'s logs), in order; [] when there is no
+    file. A line that is not JSON (the last one, cut by a kill) is skipped."""
+    path = Path(path)
+    if not path.exists():
+        return []
+    out = []
+    for line in path.read_text(encoding="utf-8").splitlines():
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError:
+            continue
+    return out

@@ -385,8 +385,7 @@ def run(args) -> int:
         print(f"results: {args.out / 'optimise' / 'optimum.json'}")
         return 0
     if result.n_failed_runs:
-        print(f"warning: {result.n_failed_runs} run(s) failed (see {args.out / 'errors.jsonl'}); rerun to retry them",
-              file=sys.stderr)
+        print(f"warning: {result.failure_report}", file=sys.stderr)
     analysis = analyse_surface(result, use_objective=args.range_weight > 0, exclude_edges=not args.keep_edge_minima)
     paths = write_grid_outputs(result, args.out, analysis, meta, figure=not args.no_figures)
     best, fit = analysis["best"], analysis["fit"]

@@ -59,3 +59,13 @@ def test_candidates_measure_door_and_corridor_and_are_read_back(tmp_path, capsys
 def test_bad_options_are_refused_naming_them(tmp_path, argv, match):
     with pytest.raises(SystemExit, match=match):
         main(argv + ["--out", str(tmp_path / "x")])
+
+
+def test_a_failed_sweep_run_says_why_and_that_a_rerun_fails_alike(tmp_path):
+    """Regression (issue 52): --densities 9 printed '1 run(s) failed (see errors.jsonl); rerun to retry them',
+    the reason (9 /m² cannot be placed) only in the file, and a rerun fails the same way."""
+    argv = ["--sweep", "--setups", "corridor", "--seeds", "1", "--densities", "9", "--backend", "serial",
+            "--out", str(tmp_path / "fd")]
+    with pytest.raises(SystemExit, match=r"^error: 1 of 1 run\(s\) failed: \S+: ScenarioError: "
+                                         r"density_per_m2 = 9\.0 cannot be placed .*; a rerun fails the same way"):
+        main(argv)

@@ -14,6 +14,7 @@ from __future__ import annotations
 from crowd_env.errors import BackendError
 
 import os
+import re
 import socket
 import sys
 import traceback
@@ -24,7 +25,7 @@ from ...threads import limit_worker_threads
 from .warmup import warm_up
 
 __all__ = ["BACKENDS", "BackendError", "SerialBackend", "ProcessBackend", "RayBackend", "check_reachable",
-           "make_backend", "execute", "run_all"]
+           "make_backend", "execute", "failure_report", "run_all"]
 
 BACKENDS = ("ray", "process", "serial")
 
@@ -246,6 +247,57 @@ def execute(tasks: list, store, backend, run_fn, desc: str = "runs", leave: bool
                 bar.set_postfix(failed=failures)
             bar.update()
     return failures
+
+
+REASONS_SHOWN = 3  # distinct reasons a failure report quotes
+
+
+def _own_error(text: str) -> bool:
+    """Whether a logged error (``"module.Class: message"``, :func:`_error_text`) is one of crowd_env's own
+    (:mod:`crowd_env.errors`): the run's input refused, or its computation failed. Runs are seeded, so such a run
+    fails the same way again; an error of another kind may come from the machine (a killed worker, memory, disk)."""
+    return text.startswith("crowd_env.errors.")
+
+
+def _reason(text: str) -> str:
+    """A logged error on one line: its class without the module (``ScenarioError: ...``), its first line only."""
+    lines = text.strip().splitlines() or [""]
+    first = re.sub(r"^[A-Za-z_][\w.]*\.(?=\w+: )", "", lines[0])
+    return first + (" [...]" if len(lines) > 1 else "")
+
+
+def failure_report(tasks: list, store) -> str:
+    """What a sweep says when runs of ``tasks`` failed (those not in their store after :func:`execute`): how many,
+    each distinct reason (the error logged last for the run in ``OUT/errors.jsonl``, its class without its module)
+    with the first run that gave it and how many did, whether a rerun can help (:func:`_own_error`) and where the
+    log is. ``store`` as for :func:`execute`."""
+    store_of = store if callable(store) else (lambda task: store)
+    logged, logs, reasons = {}, set(), {}
+    failed = [t for t in tasks if not store_of(t).done(t)]
+    for task in failed:
+        s = store_of(task)
+        if id(s) not in logged:
+            logged[id(s)] = s.logged_errors()
+        key = s.key(task)
+        text = logged[id(s)].get(key)
+        if text is not None:
+            logs.add(str(s.errors_path))
+        reasons.setdefault(text or "no error logged for it", []).append(key)
+    shown = [f"{keys[0]}{f' and {len(keys) - 1} more' if len(keys) > 1 else ''}: {_reason(text)}"
+             for text, keys in list(reasons.items())[:REASONS_SHOWN]]
+    if len(reasons) > REASONS_SHOWN:
+        shown.append(f"{len(reasons) - REASONS_SHOWN} other reason(s)")
+    own = [_own_error(text) for text in reasons]
+    if all(own):
+        advice = ("a rerun fails the same way (crowd_env refused these runs, and runs are seeded): change what the "
+                  "error names")
+    elif not any(own):
+        advice = "a rerun retries them and can help if the cause was the machine (a killed worker, memory, disk)"
+    else:
+        advice = ("a rerun retries them: those failing with crowd_env's own errors fail the same way again (change "
+                  "what the error names), the others can pass if the cause was the machine")
+    where = f" (every failure: {', '.join(sorted(logs))})" if logs else ""
+    return f"{len(failed)} of {len(tasks)} run(s) failed: {'; '.join(shown)}; {advice}{where}"
 
 
 def run_all(tasks: list, backend, run_fn) -> list:

@@ -38,7 +38,7 @@ from crowd_env.errors import InputError
 from crowd_env.files import save_figure_atomic, write_atomic, write_csv_atomic, write_json_atomic
 
 from ..output.tables import format_table
-from ..running.backends import execute
+from ..running.backends import execute, failure_report
 from ...envs.background import CALIBRATED_NAMES
 from ..running.crowd_policy import policy_entry
 from ..running.store import RunStore
@@ -192,7 +192,8 @@ def run_scorecard(out, config: dict, policies, plan: ScorecardPlan, backend, *, 
                   progress=print) -> list:
     """Score ``policies`` (``"name"`` or ``"name@fraction"``; the calibrated agent first, added when missing) on
     ``config``'s set-up: runs missing from ``out/<label>/`` are run on ``backend`` and stored (resumable); returns
-    the rows, the calibrated agent's first. A failed run raises :class:`CalibrationError` (rerun to retry it)."""
+    the rows, the calibrated agent's first. A failed run raises :class:`CalibrationError` saying why
+    (:func:`~crowd_env.experiments.running.backends.failure_report`)."""
     specs = [parse_policy(p) for p in policies]
     if not any(name in CALIBRATED_NAMES and f == 1.0 for _, name, f in specs):
         specs.insert(0, ("calibrated", "calibrated", 1.0))
@@ -207,8 +208,7 @@ def run_scorecard(out, config: dict, policies, plan: ScorecardPlan, backend, *, 
         tasks = scorecard_tasks(config, entries[label], plan)
         failed = execute(tasks, store, backend, run_fn, desc=f"scorecard: {label}")
         if failed:
-            raise CalibrationError(f"{failed} run(s) of {label} failed (see {Path(out) / _folder(label) / 'errors.jsonl'});"
-                                   " rerun to retry them")
+            raise CalibrationError(f"policy {label}: {failure_report(tasks, store)}")
         rows.append(score_records(label, [store.load(t) for t in tasks], plan, draws=draws))
         if progress:
             progress(format_scorecard(rows[-1:]).splitlines()[-1])

@@ -52,3 +52,52 @@ def test_process_workers_run_numpy_s_blas_on_one_thread():
     with make_backend("process", jobs=2) as backend:
         counts = run_all([{"k": 0}, {"k": 1}], backend, _blas_threads)
     assert all(c and set(c) == {1} for c in counts), counts
+
+
+def _fails_by_seed(task: dict) -> dict:
+    """A run that fails by its seed: 0 with crowd_env's own error, 1 with the machine's (memory), else passes."""
+    from crowd_env.errors import ScenarioError
+
+    if task["seed"] == 0:
+        raise ScenarioError(f"{task['n_pedestrians']} pedestrians cannot be placed")
+    if task["seed"] == 1:
+        raise MemoryError("out of memory")
+    return {"n_pedestrians": task["n_pedestrians"], "complete": True}
+
+
+@pytest.mark.parametrize("seeds, says", [
+    ([0, 2], r"^1 of 2 run\(s\) failed: b1\.000_n9_s0: ScenarioError: 9 pedestrians cannot be placed; a rerun fails "
+             r"the same way \(crowd_env refused these runs, and runs are seeded\): change what the error names "
+             r"\(every failure: .*errors\.jsonl\)$"),
+    ([1, 2], r"^1 of 2 run\(s\) failed: b1\.000_n9_s1: MemoryError: out of memory; a rerun retries them and can help "
+             r"if the cause was the machine"),
+    ([0, 1, 2], r"^2 of 3 run\(s\) failed: b1\.000_n9_s0: ScenarioError: .*; b1\.000_n9_s1: MemoryError: .*; a rerun "
+                r"retries them: those failing with crowd_env's own errors fail the same way again"),
+])
+def test_a_failure_report_gives_each_reason_and_whether_a_rerun_can_help(tmp_path, seeds, says):
+    """Regression (issue 52): a sweep whose runs failed said only '1 run(s) failed (see errors.jsonl); rerun to retry
+    them', also where the reason (a density that cannot be placed, too many steps) makes every rerun fail alike."""
+    from crowd_env.experiments.running.backends import execute, failure_report
+    from crowd_env.experiments.running.store import RunStore
+
+    store = RunStore(tmp_path, {"kind": "test"})
+    tasks = [{"width_m": 1.0, "n_pedestrians": 9, "seed": s} for s in seeds]
+    with make_backend("serial") as backend:
+        failed = execute(tasks, store, backend, _fails_by_seed, leave=False)
+    assert failed == len([s for s in seeds if s < 2])
+    import re
+    assert re.search(says, failure_report(tasks, store)), failure_report(tasks, store)
+
+
+def test_a_failure_report_counts_runs_of_one_reason_and_shows_at_most_three_reasons(tmp_path):
+    from crowd_env.experiments.running.backends import failure_report
+    from crowd_env.experiments.running.store import RunStore
+
+    store = RunStore(tmp_path, {"kind": "test"})
+    tasks = [{"width_m": 1.0, "n_pedestrians": n, "seed": s} for n in (5, 6, 7, 8) for s in (0, 1)]
+    for t in tasks:
+        store.log_error(t, f"crowd_env.errors.InputError: N = {t['n_pedestrians']}\nsecond line")
+    text = failure_report(tasks, store)
+    assert text.startswith("8 of 8 run(s) failed: b1.000_n5_s0 and 1 more: InputError: N = 5 [...]; "
+                           "b1.000_n6_s0 and 1 more: InputError: N = 6 [...]; b1.000_n7_s0 and 1 more: ")
+    assert "; 1 other reason(s); a rerun fails the same way" in text and "\n" not in text

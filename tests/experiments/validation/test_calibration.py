@@ -117,6 +117,8 @@ def test_failed_runs_are_logged_and_retried(tmp_path):
     res = evaluate_grid(tmp_path, config(), [100.0, 300.0], [0.08], WIDTHS, [60], [0], SerialBackend(), run_fn=fake)
     assert res.n_failed_runs == 1 and np.isnan(res.epsilon_total[0, 0]) and np.isfinite(res.epsilon_total[1, 0])
     assert "solver exploded" in (tmp_path / "errors.jsonl").read_text()
+    assert res.failure_report.startswith("1 of 6 run(s) failed: ") and "RuntimeError: solver exploded; a rerun " \
+        "retries them and can help if the cause was the machine" in res.failure_report
     fake.fail = None
     res = evaluate_grid(tmp_path, config(), [100.0, 300.0], [0.08], WIDTHS, [60], [0], SerialBackend(), run_fn=fake)
     assert fake.calls == 7 and np.isfinite(res.epsilon_total).all()
