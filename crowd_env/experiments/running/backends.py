@@ -17,15 +17,18 @@ import os
 import re
 import socket
 import sys
+import threading
 import traceback
+from contextlib import contextmanager
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
+from ...compilation import compiling
 from ...core.checks import check_integer
 from ...threads import limit_worker_threads
 from .warmup import warm_up
 
 __all__ = ["BACKENDS", "BackendError", "SerialBackend", "ProcessBackend", "RayBackend", "check_reachable",
-           "make_backend", "execute", "failure_report", "run_all"]
+           "make_backend", "execute", "kept_alive", "failure_report", "run_all"]
 
 BACKENDS = ("ray", "process", "serial")
 
@@ -222,9 +225,37 @@ def make_backend(name: str = "ray", *, address: str | None = None, jobs: int | N
     return SerialBackend()
 
 
+@contextmanager
+def kept_alive(bar, desc: str, every_s: float = 1.0):
+    """While the block runs, a thread redraws the tqdm ``bar`` every ``every_s`` seconds, so that its elapsed time
+    moves while no run finishes (a cold start compiles for a minute or more before the first one does), with
+    "compiling numba kernels" after ``desc`` while this process compiles or waits for its workers to
+    (:func:`crowd_env.compilation.compiling`)."""
+    stop = threading.Event()
+
+    def tick():
+        shown = desc
+        while not stop.wait(every_s):
+            now = f"{desc} (compiling numba kernels)" if compiling() else desc
+            if now != shown:
+                shown = now
+                bar.set_description_str(now, refresh=False)
+            bar.refresh()
+
+    thread = threading.Thread(target=tick, name="progress-bar", daemon=True)
+    thread.start()
+    try:
+        yield bar
+    finally:
+        stop.set()
+        thread.join()
+        bar.set_description_str(desc, refresh=False)
+
+
 def execute(tasks: list, store, backend, run_fn, desc: str = "runs", leave: bool = True) -> int:
     """Run the tasks of ``tasks`` not yet in their store, saving each as it finishes; returns the number of
-    failures (logged to ``OUT/errors.jsonl``; they are retried by the next call).
+    failures (logged to ``OUT/errors.jsonl``; they are retried by the next call; :func:`failure_report` says why).
+    The progress bar stays alive while nothing finishes (:func:`kept_alive`).
 
     ``store``: a :class:`~crowd_env.experiments.running.store.RunStore`, or ``store(task) -> RunStore`` when the
     tasks go to several folders (one per configuration, e.g. per geometry).
@@ -237,7 +268,7 @@ def execute(tasks: list, store, backend, run_fn, desc: str = "runs", leave: bool
     todo.sort(key=lambda t: -t["n_pedestrians"])
     failures = 0
     with tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc=desc, unit="run", file=sys.stderr,
-              leave=leave, dynamic_ncols=True) as bar:
+              leave=leave, dynamic_ncols=True) as bar, kept_alive(bar, desc):
         for task, ok, value in backend.imap_unordered(run_fn, todo):
             if ok:
                 store_of(task).save(task, value)

@@ -101,3 +101,34 @@ def test_a_failure_report_counts_runs_of_one_reason_and_shows_at_most_three_reas
     assert text.startswith("8 of 8 run(s) failed: b1.000_n5_s0 and 1 more: InputError: N = 5 [...]; "
                            "b1.000_n6_s0 and 1 more: InputError: N = 6 [...]; b1.000_n7_s0 and 1 more: ")
     assert "; 1 other reason(s); a rerun fails the same way" in text and "\n" not in text
+
+
+def _run_while_kernels_compile(task: dict) -> dict:
+    """A run of 2.5 s during which this process waits for kernels to compile (as a pool's warm-up does)."""
+    from contextlib import nullcontext
+
+    from crowd_env.compilation import announce_compilation
+
+    listener = announce_compilation()
+    with listener.in_workers() if listener is not None else nullcontext():
+        time.sleep(2.5)
+    return {"n_pedestrians": task["n_pedestrians"], "complete": True}
+
+
+def test_the_progress_bar_stays_alive_and_says_so_while_kernels_compile(tmp_path, capsys):
+    """Regression (issue 52): the main job's cold run showed its bar frozen at 0/10 for 113 s while it compiled.
+    The bar is now redrawn every second (its elapsed time moves) and says when kernels compile."""
+    from crowd_env.compilation import announce_compilation
+    from crowd_env.experiments.running.backends import execute
+    from crowd_env.experiments.running.store import RunStore
+
+    store = RunStore(tmp_path, {"kind": "test"})
+    with make_backend("serial") as backend:
+        execute([{"width_m": 1.0, "n_pedestrians": 3, "seed": 0}], store, backend, _run_while_kernels_compile,
+                desc="slow runs")
+    frames = capsys.readouterr().err.split("\r")
+    waiting = [f for f in frames if "0/1" in f]
+    assert any("00:01" in f for f in waiting) and any("00:02" in f for f in waiting), waiting
+    if announce_compilation() is not None:
+        assert any(f.startswith("slow runs (compiling numba kernels)") for f in waiting), waiting
+    assert frames[-1].startswith("slow runs: 100%")  # the plain description again at the end
