@@ -164,10 +164,12 @@ def _sweep(args) -> int:
     for setup, unit in (("corridor", "1/m²"), ("single_file", "1/m")):
         if not summary[setup]:
             continue
-        print(f"{setup} ({args.preset}, {args.seeds} seeds): density ({unit}), speed (m/s) ± sd, experiment, "
-              f"difference, specific flow")
+        spread = " ± sd over seeds" if args.seeds > 1 else " (one seed: no spread)"
+        print(f"{setup} ({args.preset}, {args.seeds} seed{'s' if args.seeds > 1 else ''}): density ({unit}), speed "
+              f"(m/s){spread}, experiment, difference, specific flow")
         for r in summary[setup]:
-            print(f"  {r['density']:5.2f}  {r['speed_m_s']:.3f} ± {r['speed_sd_m_s']:.3f}  "
+            sd = f" ± {r['speed_sd_m_s']:.3f}" if np.isfinite(r["speed_sd_m_s"]) else ""
+            print(f"  {r['density']:5.2f}  {r['speed_m_s']:.3f}{sd}  "
                   f"{r['experiment_speed_m_s']:.3f}  {r['difference_m_s']:+.3f}  {r['flow']:.3f}")
             lines.append({"setup": setup, **r})
     if "single_file_fit" in summary:

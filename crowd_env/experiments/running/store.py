@@ -65,7 +65,12 @@ def config_hash(config: dict) -> str:
 
 
 def run_key(task: dict) -> str:
-    """File stem of a run in a folder of one configuration: ``b<b>_n<N>_s<seed>``."""
+    """File stem of a run in a folder of one configuration: ``b<b>_n<N>_s<seed>`` for a bottleneck run (b its
+    width), ``<setup>_w<W>_rho<density>_n<N>_s<seed>`` for a fundamental-diagram run (a task with a ``setup``:
+    ``corridor`` or ``single_file``, W its width)."""
+    if "setup" in task:
+        return (f"{task['setup']}_w{task['width_m']:.3f}_rho{task['density']:g}_n{task['n_pedestrians']}"
+                f"_s{task['seed']}")
     return f"b{task['width_m']:.3f}_n{task['n_pedestrians']}_s{task['seed']}"
 
 
