@@ -28,7 +28,7 @@ from ...threads import limit_worker_threads
 from .warmup import warm_up
 
 __all__ = ["BACKENDS", "BackendError", "SerialBackend", "ProcessBackend", "RayBackend", "check_reachable",
-           "make_backend", "execute", "kept_alive", "failure_report", "run_all"]
+           "make_backend", "DeferredBackend", "execute", "kept_alive", "failure_report", "run_all"]
 
 BACKENDS = ("ray", "process", "serial")
 
@@ -207,6 +207,44 @@ class RayBackend(SerialBackend):
         if self._started and self._ray.is_initialized():
             self._ray.shutdown()
         self._started = False
+
+
+class DeferredBackend:
+    """A backend made by ``factory()`` when it is first asked to run something, not before: a command opens it
+    around work that checks its plan first (tasks built, folders checked), so that an impossible plan is refused
+    before Ray starts or a pool forks. Closes the backend if it was made."""
+
+    def __init__(self, factory):
+        self._factory = factory
+        self._backend = None
+
+    @property
+    def backend(self):
+        """The backend, made now if it was not yet."""
+        if self._backend is None:
+            self._backend = self._factory()
+        return self._backend
+
+    @property
+    def started(self) -> bool:
+        return self._backend is not None
+
+    @property
+    def n_workers(self) -> int:
+        return self.backend.n_workers
+
+    def imap_unordered(self, fn, tasks):
+        return self.backend.imap_unordered(fn, tasks)
+
+    def close(self) -> None:
+        if self._backend is not None:
+            self._backend.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
 
 
 def make_backend(name: str = "ray", *, address: str | None = None, jobs: int | None = None,

@@ -307,3 +307,21 @@ def test_landscape_is_the_optimisers_objective_along_a_line_and_shares_its_cache
             landscape(ev, "A", values, verbose=False)
     with pytest.raises(CalibrationError, match="unknown parameter"):
         landscape(ev, "C", [1.0], verbose=False)
+
+
+def test_an_impossible_plan_is_refused_before_a_backend_starts(tmp_path, monkeypatch):
+    """Regression (issue 52): crowd-calibrate started Ray (seconds, and a cluster's resources) before it refused
+    an impossible plan. Every mode now checks its plan first and starts the backend at its first run."""
+    def started(*args, **kwargs):
+        raise AssertionError("a backend was started")
+
+    monkeypatch.setattr(cli, "make_backend", started)
+    with pytest.raises(SystemExit, match=r"need at least one width, group size and seed, got 1, 1, 0"):
+        cli.main(["landscape", "--vary", "A", "--values", "500", "--objective", "epsilon", "--widths", "1.0",
+                  "--sizes", "20", "--seeds", "0", "--backend", "ray", "--out", str(tmp_path / "l")])
+    (tmp_path / "t").mkdir()
+    (tmp_path / "t" / "calibrated").mkdir()
+    (tmp_path / "t" / "calibrated" / "config.json").write_text('{"kind": "another"}')
+    with pytest.raises(SystemExit, match=r"different configuration"):
+        cli.main(["targets", "--presets", "calibrated", "--seeds", "1", "--backend", "ray", "--out",
+                  str(tmp_path / "t")])
