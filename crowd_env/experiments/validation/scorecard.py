@@ -315,8 +315,11 @@ def _figure(rows: list, path: Path) -> Path:
         floor = min(drawn) / 3.0 if drawn else 1e-3  # where the words sit and the bars start
         for i, r in enumerate(rows):
             if r[name] is None or r[name] <= 0:
-                ax.text(floor, i, "failed" if r[name] is None else "0 (in every band)", va="center",
-                        color="C3" if r[name] is None else "C2", fontsize=8)
+                # at the panel's left edge (axes coordinates) and clipped: a word outside the panel would make
+                # tight_layout give up ("Tight layout not applied") on a narrow figure
+                ax.text(0.02, i, "failed" if r[name] is None else "0 (in every band)", va="center",
+                        color="C3" if r[name] is None else "C2", fontsize=8, transform=ax.get_yaxis_transform(),
+                        clip_on=True)
                 continue
             lo, hi = r[f"{name}_ci"]
             err = [[r[name] - max(lo, floor)], [hi - r[name]]] if np.isfinite(lo) else None

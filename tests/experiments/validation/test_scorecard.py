@@ -160,3 +160,24 @@ def test_the_quick_plan_says_what_it_does_not_measure(tmp_path, capsys, monkeypa
     assert f"not measured by this plan: {'; '.join(limits)}. A distance of 0 here says only" in out
     assert cli.main(["--backend", "serial", "--out", str(tmp_path)]) == 0
     assert "not measured" not in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("n_rows", [1, 2])
+def test_the_figure_lays_out_without_matplotlib_s_warning(tmp_path, n_rows):
+    """Regression (issue 52): the scorecard's figure raised matplotlib's 'Tight layout not applied' warning (the
+    words written for a distance of 0 or a failed one lay outside their panel)."""
+    import warnings
+
+    from crowd_env.experiments.validation.scorecard import EXPERIMENTS, _figure
+
+    rows = []
+    for k, values in enumerate([(0.01, 0.0, 1.2), (None, 3.0, 0.5)][:n_rows]):
+        r = {"policy": f"policy {k}"}
+        for name, v in zip(EXPERIMENTS, values):
+            r[name] = v
+            r[f"{name}_ci"] = (float("nan"), float("nan")) if v is None else (0.5 * v, 2.0 * v)
+        rows.append(r)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        path = _figure(rows, tmp_path / "scorecard.png")
+    assert (tmp_path / "scorecard.png").stat().st_size > 0 and str(path).endswith("scorecard.png")
