@@ -17,6 +17,7 @@ import os
 import re
 import socket
 import sys
+import tempfile
 import threading
 import traceback
 from contextlib import contextmanager
@@ -28,7 +29,7 @@ from ...threads import limit_worker_threads
 from .warmup import warm_up
 
 __all__ = ["BACKENDS", "BackendError", "SerialBackend", "ProcessBackend", "RayBackend", "check_reachable",
-           "make_backend", "DeferredBackend", "execute", "kept_alive", "failure_report", "run_all"]
+           "make_backend", "DeferredBackend", "join_ray", "ray_join_error", "execute", "kept_alive", "failure_report", "run_all"]
 
 BACKENDS = ("ray", "process", "serial")
 
@@ -133,6 +134,56 @@ def check_reachable(address: str, timeout_s: float = 5.0) -> None:
                                f"is the head node running ('ray start --head') and the port open?") from None
 
 
+RAY_CLUSTER_DOCS = "docs/validation/calibration.md, 'Token authentication'"
+_RAY_LOG_LINE = re.compile(r"^\[[^\]]*\] [\w./-]+\.cc:\d+: (?P<message>.+)$", re.M)
+
+
+@contextmanager
+def _stderr_into(file):
+    """File descriptor 2 (where Ray's C++ core logs) into ``file`` while the block runs."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    os.dup2(file.fileno(), 2)
+    try:
+        yield
+    finally:
+        sys.stderr.flush()
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+def ray_join_error(address: str, exc: BaseException, log: str) -> str:
+    """The message of a failed join of the Ray cluster at ``address``: Ray's exception, then Ray's own reason (the
+    last line its core logged while connecting, e.g. 'Unauthenticated: ... Authentication token is missing or
+    incorrect'; Ray's exception only says 'Failed to connect'), and for a token the way to join such a cluster."""
+    lines = [m.group("message").strip() for m in _RAY_LOG_LINE.finditer(log)]
+    reason = f"; Ray: {lines[-1]}" if lines else ""
+    text = f"{exc}{reason}"
+    hint = ""
+    if re.search(r"unauthenticated|auth_?token|authentication", text, re.I):
+        hint = ("; the cluster uses token authentication: join it with RAY_AUTH_MODE=token set here and the cluster's "
+                f"token in ~/.ray/auth_token, RAY_AUTH_TOKEN_PATH or RAY_AUTH_TOKEN ({RAY_CLUSTER_DOCS})")
+    return f"cannot join the Ray cluster at {address!r}: {text}{hint}"
+
+
+def join_ray(ray, address: str, **kwargs) -> None:
+    """``ray.init(address=address, **kwargs)``, Ray's core logging of the attempt held back: on success it is
+    written to standard error as it would have been; on failure :class:`BackendError` says why
+    (:func:`ray_join_error`) instead of Ray's many identical retry lines."""
+    with tempfile.TemporaryFile() as log:
+        with _stderr_into(log):
+            try:
+                ray.init(address=address, **kwargs)
+                error = None
+            except (ConnectionError, RuntimeError, ValueError, ray.exceptions.RayError) as exc:
+                error = exc
+        log.seek(0)
+        text = log.read().decode("utf-8", "replace")
+    if error is not None:
+        raise BackendError(ray_join_error(address, error, text)) from None
+    sys.stderr.write(text)
+
+
 class RayBackend(SerialBackend):
     """Ray tasks, one per run (``num_cpus=1`` each), at most ``2 × cluster CPUs`` in flight.
 
@@ -154,13 +205,13 @@ class RayBackend(SerialBackend):
             kwargs = {"include_dashboard": False, "log_to_driver": False}
             if address is None:
                 kwargs["num_cpus"] = num_cpus
+                try:
+                    ray.init(**kwargs)
+                except (ConnectionError, RuntimeError, ValueError, ray.exceptions.RayError) as exc:
+                    raise BackendError(f"cannot start Ray: {exc}") from None
             else:
                 check_reachable(address, connect_timeout_s)
-                kwargs["address"] = address
-            try:
-                ray.init(**kwargs)
-            except (ConnectionError, RuntimeError, ValueError) as exc:
-                raise BackendError(f"cannot start or join Ray (address={address!r}): {exc}") from None
+                join_ray(ray, address, **kwargs)
             self._started = True
         self.n_workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
         self._remote = None  # the one Ray remote function, _in_one_thread, made on first use

@@ -2,6 +2,7 @@
 failure reported with the task it belongs to, on the serial and the process backend."""
 from __future__ import annotations
 
+import os
 import time
 
 import pytest
@@ -132,3 +133,68 @@ def test_the_progress_bar_stays_alive_and_says_so_while_kernels_compile(tmp_path
     if announce_compilation() is not None:
         assert any(f.startswith("slow runs (compiling numba kernels)") for f in waiting), waiting
     assert frames[-1].startswith("slow runs: 100%")  # the plain description again at the end
+
+
+_RAY_REFUSED = ("[2026-12-06 20:52:56,359 W 14926 14926] gcs_client.cc:210: Failed to get cluster ID from GCS server: "
+                "Unauthenticated: RPC error: InvalidAuthToken: Authentication token is missing or incorrect\n")
+
+
+class _FakeRay:
+    """What RayBackend uses of ray, joining a cluster that refuses this client's (missing) token as Ray 2.60 does:
+    its core logs the reason on file descriptor 2 at every retry and ray.init raises 'Failed to connect'."""
+
+    class exceptions:
+        class RayError(Exception):
+            pass
+
+    def __init__(self, refuse: bool):
+        self.refuse, self.initialized = refuse, False
+
+    def is_initialized(self):
+        return self.initialized
+
+    def init(self, **kwargs):
+        for _ in range(3):
+            os.write(2, _RAY_REFUSED.encode() if self.refuse else b"Connected to Ray cluster.\n")
+        if self.refuse:
+            raise ConnectionError("Failed to connect to Ray cluster at 192.0.2.2:6391")
+        self.initialized = True
+
+    def cluster_resources(self):
+        return {"CPU": 3.0}
+
+    def shutdown(self):
+        self.initialized = False
+
+
+def test_a_refused_ray_join_carries_ray_s_reason_and_the_way_to_join(monkeypatch, capfd):
+    """Regression (issue 52): joining a cluster that uses token authentication ('ray start --head', Ray 2.60) failed
+    with 'cannot start or join Ray ... Failed to connect', Ray's reason only in its log lines. The error now carries
+    the reason and says how to join such a cluster (RAY_AUTH_MODE=token); a join that works still shows Ray's lines."""
+    import socket
+    import sys
+
+    from crowd_env.experiments.running.backends import RAY_CLUSTER_DOCS, RayBackend
+
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen()
+        address = f"127.0.0.1:{server.getsockname()[1]}"
+        monkeypatch.setitem(sys.modules, "ray", _FakeRay(refuse=True))
+        with pytest.raises(BackendError) as info:
+            RayBackend(address=address)
+        monkeypatch.setitem(sys.modules, "ray", _FakeRay(refuse=False))
+        with RayBackend(address=address) as backend:
+            assert backend.n_workers == 3
+    assert str(info.value) == (
+        f"cannot join the Ray cluster at {address!r}: Failed to connect to Ray cluster at 192.0.2.2:6391; Ray: Failed "
+        "to get cluster ID from GCS server: Unauthenticated: RPC error: InvalidAuthToken: Authentication token is "
+        "missing or incorrect; the cluster uses token authentication: join it with RAY_AUTH_MODE=token set here and "
+        f"the cluster's token in ~/.ray/auth_token, RAY_AUTH_TOKEN_PATH or RAY_AUTH_TOKEN ({RAY_CLUSTER_DOCS})")
+    err = capfd.readouterr().err
+    assert "Unauthenticated" not in err and err.count("Connected to Ray cluster.") == 3
+    from pathlib import Path
+
+    page, section = RAY_CLUSTER_DOCS.split(", ")
+    text = (Path(__file__).resolve().parents[3] / page).read_text()
+    assert f"- {section.strip(chr(39))}:" in text and "set `RAY_AUTH_MODE=token` in the" in text
