@@ -104,3 +104,28 @@ def test_a_training_snippet_sizes_its_rollout_trains_in_seconds_and_shows_progre
             out = _run(code, tmp_path, timeout_s=60)
             assert out.returncode == 0, out.stderr[-3000:]
             assert "total_timesteps" in out.stdout, out.stdout[-3000:]
+
+
+def test_the_readme_has_two_set_up_commands_an_example_episode_and_reads_its_table():
+    """Regression (issue 52): the README had no RL code (a reader who came for the environment found none until
+    getting_started.md) and its preset table used J_s and the presets' names before saying what they are. The
+    README keeps exactly two set-up commands; a PettingZoo episode of the calibrated baseline follows them as
+    example code (run by test_docs_python_block_runs), and the table's terms are explained before it."""
+    readme = ROOT / "README.md"
+    blocks = list(_blocks(readme))
+    assert [lang for _, lang, _, _ in blocks if lang == "bash"] == ["bash", "bash"]  # the two set-up commands
+    (example,) = [b for b in blocks if b[1] == "python"]
+    line, _, code, reason = example
+    text = readme.read_text()
+    lines = text.splitlines()
+    heading = next(lines[k] for k in range(line - 1, -1, -1) if lines[k].startswith("## "))
+    assert heading.startswith("## Example") and reason is None
+    assert "Example code, not a set-up step" in text
+    assert 'as_policy("baseline")' in code and "crowd_v0.parallel_env(" in code and "while env.agents:" in code
+    assert len([c for c in code.splitlines() if c.strip()]) <= 13
+    assert text.index("## Set-up") < text.index("## Example") < text.index("## What it reproduces")
+    table = text.index("| target (criterion) |")
+    for term in ("**J_s = N/(Δt b)**", "**capacity**", "**Speed and density inside**", "**density in front**",
+                 "**J(b) linear**", "**Lanes**", "**stalls**", "**smallest gap**", "**objective**", "**corridor**",
+                 "**single file**", "**`calibrated`**", "**`paper`**", "**`recalibrated`**", "**`vision`**"):
+        assert -1 < text.find(term) < table, term
