@@ -16,23 +16,11 @@ def test_a_saved_model_is_filmed_on_its_recorded_configuration(tmp_path, capsys)
     """Regression (issue 52): crowd-video rollout --policy MODEL.zip filmed a model trained with 8 walkers at 1.2 m
     among 60 at 1.0 m; it now runs on the env_config.json beside the model, as crowd-evaluate --model does."""
     pytest.importorskip("stable_baselines3")
-    import json
-    import warnings
+    from tests.cli import save_tiny_model
+    from tests.cli.test_evaluate import RECORDED
 
-    from stable_baselines3 import PPO
-
-    from crowd_env.envs.sb3 import sb3_vec_env
-
-    recorded = {"scenario": "seyfried_bottleneck", "scenario_options": {"width_m": 1.2, "n_pedestrians": 4},
-                "controlled": "all", "frame_skip": 10, "max_steps": 2, "n_neighbors": 6, "n_rays": 8,
-                "reseed_scenario": None, "observation_frame": "world"}
     run = tmp_path / "run"
-    run.mkdir()
-    (run / "env_config.json").write_text(json.dumps(recorded))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        PPO("MlpPolicy", sb3_vec_env(1, seed=0, **recorded), n_steps=8, batch_size=8, device="cpu").save(
-            str(run / "model.zip"))
+    save_tiny_model(run, {**RECORDED, "scenario_options": {"width_m": 1.2, "n_pedestrians": 4}, "max_steps": 2})
     assert main(["rollout", "--policy", str(run / "model.zip"), "--fps", "10", "--out", str(tmp_path / "v.gif")]) == 0
     out = capsys.readouterr().out
     assert f"video configuration: recorded with the model: {run / 'env_config.json'}" in out
