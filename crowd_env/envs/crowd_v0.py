@@ -343,8 +343,8 @@ class CrowdParallelEnv(ParallelEnv):
             raise ActionError(f"unknown agent {agent!r}; agents are {self._ids_summary()}") from None
 
     def require_reset(self, call: str) -> None:
-        """Raise :class:`~crowd_env.errors.EnvStateError` "call reset() before ``call``()" before the first
-        :meth:`reset`."""
+        """Before the first :meth:`reset`, raise :class:`~crowd_env.errors.EnvStateError` saying "call reset()
+        before" the method named ``call``."""
         if self._sim is None:
             raise EnvStateError(f"call reset() before {call}()")
 
