@@ -38,6 +38,7 @@ from ..errors import InputError, OptionError
 from ..core.presets import DEFAULT_PRESET, PRESETS
 from ..experiments.validation.bottleneck import (SetupError, SweepError, check_setups, flow_fit, run_sweep, summarise,
                                                  write_results, write_summary)
+from ..core.timestep import check_time_step_floor
 from ..experiments.running.runner import check_step_limit
 from ..experiments.running.store import RunStore, RunStoreError
 from .options import add_geometry_arguments, config_of, model_params_from_args
@@ -173,6 +174,7 @@ def main(argv=None) -> int:
     # Fail fast on impossible geometry, before the output folder is touched or workers are spawned.
     try:
         check_step_limit(args.max_time, params.dt_s)
+        check_time_step_floor(params.dt_s, error=InputError, name="--param dt_s")
         check_setups(config["geometry"], args.widths, args.sizes, args.first_seed)
         RunStore(args.out, config)  # a folder of another configuration is refused
     except (InputError, SetupError, RunStoreError) as exc:

@@ -48,6 +48,8 @@ import numpy as np
 
 from crowd_env.errors import ParameterError
 
+from .checks import _error_class
+
 __all__ = ["TimeStepWarning", "stability_limit_s", "safe_time_step_s", "check_time_step", "check_time_step_floor",
            "PAPER_TIME_STEP_S", "MIN_TIME_STEP_S"]
 
@@ -122,7 +124,7 @@ def check_time_step_floor(dt_s, error=ParameterError, name: str = "dt_s") -> flo
     """``dt_s`` as a float; raise ``error`` naming ``name`` when it is below :data:`MIN_TIME_STEP_S`."""
     h = float(dt_s)
     if h < MIN_TIME_STEP_S:
-        raise error(f"{name} = {h:g} s is below the smallest time step crowd_env takes, {MIN_TIME_STEP_S:g} s (a "
+        raise _error_class(error)(f"{name} = {h:g} s is below the smallest time step crowd_env takes, {MIN_TIME_STEP_S:g} s (a "
                     f"hundredth of the paper's h = {PAPER_TIME_STEP_S:g} s): no process of the model is that fast, "
                     f"and a second of simulated time would take {1.0 / h:,.0f} steps, so that nobody moves in what a "
                     f"run or an episode covers; use the paper's h = {PAPER_TIME_STEP_S:g} s")

@@ -215,6 +215,8 @@ def test_a_damaged_run_record_and_a_step_too_small_are_one_line_errors(tmp_path)
     with pytest.raises(SystemExit, match=r"^error: max_time_s = 300 s at dt_s = 1e-09 s needs up to "
                                          r"300,000,000,000 steps, more than step_limit"):
         reproduce(["--quick", "--param", "dt_s=1e-9", "--out", str(other)])
+    with pytest.raises(SystemExit, match=r"^error: --param dt_s = 5e-05 s is below the smallest time step"):
+        reproduce(["--quick", "--param", "dt_s=5e-5", "--out", str(other)])  # within the step limit: 6e6 steps
     assert not other.exists()
 
 
