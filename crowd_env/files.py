@@ -29,7 +29,7 @@ import numpy as np
 from crowd_env.errors import InputError, UntrustedFileError
 
 __all__ = ["write_atomic", "write_json_atomic", "write_csv_atomic", "write_npz_atomic", "save_figure_atomic",
-           "copy_atomic", "append_json_line", "SECRET_FILE_ENV", "secret_path", "write_signed_atomic", "read_signed",
+           "copy_atomic", "append_json_line", "read_json_lines", "SECRET_FILE_ENV", "secret_path", "write_signed_atomic", "read_signed",
            "files_digest", "check_files_digest"]
 
 SECRET_FILE_ENV = "CROWD_ENV_SECRET_FILE"  # the signing key's path, when set (the test suite sets one of its own)
@@ -211,3 +211,18 @@ def check_files_digest(paths, digest, remedy: str) -> None:
         raise UntrustedFileError(f"{names} {why} ({secret_path()}): written by someone else, elsewhere, before "
                                  f"crowd_env signed them, or altered since; refused unread, as loading them runs the "
                                  f"code they may hold; {remedy}")
+
+
+def read_json_lines(path) -> list:
+    """The values of the JSON lines of ``path`` (:func:`append_json_line`'s logs), in order; [] when there is no
+    file. A line that is not JSON (the last one, cut by a kill) is skipped."""
+    path = Path(path)
+    if not path.exists():
+        return []
+    out = []
+    for line in path.read_text(encoding="utf-8").splitlines():
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError:
+            continue
+    return out

@@ -43,7 +43,7 @@ from ..analysis.experiment import ExperimentError, ExperimentTable
 from ..experiments.validation.calibration.objective import TargetWeights, required_cases
 from ..core.params import ParameterError
 from ..core.presets import DEFAULT_PRESET, PRESETS
-from ..experiments.running.backends import make_backend
+from ..experiments.running.backends import DeferredBackend, make_backend
 from ..experiments.validation.bottleneck import check_setups
 from ..experiments.validation.calibration import (FREE_PARAMETERS, analyse_surface, base_config, evaluate_grid, optimise,
                                        write_grid_outputs)
@@ -245,6 +245,13 @@ def _add_landscape_parser(sub, common) -> None:
     lp.add_argument("--no-figures", action="store_true")
 
 
+def _backend(args) -> DeferredBackend:
+    """The backend of the flags, started at the first run: every mode checks its plan inside ``with _backend(args)``
+    before it runs anything, so an impossible plan is refused before Ray starts or a pool forks."""
+    return DeferredBackend(lambda: make_backend(args.backend, address=args.address, jobs=args.jobs,
+                                                connect_timeout_s=args.connect_timeout))
+
+
 def _seeds(args) -> list:
     """Seeds first..first+S-1 of ``--first-seed``/``--seeds`` (empty for S < 1: check_run_plan names it)."""
     return list(range(args.first_seed, args.first_seed + args.seeds)) if args.seeds >= 1 else []
@@ -256,7 +263,7 @@ def run_landscape(args) -> int:
     cfg = config_of(args, params)
     config = base_config(cfg["geometry"], params, cfg["max_time_s"])
     seeds = _seeds(args)
-    with make_backend(args.backend, address=args.address, jobs=args.jobs, connect_timeout_s=args.connect_timeout) as be:
+    with _backend(args) as be:
         evaluator = PointEvaluator(args.out, config, args.widths, args.sizes, seeds, be,
                                    reference=_reference(args.reference), range_weight=args.range_weight,
                                    incomplete=args.incomplete, objective=args.objective, weights=_weights(args),
@@ -284,7 +291,7 @@ def run_targets(args) -> int:
         cfg = config_of(args, params)
         configs[name] = base_config(cfg["geometry"], params, cfg["max_time_s"])
     fd_plan = _fd_plan(args, args.fd)
-    with make_backend(args.backend, address=args.address, jobs=args.jobs, connect_timeout_s=args.connect_timeout) as be:
+    with _backend(args) as be:
         tables, scores = preset_targets(args.out, configs, widths, seeds, be, fd_plan=fd_plan)
     print(f"every target, {len(seeds)} seed(s) per (b, N); figures are seed means over complete runs")
     if fd_plan is not None:
@@ -369,7 +376,7 @@ def run(args) -> int:
     meta = {"widths_m": widths, "sizes": sizes, "seeds": seeds, "range_weight": args.range_weight,
             "reference": "shipped Seyfried 2009 N = 60" if reference is None else str(args.reference),
             "backend": args.backend, "address": args.address, "incomplete": args.incomplete}
-    with make_backend(args.backend, address=args.address, jobs=args.jobs, connect_timeout_s=args.connect_timeout) as be:
+    with _backend(args) as be:
         if args.mode == "grid":
             result = evaluate_grid(args.out, config, a, b, widths, sizes, seeds, be, reference=reference,
                                    range_weight=args.range_weight, incomplete=args.incomplete)
@@ -385,8 +392,7 @@ def run(args) -> int:
         print(f"results: {args.out / 'optimise' / 'optimum.json'}")
         return 0
     if result.n_failed_runs:
-        print(f"warning: {result.n_failed_runs} run(s) failed (see {args.out / 'errors.jsonl'}); rerun to retry them",
-              file=sys.stderr)
+        print(f"warning: {result.failure_report}", file=sys.stderr)
     analysis = analyse_surface(result, use_objective=args.range_weight > 0, exclude_edges=not args.keep_edge_minima)
     paths = write_grid_outputs(result, args.out, analysis, meta, figure=not args.no_figures)
     best, fit = analysis["best"], analysis["fit"]

@@ -38,13 +38,12 @@ import sys
 
 from crowd_env.files import write_atomic
 from ..experiments.output.evaluation_report import format_intervals, format_table, plot_results, write_csv
-from ..experiments.running.evaluation import (ScenarioSpec, describe_setup, episode_setup, evaluate, import_object,
-                                              recorded_env_config, resolve_policy, summarize)
+from ..experiments.running.evaluation import (describe_setup, evaluate, import_object, recorded_env_config,
+                                              resolve_policy, summarize)
 from ..experiments.output.video import per_policy
 from ..errors import CrowdEnvError, InputError, OptionError, PolicyError, ScenarioError
-from .options import DEFAULT_POLICY_RESOLVER, PICKLED_MODELS_NOTE, key_values, policy_env_options
+from .options import DEFAULT_POLICY_RESOLVER, DEFAULT_SCENARIO, PICKLED_MODELS_NOTE, policy_run_setup
 
-DEFAULT_SCENARIO = "seyfried_bottleneck"
 DEFAULT_MAX_TIME_S = 90.0
 
 def build_parser() -> argparse.ArgumentParser:
@@ -92,41 +91,11 @@ def build_parser() -> argparse.ArgumentParser:
 def evaluation_setup(args) -> tuple:
     """``(scenarios, env_options, max_time_s, source)`` from the flags: the configuration recorded beside the
     first ``--model`` (see the module docstring) with the explicit flags on top, or the defaults; ``source``
-    says which, for the printout."""
-    options = key_values(args.scenario_option, "--scenario-option needs key=value")
-    recorded, path = (None, None)
-    if args.model and not args.no_recorded_config:
-        recorded, path = recorded_env_config(args.model[0])
-    if recorded is not None:
-        spec, env_options, max_time = episode_setup(recorded)
-        scenario = spec.scenario if args.scenario in (None, spec.scenario) else args.scenario
-        base = dict(spec.scenario_options or {}) if scenario == spec.scenario else {}
-        flags = [f for f, given in (("--scenario", args.scenario not in (None, spec.scenario)),
-                                    ("--scenario-option", bool(options)), ("--widths", bool(args.widths)),
-                                    ("--max-time", args.max_time is not None),
-                                    ("--controlled", args.controlled is not None),
-                                    ("--frame-skip", args.frame_skip is not None)) if given]
-        source = f"recorded with the model: {path}" + (f", overridden by {' '.join(flags)}" if flags else "")
-        if args.frame_skip is not None:
-            env_options["frame_skip"] = args.frame_skip
-        if args.controlled is not None:
-            env_options["controlled"] = policy_env_options(controlled=args.controlled)["controlled"]
-        if args.max_time is not None or max_time is None:
-            max_time = args.max_time if args.max_time is not None else DEFAULT_MAX_TIME_S
-    else:
-        scenario, base = args.scenario or DEFAULT_SCENARIO, {}
-        env_options = policy_env_options(args.model[0] if args.model else None, args.frame_skip,
-                                         args.controlled or "all")
-        max_time = DEFAULT_MAX_TIME_S if args.max_time is None else args.max_time
-        source = ("the command's defaults and flags" + (" (--no-recorded-config)" if args.no_recorded_config else
-                                                        f" (no env_config.json beside {args.model[0]})" if args.model
-                                                        else ""))
-    options = {**base, **options}
-    if args.widths:
-        scenarios = [ScenarioSpec(scenario, {**options, "width_m": w}) for w in args.widths]
-    else:
-        scenarios = [ScenarioSpec(scenario, options or None)]
-    return scenarios, env_options, max_time, source
+    says which, for the printout (:func:`~crowd_env.cli.options.policy_run_setup`, which crowd-video shares)."""
+    return policy_run_setup(args.model[0] if args.model else None, scenario=args.scenario,
+                            scenario_option=args.scenario_option, widths=args.widths, max_time=args.max_time,
+                            controlled=args.controlled, frame_skip=args.frame_skip,
+                            use_recorded=not args.no_recorded_config, default_max_time_s=DEFAULT_MAX_TIME_S)
 
 
 def main(argv=None) -> int:

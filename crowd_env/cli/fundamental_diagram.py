@@ -41,7 +41,7 @@ from ..analysis.trajectories import (DEFAULT_FRAME_RATE_PER_S, Trajectories, Tra
                                      fundamental_diagram_data, pedpy_measurement_area, read_geometry)
 from ..core.params import ParameterError
 from ..core.presets import DEFAULT_PRESET, PRESETS, get_preset
-from ..experiments.running.backends import execute, make_backend
+from ..experiments.running.backends import execute, failure_report, make_backend
 from ..experiments.validation.bottleneck import params_dict
 from ..experiments.validation.fundamental_diagram import (CORRIDOR_DENSITIES, SETUPS, SINGLE_FILE_DENSITIES, door_and_corridor,
                                                fd_tasks, run_fd_one, summarise_fd)
@@ -157,17 +157,19 @@ def _sweep(args) -> int:
     with make_backend(args.backend, jobs=args.jobs) as backend:
         failed = execute(tasks, store, backend, run_fd_one, desc="fundamental diagram runs")
     if failed:
-        raise SystemExit(f"error: {failed} run(s) failed (see {args.out / 'errors.jsonl'}); rerun to retry them")
+        raise SystemExit(f"error: {failure_report(tasks, store)}")
     records = [store.load(t) for t in tasks]
     summary = summarise_fd(records)
     lines = []
     for setup, unit in (("corridor", "1/m²"), ("single_file", "1/m")):
         if not summary[setup]:
             continue
-        print(f"{setup} ({args.preset}, {args.seeds} seeds): density ({unit}), speed (m/s) ± sd, experiment, "
-              f"difference, specific flow")
+        spread = " ± sd over seeds" if args.seeds > 1 else " (one seed: no spread)"
+        print(f"{setup} ({args.preset}, {args.seeds} seed{'s' if args.seeds > 1 else ''}): density ({unit}), speed "
+              f"(m/s){spread}, experiment, difference, specific flow")
         for r in summary[setup]:
-            print(f"  {r['density']:5.2f}  {r['speed_m_s']:.3f} ± {r['speed_sd_m_s']:.3f}  "
+            sd = f" ± {r['speed_sd_m_s']:.3f}" if np.isfinite(r["speed_sd_m_s"]) else ""
+            print(f"  {r['density']:5.2f}  {r['speed_m_s']:.3f}{sd}  "
                   f"{r['experiment_speed_m_s']:.3f}  {r['difference_m_s']:+.3f}  {r['flow']:.3f}")
             lines.append({"setup": setup, **r})
     if "single_file_fit" in summary:

@@ -1,8 +1,9 @@
 """Command-line options shared by the commands: the Seyfried geometry and navigation flags and the model
 configuration they describe (``crowd-bottleneck``, ``crowd-calibrate``), ``KEY=VALUE`` lists (``--param``,
 ``--scenario-option``), the default policy resolver (``crowd-evaluate``, ``crowd-train-ppo``, ``crowd-video``)
-and the environment options of a policy run (``--controlled``, ``--frame-skip``, a saved model's
-``env_config.json``: ``crowd-evaluate``, ``crowd-video``)."""
+and the problem a policy runs on (the configuration recorded beside a saved model, ``--scenario``,
+``--scenario-option``, ``--controlled``, ``--frame-skip``, ``--max-time``: :func:`policy_run_setup`, one
+function for ``crowd-evaluate`` and ``crowd-video rollout``)."""
 from __future__ import annotations
 
 import json
@@ -12,15 +13,18 @@ from ..core.params import ModelParams
 from ..errors import OptionError
 from ..core.presets import DEFAULT_PRESET, get_preset
 from ..experiments.validation.bottleneck import GEOMETRY_OPTIONS, bottleneck_config, model_params
-from ..experiments.running.evaluation import DEFAULT_POLICY_RESOLVER
+from ..experiments.running.evaluation import (DEFAULT_POLICY_RESOLVER, ScenarioSpec, episode_setup,
+                                              recorded_env_config)
 
 __all__ = ["add_geometry_arguments", "model_params_from_args", "navigation_clearance_from_args", "config_of",
-           "DEFAULT_POLICY_RESOLVER", "key_values", "policy_env_options", "MODEL_ENV_KEYS", "PICKLED_MODELS_NOTE"]
+           "DEFAULT_POLICY_RESOLVER", "key_values", "policy_env_options", "MODEL_ENV_KEYS", "PICKLED_MODELS_NOTE",
+           "policy_run_setup", "DEFAULT_SCENARIO"]
 
 # Said wherever a command takes a saved model (the --help of crowd-evaluate, crowd-video, crowd-scorecard).
 PICKLED_MODELS_NOTE = ("SB3 .zip models and crowd-train-rllib run folders are pickles, which run code when loaded: load "
                        "them only from sources you trust; share a policy as .npz (crowd-convert-policy), which holds "
                        "data only, as does crowd-train-mappo's policy.pt")
+DEFAULT_SCENARIO = "seyfried_bottleneck"
 
 
 
@@ -63,6 +67,47 @@ def policy_env_options(model_path=None, frame_skip=None, controlled="all") -> di
             controlled = controlled.split(",")
     out["controlled"] = controlled
     return out
+
+
+def policy_run_setup(model=None, *, scenario=None, scenario_option=(), widths=None, max_time=None, controlled=None,
+                     frame_skip=None, use_recorded: bool = True, default_max_time_s: float) -> tuple:
+    """``(scenarios, env_options, max_time_s, source)`` of the episodes a policy runs on, as ``crowd-evaluate`` and
+    ``crowd-video rollout`` take them: with a saved ``model`` (a path; ``use_recorded``) whose ``env_config.json``
+    exists, the configuration recorded there (scenario and its options, observation options, decision interval, its
+    episode length) with the flags given explicitly on top (``scenario`` another than the recorded one starts from
+    its own default options); otherwise the defaults (:data:`DEFAULT_SCENARIO`, every pedestrian controlled,
+    ``default_max_time_s``) with the flags on top. ``widths``: one scenario per bottleneck width (``width_m``).
+    ``source`` says which configuration, and which flags overrode it, for the printout. A malformed
+    ``scenario_option`` raises :class:`~crowd_env.errors.OptionError`."""
+    options = key_values(scenario_option, "--scenario-option needs key=value")
+    recorded, path = recorded_env_config(model) if model and use_recorded else (None, None)
+    if recorded is not None:
+        spec, env_options, recorded_max_time = episode_setup(recorded)
+        name = spec.scenario if scenario in (None, spec.scenario) else scenario
+        base = dict(spec.scenario_options or {}) if name == spec.scenario else {}
+        flags = [f for f, given in (("--scenario", name != spec.scenario), ("--scenario-option", bool(options)),
+                                    ("--widths", bool(widths)), ("--max-time", max_time is not None),
+                                    ("--controlled", controlled is not None),
+                                    ("--frame-skip", frame_skip is not None)) if given]
+        source = f"recorded with the model: {path}" + (f", overridden by {' '.join(flags)}" if flags else "")
+        if frame_skip is not None:
+            env_options["frame_skip"] = frame_skip
+        if controlled is not None:
+            env_options["controlled"] = policy_env_options(controlled=controlled)["controlled"]
+        if max_time is None:
+            max_time = default_max_time_s if recorded_max_time is None else recorded_max_time
+    else:
+        name, base = scenario or DEFAULT_SCENARIO, {}
+        env_options = policy_env_options(model, frame_skip, controlled or "all")
+        max_time = default_max_time_s if max_time is None else max_time
+        source = ("the command's defaults and flags" + (" (--no-recorded-config)" if model and not use_recorded else
+                                                        f" (no env_config.json beside {model})" if model else ""))
+    options = {**base, **options}
+    if widths:
+        scenarios = [ScenarioSpec(name, {**options, "width_m": w}) for w in widths]
+    else:
+        scenarios = [ScenarioSpec(name, options or None)]
+    return scenarios, env_options, max_time, source
 
 
 def add_geometry_arguments(group, clearance_help: str) -> None:

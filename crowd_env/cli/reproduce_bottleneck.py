@@ -34,10 +34,12 @@ from ..analysis.experiment import (FRONT_DENSITY_RANGE_PER_M2, INSIDE_DENSITY_RA
 from ..analysis.figures import bottleneck_figures
 from ..analysis.trajectories import DEFAULT_FRAME_RATE_PER_S, TrajectoryFormatError, steps_per_frame
 from ..core.params import ParameterError, PedestrianDefaults
-from ..errors import OptionError
+from ..errors import InputError, OptionError
 from ..core.presets import DEFAULT_PRESET, PRESETS
-from ..experiments.validation.bottleneck import (SetupError, check_setups, flow_fit, run_sweep, summarise, write_results,
-                                      write_summary)
+from ..experiments.validation.bottleneck import (SetupError, SweepError, check_setups, flow_fit, run_sweep, summarise,
+                                                 write_results, write_summary)
+from ..core.timestep import check_time_step_floor
+from ..experiments.running.runner import check_step_limit
 from ..experiments.running.store import RunStore, RunStoreError
 from .options import add_geometry_arguments, config_of, model_params_from_args
 
@@ -171,13 +173,18 @@ def main(argv=None) -> int:
     config = config_of(args, params)
     # Fail fast on impossible geometry, before the output folder is touched or workers are spawned.
     try:
+        check_step_limit(args.max_time, params.dt_s)
+        check_time_step_floor(params.dt_s, error=InputError, name="--param dt_s")
         check_setups(config["geometry"], args.widths, args.sizes, args.first_seed)
         RunStore(args.out, config)  # a folder of another configuration is refused
-    except (SetupError, RunStoreError) as exc:
+    except (InputError, SetupError, RunStoreError) as exc:
         raise SystemExit(f"error: {exc}") from None
     tasks = [dict(width_m=b, n_pedestrians=n, seed=s, trajectory_fps=fps, **config)
              for n in args.sizes for b in args.widths for s in range(args.first_seed, args.first_seed + args.seeds)]
-    records = run_sweep(tasks, args.out, args.jobs)
+    try:
+        records = run_sweep(tasks, args.out, args.jobs)
+    except (SweepError, RunStoreError) as exc:  # failed runs (their reasons), a damaged run record (named)
+        raise SystemExit(f"error: {exc}") from None
     write_results(records, args.out)
     rows = summarise(records)
     write_summary(rows, args.out)

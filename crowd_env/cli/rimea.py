@@ -15,6 +15,9 @@ Each test's result is kept in --out as soon as it is done (tests/rimea_<n>.json)
 (runs/rimea_<n>_<variant>_<model>.npz); --resume reads back the kept results and runs made with the same
 version (--quick or not), seed and models instead of running them again, so a long run that was stopped goes
 on where it was (within a test, at its next run), and one test can be run on its own first.
+
+The last line counts, per model, the tests passed and names those failed; the command then exits 1, and
+docs/validation/rimea.md ("Reading the results") explains each failure.
 """
 from __future__ import annotations
 
@@ -40,7 +43,7 @@ def main(argv=None) -> int:
                     help="also write rimea_results.md beside the figures (the documentation's page: --out docs/validation/rimea)")
     args = ap.parse_args(argv)
     from ..experiments.validation.rimea import format_table, run_suite
-    from ..experiments.validation.rimea.suite import write_markdown
+    from ..experiments.validation.rimea.suite import summary_line, write_markdown
 
     try:
         results = run_suite(args.tests, quick=args.quick, jupedsim=args.jupedsim, seed=args.seed, out_dir=args.out,
@@ -53,6 +56,7 @@ def main(argv=None) -> int:
         write_markdown(results, os.path.join(args.out, "rimea_results.md"), command=command.strip(),
                        figure_prefix=os.path.basename(os.path.normpath(args.out)) + "/")
     print(f"figures and results.json in {args.out}")
+    print(summary_line(results))
     return 0 if all(r.passed(b) is not False for r in results for b in r.verdicts) else 1
 
 

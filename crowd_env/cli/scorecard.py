@@ -23,8 +23,8 @@ from ..envs.background import shipped_policy_names
 from ..experiments.running.backends import make_backend
 from ..experiments.validation.bottleneck import bottleneck_config
 from ..experiments.validation.calibration.tasks import base_config
-from ..experiments.validation.scorecard import (BOOTSTRAP_DRAWS, QUICK_PLAN, ScorecardPlan, format_scorecard,
-                                                run_scorecard, write_scorecard)
+from ..experiments.validation.scorecard import (BOOTSTRAP_DRAWS, QUICK_PLAN, ScorecardPlan, describe_plan,
+                                                format_scorecard, plan_limits, run_scorecard, write_scorecard)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -36,8 +36,8 @@ def build_parser() -> argparse.ArgumentParser:
                          "module:attribute, NAME@FRACTION for the mixed case")
     ap.add_argument("--shipped", action="store_true", help="also every shipped trained policy")
     ap.add_argument("--quick", action="store_true",
-                    help="the small plan (b = 0.9 m, 2 seeds, two corridor and two single-file bins, short runs): a "
-                         "first look, not a verdict")
+                    help=f"the small plan ({describe_plan(QUICK_PLAN)}): a first look, not a verdict; the command "
+                         "prints what it leaves out")
     ap.add_argument("--seeds", type=int, default=3, help="seeds 0..S-1 of the full plan (default 3)")
     ap.add_argument("--preset", choices=sorted(PRESETS), default="calibrated",
                     help="the model the calibrated walkers (and the reference row) use (default calibrated)")
@@ -64,9 +64,13 @@ def main(argv=None) -> int:
     geometry = bottleneck_config(params, navigation_clearance_m=preset.navigation_clearance_m,
                                  max_time_s=args.max_time)["geometry"]
     config = base_config(geometry, params, args.max_time)
-    print(f"scorecard of {1 + len(policies)} policies ({'quick plan' if args.quick else 'full plan'}: widths "
-          f"{list(plan.widths_m)} m, seeds {list(plan.seeds)}); distances are sums of squared relative misses, 0 "
-          "inside the experiment's bands: lower is more human")
+    print(f"scorecard of {1 + len(policies)} policies ({'quick plan' if args.quick else 'full plan'}: "
+          f"{describe_plan(plan)}); distances are sums of squared relative misses, 0 inside the experiment's bands: "
+          "lower is more human")
+    limits = plan_limits(plan)
+    if limits:
+        print(f"not measured by this plan: {'; '.join(limits)}. A distance of 0 here says only that these runs meet "
+              "their bands: a first look, not a verdict")
     with make_backend(args.backend, address=args.address, jobs=args.jobs) as backend:
         rows = run_scorecard(args.out, config, policies, plan, backend, draws=args.draws, progress=None)
     print(format_scorecard(rows))

@@ -5,7 +5,10 @@
     crowd-video trajectory out/run.txt --out out/run.mp4 --learned 0 3
 
 rollout: one episode of the evaluation harness (as crowd-evaluate runs it: the same policy names,
-import paths module:attribute, saved models, scenarios, --scenario-option, --controlled and seed).
+import paths module:attribute, saved models, scenarios, --scenario-option, --controlled and seed). A saved
+model (.zip) runs on the configuration recorded beside it (env_config.json: its scenario and options, the
+observation options, the decision interval and the episode length), as crowd-evaluate --model does; flags given
+explicitly override it, --no-recorded-config ignores it, and the command prints which configuration it films.
 trajectory: a trajectory file in PedPy's text format (crowd_env's export, e.g.
 crowd-bottleneck --trajectories) with its geometry JSON, by default <stem>.geometry.json beside <stem>.txt (where the
 export writes it; --geometry otherwise). Trajectory files hold no radii (--radius), no learned/background
@@ -31,7 +34,10 @@ import sys
 
 from ..errors import CrowdEnvError
 from ..experiments.output.video import record_rollout, record_trajectory_file
-from .options import DEFAULT_POLICY_RESOLVER, PICKLED_MODELS_NOTE, key_values, policy_env_options
+from ..experiments.running.evaluation import describe_setup
+from .options import DEFAULT_POLICY_RESOLVER, DEFAULT_SCENARIO, PICKLED_MODELS_NOTE, policy_run_setup
+
+DEFAULT_MAX_TIME_S = 30.0
 
 
 def _timing(ap) -> None:
@@ -55,15 +61,22 @@ def build_parser() -> argparse.ArgumentParser:
                          f"module:attribute. {PICKLED_MODELS_NOTE}")
     ro.add_argument("--policy-resolver", default=DEFAULT_POLICY_RESOLVER, metavar="MODULE:FUNCTION",
                     help=f"resolve(spec, name=None) -> policy for names and models (default {DEFAULT_POLICY_RESOLVER})")
-    ro.add_argument("--scenario", default="seyfried_bottleneck", help="a registered scenario name")
+    ro.add_argument("--no-recorded-config", action="store_true",
+                    help="ignore the env_config.json beside a saved --policy model (default: film it on that problem)")
+    ro.add_argument("--scenario", default=None,
+                    help=f"a registered scenario name (default: the model's env_config.json, else {DEFAULT_SCENARIO})")
     ro.add_argument("--scenario-option", action="append", default=[], metavar="KEY=VALUE",
-                    help="scenario option (repeatable, JSON values), e.g. n_pedestrians=20")
+                    help="scenario option (repeatable, JSON values) on top of the recorded or default ones, e.g. "
+                         "n_pedestrians=20")
     ro.add_argument("--seed", type=int, default=0)
-    ro.add_argument("--controlled", default="all", help="'all', a count, a fraction or comma-separated ids: the "
-                    "pedestrians the policy drives (blue); the others follow the background policy (grey)")
+    ro.add_argument("--controlled", default=None, help="'all', a count, a fraction or comma-separated ids: the "
+                    "pedestrians the policy drives (blue); the others follow the background policy (grey) "
+                    "(default: recorded, else all)")
     ro.add_argument("--frame-skip", type=int, default=None, help="decision interval in simulator steps "
                     "(default: the model's env_config.json, else 1)")
-    ro.add_argument("--max-time", type=float, default=30.0, help="simulated seconds at most (default 30)")
+    ro.add_argument("--max-time", type=float, default=None,
+                    help=f"simulated seconds at most (default: the model's recorded episode length, else "
+                         f"{DEFAULT_MAX_TIME_S:g})")
     ro.add_argument("--percussion-scale", type=float, default=20.0, metavar="KG_M_S",
                     help="percussion (kg m/s) from which contact lines are widest and darkest (default 20)")
     _timing(ro)
@@ -86,11 +99,14 @@ def main(argv=None) -> int:
     os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
     try:
         if args.source == "rollout":
-            options = key_values(args.scenario_option, "--scenario-option needs key=value")
-            model = args.policy if args.policy.endswith(".zip") else None
-            env_options = policy_env_options(model, args.frame_skip, args.controlled)
-            metrics, info = record_rollout(args.policy, args.out, args.scenario, args.seed, scenario_options=options,
-                                           env_options=env_options, max_time_s=args.max_time, fps=args.fps,
+            (spec,), env_options, max_time, source = policy_run_setup(
+                args.policy if args.policy.endswith(".zip") else None, scenario=args.scenario,
+                scenario_option=args.scenario_option, max_time=args.max_time, controlled=args.controlled,
+                frame_skip=args.frame_skip, use_recorded=not args.no_recorded_config,
+                default_max_time_s=DEFAULT_MAX_TIME_S)
+            print(f"video configuration: {source}\n  {describe_setup([spec], env_options, max_time)}; seed {args.seed}")
+            metrics, info = record_rollout(args.policy, args.out, spec, args.seed, env_options=env_options,
+                                           max_time_s=max_time, fps=args.fps,
                                            every=args.every, resolver=args.policy_resolver,
                                            percussion_scale_kg_m_s=args.percussion_scale)
             print(f"{metrics.policy} on {metrics.scenario}, seed {metrics.seed}: {metrics.simulated_time_s:.2f} s "

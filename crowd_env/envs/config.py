@@ -22,6 +22,7 @@ from ..core.checks import check_integer, check_number
 from ..core.params import ModelParams, ParameterError
 from ..core.presets import DEFAULT_PRESET, get_preset
 from ..core.step import MAX_INPUT_SPEED_M_S
+from ..core.timestep import check_time_step_floor
 from ..scenarios import Scenario
 from ..scenarios import scenario_options as _scenario_option_defaults
 from .background import OBSERVATION_POLICY_OPTIONS, is_observation_policy
@@ -249,12 +250,15 @@ class CrowdEnvConfig:
         if params is not None and not isinstance(params, (dict, ModelParams)):
             raise EnvOptionError(f"params must be a ModelParams or a dict, got {type(params).__name__}")
         if isinstance(params, ModelParams):
-            return None, params
-        try:
-            base = get_preset(DEFAULT_PRESET if preset is None else preset)
-        except ParameterError as exc:
-            raise EnvOptionError(str(exc)) from None
-        return base.name, base.params(**(params or {}))
+            name, model = None, params
+        else:
+            try:
+                base = get_preset(DEFAULT_PRESET if preset is None else preset)
+            except ParameterError as exc:
+                raise EnvOptionError(str(exc)) from None
+            name, model = base.name, base.params(**(params or {}))
+        check_time_step_floor(model.dt_s, error=EnvOptionError, name="params dt_s")  # refused here, not at reset
+        return name, model
 
     def _check_reward(self) -> None:
         if not isinstance(self.reward_terms_in_infos, (bool, np.bool_)):

@@ -342,11 +342,16 @@ class CrowdParallelEnv(ParallelEnv):
         except KeyError:
             raise ActionError(f"unknown agent {agent!r}; agents are {self._ids_summary()}") from None
 
+    def require_reset(self, call: str) -> None:
+        """Before the first :meth:`reset`, raise :class:`~crowd_env.errors.EnvStateError` saying "call reset()
+        before" the method named ``call``."""
+        if self._sim is None:
+            raise EnvStateError(f"call reset() before {call}()")
+
     def state(self) -> np.ndarray:
         """The global state (float32, :attr:`state_space`; see the module docstring and
         :mod:`crowd_env.envs.state`). Raises :class:`~crowd_env.errors.EnvStateError` before :meth:`reset`."""
-        if self._sim is None:
-            raise EnvStateError("call reset() before state()")
+        self.require_reset("state")
         return self._state_builder.build(self._sim.state, self._steps / self.max_steps)
 
     def _ids_summary(self) -> str:
@@ -507,7 +512,9 @@ class CrowdParallelEnv(ParallelEnv):
             self._check_action_keys(actions)
             values = [actions[a] for a in live]
         try:
-            arr = np.array(values, dtype=np.float64)
+            arr = real_actions(values, live)
+        except ActionError:
+            raise
         except (TypeError, ValueError):
             arr = None
         if arr is None or arr.shape != (len(live), 2):
@@ -523,12 +530,12 @@ class CrowdParallelEnv(ParallelEnv):
         if not actions_within(arr, self._a_max_check, _EVERY_ROW):  # also false for NaN: name the culprits
             finite = np.isfinite(arr).all(axis=1)
             if not finite.all():
-                bad = [live[i] for i in np.flatnonzero(~finite)[:10]]
-                raise ActionError(f"non-finite action(s) for {bad}: {arr[~finite][:3].tolist()}")
+                i = np.flatnonzero(~finite)
+                raise ActionError(f"non-finite action(s) for {named_rows([live[k] for k in i], arr[i])}")
             i = np.flatnonzero((np.abs(arr) > self._a_max_check).any(axis=1))
-            bad = [live[k] for k in i[:10]]
-            raise ActionError(f"action(s) of {bad} outside the action space Box(-{self.action_max_m_s:g}, "
-                             f"{self.action_max_m_s:g}) m/s: {arr[i[:3]].tolist()}; the environment does not clip")
+            raise ActionError(f"action(s) of {named_rows([live[k] for k in i], arr[i])} outside the action space "
+                              f"Box(-{self.action_max_m_s:g}, {self.action_max_m_s:g}) m/s; the environment does not "
+                              "clip")
         return arr
 
     def _check_action_keys(self, actions) -> None:
@@ -551,8 +558,7 @@ class CrowdParallelEnv(ParallelEnv):
 
     def step(self, actions):
         """Advance ``frame_skip`` simulator steps; returns ``(obs, rewards, terminations, truncations, infos)``."""
-        if self._sim is None:
-            raise EnvStateError("call reset() before step()")
+        self.require_reset("step")
         if not self.agents:
             if actions:
                 raise ActionError(f"no live agent, but actions were given for {list(actions)[:10]}: the episode is "
@@ -589,8 +595,7 @@ class CrowdParallelEnv(ParallelEnv):
         :meth:`step`; returns False, doing nothing, once nobody is on the floor or ``max_steps`` is reached.
         The evaluation harness runs it so that a crowd's measures (evacuation, flow) cover the whole crowd
         when only some pedestrians are agents: ``while env.step_background(): ...``."""
-        if self._sim is None:
-            raise EnvStateError("call reset() before step_background()")
+        self.require_reset("step_background")
         if self.agents:
             raise EnvStateError(f"{len(self.agents)} agent(s) are live: step() them; step_background() moves the "
                                 "crowd on after they have left")
@@ -707,8 +712,7 @@ class CrowdParallelEnv(ParallelEnv):
             warnings.warn("render() called with render_mode=None; create the environment with "
                           "render_mode='rgb_array' or 'human'", UserWarning, stacklevel=2)
             return None
-        if self._sim is None:
-            raise EnvStateError("call reset() before render()")
+        self.require_reset("render")
         if self._renderer is None:
             from .rendering import CrowdRenderer
 
@@ -798,6 +802,27 @@ def _step_arrays(active, idx_c, t_before, t_after, travel_time, percussion, cont
 
 
 _EVERY_ROW = np.zeros(0, np.bool_)
+
+
+def real_actions(values, names=None) -> np.ndarray:
+    """``values`` (an (n, 2) array, or a sequence of (2,) intents) as a float64 array: the conversion of the dict
+    and vector APIs' actions. A complex one raises :class:`~crowd_env.errors.ActionError`, naming the ``names`` of
+    the complex rows when given (numpy would drop the imaginary parts with a mere warning); values that are not
+    numeric, or ragged, raise numpy's ``TypeError`` or ``ValueError``."""
+    arr = np.asarray(values)
+    if arr.dtype.kind == "c":
+        rows = [i for i, v in enumerate(values) if np.iscomplexobj(v)] if names is not None else []
+        who = f" of {[names[i] for i in rows[:10]]}" if rows else ""
+        raise ActionError(f"complex action(s){who}: a velocity intent is two real numbers in m/s (the imaginary "
+                          "part would be dropped)")
+    return arr.astype(np.float64, copy=False)
+
+
+def named_rows(names, rows, shown: int = 5) -> str:
+    """``name [x, y]`` for the first ``shown`` of ``names`` with their ``rows``, and how many in all when there are
+    more: the offending actions an error lists, each beside its agent."""
+    text = ", ".join(f"{n} {[float(x) for x in r]}" for n, r in zip(names[:shown], rows[:shown]))
+    return text + (f" ({len(names)} in all)" if len(names) > shown else "")
 
 
 @nb.njit(cache=True)

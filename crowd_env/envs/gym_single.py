@@ -50,6 +50,7 @@ class CrowdSingleAgentEnv(gymnasium.Env):
         """One step of the learner (the other pedestrians act by their policy): ``(observation, reward,
         terminated, truncated, info)`` of the learner, as in :meth:`gymnasium.Env.step`."""
         a = self.learner
+        self.parallel.require_reset("step")
         if a not in self.parallel.agents:
             raise EnvStateError("the episode is over (the learner left or was truncated): call reset()")
         obs, rewards, terminations, truncations, infos = self.parallel.step({a: action})

@@ -73,7 +73,7 @@ from crowd_env.errors import ActionError, EnvOptionError, EnvStateError, WorkerE
 from ..core.checks import check_integer, check_seed
 from ..threads import limit_worker_threads
 from .config import make_config, resolve_options
-from .crowd_v0 import CrowdParallelEnv, actions_within, term_rows
+from .crowd_v0 import CrowdParallelEnv, actions_within, real_actions, term_rows
 
 __all__ = ["CrowdVectorEnv", "vector_env", "gym_vector_env", "WorkerError"]
 
@@ -569,7 +569,9 @@ class CrowdVectorEnv(VectorEnv):
 
     def _check_actions(self, actions) -> np.ndarray:
         try:
-            arr = np.asarray(actions, dtype=np.float64)
+            arr = real_actions(actions)
+        except ActionError:
+            raise
         except (TypeError, ValueError):
             raise ActionError(f"actions must be a numeric ({self.num_envs}, 2) array, got {type(actions).__name__}") from None
         if arr.shape != (self.num_envs, 2):
@@ -584,7 +586,7 @@ class CrowdVectorEnv(VectorEnv):
         i = np.flatnonzero(live & (np.abs(arr) > self._a_max).any(axis=1))
         a = self.envs[0].action_max_m_s
         raise ActionError(f"action(s) of live slot(s) {i[:10].tolist()} outside the action space Box(-{a:g}, {a:g}) "
-                          f"m/s: {arr[i[:3]].tolist()}; the environment does not clip")
+                          f"m/s: {arr[i[:10]].tolist()}; the environment does not clip")
 
     def step(self, actions):
         """One environment step of every copy; returns ``(obs, rewards, terminations, truncations, infos)`` as

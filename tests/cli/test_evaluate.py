@@ -6,6 +6,7 @@ import json
 import pytest
 
 from crowd_env.cli.evaluate import build_parser, evaluation_setup, main
+from tests.cli import save_tiny_model
 
 RECORDED = {"scenario": "seyfried_bottleneck", "scenario_options": {"width_m": 1.0, "n_pedestrians": 4},
             "controlled": "all", "frame_skip": 10, "max_steps": 3, "n_neighbors": 6, "n_rays": 8,
@@ -43,19 +44,8 @@ def test_the_command_prints_and_uses_the_recorded_configuration(tmp_path, capsys
     """Regression (issue 37): crowd-evaluate --model evaluated 60 pedestrians for 90 s whatever the model was
     trained on."""
     pytest.importorskip("stable_baselines3")
-    import warnings
-
-    from stable_baselines3 import PPO
-
-    from crowd_env.envs.sb3 import sb3_vec_env
-
     run = tmp_path / "run"
-    run.mkdir()
-    (run / "env_config.json").write_text(json.dumps(RECORDED))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        PPO("MlpPolicy", sb3_vec_env(1, seed=0, **RECORDED), n_steps=8, batch_size=8, device="cpu").save(
-            str(run / "model.zip"))
+    save_tiny_model(run, RECORDED)
     assert main(["--model", str(run / "model.zip"), "--policies", "zero", "--seeds", "0",
                  "--out", str(tmp_path / "eval")]) == 0
     out = capsys.readouterr().out

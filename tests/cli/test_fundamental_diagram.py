@@ -12,7 +12,7 @@ def test_sweep_writes_the_table_and_figure_and_resumes(tmp_path, capsys):
             "1.119", "--sweep-time", "12", "--transient", "4", "--backend", "serial", "--out", str(out)]
     assert main(argv) == 0
     text = capsys.readouterr().out
-    assert "corridor (vision, 1 seeds)" in text and "single file headway fit" in text
+    assert "corridor (vision, 1 seed)" in text and "single file headway fit" in text
     assert (out / "fd_sweep.png").stat().st_size > 0
     rows = (out / "fd_sweep.csv").read_text().splitlines()
     assert rows[0].startswith("setup,density,nominal_density,speed_m_s") and len(rows) == 3
@@ -59,3 +59,24 @@ def test_candidates_measure_door_and_corridor_and_are_read_back(tmp_path, capsys
 def test_bad_options_are_refused_naming_them(tmp_path, argv, match):
     with pytest.raises(SystemExit, match=match):
         main(argv + ["--out", str(tmp_path / "x")])
+
+
+def test_a_failed_sweep_run_says_why_and_that_a_rerun_fails_alike(tmp_path):
+    """Regression (issue 52): --densities 9 printed '1 run(s) failed (see errors.jsonl); rerun to retry them',
+    the reason (9 /m² cannot be placed) only in the file, and a rerun fails the same way."""
+    argv = ["--sweep", "--setups", "corridor", "--seeds", "1", "--densities", "9", "--backend", "serial",
+            "--out", str(tmp_path / "fd")]
+    with pytest.raises(SystemExit, match=r"^error: 1 of 1 run\(s\) failed: \S+: ScenarioError: "
+                                         r"density_per_m2 = 9\.0 cannot be placed .*; a rerun fails the same way"):
+        main(argv)
+
+
+def test_one_seed_prints_no_spread_and_a_corridor_run_is_named_as_one(tmp_path, capsys):
+    """Regression (issue 52): with one seed the sweep printed '± nan', and it stored a corridor run as
+    'b1.800_n324_s0', the name of a bottleneck run of width 1.8 m."""
+    out = tmp_path / "fd"
+    assert main(["--sweep", "--setups", "corridor", "--seeds", "1", "--densities", "1.147", "--sweep-time", "4",
+                 "--transient", "2", "--backend", "serial", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "nan" not in text and "corridor (calibrated, 1 seed): density (1/m²), speed (m/s) (one seed: no spread)" in text
+    assert [p.name for p in (out / "runs").iterdir()] == ["corridor_w1.800_rho1.147_n41_s0.json"]

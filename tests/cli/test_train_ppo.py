@@ -28,3 +28,19 @@ def test_progress_line():
                     "last 2 episodes 1.500")
     assert "remaining time not known yet" in progress_line(0, 100, 0, 0.0, []) and "no episode finished yet" in \
         progress_line(0, 100, 0, 0.0, [])
+
+
+@pytest.mark.parametrize("flags, match", [
+    (["--width", "0.1"], r"cannot be built: bottleneck width 0.1 m is not wider than a pedestrian"),
+    (["--scenario-option", "no_such_option=1"], r"cannot be built: .*no_such_option"),
+])
+def test_an_environment_the_scenario_refuses_is_one_line_and_writes_nothing(tmp_path, flags, match):
+    """Regression (issue 52): crowd-train-ppo --width 0.1 raised a traceback (GeometryError) after writing
+    env_config.json into --out."""
+    pytest.importorskip("stable_baselines3")
+    from crowd_env.cli.train_ppo import main
+
+    out = tmp_path / "ppo"
+    with pytest.raises(SystemExit, match=r"^error: the environment to train on " + match):
+        main(["--timesteps", "100", "--out", str(out), *flags])
+    assert not out.exists()

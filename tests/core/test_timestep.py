@@ -100,3 +100,25 @@ def test_safe_step_warns_with_its_reason_and_the_contact_criterion_is_the_gap_a_
     with pytest.warns(TimeStepWarning, match=r"dt_s = 0\.03 s is above this crowd's safe time step sqrt\(2 eps "
                                              r"\(2 r\)\) / v0 = 0\.02022 s \(a walker at v0 = 1\.5 m/s"):
         Simulator(state.copy(), params=params.replace(dt_s=0.03))
+
+
+def test_a_step_below_the_smallest_is_refused_by_the_simulator_and_the_environment_at_construction():
+    """Regression (issue 52): parallel_env(params={"dt_s": 1e-9}) was accepted silently (600 decisions of 10 steps
+    covered 6 µs and nobody moved) where the runner refuses the same step."""
+    from crowd_env.envs import crowd_v0
+    from crowd_env.errors import EnvOptionError
+    from crowd_env.core.timestep import MIN_TIME_STEP_S
+
+    assert MIN_TIME_STEP_S == PAPER_TIME_STEP_S / 100
+    state = _one()
+    with pytest.raises(ParameterError, match=r"dt_s = 1e-09 s is below the smallest time step crowd_env takes, "
+                                             r"0.0001 s .*1,000,000,000 steps"):
+        Simulator(state.copy(), params=ModelParams(dt_s=1e-9))
+    with pytest.raises(EnvOptionError, match=r"params dt_s = 1e-09 s is below the smallest time step"):
+        crowd_v0.parallel_env(params={"dt_s": 1e-9}, max_cycles=600, frame_skip=10)
+    with pytest.raises(EnvOptionError, match=r"params dt_s = 5e-05 s is below"):
+        crowd_v0.parallel_env(params=ModelParams(dt_s=5e-5))
+    Simulator(state.copy(), params=ModelParams(dt_s=MIN_TIME_STEP_S))  # the smallest step itself is taken
+    env = crowd_v0.parallel_env(params={"dt_s": MIN_TIME_STEP_S}, scenario_options={"n_pedestrians": 4})
+    env.reset(seed=0)
+    env.close()

@@ -66,15 +66,66 @@ def test_the_pages_have_python_examples_and_every_marker_gives_a_reason():
     assert not bad, "\n".join(bad)
 
 
-@pytest.mark.parametrize("code, reason", BLOCKS)
-def test_docs_python_block_runs(code, reason, tmp_path):
-    if reason is not None:
-        pytest.skip(f"marked not-run: {reason}")
+def _run(code: str, tmp_path, timeout_s: float = TIMEOUT_S):
+    """Run ``code`` as a script of its own in ``tmp_path``; the completed process (stdout and stderr as text)."""
     script = tmp_path / "example.py"
     script.write_text(code)
     path = os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
     env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": path}
-    out = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True,
-                         timeout=TIMEOUT_S, env=env)
+    return subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=timeout_s, env=env)
+
+
+@pytest.mark.parametrize("code, reason", BLOCKS)
+def test_docs_python_block_runs(code, reason, tmp_path):
+    if reason is not None:
+        pytest.skip(f"marked not-run: {reason}")
+    out = _run(code, tmp_path)
     assert out.returncode == 0, (f"the example failed:\n{code}\n--- stdout\n{out.stdout[-3000:]}\n"
                                  f"--- stderr\n{out.stderr[-5000:]}")
+
+
+TRAINING = [p for p in BLOCKS if re.search(r"\bPPO\(", p.values[0])]
+
+
+def test_a_training_snippet_sizes_its_rollout_trains_in_seconds_and_shows_progress(tmp_path):
+    """Regression (issue 52): the environment page's ``PPO("MlpPolicy", sb3_vec_env(8, ...))`` took SB3's defaults,
+    163,840 transitions and 25,600 gradient steps per update over the 80 slots, and a reader who added
+    ``learn(total_timesteps=2048)`` saw nothing for 15 minutes. Every ``PPO(...)`` of the pages sizes its rollout
+    (``n_steps``, ``batch_size``) and prints its progress (``verbose=1``), and the runnable ones learn within 60 s
+    and print SB3's table."""
+    assert TRAINING, "no PPO(...) example in the pages"
+    for param in TRAINING:
+        code, reason = param.values
+        calls = re.findall(r"\bPPO\((.*)\)", code)
+        assert all("n_steps=" in c and "batch_size=" in c and "verbose=1" in c for c in calls), (param.id, calls)
+        if reason is None:
+            assert ".learn(" in code, param.id
+            out = _run(code, tmp_path, timeout_s=60)
+            assert out.returncode == 0, out.stderr[-3000:]
+            assert "total_timesteps" in out.stdout, out.stdout[-3000:]
+
+
+def test_the_readme_has_two_set_up_commands_an_example_episode_and_reads_its_table():
+    """Regression (issue 52): the README had no RL code (a reader who came for the environment found none until
+    getting_started.md) and its preset table used J_s and the presets' names before saying what they are. The
+    README keeps exactly two set-up commands; a PettingZoo episode of the calibrated baseline follows them as
+    example code (run by test_docs_python_block_runs), and the table's terms are explained before it."""
+    readme = ROOT / "README.md"
+    blocks = list(_blocks(readme))
+    assert [lang for _, lang, _, _ in blocks if lang == "bash"] == ["bash", "bash"]  # the two set-up commands
+    (example,) = [b for b in blocks if b[1] == "python"]
+    line, _, code, reason = example
+    text = readme.read_text()
+    lines = text.splitlines()
+    heading = next(lines[k] for k in range(line - 1, -1, -1) if lines[k].startswith("## "))
+    assert heading.startswith("## Example") and reason is None
+    assert "Example code, not a set-up step" in text
+    assert 'as_policy("baseline")' in code and "crowd_v0.parallel_env(" in code and "while env.agents:" in code
+    assert len([c for c in code.splitlines() if c.strip()]) <= 13
+    assert text.index("## Set-up") < text.index("## Example") < text.index("## What it reproduces")
+    table = text.index("| target (criterion) |")
+    for term in ("**J_s = N/(Δt b)**", "**capacity**", "**Speed and density inside**", "**density in front**",
+                 "**J(b) linear**", "**Lanes**", "**stalls**", "**smallest gap**", "**objective**", "**corridor**",
+                 "**single file**", "**`calibrated`**", "**`paper`**", "**`recalibrated`**", "**`vision`**"):
+        assert -1 < text.find(term) < table, term

@@ -14,7 +14,7 @@ import crowd_env  # noqa: F401  (registers the gymnasium ids)
 from crowd_env.core import Simulator
 from crowd_env.envs import OBSERVATION_FIELDS, crowd_v0
 from crowd_env.envs.crowd_v0 import EnvOptionError
-from crowd_env.errors import PolicyError
+from crowd_env.errors import ActionError, EnvStateError, PolicyError
 from crowd_env.envs.gym_single import CrowdSingleAgentEnv
 from crowd_env.envs.observations import observation_layout, observation_size
 from crowd_env.scenarios import Scenario, make_scenario
@@ -349,6 +349,28 @@ def test_bad_actions_raise(bad, match):
     acts["ped_3"] = bad
     with pytest.raises(ValueError, match=match):
         env.step(acts)
+
+
+def test_complex_and_non_finite_actions_are_named_beside_their_agents():
+    """Regression (issue 52): a complex action was cast to real with only numpy's ComplexWarning; the NaN error
+    named 4 agents but showed 3 values; step() of the Gymnasium view before reset() said 'the episode is over'."""
+    import warnings
+
+    env = small_env(controlled=["ped_0", "ped_1", "ped_2", "ped_3"])
+    env.reset(seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy's ComplexWarning would be an error here: none is raised
+        with pytest.raises(ActionError, match=r"^complex action\(s\) of \['ped_1'\]: a velocity intent is two real"):
+            env.step({a: (np.array([0.5 + 1j, 0.0]) if a == "ped_1" else np.zeros(2)) for a in env.agents})
+    with pytest.raises(ActionError, match=r"^non-finite action\(s\) for ped_0 \[nan, 0.0\], ped_1 \[nan, 0.0\], "
+                                          r"ped_2 \[nan, 0.0\], ped_3 \[nan, 0.0\]$"):
+        env.step({a: np.array([np.nan, 0.0]) for a in env.agents})
+    many = small_env()
+    many.reset(seed=0)
+    with pytest.raises(ActionError, match=r"ped_4 \[9.0, 0.0\] \(12 in all\) outside the action space"):
+        many.step({a: np.array([9.0, 0.0]) for a in many.agents})
+    with pytest.raises(EnvStateError, match=r"^call reset\(\) before step\(\)$"):
+        CrowdSingleAgentEnv(scenario_options={"n_pedestrians": 4}).step(np.zeros(2))
 
 
 def test_action_bound_is_inclusive_and_exact():

@@ -109,6 +109,8 @@ def test_bad_actions_and_mismatched_copies_are_refused_by_name():
     bad[3, 0] = 9.0
     with pytest.raises(ActionError, match=r"slot\(s\) \[3\] outside the action space"):
         vec.step(bad)
+    with pytest.raises(ActionError, match=r"^complex action\(s\): a velocity intent is two real numbers"):
+        vec.step(np.zeros((8, 2)) + 0.5j)  # issue 52: numpy dropped the imaginary part with only a warning
     with pytest.raises(EnvOptionError, match="copy 1 does not match copy 0: its observation space"):
         CrowdVectorEnv([crowd_v0.parallel_env(**OPTIONS), crowd_v0.parallel_env(**OPTIONS, n_neighbors=2)])
     with pytest.raises(EnvOptionError, match="copy 1 does not match copy 0: its number of agents"):

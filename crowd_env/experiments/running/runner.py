@@ -431,7 +431,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     record_every = check_integer("record_every", record_every, error=InputError, minimum=1)
     chunk_steps = check_integer("chunk_steps", chunk_steps, error=InputError, minimum=1)
     max_time_s = check_number("max_time_s", max_time_s, error=InputError, positive=True)
-    _check_step_limit(max_time_s, params.dt_s, step_limit)
+    check_step_limit(max_time_s, params.dt_s, step_limit)
     state = scenario.make_state(rng=rng) if state is None else state
     sim = scenario.make_simulator(state, params)  # with the scenario's destinations, if any
     width_m = scenario.metadata.get("width_m") if width_m is None else width_m
@@ -477,8 +477,10 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     return _run_result(scenario, sim, measures, stall, width_m, wall_before_s + time.perf_counter() - t_wall)
 
 
-def _check_step_limit(max_time_s: float, dt_s: float, step_limit) -> None:
-    """Refuse a run of more than ``step_limit`` steps (:data:`MAX_RUN_STEPS` by default) at once."""
+def check_step_limit(max_time_s: float, dt_s: float, step_limit=MAX_RUN_STEPS) -> None:
+    """Refuse a run of more than ``step_limit`` steps (:data:`MAX_RUN_STEPS` by default) at once, with
+    :class:`~crowd_env.errors.InputError` (:func:`run_scenario` does; a command checks its runs with it before it
+    starts them)."""
     step_limit = check_integer("step_limit", step_limit, error=InputError, minimum=1)
     if round(max_time_s / dt_s) > step_limit:
         raise InputError(f"max_time_s = {max_time_s:g} s at dt_s = {dt_s:g} s needs up to "

@@ -33,7 +33,7 @@ import json
 from pathlib import Path
 
 from ...analysis.trajectories import trajectory_frame_rate
-from crowd_env.files import append_json_line, write_json_atomic
+from crowd_env.files import append_json_line, read_json_lines, write_json_atomic
 from ...core.checks import is_integer, is_number
 from ...core.params import ModelParams
 
@@ -65,7 +65,12 @@ def config_hash(config: dict) -> str:
 
 
 def run_key(task: dict) -> str:
-    """File stem of a run in a folder of one configuration: ``b<b>_n<N>_s<seed>``."""
+    """File stem of a run in a folder of one configuration: ``b<b>_n<N>_s<seed>`` for a bottleneck run (b its
+    width), ``<setup>_w<W>_rho<density>_n<N>_s<seed>`` for a fundamental-diagram run (a task with a ``setup``:
+    ``corridor`` or ``single_file``, W its width)."""
+    if "setup" in task:
+        return (f"{task['setup']}_w{task['width_m']:.3f}_rho{task['density']:g}_n{task['n_pedestrians']}"
+                f"_s{task['seed']}")
     return f"b{task['width_m']:.3f}_n{task['n_pedestrians']}_s{task['seed']}"
 
 
@@ -222,4 +227,14 @@ class RunStore:
 
     def log_error(self, task: dict, message: str) -> None:
         """Append a failed run to ``OUT/errors.jsonl`` (fsync'ed); the next sweep retries it."""
-        append_json_line(self.out / "errors.jsonl", {"key": self.key(task), "error": message})
+        append_json_line(self.errors_path, {"key": self.key(task), "error": message})
+
+    @property
+    def errors_path(self) -> Path:
+        """``OUT/errors.jsonl``: the failed runs, one JSON line each (:meth:`log_error`)."""
+        return self.out / "errors.jsonl"
+
+    def logged_errors(self) -> dict:
+        """Run key -> the error logged last for it in :attr:`errors_path` ({} when none was)."""
+        return {e["key"]: e["error"] for e in read_json_lines(self.errors_path)
+                if isinstance(e, dict) and "key" in e and "error" in e}

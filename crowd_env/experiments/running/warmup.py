@@ -58,7 +58,8 @@ def compile_part(k: int) -> int:
 
 def warm_up(map_parts, n_workers: int) -> bool:
     """Before a pool's first runs: when the rollout is not cached and the pool has two workers or more, say so on
-    one line and compile the plan's parts in the workers at once. ``map_parts(fn, items)`` runs ``fn(item)`` for
+    one line (:func:`crowd_env.compilation.notice`: the compiled rollout) and compile the plan's parts in the workers
+    at once, :func:`crowd_env.compilation.compiling` true meanwhile. ``map_parts(fn, items)`` runs ``fn(item)`` for
     every item on the pool's workers in parallel and returns when all are done (the process pool's futures, Ray's
     tasks). Returns whether it warmed."""
     if n_workers < 2 or rollout_is_cached():
@@ -66,9 +67,13 @@ def warm_up(map_parts, n_workers: int) -> bool:
     from .compile_plan import PARTS
 
     listener = announce_compilation()
-    if listener is not None:
-        listener.say()  # here, before the workers fork: they inherit that it was said
-    map_parts(compile_part, range(len(PARTS)))
+    if listener is None:
+        map_parts(compile_part, range(len(PARTS)))
+        return True
+    # said here, before the workers fork: they inherit that it was
+    listener.say("crowd_env.experiments.running.rollout", "rollout_steps")
+    with listener.in_workers():  # a sweep's progress bar says that kernels compile meanwhile
+        map_parts(compile_part, range(len(PARTS)))
     return True
 
 

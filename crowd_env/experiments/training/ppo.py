@@ -18,7 +18,7 @@ imported inside the functions that use it. Command line: ``crowd-train-ppo``.
 """
 from __future__ import annotations
 
-from crowd_env.errors import TrainingError
+from crowd_env.errors import CrowdEnvError, TrainingError
 
 import json
 import os
@@ -33,8 +33,8 @@ from crowd_env.files import (check_files_digest, files_digest, save_figure_atomi
                              write_json_atomic)
 
 __all__ = ["DEFAULT_SCENARIO_OPTIONS", "SharedPolicy", "TrainingError", "make_vec_env", "mean_return", "read_checkpoints",
-           "save_checkpoint", "check_resume", "begin_run", "evaluate_trained", "train", "write_curve", "progress_line",
-           "checkpoint_files", "sign_checkpoint", "check_checkpoint"]
+           "save_checkpoint", "check_resume", "check_env_config", "begin_run", "evaluate_trained", "train", "write_curve",
+           "progress_line", "checkpoint_files", "sign_checkpoint", "check_checkpoint"]
 
 DEFAULT_SCENARIO_OPTIONS = {"width_m": 1.0, "n_pedestrians": 10}
 VECTORISERS = ("native", "supersuit")
@@ -178,10 +178,22 @@ def check_resume(out: str, env_config: dict, resume: bool) -> list:
     return entries
 
 
+def check_env_config(env_config: dict) -> None:
+    """Build the environment ``env_config`` describes once, so that what it refuses (an unknown scenario option, a
+    bottleneck narrower than a pedestrian, ...) is a :class:`~crowd_env.errors.TrainingError` naming it before a
+    training command writes anything."""
+    try:
+        crowd_v0.parallel_env(**env_config).close()
+    except CrowdEnvError as exc:
+        raise TrainingError(f"the environment to train on cannot be built: {exc}") from None
+
+
 def begin_run(out: str, env_config: dict, *, resume: bool, resolve, eval_seeds, seed: int, progress=print):
-    """What every training command does first: refuse or accept ``out`` (:func:`check_resume`), write
-    ``env_config.json`` and score the random policy on ``eval_seeds`` (kept in ``random_eval.json`` and reused
-    when a run resumes with the same seeds). Returns ``(checkpoint entries, random policy's mean_return dict)``."""
+    """What every training command does first: check ``env_config`` (:func:`check_env_config`; nothing is written
+    for one the environment refuses), refuse or accept ``out`` (:func:`check_resume`), write ``env_config.json``
+    and score the random policy on ``eval_seeds`` (kept in ``random_eval.json`` and reused when a run resumes with
+    the same seeds). Returns ``(checkpoint entries, random policy's mean_return dict)``."""
+    check_env_config(env_config)
     os.makedirs(out, exist_ok=True)
     entries = check_resume(out, env_config, resume)
     write_json_atomic(os.path.join(out, ENV_CONFIG_FILE), env_config, indent=2)

@@ -26,7 +26,7 @@ from ...core.params import ModelParams, PedestrianDefaults
 from ...core.presets import DEFAULT_PRESET, get_preset
 from ...core.segments import GeometryError
 from ...scenarios import ScenarioError, make_scenario
-from ..running.backends import ProcessBackend, SerialBackend, execute
+from ..running.backends import ProcessBackend, SerialBackend, execute, failure_report
 from ..running.crowd_policy import crowd_policy
 from ..running.recording import record_run
 from ..running.runner import STALL_SPEED_M_S, STALL_WINDOW_S, run_scenario
@@ -186,8 +186,7 @@ def run_sweep(tasks: list, out: Path, jobs: int, desc: str = "bottleneck runs", 
     with backend:
         failed = execute(tasks, store_of, backend, run_one, desc=desc)
     if failed:
-        logs = sorted({str(s.out / "errors.jsonl") for s in stores.values() if (s.out / "errors.jsonl").exists()})
-        raise SweepError(f"{failed} run(s) failed (see {', '.join(logs)}); rerun to retry them")
+        raise SweepError(failure_report(tasks, store_of))
     records = [store_of(t).load(t) for t in tasks]
     check_records(records, [store_of(t).path(t) for t in tasks])  # a stored file lacking a field, named
     return records

@@ -38,7 +38,7 @@ from crowd_env.errors import InputError
 from crowd_env.files import save_figure_atomic, write_atomic, write_csv_atomic, write_json_atomic
 
 from ..output.tables import format_table
-from ..running.backends import execute
+from ..running.backends import execute, failure_report
 from ...envs.background import CALIBRATED_NAMES
 from ..running.crowd_policy import policy_entry
 from ..running.store import RunStore
@@ -48,7 +48,8 @@ from .calibration.objective import CAPACITY_WIDTHS_M, TargetWeights, fd_terms, r
 from .calibration.tasks import FDPlan, make_fd_tasks, make_task, run_calibration_task
 from .fundamental_diagram import run_fd_one
 
-__all__ = ["EXPERIMENTS", "EXPERIMENT_TERMS", "BOOTSTRAP_DRAWS", "ScorecardPlan", "QUICK_PLAN", "parse_policy",
+__all__ = ["EXPERIMENTS", "EXPERIMENT_TERMS", "BOOTSTRAP_DRAWS", "ScorecardPlan", "QUICK_PLAN", "describe_plan",
+           "plan_limits", "parse_policy",
            "scorecard_tasks", "distances", "bootstrap_intervals", "score_records", "run_scorecard",
            "format_scorecard", "write_scorecard"]
 
@@ -86,6 +87,44 @@ class ScorecardPlan:
 QUICK_PLAN = ScorecardPlan(widths_m=(0.9,), seeds=(0, 1),
                            fd=FDPlan(corridor_densities=(1.147,), single_file_densities=(0.87, 1.651),
                                      length_m=12.0, max_time_s=12.0, transient_s=4.0))
+
+
+def _values(values, unit: str, fmt: str = "g") -> str:
+    return ", ".join(format(v, fmt) for v in values) + f" {unit}"
+
+
+def describe_plan(plan: ScorecardPlan) -> str:
+    """The runs of ``plan`` in words: widths, seeds, how many corridor and single-file bins, the runs' length."""
+    fd = plan.fd
+    return (f"b = {_values(plan.widths_m, 'm', '.1f')}, {len(plan.seeds)} seeds, {len(fd.corridor_densities)} corridor and "
+            f"{len(fd.single_file_densities)} single-file bins, fundamental-diagram runs of {fd.max_time_s:g} s on "
+            f"{fd.length_m:g} m")
+
+
+def plan_limits(plan: ScorecardPlan, full: ScorecardPlan | None = None) -> list:
+    """What ``plan`` does not measure that the ``full`` plan (default :class:`ScorecardPlan`'s) does, one phrase
+    each: widths, capacity runs, corridor and single-file bins, seeds, shorter runs ([] when nothing is left out).
+    A distance of 0 on a plan with limits says only that the runs it has meet their bands."""
+    full = full or ScorecardPlan()
+    out = []
+    missing = [b for b in full.widths_m if b not in plan.widths_m]
+    if missing:
+        out.append(f"the bottleneck at b = {_values(missing, 'm', '.1f')}")
+    capacity = [b for b in CAPACITY_WIDTHS_M if b in full.widths_m and b not in plan.widths_m]
+    if capacity:
+        out.append(f"the door's capacity (N = 120 at b = {_values(capacity, 'm', '.1f')})")
+    for name, unit, what in (("corridor_densities", "/m²", "corridor"), ("single_file_densities", "/m", "single-file")):
+        have, every = getattr(plan.fd, name), getattr(full.fd, name)
+        left = [d for d in every if not any(abs(d - x) < 1e-9 for x in have)]
+        if left:
+            out.append(f"{len(left)} of the {len(every)} {what} bins ({what} measured at {_values(have, unit)} only, "
+                       f"the full plan {min(every):.2f}-{max(every):.2f} {unit})")
+    if len(plan.seeds) < len(full.seeds):
+        out.append(f"{len(full.seeds) - len(plan.seeds)} of the full plan's {len(full.seeds)} seeds")
+    if plan.fd.max_time_s < full.fd.max_time_s or plan.fd.length_m < full.fd.length_m:
+        out.append(f"fundamental-diagram runs as long as the full plan's ({full.fd.max_time_s:g} s on "
+                   f"{full.fd.length_m:g} m; these {plan.fd.max_time_s:g} s on {plan.fd.length_m:g} m)")
+    return out
 
 
 def parse_policy(spec: str) -> tuple:
@@ -192,7 +231,8 @@ def run_scorecard(out, config: dict, policies, plan: ScorecardPlan, backend, *, 
                   progress=print) -> list:
     """Score ``policies`` (``"name"`` or ``"name@fraction"``; the calibrated agent first, added when missing) on
     ``config``'s set-up: runs missing from ``out/<label>/`` are run on ``backend`` and stored (resumable); returns
-    the rows, the calibrated agent's first. A failed run raises :class:`CalibrationError` (rerun to retry it)."""
+    the rows, the calibrated agent's first. A failed run raises :class:`CalibrationError` saying why
+    (:func:`~crowd_env.experiments.running.backends.failure_report`)."""
     specs = [parse_policy(p) for p in policies]
     if not any(name in CALIBRATED_NAMES and f == 1.0 for _, name, f in specs):
         specs.insert(0, ("calibrated", "calibrated", 1.0))
@@ -207,8 +247,7 @@ def run_scorecard(out, config: dict, policies, plan: ScorecardPlan, backend, *, 
         tasks = scorecard_tasks(config, entries[label], plan)
         failed = execute(tasks, store, backend, run_fn, desc=f"scorecard: {label}")
         if failed:
-            raise CalibrationError(f"{failed} run(s) of {label} failed (see {Path(out) / _folder(label) / 'errors.jsonl'});"
-                                   " rerun to retry them")
+            raise CalibrationError(f"policy {label}: {failure_report(tasks, store)}")
         rows.append(score_records(label, [store.load(t) for t in tasks], plan, draws=draws))
         if progress:
             progress(format_scorecard(rows[-1:]).splitlines()[-1])
@@ -276,8 +315,11 @@ def _figure(rows: list, path: Path) -> Path:
         floor = min(drawn) / 3.0 if drawn else 1e-3  # where the words sit and the bars start
         for i, r in enumerate(rows):
             if r[name] is None or r[name] <= 0:
-                ax.text(floor, i, "failed" if r[name] is None else "0 (in every band)", va="center",
-                        color="C3" if r[name] is None else "C2", fontsize=8)
+                # at the panel's left edge (axes coordinates) and clipped: a word outside the panel would make
+                # tight_layout give up ("Tight layout not applied") on a narrow figure
+                ax.text(0.02, i, "failed" if r[name] is None else "0 (in every band)", va="center",
+                        color="C3" if r[name] is None else "C2", fontsize=8, transform=ax.get_yaxis_transform(),
+                        clip_on=True)
                 continue
             lo, hi = r[f"{name}_ci"]
             err = [[r[name] - max(lo, floor)], [hi - r[name]]] if np.isfinite(lo) else None

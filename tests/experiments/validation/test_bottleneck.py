@@ -198,6 +198,28 @@ def test_impossible_geometry_fails_before_the_output_folder_is_touched(tmp_path)
         assert not out.exists()
 
 
+def test_a_damaged_run_record_and_a_step_too_small_are_one_line_errors(tmp_path):
+    """Regression (issue 52): crowd-bottleneck over an emptied, truncated or '{}' run record, and with --param
+    dt_s=1e-9 (10^11 steps a run), raised tracebacks; the second also wrote the folder and ran every worker."""
+    out = tmp_path / "run"
+    args = ["--widths", "1.0", "--sizes", "20", "--seeds", "1", "--jobs", "1", "--out", str(out), "--no-figures"]
+    assert reproduce(args) == 0
+    record = out / "runs" / "b1.000_n20_s0.json"
+    text = record.read_text()
+    for damaged, match in (("", "unreadable run record"), (text[:100], "unreadable run record"),
+                           ("{}", "the run record lacks")):
+        record.write_text(damaged)
+        with pytest.raises(SystemExit, match=rf"^error: .*b1\.000_n20_s0\.json: {match}.*delete"):
+            reproduce(args)
+    other = tmp_path / "tiny_step"
+    with pytest.raises(SystemExit, match=r"^error: max_time_s = 300 s at dt_s = 1e-09 s needs up to "
+                                         r"300,000,000,000 steps, more than step_limit"):
+        reproduce(["--quick", "--param", "dt_s=1e-9", "--out", str(other)])
+    with pytest.raises(SystemExit, match=r"^error: --param dt_s = 5e-05 s is below the smallest time step"):
+        reproduce(["--quick", "--param", "dt_s=5e-5", "--out", str(other)])  # within the step limit: 6e6 steps
+    assert not other.exists()
+
+
 def _run_with(a_n, b_m, clearance_m, wall_strength_n=None, seed=0, width_m=1.0, max_time_s=80.0, anisotropy=1.0):
     sc = make_scenario("seyfried_bottleneck", width_m=width_m, n_pedestrians=60, seed=seed,
                        navigation_clearance_m=clearance_m)

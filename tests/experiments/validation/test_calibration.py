@@ -117,6 +117,8 @@ def test_failed_runs_are_logged_and_retried(tmp_path):
     res = evaluate_grid(tmp_path, config(), [100.0, 300.0], [0.08], WIDTHS, [60], [0], SerialBackend(), run_fn=fake)
     assert res.n_failed_runs == 1 and np.isnan(res.epsilon_total[0, 0]) and np.isfinite(res.epsilon_total[1, 0])
     assert "solver exploded" in (tmp_path / "errors.jsonl").read_text()
+    assert res.failure_report.startswith("1 of 6 run(s) failed: ") and "RuntimeError: solver exploded; a rerun " \
+        "retries them and can help if the cause was the machine" in res.failure_report
     fake.fail = None
     res = evaluate_grid(tmp_path, config(), [100.0, 300.0], [0.08], WIDTHS, [60], [0], SerialBackend(), run_fn=fake)
     assert fake.calls == 7 and np.isfinite(res.epsilon_total).all()
@@ -305,3 +307,21 @@ def test_landscape_is_the_optimisers_objective_along_a_line_and_shares_its_cache
             landscape(ev, "A", values, verbose=False)
     with pytest.raises(CalibrationError, match="unknown parameter"):
         landscape(ev, "C", [1.0], verbose=False)
+
+
+def test_an_impossible_plan_is_refused_before_a_backend_starts(tmp_path, monkeypatch):
+    """Regression (issue 52): crowd-calibrate started Ray (seconds, and a cluster's resources) before it refused
+    an impossible plan. Every mode now checks its plan first and starts the backend at its first run."""
+    def started(*args, **kwargs):
+        raise AssertionError("a backend was started")
+
+    monkeypatch.setattr(cli, "make_backend", started)
+    with pytest.raises(SystemExit, match=r"need at least one width, group size and seed, got 1, 1, 0"):
+        cli.main(["landscape", "--vary", "A", "--values", "500", "--objective", "epsilon", "--widths", "1.0",
+                  "--sizes", "20", "--seeds", "0", "--backend", "ray", "--out", str(tmp_path / "l")])
+    (tmp_path / "t").mkdir()
+    (tmp_path / "t" / "calibrated").mkdir()
+    (tmp_path / "t" / "calibrated" / "config.json").write_text('{"kind": "another"}')
+    with pytest.raises(SystemExit, match=r"different configuration"):
+        cli.main(["targets", "--presets", "calibrated", "--seeds", "1", "--backend", "ray", "--out",
+                  str(tmp_path / "t")])

@@ -136,3 +136,48 @@ def test_the_flow_per_width_is_the_mean_of_the_runs_that_got_everybody_out():
                {"setup": "corridor", "speed_m_s": 1.0}]
     means, complete, runs = _js60_of_complete_runs(records, ScorecardPlan(widths_m=(0.9, 1.0), seeds=(0, 1)))
     assert means[0] == 1.8 and np.isnan(means[1]) and complete == [1, 0] and runs == [2, 2]
+
+
+def test_the_quick_plan_says_what_it_does_not_measure(tmp_path, capsys, monkeypatch):
+    """Regression (issue 52): --help said the quick plan has two corridor bins where it has one (1.147 /m², where
+    the default model scores a corridor distance of 0.0000 although the fundamental diagram is not reproduced), and
+    the console did not say what a quick score leaves out. The help is written from the plan, and the command
+    prints every part of the full plan the quick one does not measure."""
+    import crowd_env.cli.scorecard as cli
+    from crowd_env.experiments.validation.scorecard import plan_limits
+
+    assert len(QUICK_PLAN.fd.corridor_densities) == 1
+    assert "1 corridor and 2 single-file bins" in " ".join(cli.build_parser().format_help().split())
+    limits = plan_limits(QUICK_PLAN)
+    assert limits[:3] == ["the bottleneck at b = 0.8, 1.0, 1.1, 1.2 m", "the door's capacity (N = 120 at b = 1.0, 1.2 m)",
+                          "12 of the 13 corridor bins (corridor measured at 1.147 /m² only, the full plan 0.39-3.36 /m²)"]
+    assert plan_limits(ScorecardPlan()) == []
+    monkeypatch.setattr(cli, "run_scorecard", lambda *a, **k: [])
+    monkeypatch.setattr(cli, "format_scorecard", lambda rows: "")
+    monkeypatch.setattr(cli, "write_scorecard", lambda *a, **k: [])
+    assert cli.main(["--quick", "--backend", "serial", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert f"not measured by this plan: {'; '.join(limits)}. A distance of 0 here says only" in out
+    assert cli.main(["--backend", "serial", "--out", str(tmp_path)]) == 0
+    assert "not measured" not in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("n_rows", [1, 2])
+def test_the_figure_lays_out_without_matplotlib_s_warning(tmp_path, n_rows):
+    """Regression (issue 52): the scorecard's figure raised matplotlib's 'Tight layout not applied' warning (the
+    words written for a distance of 0 or a failed one lay outside their panel)."""
+    import warnings
+
+    from crowd_env.experiments.validation.scorecard import EXPERIMENTS, _figure
+
+    rows = []
+    for k, values in enumerate([(0.01, 0.0, 1.2), (None, 3.0, 0.5)][:n_rows]):
+        r = {"policy": f"policy {k}"}
+        for name, v in zip(EXPERIMENTS, values):
+            r[name] = v
+            r[f"{name}_ci"] = (float("nan"), float("nan")) if v is None else (0.5 * v, 2.0 * v)
+        rows.append(r)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        path = _figure(rows, tmp_path / "scorecard.png")
+    assert (tmp_path / "scorecard.png").stat().st_size > 0 and str(path).endswith("scorecard.png")

@@ -28,7 +28,7 @@ from .errors import (PAPER_VALLEY_FIT, CalibrationError, ExponentialFit, PointSc
                                     best_grid_point, censored_specific_flow, check_grid_values, fit_exponential_valley, point_error,
                                     valley_of_minima)
 from ....analysis.experiment import ExperimentTable
-from ...running.backends import execute
+from ...running.backends import execute, failure_report
 from ..bottleneck import run_one
 from ...running.store import RunStore
 from .tasks import canonical, make_task
@@ -104,6 +104,7 @@ class GridResult:
     objective: np.ndarray
     errors: dict = field(default_factory=dict)  # (i, j) -> PointScore
     n_failed_runs: int = 0
+    failure_report: str = ""  # why runs failed (crowd_env.experiments.running.backends.failure_report), "" if none
     n_clogged: np.ndarray | None = None  # (n_A, n_B) runs where not all N passed (stalled ones included)
     n_stalled: np.ndarray | None = None  # (n_A, n_B) runs stopped by the stall rule
 
@@ -149,7 +150,8 @@ def evaluate_grid(out, config: dict, social_strength_n, social_range_m, widths_m
         clogged[i, j] = sum(r["n_passages"] < r["n_pedestrians"] for r in records)
         stalled[i, j] = n_stalled_runs(records)
         eps[i, j], obj[i, j] = e.epsilon_total, e.objective
-    return GridResult(a, bb, eps, obj, errors, failed, clogged, stalled)
+    report = failure_report([t for ts in tasks.values() for t in ts], store) if failed else ""
+    return GridResult(a, bb, eps, obj, errors, failed, report, clogged, stalled)
 
 
 def analyse_surface(result: GridResult, use_objective: bool = False, exclude_edges: bool = True) -> dict:

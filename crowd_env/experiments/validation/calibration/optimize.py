@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from crowd_env.files import append_json_line, write_csv_atomic, write_json_atomic
+from crowd_env.files import append_json_line, read_json_lines, write_csv_atomic, write_json_atomic
 from .errors import CalibrationError
 from ....analysis.experiment import ExperimentTable, seyfried_2009
 from .objective import TargetWeights, required_cases, target_error, virtual_error
@@ -154,14 +154,9 @@ class EvaluationCache:
     def __init__(self, path: Path, setup: str):
         self.path, self.setup = Path(path), setup
         self.entries = {}
-        if self.path.exists():
-            for line in self.path.read_text().splitlines():
-                try:
-                    e = json.loads(line)
-                except json.JSONDecodeError:
-                    continue  # a line cut by a kill: that point is simply evaluated again (its runs are stored)
-                if e.get("setup") == setup:
-                    self.entries[self.key(e["values"])] = e
+        for e in read_json_lines(self.path):  # a line cut by a kill is skipped: that point is evaluated again
+            if e.get("setup") == setup:
+                self.entries[self.key(e["values"])] = e
 
     @staticmethod
     def key(values: dict) -> str:

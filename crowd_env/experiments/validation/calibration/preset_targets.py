@@ -20,7 +20,7 @@ from pathlib import Path
 from crowd_env.files import write_json_atomic
 from .errors import CalibrationError
 from .objective import fd_table, target_error, target_table
-from ...running.backends import execute
+from ...running.backends import execute, failure_report
 from ..bottleneck import run_one
 from ..fundamental_diagram import run_fd_one
 from ...running.store import RunStore
@@ -33,7 +33,7 @@ __all__ = ["preset_targets", "write_targets"]
 def preset_targets(out, configs: dict, widths_m, seeds, backend, fd_plan: FDPlan | None = None) -> tuple:
     """``configs``: preset name -> calibration configuration (:func:`~.tasks.base_config`). Runs what is
     missing under ``out/<name>`` and returns ``(tables, scores)``: per name the target table and the
-    :class:`~crowd_env.experiments.validation.calibration.objective.TargetScore`. A failed run raises (rerun to retry it).
+    :class:`~crowd_env.experiments.validation.calibration.objective.TargetScore`. A failed run raises, saying why (:func:`~crowd_env.experiments.running.backends.failure_report`).
 
     ``fd_plan``: also the fundamental diagram's runs of the plan for every preset (every preset's tasks are
     built before any runs, so a configuration the sweep cannot run fails first); the table then ends with
@@ -48,8 +48,7 @@ def preset_targets(out, configs: dict, widths_m, seeds, backend, fd_plan: FDPlan
         tasks = tasks_of[name]
         failed = execute(tasks, store, backend, run_fn, desc=f"targets: {name}")
         if failed:
-            raise CalibrationError(f"{failed} run(s) of preset {name} failed (see "
-                                   f"{Path(out) / name / 'errors.jsonl'}); rerun to retry them")
+            raise CalibrationError(f"preset {name}: {failure_report(tasks, store)}")
         records = [store.load(t) for t in tasks]
         tables[name] = target_table(records) + ([] if fd_plan is None else fd_table(records))
         scores[name] = target_error(records, fd=fd_plan is not None)

@@ -24,7 +24,7 @@ from ...running.runner import RunCheckpoint
 from crowd_env.files import save_figure_atomic, write_atomic, write_json_atomic, write_npz_atomic
 from .base import OVERLAP_LIMIT_M, BackendRun, Verdict, run_crowd_env, select_tests
 
-__all__ = ["TestResult", "run_suite", "load_test_result", "test_result_path", "run_path", "save_run", "load_run",
+__all__ = ["TestResult", "run_suite", "summary_line", "load_test_result", "test_result_path", "run_path", "save_run", "load_run",
            "format_table", "write_results", "write_markdown", "BACKENDS", "JUPEDSIM_BACKENDS"]
 
 JUPEDSIM_BACKENDS = ("jupedsim_cfsm", "jupedsim_sfm")
@@ -315,6 +315,27 @@ def format_table(results, backends=None) -> str:
             row += _cells(r, b)
         rows.append(row)
     return tables.format_table(head, rows, separator="-|-")
+
+
+RESULTS_PAGE = "docs/validation/rimea.md"  # its section "Reading the results" explains each failure
+
+
+def summary_line(results, backends=None) -> str:
+    """The closing line of a suite: per backend how many of the tests passed, which failed and how many are
+    documentation only, and the page that explains the failures."""
+    backends = backends or [b for b in BACKENDS if results and b in results[0].verdicts]
+    parts = []
+    for b in backends:
+        judged = [r for r in results if b in r.verdicts]
+        failed = [r.number for r in judged if r.passed(b) is False]
+        documented = sum(r.passed(b) is None for r in judged)
+        passed = len(judged) - len(failed) - documented
+        parts.append(f"{b}: {passed} of {len(judged)} tests passed" + (f", {documented} documentation only"
+                                                                       if documented else "")
+                     + (f", {len(failed)} failed ({', '.join(failed)})" if failed else ", none failed"))
+    failures = any(r.passed(b) is False for r in results for b in backends)
+    why = f"; {RESULTS_PAGE}, 'Reading the results', explains each failure" if failures else ""
+    return "; ".join(parts) + why
 
 
 def write_markdown(results, path, *, command: str, figure_prefix: str = "") -> str:

@@ -166,3 +166,35 @@ def test_a_windowed_test_is_complete_when_its_runs_reach_the_time_limit():
     assert windowed.runs_complete({"a": full}) and not windowed.runs_complete({"a": full, "b": short})
     assert not windowed.runs_complete({"a": stalled})
     assert not RimeaTest().runs_complete({"a": full})  # an evacuation test: somebody is still inside
+
+
+def _result(number: str, passed, backend: str = "crowd_env"):
+    from crowd_env.experiments.validation.rimea.base import Verdict
+    from crowd_env.experiments.validation.rimea.suite import TestResult
+
+    r = TestResult(number, f"test {number}", "checks", "criterion", "source", True)
+    r.verdicts[backend] = Verdict("x", 1.0, passed)
+    r.min_gap_m[backend], r.outside_m[backend], r.complete[backend] = 0.0, 0.0, True
+    return r
+
+
+def test_the_command_closes_with_the_counts_and_the_page_that_explains_the_failures(monkeypatch, tmp_path, capsys):
+    """Regression (issue 52): crowd-rimea --quick exited 1 on tests 5 and 16 after the table, without a line that
+    counts passes and failures and points to the page that explains them."""
+    from pathlib import Path
+
+    import crowd_env.experiments.validation.rimea as rimea
+    from crowd_env.cli.rimea import main
+    from crowd_env.experiments.validation.rimea.suite import RESULTS_PAGE
+
+    results = [_result("1", True), _result("5", False), _result("8", None), _result("16", False)]
+    monkeypatch.setattr(rimea, "run_suite", lambda *a, **k: results)
+    assert main(["--quick", "--out", str(tmp_path)]) == 1
+    last = capsys.readouterr().out.splitlines()[-1]
+    assert last == ("crowd_env: 1 of 4 tests passed, 1 documentation only, 2 failed (5, 16); docs/validation/rimea.md, "
+                    "'Reading the results', explains each failure")
+    page = (Path(__file__).resolve().parents[4] / RESULTS_PAGE).read_text()
+    assert "## Reading the results" in page and "**Test 5 fails" in page and "16 (fundamental diagrams) fail" in page
+    monkeypatch.setattr(rimea, "run_suite", lambda *a, **k: results[:1])
+    assert main(["--out", str(tmp_path)]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == "crowd_env: 1 of 1 tests passed, none failed"
