@@ -45,6 +45,7 @@ from ..core.params import ParameterError
 from ..core.presets import DEFAULT_PRESET, PRESETS
 from ..experiments.running.backends import DeferredBackend, make_backend
 from ..experiments.validation.bottleneck import check_setups
+from ..experiments.validation.corridor_runs import CORRIDOR_RUN_NAMES
 from ..experiments.validation.calibration import (FREE_PARAMETERS, analyse_surface, base_config, evaluate_grid, optimise,
                                        write_grid_outputs)
 from ..experiments.validation.calibration.grid import check_run_plan
@@ -69,14 +70,17 @@ OBJECTIVE_HELP = ("'epsilon': ε_T of Eq. 24 (+ --range-weight), the paper's; 't
                   "densities, capacity N = 120 vs 60), on N = 20, 40, 60 at --widths and N = 120 at 1.0 and 1.2 m "
                   "(--sizes is then unused); 'targets+fd': those and the fundamental diagram (periodic corridor "
                   "speeds at the Jülich bins and monotone, single-file speeds and headway fit), its runs set by the "
-                  "--fd-* options; a point with a stalled run counts as failed")
+                  "--fd-* options; 'virtual': every shipped experiment as it was run (the bottleneck's targets, the "
+                  "nine Jülich corridor runs with their entrance and exit: density, speed, exit flow; the single "
+                  "file), the only one with --free radius; a point with a stalled run counts as failed")
 
 
 def _add_target_arguments(parser) -> None:
     """The target objective's weights and the fundamental diagram's runs (optimize, landscape)."""
     g = parser.add_argument_group("target objective and fundamental diagram (--objective targets / targets+fd)")
     g.add_argument("--weight", nargs="+", default=[], metavar="NAME=VALUE",
-                   help=f"weights of the target terms (default 1 each): {', '.join(TargetWeights().as_dict())}")
+                   help=f"weights of the target terms (default 1 each): {', '.join(TargetWeights().as_dict())}, "
+                        "corridor_runs (--objective virtual)")
     _add_fd_arguments(g)
 
 
@@ -107,9 +111,9 @@ def _weights(args) -> TargetWeights | None:
     """--weight NAME=VALUE ... as TargetWeights (None when none is given)."""
     if not args.weight:
         return None
-    if args.objective not in ("targets", "targets+fd"):
-        raise CalibrationError("--weight weighs the terms of --objective targets or targets+fd")
-    known = TargetWeights().as_dict()
+    if args.objective not in ("targets", "targets+fd", "virtual"):
+        raise CalibrationError("--weight weighs the terms of --objective targets, targets+fd or virtual")
+    known = TargetWeights().virtual_dict() if args.objective == "virtual" else TargetWeights().as_dict()
     values = {}
     for text in args.weight:
         k, v = _name_value(text, "--weight")
@@ -214,7 +218,7 @@ def _add_optimize_parser(sub, common) -> None:
     op.add_argument("--max-evaluations", type=int, default=60, help="parameter points evaluated at most")
     op.add_argument("--xatol", type=float, default=0.02, help="tolerance on ln A, ln B, ... (0.02 = 2 %%)")
     op.add_argument("--fatol", type=float, default=1e-4, help="tolerance on ε_T")
-    op.add_argument("--objective", choices=["epsilon", "targets", "targets+fd"], default="epsilon",
+    op.add_argument("--objective", choices=["epsilon", "targets", "targets+fd", "virtual"], default="epsilon",
                     help=OBJECTIVE_HELP)
     _add_target_arguments(op)
 
@@ -239,7 +243,7 @@ def _add_landscape_parser(sub, common) -> None:
                         help="the objective along one parameter, the others fixed by the preset (e.g. ε_T in λ)")
     lp.add_argument("--vary", required=True, choices=list(FREE_PARAMETERS), help="the parameter to vary")
     lp.add_argument("--values", type=float, nargs="+", required=True, help="its values (natural units)")
-    lp.add_argument("--objective", choices=["epsilon", "targets", "targets+fd"], default="targets",
+    lp.add_argument("--objective", choices=["epsilon", "targets", "targets+fd", "virtual"], default="targets",
                     help="as optimize (default 'targets': the figures of every target are kept per value)")
     _add_target_arguments(lp)
     lp.add_argument("--no-figures", action="store_true")
@@ -364,8 +368,12 @@ def run(args) -> int:
             if not sep:
                 raise CalibrationError(f"--bounds expects NAME=LOW:HIGH, got {text!r}")
             bounds[k] = (float(lo), float(hi))
-    if args.mode != "grid" and args.objective in ("targets", "targets+fd"):
+    if args.mode != "grid" and args.objective in ("targets", "targets+fd", "virtual"):
         sizes = sorted({n for _, n in required_cases(widths)})
+    if args.mode != "grid" and args.objective == "virtual":
+        print(f"each point: {len(required_cases(widths)) * len(seeds)} bottleneck runs, "
+              f"{len(CORRIDOR_RUN_NAMES) * len(seeds)} corridor runs, {len(SINGLE_FILE_DENSITIES) * len(seeds)} "
+              f"single-file runs", file=sys.stderr)
     weights = None if args.mode == "grid" else _weights(args)
     fd_plan = None if args.mode == "grid" else _fd_plan(args, args.objective == "targets+fd")
     if fd_plan is not None:

@@ -184,7 +184,7 @@ def _bottleneck_rows(records: list) -> list:
         rs = [r for r in records if r["width_m"] == b and r["n_pedestrians"] == n]
         done = [r for r in rs if r["complete"]]
         counts = _counts(rs)
-        case = f"b = {b:g} m, N = {n}"
+        case = f"b = {b:.1f} m, N = {n}"
         js = [r["specific_flow_per_m_s"] for r in done]
         if n == 60:
             ref = float(exp.specific_flow_per_m_s[exp.lookup(b, 60)[0]])
@@ -208,7 +208,7 @@ def _corridor_rows(records: list) -> list:
         rs = [r for r in records if r["run"] == s["run"]]
         done = [r for r in rs if r["complete"]]
         counts = _counts(rs)
-        case = f"{s['run']} (entrance {s['entrance_width_m']:g} m, exit {s['exit_width_m']:g} m, N = {s['n_pedestrians']})"
+        case = f"{s['run']} (entrance {s['entrance_width_m']:.2f} m, exit {s['exit_width_m']:.2f} m, N = {s['n_pedestrians']})"
         for quantity, key, exp_key, tolerance, within in (
                 ("density (1/m²)", "density_per_m2", "density_exp", f"±{tol['density_relative']:.0%}",
                  lambda m, e: abs(m / e - 1.0) <= tol["density_relative"]),
@@ -253,7 +253,7 @@ def virtual_rows(records: list) -> list:
 def _cell(value, sd=math.nan) -> str:
     if not np.isfinite(value):
         return "–"
-    return f"{value:.3g}" + (f" ± {sd:.2g}" if np.isfinite(sd) else "")
+    return f"{value:.2f}" + (f" ± {sd:.2f}" if np.isfinite(sd) else "")
 
 
 def format_rows(rows: list, *, markdown: bool = False) -> str:

@@ -72,6 +72,7 @@ from .errors import CalibrationError, relative_squared_errors
 from ....analysis.experiment import (FRONT_DENSITY_RANGE_PER_M2, INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RANGE_M_S,
                          SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, WIDTHS_M, ExperimentTable, seyfried_2009)
 from ....analysis.periodic import MIN_FIT_SPEED_M_S, headway_fit
+from ..corridor_runs import CORRIDOR_RUN_NAMES, CORRIDOR_TOLERANCES, summarise_corridor
 
 __all__ = ["CAPACITY_RANGE", "CAPACITY_SIZES", "CAPACITY_WIDTHS_M", "FAILED_POINT_OBJECTIVE", "TargetScore",
            "TargetWeights", "band_miss", "required_cases", "target_error", "FD_TERMS", "FD_SETUPS",
@@ -297,8 +298,6 @@ def corridor_runs_term(records: list) -> tuple:
     (density and exit flow relative, ±15 % and ±10 %; speed ±0.10 m/s, relative to the experiment's speed: the
     convention of the other terms), squared, the mean over runs and the three quantities. Every run of the
     experiment must be present (:class:`CalibrationError` naming the missing ones)."""
-    from ..corridor_runs import CORRIDOR_RUN_NAMES, CORRIDOR_TOLERANCES, summarise_corridor
-
     rows = summarise_corridor(records)
     missing = sorted(set(CORRIDOR_RUN_NAMES) - {r["run"] for r in rows})
     if missing:

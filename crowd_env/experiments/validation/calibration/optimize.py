@@ -33,7 +33,7 @@ from crowd_env.files import append_json_line, read_json_lines, write_csv_atomic,
 from .errors import CalibrationError
 from ....analysis.experiment import ExperimentTable, seyfried_2009
 from .objective import TargetWeights, required_cases, target_error, virtual_error
-from ..corridor_runs import CORRIDOR_RUN_NAMES
+from ..corridor_runs import CORRIDOR_RUN_NAMES, run_corridor_one
 from ..fundamental_diagram import SINGLE_FILE_DENSITIES
 from ....core.checks import check_integer
 from ...running.backends import execute
@@ -185,7 +185,8 @@ class PointEvaluator:
 
     def __init__(self, out, config: dict, widths_m, sizes, seeds, backend, *, reference: ExperimentTable | None = None,
                  range_weight: float = 0.0, run_fn=run_one, incomplete: str = "bound", objective: str = "epsilon",
-                 weights: TargetWeights | None = None, fd_plan: FDPlan | None = None, fd_run_fn=run_fd_one):
+                 weights: TargetWeights | None = None, fd_plan: FDPlan | None = None, fd_run_fn=run_fd_one,
+                 corridor_run_fn=run_corridor_one):
         if incomplete not in INCOMPLETE_RULES:
             raise CalibrationError(f"incomplete must be one of {INCOMPLETE_RULES}, got {incomplete!r}")
         if objective not in OBJECTIVES:
@@ -199,7 +200,7 @@ class PointEvaluator:
             make_fd_tasks(config, {}, {}, self.fd_plan)  # a configuration the sweep cannot run fails before any run
             run_fn = partial(run_calibration_task, run_fn=run_fn, fd_run_fn=fd_run_fn)
         elif objective == "virtual":
-            run_fn = partial(run_calibration_task, run_fn=run_fn, fd_run_fn=fd_run_fn)
+            run_fn = partial(run_calibration_task, run_fn=run_fn, fd_run_fn=fd_run_fn, corridor_run_fn=corridor_run_fn)
         self.sizes, self.config, self.backend, self.run_fn = sizes, config, backend, run_fn
         self.reference, self.range_weight, self.incomplete = reference, range_weight, incomplete
         self.objective, self.weights = objective, weights

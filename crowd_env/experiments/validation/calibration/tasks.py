@@ -24,6 +24,7 @@ from .errors import CalibrationError
 from .objective import DENSITY_MATCH, corridor_fd_bins, single_file_bins
 from ....core.params import ModelParams, ParameterError, PedestrianDefaults
 from ..bottleneck import params_dict, run_one
+from ..corridor_runs import corridor_tasks, run_corridor_one
 from ..fundamental_diagram import CORRIDOR_DENSITIES, SETUPS, SINGLE_FILE_DENSITIES, fd_tasks, run_fd_one
 
 __all__ = ["PEDESTRIAN_FIELDS", "SIGNIFICANT_DIGITS", "canonical", "check_pedestrian", "base_config", "make_task",
@@ -165,7 +166,6 @@ def make_virtual_tasks(config: dict, model: dict, pedestrian: dict, widths_m, se
     ``single_file_densities``, every one at ``seeds`` (common random numbers), with ``config``'s model and the
     overrides ``model`` (ModelParams fields), ``pedestrian`` (PedestrianDefaults fields) and ``radius_m`` (the
     body; None: the configuration's)."""
-    from ..corridor_runs import corridor_tasks
     from .objective import required_cases
 
     params = _point_params(config, model)
@@ -180,12 +180,10 @@ def make_virtual_tasks(config: dict, model: dict, pedestrian: dict, widths_m, se
     return neck + corridor + single
 
 
-def run_calibration_task(task: dict, run_fn=run_one, fd_run_fn=run_fd_one) -> dict:
-    """Run a calibration task of any kind: ``fd_run_fn`` for a fundamental-diagram run (a ``setup`` key), a Jülich
-    corridor run for one with ``experiment`` = ``"corridor"``, ``run_fn`` for a bottleneck run (bind them with
-    :func:`functools.partial` for an executor)."""
+def run_calibration_task(task: dict, run_fn=run_one, fd_run_fn=run_fd_one, corridor_run_fn=run_corridor_one) -> dict:
+    """Run a calibration task of any kind: ``fd_run_fn`` for a fundamental-diagram run (a ``setup`` key),
+    ``corridor_run_fn`` for a Jülich corridor run (``experiment`` = ``"corridor"``), ``run_fn`` for a bottleneck run
+    (bind them with :func:`functools.partial` for an executor)."""
     if task.get("experiment") == "corridor":
-        from ..corridor_runs import run_corridor_one
-
-        return run_corridor_one(task)
+        return corridor_run_fn(task)
     return fd_run_fn(task) if "setup" in task else run_fn(task)

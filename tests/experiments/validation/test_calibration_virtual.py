@@ -1,0 +1,104 @@
+"""The calibration on every shipped experiment as it was run (objective 'virtual'): the corridor runs' term on
+constructed records, the sum with the bottleneck's and the single file's terms, the runs of a point with its body
+radius, and the evaluator's plumbing with stand-in runs."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from crowd_env.analysis.corridor_runs import juelich_uo_runs
+from crowd_env.core.presets import get_preset
+from crowd_env.experiments.running.backends import SerialBackend
+from crowd_env.experiments.validation.bottleneck import bottleneck_config
+from crowd_env.experiments.validation.calibration.errors import CalibrationError
+from crowd_env.experiments.validation.calibration.objective import (FAILED_POINT_OBJECTIVE, corridor_runs_term,
+                                                                    target_error, virtual_error)
+from crowd_env.experiments.validation.calibration.optimize import PointEvaluator
+from crowd_env.experiments.validation.calibration.tasks import base_config, make_virtual_tasks
+from crowd_env.experiments.validation.fundamental_diagram import SINGLE_FILE_WIDTH_M
+from tests.experiments.validation.test_objective import WIDTHS, _fd_records, _records
+
+
+def _corridor(density_factor=1.0, speed_shift=0.0, flow_factor=1.0, seeds=(0, 1), complete=True):
+    """Records of the nine runs whose seed means are the experiment's figures times/plus the given misses."""
+    out = []
+    for run in juelich_uo_runs():
+        for k, s in enumerate(seeds):
+            d = 0.001 * (1 if k % 2 else -1)
+            out.append({"experiment": "corridor", "run": run.name, "seed": s, "n_pedestrians": run.n_pedestrians,
+                        "complete": complete, "stalled": not complete, "min_gap_m": 0.0,
+                        "density_per_m2": run.density_per_m2 * density_factor + d,
+                        "speed_m_s": run.speed_m_s + speed_shift + d,
+                        "flow_exit_per_s": run.flow_exit_per_s * flow_factor + d, "flow_y0_per_s": run.flow_y0_per_s})
+    return out
+
+
+def test_the_corridor_runs_cost_only_their_misses_beyond_the_tolerances():
+    assert corridor_runs_term(_corridor())[0] == pytest.approx(0.0, abs=1e-12)
+    assert corridor_runs_term(_corridor(density_factor=1.14, speed_shift=-0.09, flow_factor=0.91))[0] == \
+        pytest.approx(0.0, abs=1e-9)  # inside every tolerance
+    # +25 % density everywhere: a miss of 0.10 beyond the ±15 %, one quantity of three
+    assert corridor_runs_term(_corridor(density_factor=1.25))[0] == pytest.approx(0.10 ** 2 / 3, rel=1e-3)
+    term, figures = corridor_runs_term(_corridor(flow_factor=0.5))  # half the flow: 0.40 beyond ±10 %
+    assert term == pytest.approx(0.40 ** 2 / 3, rel=1e-3)
+    assert figures["flow_exit_per_s uo-180-180-070"] == pytest.approx(juelich_uo_runs()[5].flow_exit_per_s * 0.5)
+    with pytest.raises(CalibrationError, match="uo-050-180-180"):
+        corridor_runs_term([r for r in _corridor() if r["run"] != "uo-050-180-180"])
+
+
+def test_the_objective_sums_the_three_experiments_and_a_stalled_corridor_run_fails_the_point():
+    neck = _records(js60_factor=1.1)
+    single = [r for r in _fd_records(single_shift=0.3) if r["setup"] == "single_file"]
+    corridor = _corridor(flow_factor=0.5)
+    score = virtual_error(neck + single + corridor)
+    bottleneck_only = target_error(neck, fd=False)
+    assert score.terms["epsilon_60"] == pytest.approx(bottleneck_only.terms["epsilon_60"])
+    assert score.terms["corridor_runs"] == pytest.approx(0.40 ** 2 / 3, rel=1e-3)
+    assert score.terms["single_file"] > 0 and "corridor_fd" not in score.terms
+    assert score.objective == pytest.approx(sum(score.terms.values()))
+    failed = virtual_error(neck + single + _corridor(complete=False, seeds=(0,)) + corridor)
+    assert failed.failed and FAILED_POINT_OBJECTIVE < failed.objective < FAILED_POINT_OBJECTIVE + 1
+    with pytest.raises(CalibrationError, match="corridor runs and single-file runs"):
+        virtual_error(neck + single)
+    with pytest.raises(CalibrationError, match="periodic corridor"):
+        virtual_error(neck + _fd_records() + corridor)
+
+
+def test_a_point_runs_every_experiment_with_its_body():
+    preset = get_preset("calibrated")
+    params = preset.params()
+    config = base_config(bottleneck_config(params, navigation_clearance_m=preset.navigation_clearance_m)["geometry"],
+                         params, 300.0)
+    tasks = make_virtual_tasks(config, {"social_range_m": 0.3}, {"tau_s": 0.4}, WIDTHS, (0, 1), radius_m=0.18)
+    neck = [t for t in tasks if "setup" not in t and t.get("experiment") != "corridor"]
+    corridor = [t for t in tasks if t.get("experiment") == "corridor"]
+    single = [t for t in tasks if t.get("setup") == "single_file"]
+    assert len(neck) == 2 * 17 and len(corridor) == 2 * 9 and len(single) == 2 * 6
+    assert all(t["geometry"]["radius_m"] == 0.18 == t["geometry"]["navigation_clearance_m"] for t in neck)
+    assert all(t["geometry"] == {"radius_m": 0.18} for t in corridor)
+    assert all(t["radius_m"] == 0.18 and t["width_m"] == pytest.approx(SINGLE_FILE_WIDTH_M * 0.18 / 0.23)
+               for t in single)
+    assert all(t["params"]["social_range_m"] == 0.3 and t["pedestrian"] == {"tau_s": 0.4} for t in neck + single)
+    assert all(t["params"]["social_range_m"] == 0.3 and t["pedestrian"] == {"tau_s": 0.4} for t in corridor)
+
+
+def test_the_evaluator_scores_a_point_on_stand_in_runs_and_keeps_the_radius_to_this_objective(tmp_path):
+    preset = get_preset("calibrated")
+    params = preset.params()
+    config = base_config(bottleneck_config(params, navigation_clearance_m=preset.navigation_clearance_m)["geometry"],
+                         params, 300.0)
+    neck = {(r["width_m"], r["n_pedestrians"], r["seed"]): r for r in _records()}
+    single = {(r["density"], r["seed"]): r for r in _fd_records() if r["setup"] == "single_file"}
+    corridor = {(r["run"], r["seed"]): r for r in _corridor(flow_factor=0.5)}
+    ev = PointEvaluator(tmp_path, config, WIDTHS, (20, 40, 60), [0, 1], SerialBackend(), objective="virtual",
+                        run_fn=lambda t: neck[(t["width_m"], t["n_pedestrians"], t["seed"])],
+                        fd_run_fn=lambda t: single[(t["density"], t["seed"])],
+                        corridor_run_fn=lambda t: corridor[(t["run"], t["seed"])])
+    entry = ev({"A": 300.0, "radius": 0.2})
+    assert entry["terms"]["corridor_runs"] == pytest.approx(0.40 ** 2 / 3, rel=1e-3)
+    assert entry["objective"] == pytest.approx(sum(entry["terms"].values()))
+    assert ev({"A": 300.0, "radius": 0.2}) == entry and ev.n_computed == 1  # cached
+    targets = PointEvaluator(tmp_path / "t", config, WIDTHS, (20, 40, 60), [0], SerialBackend(), objective="targets")
+    with pytest.raises(CalibrationError, match="radius is calibrated with --objective virtual"):
+        targets.tasks({"radius": 0.2})
+    assert np.isfinite(entry["epsilon_total"])
