@@ -41,6 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--pedestrian", nargs="+", default=[], metavar="NAME=VALUE",
                     help="per-pedestrian defaults on top of Kabalan's Table 2: tau_s, desired_speed_mean_m_s, "
                          "desired_speed_std_m_s")
+    ap.add_argument("--radius", type=float, default=None, metavar="R",
+                    help="every pedestrian's radius in m (default Kabalan's Table 2, 0.23), in every experiment")
     ap.add_argument("--experiments", nargs="+", choices=EXPERIMENTS, default=list(EXPERIMENTS),
                     help="which experiments (default: all three)")
     ap.add_argument("--seeds", type=int, default=5, help="seeds 0..S-1, the same in every experiment (default 5)")
@@ -72,7 +74,8 @@ def main(argv=None) -> int:
         pedestrian = key_values(args.pedestrian, "--pedestrian expects NAME=VALUE")
         plan = QUICK_PLAN if args.quick else VirtualPlan(seeds=tuple(range(args.seeds)))
         plan = replace(plan, experiments=tuple(args.experiments), max_time_s=args.max_time)
-        config = virtual_config(params, navigation_clearance_m=preset.navigation_clearance_m, pedestrian=pedestrian)
+        config = virtual_config(params, navigation_clearance_m=preset.navigation_clearance_m, pedestrian=pedestrian,
+                                radius_m=args.radius)
         if args.snapshot:
             return _snapshot(args, config, plan)
         print(f"virtual experiments of {args.preset}{' with ' + ' '.join(args.param) if args.param else ''}: "

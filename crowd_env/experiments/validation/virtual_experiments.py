@@ -36,6 +36,7 @@ from ...core.params import ModelParams
 from ..running.backends import execute
 from ..running.store import RunStore
 from .bottleneck import GEOMETRY_OPTIONS, params_dict, run_one
+from .calibration.tasks import with_body
 from .corridor_runs import CORRIDOR_RUN_NAMES, CORRIDOR_TOLERANCES, corridor_tasks, run_corridor_one, summarise_corridor
 from .fundamental_diagram import SINGLE_FILE_DENSITIES, fd_tasks, run_fd_one
 from crowd_env.files import write_atomic, write_csv_atomic
@@ -87,11 +88,18 @@ QUICK_PLAN = VirtualPlan(seeds=(0, 1), widths_m=(1.0,), sizes=(60,), corridor_ru
                          single_file_densities=(SINGLE_FILE_DENSITIES[2],))
 
 
-def virtual_config(params: ModelParams, *, navigation_clearance_m: float, pedestrian: dict | None = None) -> dict:
+def virtual_config(params: ModelParams, *, navigation_clearance_m: float, pedestrian: dict | None = None,
+                   radius_m: float | None = None) -> dict:
     """The configuration of a folder of virtual experiments: the model, the navigation clearance of the bottleneck
-    (the corridor uses the disk centres' field, as every other scenario) and per-pedestrian overrides."""
-    return {"kind": "virtual_experiments", "params": params_dict(params),
-            "navigation_clearance_m": float(navigation_clearance_m), "pedestrian": dict(pedestrian or {})}
+    (the corridor uses the disk centres' field, as every other scenario), per-pedestrian overrides and the body's
+    radius (None: Kabalan's Table 2, 0.23 m; else every scenario's, the bottleneck's clearance following it where
+    it is the disk centres' field, the single file's strip scaled with it:
+    :func:`~crowd_env.experiments.validation.calibration.tasks.with_body`)."""
+    config = {"kind": "virtual_experiments", "params": params_dict(params),
+              "navigation_clearance_m": float(navigation_clearance_m), "pedestrian": dict(pedestrian or {})}
+    if radius_m is not None:
+        config["radius_m"] = float(radius_m)
+    return config
 
 
 def virtual_tasks(config: dict, plan: VirtualPlan) -> list:
@@ -99,6 +107,7 @@ def virtual_tasks(config: dict, plan: VirtualPlan) -> list:
     ``experiment``)."""
     params = ModelParams.from_dict(config["params"])
     pedestrian = config.get("pedestrian") or {}
+    radius = config.get("radius_m")
     tasks = []
     if "bottleneck" in plan.experiments:
         geometry = {opt: float(default) for opt, default in GEOMETRY_OPTIONS.values()}
@@ -106,14 +115,15 @@ def virtual_tasks(config: dict, plan: VirtualPlan) -> list:
         for b in plan.widths_m:
             for n in plan.sizes:
                 for s in plan.seeds:
-                    tasks.append({"experiment": "bottleneck", "width_m": float(b), "n_pedestrians": int(n), "seed": s,
-                                  "geometry": geometry, "params": params_dict(params), "max_time_s": plan.max_time_s,
-                                  "pedestrian": dict(pedestrian)})
+                    tasks.append(with_body({"experiment": "bottleneck", "width_m": float(b), "n_pedestrians": int(n),
+                                            "seed": s, "geometry": geometry, "params": params_dict(params),
+                                            "max_time_s": plan.max_time_s, "pedestrian": dict(pedestrian)}, radius))
     if "corridor" in plan.experiments:
         tasks += corridor_tasks(params, runs=plan.corridor_runs, seeds=plan.seeds, pedestrian=pedestrian or None,
-                                max_time_s=plan.max_time_s)
+                                max_time_s=plan.max_time_s, geometry=None if radius is None else {"radius_m": radius})
     if "single_file" in plan.experiments:
-        for t in fd_tasks(["single_file"], {"single_file": plan.single_file_densities}, plan.seeds, params):
+        for t in fd_tasks(["single_file"], {"single_file": plan.single_file_densities}, plan.seeds, params,
+                          radius_m=radius):
             tasks.append(dict(t, experiment="single_file", pedestrian=dict(pedestrian)))
     return tasks
 

@@ -84,3 +84,17 @@ def test_the_command_runs_resumes_and_writes_its_table(tmp_path, capsys):
     assert capsys.readouterr().out.splitlines()[-3:] == first.splitlines()[-3:]
     assert main(["--param", "bogus=1", "--out", str(tmp_path / "x")]) == 2
     assert "unknown model parameter" in capsys.readouterr().err
+
+
+def test_a_body_radius_reaches_every_experiment():
+    p = get_preset("calibrated")
+    config = virtual_config(p.params(), navigation_clearance_m=p.navigation_clearance_m, radius_m=0.2)
+    tasks = virtual_tasks(config, QUICK_PLAN)
+    for t in tasks:
+        if t["experiment"] == "bottleneck":
+            assert t["geometry"]["radius_m"] == 0.2 == t["geometry"]["navigation_clearance_m"]
+        elif t["experiment"] == "corridor":
+            assert t["geometry"] == {"radius_m": 0.2}
+        else:
+            assert t["radius_m"] == 0.2 and t["width_m"] == pytest.approx(0.7 * 0.2 / 0.23)
+    assert "radius_m" not in virtual_config(p.params(), navigation_clearance_m=0.23)
