@@ -40,7 +40,8 @@ from .trajectories import Trajectories, require_pedpy
 
 __all__ = ["UORun", "juelich_uo_runs", "uo_run", "recorded_uo_trajectories", "uo_measurement_walkable_area",
            "uo_measurement_area", "steady_frames", "UORunMeasures", "measure_uo_run", "crossing_times_s",
-           "STEADY_CROSSING_FRACTIONS", "UO_FRAME_RATE_PER_S", "UO_SPEED_FRAME_STEP"]
+           "STEADY_CROSSING_FRACTIONS", "UO_FRAME_RATE_PER_S", "UO_SPEED_FRAME_STEP", "DoorPassage", "door_passage",
+           "approach_profile"]
 
 UO_FRAME_RATE_PER_S = 16.0  # the recordings' frame rate
 UO_SPEED_FRAME_STEP = 5  # individual speeds over ±5 frames (±0.3125 s), PedPy's notebook
@@ -201,3 +202,82 @@ def measure_uo_run(trajectories: Trajectories, *, corridor_width_m: float = 1.8,
 
     return UORunMeasures(f0, f1, float(rho.mean()), float(rho.std()), float(v.mean()), float(v.std()), rate(t_y0),
                          rate(t_exit), int(t_y0.size), int(t_exit.size))
+
+
+@dataclass(frozen=True)
+class DoorPassage:
+    """How walkers pass a line across an opening over a window (:func:`door_passage`): the median and mean time
+    between successive passages, the median speed at the line, the spread of where they cross it (10 % to 90 %
+    of x, and its standard deviation) and how many passed."""
+
+    headway_median_s: float
+    headway_mean_s: float
+    speed_median_m_s: float
+    lateral_p10_m: float
+    lateral_p90_m: float
+    lateral_sd_m: float
+    n_passages: int
+
+
+def door_passage(trajectories: Trajectories, *, y_m: float, x_range_m: tuple, window_frames: tuple) -> DoorPassage:
+    """The passages of the line y = ``y_m`` (x in ``x_range_m``, towards −y) within ``window_frames`` (first, last
+    frame): time headways between successive passages, each walker's speed over ±5 frames around its crossing and
+    the x where it crossed (as the data README's table of the narrowed exits measures the recordings)."""
+    fps = trajectories.frame_rate_per_s
+    order = np.lexsort((trajectories.frame, trajectories.id))
+    ids, frame = trajectories.id[order], trajectories.frame[order]
+    x, y = trajectories.x_m[order], trajectories.y_m[order]
+    step = (ids[1:] == ids[:-1]) & (frame[1:] == frame[:-1] + 1) & (y[:-1] > y_m) & (y[1:] <= y_m)
+    k = np.flatnonzero(step)
+    alpha = (y[k] - y_m) / (y[k] - y[k + 1])
+    xc = x[k] + alpha * (x[k + 1] - x[k])
+    tc = (frame[k] + alpha) / fps
+    keep = (xc >= x_range_m[0]) & (xc <= x_range_m[1])
+    _, first = np.unique(ids[k][keep], return_index=True)
+    k, xc, tc = k[keep][first], xc[keep][first], tc[keep][first]
+    inside = (tc >= window_frames[0] / fps) & (tc <= window_frames[1] / fps)
+    k, xc, tc = k[inside], xc[inside], np.sort(tc[inside])
+    speeds = []
+    for j in k:
+        lo = max(j - UO_SPEED_FRAME_STEP + 1, 0)
+        while ids[lo] != ids[j]:
+            lo += 1
+        hi = min(j + UO_SPEED_FRAME_STEP, ids.size - 1)
+        while ids[hi] != ids[j]:
+            hi -= 1
+        if frame[hi] > frame[lo]:
+            speeds.append(np.hypot(x[hi] - x[lo], y[hi] - y[lo]) * fps / (frame[hi] - frame[lo]))
+    headways = np.diff(tc)
+    nan = float("nan")
+    return DoorPassage(float(np.median(headways)) if headways.size else nan,
+                       float(headways.mean()) if headways.size else nan,
+                       float(np.median(speeds)) if speeds else nan,
+                       float(np.quantile(xc, 0.1)) if xc.size else nan, float(np.quantile(xc, 0.9)) if xc.size else nan,
+                       float(xc.std()) if xc.size else nan, int(tc.size))
+
+
+def approach_profile(trajectories: Trajectories, *, corridor_width_m: float, window_frames: tuple,
+                     edges_y_m=tuple(np.arange(-4.0, 0.01, 0.5))) -> tuple:
+    """Density (counted, 1/m²) and mean speed (m/s, over ±5 frames) in bands of the corridor between ``edges_y_m``
+    (default 0.5 m bands from the exit wall y = −4 m to y = 0), over the frames of ``window_frames``: how a queue
+    thins and speeds up into its exit. Returns ``(band centres (m), density, speed)``."""
+    f0, f1 = window_frames
+    fps = trajectories.frame_rate_per_s
+    order = np.lexsort((trajectories.frame, trajectories.id))
+    ids, frame = trajectories.id[order], trajectories.frame[order]
+    x, y = trajectories.x_m[order], trajectories.y_m[order]
+    s = UO_SPEED_FRAME_STEP
+    speed = np.full(x.size, np.nan)
+    ok = np.flatnonzero((ids[2 * s:] == ids[:-2 * s]) & (frame[2 * s:] - frame[:-2 * s] == 2 * s)) + s
+    speed[ok] = np.hypot(x[ok + s] - x[ok - s], y[ok + s] - y[ok - s]) * fps / (2 * s)
+    edges = np.asarray(edges_y_m, dtype=np.float64)
+    in_window = (frame >= f0) & (frame <= f1) & (x >= 0.0) & (x <= corridor_width_m)
+    n_frames = f1 - f0 + 1
+    density, mean_speed = [], []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        m = in_window & (y >= lo) & (y < hi)
+        density.append(np.count_nonzero(m) / n_frames / ((hi - lo) * corridor_width_m))
+        v = speed[m]
+        v = v[np.isfinite(v)]
+        mean_speed.append(float(v.mean()) if v.size else float("nan"))
+    return 0.5 * (edges[:-1] + edges[1:]), np.array(density), np.array(mean_speed)

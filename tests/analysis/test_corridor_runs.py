@@ -103,3 +103,37 @@ def test_the_recordings_measure_back_to_their_rows():
         assert rule.density_per_m2 == pytest.approx(run.density_per_m2, rel=0.07), run.name
         assert rule.speed_m_s == pytest.approx(run.speed_m_s, abs=0.05), run.name
         assert rule.flow_exit_per_s == pytest.approx(run.flow_exit_per_s, rel=0.07), run.name
+
+
+def test_door_passage_and_approach_profile_of_a_known_stream():
+    """Walkers at 0.8 m/s along x = 0.8 and 1.0 m alternately, one every 0.5 s: headways 0.5 s, speed 0.8 m/s at the
+    line, crossing points 0.8 and 1.0 m; the lattice's bands hold their exact count."""
+    from crowd_env.analysis.corridor_runs import approach_profile, door_passage
+
+    fps = UO_FRAME_RATE_PER_S
+    frame, ids, x, y = [], [], [], []
+    for pid in range(40):
+        start = 0.5 * pid  # enters at y = 0 at this time
+        for f in range(int(fps * start), int(fps * (start + 7.0))):
+            t = f / fps
+            yy = -0.8 * (t - start)
+            if yy < -5.5:
+                break
+            frame.append(f)
+            ids.append(pid)
+            x.append(0.8 if pid % 2 else 1.0)
+            y.append(yy)
+    traj = Trajectories(np.array(frame), np.array(ids), np.array(x), np.array(y), None, fps)
+    d = door_passage(traj, y_m=-4.0, x_range_m=(0.55, 1.25), window_frames=(int(fps * 8), int(fps * 20)))
+    assert d.headway_median_s == pytest.approx(0.5, abs=1e-9) and d.headway_mean_s == pytest.approx(0.5, abs=1e-9)
+    assert d.speed_median_m_s == pytest.approx(0.8, rel=1e-9)
+    assert d.n_passages == 24 + 1  # crossings at 8.0, 8.5, ..., 20.0 s: 13 at x = 1.0 m, 12 at 0.8 m
+    assert d.lateral_sd_m == pytest.approx(np.std([1.0] * 13 + [0.8] * 12), rel=1e-9)
+    assert (d.lateral_p10_m, d.lateral_p90_m) == (0.8, 1.0)
+    narrow = door_passage(traj, y_m=-4.0, x_range_m=(0.9, 1.25), window_frames=(int(fps * 8), int(fps * 20)))
+    assert narrow.headway_median_s == pytest.approx(1.0, abs=1e-9)  # only the walkers at x = 1.0 m
+    centres, density, speed = approach_profile(traj, corridor_width_m=1.8, window_frames=(int(fps * 10), int(fps * 18)))
+    # one walker every 0.4 m along y: 0.5 m bands hold 1.25 walkers on average, over 0.9 m² of corridor
+    np.testing.assert_allclose(density, 1.25 / 0.9, rtol=0.03)
+    np.testing.assert_allclose(speed, 0.8, rtol=1e-9)
+    assert centres[0] == -3.75 and centres[-1] == -0.25

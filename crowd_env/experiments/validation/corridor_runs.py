@@ -23,7 +23,9 @@ import numpy as np
 
 from crowd_env.errors import InputError
 
-from ...analysis.corridor_runs import (UO_FRAME_RATE_PER_S, juelich_uo_runs, measure_uo_run, uo_run)
+from ...analysis.corridor_runs import (UO_FRAME_RATE_PER_S, approach_profile, door_passage, juelich_uo_runs,
+                                      measure_uo_run, recorded_uo_trajectories, uo_run)
+from ...scenarios.juelich_corridor import UO_CORRIDOR_END_Y_M
 from ...core.params import ModelParams, PedestrianDefaults
 from ...scenarios import make_scenario
 from ..running.crowd_policy import crowd_policy
@@ -31,7 +33,7 @@ from ..running.recording import record_run
 from .bottleneck import params_dict
 
 __all__ = ["CORRIDOR_RUN_NAMES", "CORRIDOR_TOLERANCES", "corridor_tasks", "run_corridor_one", "summarise_corridor",
-           "corridor_snapshot"]
+           "corridor_snapshot", "passage_figures", "recorded_passage_figures"]
 
 CORRIDOR_RUN_NAMES = tuple(r.name for r in juelich_uo_runs())
 # The issue's targets for each run: speed within ±0.10 m/s, density within ±15 %, exit flow within ±10 %.
@@ -83,8 +85,32 @@ def run_corridor_one(task: dict) -> dict:
     if result.complete:
         m = measure_uo_run(traj, corridor_width_m=task["corridor_width_m"], exit_width_m=task["exit_width_m"])
         measured = {k: getattr(m, k) for k in _MEASURED}
+        record.update(passage_figures(traj, corridor_width_m=task["corridor_width_m"], exit_width_m=task["exit_width_m"],
+                                      window_frames=(m.steady_from_frame, m.steady_to_frame)))
     record.update(measured)
     return record
+
+
+def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: float, window_frames: tuple) -> dict:
+    """How a run passes its exit and approaches it over its steady state, as JSON-able record fields: ``exit_*``
+    (:func:`~crowd_env.analysis.corridor_runs.door_passage` at y = −4 m across the exit) and ``approach_*``
+    (:func:`~crowd_env.analysis.corridor_runs.approach_profile`: density and speed in 0.5 m bands before it). The
+    same function measures the recordings (:func:`recorded_passage_figures`)."""
+    half = 0.5 * exit_width_m
+    centre = 0.5 * corridor_width_m
+    door = door_passage(trajectories, y_m=UO_CORRIDOR_END_Y_M, x_range_m=(centre - half, centre + half),
+                        window_frames=window_frames)
+    y, density, speed = approach_profile(trajectories, corridor_width_m=corridor_width_m, window_frames=window_frames)
+    return {"exit_headway_median_s": door.headway_median_s, "exit_speed_median_m_s": door.speed_median_m_s,
+            "exit_lateral_sd_m": door.lateral_sd_m, "approach_y_m": y.tolist(), "approach_density_per_m2": density.tolist(),
+            "approach_speed_m_s": speed.tolist()}
+
+
+def recorded_passage_figures(name: str) -> dict:
+    """:func:`passage_figures` of the recording of run ``name`` over its hand-chosen steady state."""
+    run = uo_run(name)
+    return passage_figures(recorded_uo_trajectories(name), corridor_width_m=run.corridor_width_m,
+                           exit_width_m=run.exit_width_m, window_frames=(run.steady_from_frame, run.steady_to_frame))
 
 
 def _mean(values) -> float:

@@ -43,7 +43,8 @@ from crowd_env.files import write_atomic, write_csv_atomic
 
 __all__ = ["EXPERIMENTS", "VirtualPlan", "QUICK_PLAN", "virtual_config", "virtual_tasks", "run_virtual_task",
            "run_virtual_experiments", "virtual_rows", "ROW_COLUMNS", "format_rows", "write_virtual_outputs",
-           "virtual_figure", "snapshot_figure", "BOTTLENECK_TOLERANCE", "SINGLE_FILE_TOLERANCE_M_S"]
+           "virtual_figure", "snapshot_figure", "BOTTLENECK_TOLERANCE", "SINGLE_FILE_TOLERANCE_M_S",
+           "PASSAGE_QUANTITIES", "passage_rows", "format_passage_rows", "approach_figure"]
 
 EXPERIMENTS = ("bottleneck", "corridor", "single_file")
 BOTTLENECK_TOLERANCE = 0.05  # J_s of N = 60 within ±5 % of Seyfried's
@@ -375,15 +376,89 @@ def virtual_figure(records: list, path) -> Path:
     return save_figure(fig, Path(path))
 
 
+PASSAGE_QUANTITIES = (("exit_headway_median_s", "time between passages, median (s)"),
+                      ("exit_speed_median_m_s", "speed at the opening, median (m/s)"),
+                      ("exit_lateral_sd_m", "spread of the crossing point, sd (m)"))
+
+
+def _narrowed_exit_runs(records: list) -> list:
+    """The corridor records of runs whose exit is narrower than the corridor (a door seen by the camera), complete
+    and carrying the passage figures, by run name."""
+    runs = {}
+    for r in records:
+        if r.get("experiment") == "corridor" and r["complete"] and "exit_headway_median_s" in r \
+                and r["width_m"] < 1.8 - 1e-9:
+            runs.setdefault(r["run"], []).append(r)
+    return sorted(runs.items())
+
+
+def passage_rows(records: list) -> list:
+    """How the model passes the narrowed exits beside how people did (the recordings measured by the same function,
+    :func:`~crowd_env.experiments.validation.corridor_runs.passage_figures`): one row per run and quantity of
+    :data:`PASSAGE_QUANTITIES`, the model's seed mean and the recording's value."""
+    from .corridor_runs import recorded_passage_figures
+
+    rows = []
+    for name, rs in _narrowed_exit_runs(records):
+        recorded = recorded_passage_figures(name)
+        for key, label in PASSAGE_QUANTITIES:
+            mean, sd = _stats([r[key] for r in rs])
+            rows.append({"run": name, "quantity": label, "model": mean, "model_sd": sd, "recorded": recorded[key],
+                         "runs": len(rs)})
+    return rows
+
+
+def approach_figure(records: list, path) -> Path | None:
+    """Density and speed in 0.5 m bands before each narrowed exit, the recording beside the model's seed mean: how
+    people thin out and speed up into a door (None without such runs)."""
+    from .corridor_runs import recorded_passage_figures
+
+    runs = _narrowed_exit_runs(records)
+    if not runs:
+        return None
+    plt = pyplot()
+    fig, axes = plt.subplots(2, len(runs), figsize=(4.2 * len(runs), 6.5), squeeze=False)
+    for k, (name, rs) in enumerate(runs):
+        recorded = recorded_passage_figures(name)
+        for row, (key, unit) in enumerate((("approach_density_per_m2", "density (1/m²)"),
+                                            ("approach_speed_m_s", "speed (m/s)"))):
+            ax = axes[row, k]
+            ax.plot(recorded["approach_y_m"], recorded[key], "o-", mfc="white", color="k", label="recorded")
+            model = np.nanmean(np.array([r[key] for r in rs], dtype=np.float64), axis=0)
+            ax.plot(rs[0]["approach_y_m"], model, "o-", color="C3", label=f"model ({len(rs)} runs)")
+            ax.set_xlabel("y (m): the exit wall at −4")
+            ax.set_ylabel(unit)
+            ax.set_ylim(0, None)
+            if row == 0:
+                ax.set_title(name, fontsize=9)
+            ax.legend(fontsize=7)
+    return save_figure(fig, Path(path))
+
+
+def format_passage_rows(rows: list) -> str:
+    """The rows of :func:`passage_rows` as a Markdown table."""
+    lines = ["| run | quantity | model | recorded |", "|---|---|---|---|"]
+    lines += [f"| {r['run']} | {r['quantity']} | {_cell(r['model'], r['model_sd'])} | {_cell(r['recorded'])} |"
+              for r in rows]
+    return "\n".join(lines)
+
+
 def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True) -> list:
     """``OUT/virtual_experiments.csv`` (the rows), ``.md`` (the table in Markdown) and, with ``figure``,
-    ``.png``; returns the paths."""
+    ``.png``; with runs of the narrowed exits also ``OUT/door_passage.md`` (:func:`passage_rows`) and, with
+    ``figure``, ``OUT/approach.png`` (:func:`approach_figure`); returns the paths."""
     out = Path(out)
     paths = [out / "virtual_experiments.csv", out / "virtual_experiments.md"]
     write_csv_atomic(paths[0], ROW_COLUMNS, rows)
     write_atomic(paths[1], format_rows(rows, markdown=True) + "\n")
     if figure:
         paths.append(virtual_figure(records, out / "virtual_experiments.png"))
+    passages = passage_rows(records)
+    if passages:
+        paths.append(out / "door_passage.md")
+        write_atomic(paths[-1], format_passage_rows(passages) + "\n")
+        if figure:
+            paths.append(approach_figure(records, out / "approach.png"))
     return paths
 
 

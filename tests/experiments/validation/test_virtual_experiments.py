@@ -98,3 +98,25 @@ def test_a_body_radius_reaches_every_experiment():
         else:
             assert t["radius_m"] == 0.2 and t["width_m"] == pytest.approx(0.7 * 0.2 / 0.23)
     assert "radius_m" not in virtual_config(p.params(), navigation_clearance_m=0.23)
+
+
+def test_passage_rows_set_the_model_beside_the_recording_measured_alike():
+    from crowd_env.experiments.validation.corridor_runs import recorded_passage_figures
+    from crowd_env.experiments.validation.virtual_experiments import format_passage_rows, passage_rows
+
+    recorded = recorded_passage_figures("uo-180-180-070")
+    assert recorded["exit_headway_median_s"] == pytest.approx(0.61, abs=0.01)  # the data README's table: 0.61 s
+    assert recorded["exit_speed_median_m_s"] == pytest.approx(0.68, abs=0.01)
+    assert recorded["exit_lateral_sd_m"] == pytest.approx(0.16, abs=0.01)
+    records = [dict(_corridor_record("uo-180-180-070", s, 3.0, 0.3, 1.6), width_m=0.7,
+                    **{k: recorded[k] * (1 + 0.1 * s) for k in ("exit_headway_median_s", "exit_speed_median_m_s",
+                                                              "exit_lateral_sd_m")}) for s in (0, 1)]
+    records.append(dict(_corridor_record("uo-180-180-070", 2, 3.0, 0.3, 1.6, complete=False, stalled=True),
+                        width_m=0.7))  # no figures: left out
+    records.append(dict(_corridor_record("uo-100-180-180", 0, 1.0, 1.2, 2.4), width_m=1.8,
+                        exit_headway_median_s=0.4, exit_speed_median_m_s=1.2, exit_lateral_sd_m=0.5))  # no door
+    rows = passage_rows(records)
+    assert [r["run"] for r in rows] == ["uo-180-180-070"] * 3 and all(r["runs"] == 2 for r in rows)
+    assert rows[0]["model"] == pytest.approx(recorded["exit_headway_median_s"] * 1.05)
+    assert rows[0]["recorded"] == recorded["exit_headway_median_s"]
+    assert format_passage_rows(rows).count("uo-180-180-070") == 3
