@@ -43,6 +43,10 @@ def build_parser() -> argparse.ArgumentParser:
                          "desired_speed_std_m_s")
     ap.add_argument("--radius", type=float, default=None, metavar="R",
                     help="every pedestrian's radius in m (default Kabalan's Table 2, 0.23), in every experiment")
+    ap.add_argument("--corridor-option", nargs="+", default=[], metavar="NAME=VALUE",
+                    help="options of the juelich_corridor scenario for every corridor run (the set-up's undocumented "
+                         "dimensions: barrier_thickness_m, end_wall_thickness_m, floor_width_m, outflow_width_m, "
+                         "waiting_width_m, waiting_density_per_m2)")
     ap.add_argument("--experiments", nargs="+", choices=EXPERIMENTS, default=list(EXPERIMENTS),
                     help="which experiments (default: all three)")
     ap.add_argument("--seeds", type=int, default=5, help="seeds 0..S-1, the same in every experiment (default 5)")
@@ -75,7 +79,9 @@ def main(argv=None) -> int:
         plan = QUICK_PLAN if args.quick else VirtualPlan(seeds=tuple(range(args.seeds)))
         plan = replace(plan, experiments=tuple(args.experiments), max_time_s=args.max_time)
         config = virtual_config(params, navigation_clearance_m=preset.navigation_clearance_m, pedestrian=pedestrian,
-                                radius_m=args.radius)
+                                radius_m=args.radius,
+                                corridor_geometry=key_values(args.corridor_option,
+                                                             "--corridor-option expects NAME=VALUE"))
         if args.snapshot:
             return _snapshot(args, config, plan)
         print(f"virtual experiments of {args.preset}{' with ' + ' '.join(args.param) if args.param else ''}: "

@@ -30,6 +30,7 @@ from crowd_env.errors import InputError, SweepError
 
 from ...analysis.experiment import (INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RANGE_M_S,
                                     SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, seyfried_2009)
+from ...analysis.corridor_runs import uo_run
 from ...analysis.fd_reference import single_file
 from ...analysis.figures import pyplot, save_figure
 from ...core.params import ModelParams
@@ -90,16 +91,26 @@ QUICK_PLAN = VirtualPlan(seeds=(0, 1), widths_m=(1.0,), sizes=(60,), corridor_ru
 
 
 def virtual_config(params: ModelParams, *, navigation_clearance_m: float, pedestrian: dict | None = None,
-                   radius_m: float | None = None) -> dict:
+                   radius_m: float | None = None, corridor_geometry: dict | None = None) -> dict:
     """The configuration of a folder of virtual experiments: the model, the navigation clearance of the bottleneck
     (the corridor uses the disk centres' field, as every other scenario), per-pedestrian overrides and the body's
     radius (None: Kabalan's Table 2, 0.23 m; else every scenario's, the bottleneck's clearance following it where
     it is the disk centres' field, the single file's strip scaled with it:
-    :func:`~crowd_env.experiments.validation.calibration.tasks.with_body`)."""
+    :func:`~crowd_env.experiments.validation.calibration.tasks.with_body`); ``corridor_geometry``: options of the
+    scenario ``juelich_corridor`` for every corridor run (its undocumented dimensions: barrier and end-wall
+    thickness, floor and outflow width, the waiting area), checked by building every run's scenario once."""
     config = {"kind": "virtual_experiments", "params": params_dict(params),
               "navigation_clearance_m": float(navigation_clearance_m), "pedestrian": dict(pedestrian or {})}
     if radius_m is not None:
         config["radius_m"] = float(radius_m)
+    if corridor_geometry:
+        from ...scenarios import make_scenario
+
+        for name in CORRIDOR_RUN_NAMES:
+            run = uo_run(name)
+            make_scenario("juelich_corridor", entrance_width_m=run.entrance_width_m, exit_width_m=run.exit_width_m,
+                          n_pedestrians=run.n_pedestrians, **dict(corridor_geometry))
+        config["corridor_geometry"] = dict(corridor_geometry)
     return config
 
 
@@ -120,8 +131,9 @@ def virtual_tasks(config: dict, plan: VirtualPlan) -> list:
                                             "seed": s, "geometry": geometry, "params": params_dict(params),
                                             "max_time_s": plan.max_time_s, "pedestrian": dict(pedestrian)}, radius))
     if "corridor" in plan.experiments:
+        geometry = dict(config.get("corridor_geometry") or {}, **({} if radius is None else {"radius_m": radius}))
         tasks += corridor_tasks(params, runs=plan.corridor_runs, seeds=plan.seeds, pedestrian=pedestrian or None,
-                                max_time_s=plan.max_time_s, geometry=None if radius is None else {"radius_m": radius})
+                                max_time_s=plan.max_time_s, geometry=geometry)
     if "single_file" in plan.experiments:
         for t in fd_tasks(["single_file"], {"single_file": plan.single_file_densities}, plan.seeds, params,
                           radius_m=radius):

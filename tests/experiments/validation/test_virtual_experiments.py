@@ -120,3 +120,15 @@ def test_passage_rows_set_the_model_beside_the_recording_measured_alike():
     assert rows[0]["model"] == pytest.approx(recorded["exit_headway_median_s"] * 1.05)
     assert rows[0]["recorded"] == recorded["exit_headway_median_s"]
     assert format_passage_rows(rows).count("uo-180-180-070") == 3
+
+
+def test_corridor_options_reach_every_corridor_run_and_bad_ones_are_refused():
+    from crowd_env.errors import ScenarioError
+
+    p = get_preset("calibrated")
+    config = virtual_config(p.params(), navigation_clearance_m=0.23, radius_m=0.2,
+                            corridor_geometry={"barrier_thickness_m": 0.1})
+    corridor = [t for t in virtual_tasks(config, QUICK_PLAN) if t["experiment"] == "corridor"]
+    assert corridor and all(t["geometry"] == {"barrier_thickness_m": 0.1, "radius_m": 0.2} for t in corridor)
+    with pytest.raises(ScenarioError, match="unknown option"):
+        virtual_config(p.params(), navigation_clearance_m=0.23, corridor_geometry={"barrier_m": 0.1})
