@@ -6,10 +6,11 @@ Three experiments (:data:`EXPERIMENTS`), each in its own geometry, population an
   (:mod:`crowd_env.experiments.validation.bottleneck`): J_s (Eq. 22, first to last passage of the channel's middle),
   the density and speed inside the channel over the stationary phase; the experiment's J_s for N = 60, the range
   [1.77, 2.31] for N = 20 and 40, and the ranges of density (1.42-1.73 /m²) and speed (0.94-1.22 m/s) inside;
-- ``corridor``: the nine Jülich corridor runs with their entrance and exit (:mod:`.corridor_runs`): the Voronoi
-  density and speed in y in [−2, 0] and the exit flow over the steady state, each run against its row;
+- ``corridor``: the nine Jülich corridor runs with their entrance and exit
+  (:mod:`crowd_env.experiments.validation.corridor_runs`): the Voronoi density and speed in y in [−2, 0] and the exit
+  flow over the steady state, each run against its row;
 - ``single_file``: the single-file ring (Seyfried et al. 2005), a periodic strip 0.7 m wide at each bin's 1D
-  density (:mod:`.fundamental_diagram`): mean speed against the bin's.
+  density (:mod:`crowd_env.experiments.validation.fundamental_diagram`): mean speed against the bin's.
 
 :func:`virtual_tasks` makes the runs of a :class:`VirtualPlan` for one model (the same seeds in every experiment:
 common random numbers between models); :func:`run_virtual_experiments` runs those not yet stored on the project's
@@ -336,7 +337,8 @@ def virtual_figure(records: list, path) -> Path:
         ax.scatter([rho_e], [v_e], marker="o", facecolor="white", edgecolor="k", zorder=2)
         if np.isfinite(rho):
             ax.scatter([rho], [v], marker="x" if failed else "o", color="C3", zorder=3)
-        ax.annotate(name.removeprefix("uo-"), (rho_e, v_e), fontsize=7, xytext=(3, 3), textcoords="offset points")
+        label = name.removeprefix("uo-") + ("" if np.isfinite(rho) else " (model: no complete run)")
+        ax.annotate(label, (rho_e, v_e), fontsize=7, xytext=(3, 3), textcoords="offset points")
     neck = [r for r in records if r.get("experiment") == "bottleneck" and r["n_pedestrians"] == 60 and r["complete"]]
     if neck:
         (dlo, dhi), (vlo, vhi) = INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RANGE_M_S
@@ -366,7 +368,11 @@ def virtual_figure(records: list, path) -> Path:
         if m:
             ax2.scatter(*zip(*m), marker=marker, color="C3", label=f"{label}: model")
         for (b, jm), (_, je) in zip(m, e):
-            ax2.plot([b, b], [je, jm], color="0.6", lw=1)
+            if np.isfinite(jm):
+                ax2.plot([b, b], [je, jm], color="0.6", lw=1)
+            else:  # no complete run: no flow, a clog marked at zero
+                ax2.scatter([b], [0.0], marker="x", color="C3", s=60)
+    ax2.scatter([], [], marker="x", color="C3", s=60, label="model: no complete run (stalled)")
     ax2.set_xlabel("width of the limiting opening (m)")
     ax2.set_ylabel("flow (1/s)")
     ax2.set_ylim(0, None)
