@@ -243,3 +243,21 @@ def test_a_stalled_run_fails_its_calibration_point(tmp_path):
     header = rows[0].split(",")
     assert rows[1].split(",")[header.index("n_stalled")] == "1"
     assert json.loads((tmp_path / "calibration.json").read_text())["n_points_with_stalls"] == 1
+
+
+def test_a_crowd_wedged_at_the_0_70_m_exit_is_reported_stalled_though_it_shakes():
+    """The Jülich run uo-180-180-070 with the paper's body (r = 0.23 m) and calibrated's social force: two disks
+    wedge against the 0.70 m exit's edges and the corridor behind them freezes, shaking in place at several cm/s
+    (the mean of instantaneous speeds, the rule before, never fired). The run stops as stalled one window after its
+    last passage, reports no flow, and its stall time leaves no doubt that nobody passed in between."""
+    from crowd_env.analysis.corridor_runs import uo_run
+
+    run = uo_run("uo-180-180-070")
+    sc = make_scenario("juelich_corridor", entrance_width_m=run.entrance_width_m, exit_width_m=run.exit_width_m,
+                       n_pedestrians=run.n_pedestrians, seed=0)
+    r = run_scenario(sc, SocialForceAgent(sc.navigation()), get_preset("calibrated").params(), max_time_s=300.0,
+                     line="exit", density_areas=(), lane_area=None)
+    assert r.stalled and not r.complete and 0 < r.n_passed < run.n_pedestrians
+    last = r.crossing_times_s.max()
+    assert last + STALL_WINDOW_S <= r.stall_time_s <= last + STALL_WINDOW_S + 30.0
+    assert np.isnan(r.flow_per_s) and np.isnan(r.specific_flow_per_m_s)
