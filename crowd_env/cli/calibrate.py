@@ -231,6 +231,10 @@ def _add_targets_parser(sub, common) -> None:
                              "peak, monotone; single file: speeds, headway fit)")
     tp.add_argument("--presets", nargs="+", choices=sorted(PRESETS), default=sorted(PRESETS),
                     help="presets to compare (default all); runs go to OUT/<preset>/ (resumable)")
+    tp.add_argument("--virtual", action="store_true",
+                    help="every shipped experiment as it was run instead of the periodic corridor's sweep: the "
+                         "bottleneck's targets, a row per Jülich corridor run (density, speed, exit flow, each within "
+                         "its tolerance), the single file; scored as --objective virtual")
     g = tp.add_argument_group("fundamental diagram (--fd)")
     g.add_argument("--fd", action="store_true",
                    help="also run each preset's fundamental-diagram sweep (the --fd-* options) and add its rows and "
@@ -296,7 +300,7 @@ def run_targets(args) -> int:
         configs[name] = base_config(cfg["geometry"], params, cfg["max_time_s"])
     fd_plan = _fd_plan(args, args.fd)
     with _backend(args) as be:
-        tables, scores = preset_targets(args.out, configs, widths, seeds, be, fd_plan=fd_plan)
+        tables, scores = preset_targets(args.out, configs, widths, seeds, be, fd_plan=fd_plan, virtual=args.virtual)
     print(f"every target, {len(seeds)} seed(s) per (b, N); figures are seed means over complete runs")
     if fd_plan is not None:
         print(f"fundamental diagram: {len(fd_plan.seeds)} seed(s) per density, {fd_plan.max_time_s:g} s of which the "
@@ -309,7 +313,7 @@ def run_targets(args) -> int:
     print("objective (crowd_env.experiments.validation.calibration.objective, lower is better): "
           + ", ".join(f"{n} {e.objective:.4f}" + (" (failed: incomplete runs)" if e.failed else "")
                       for n, e in scores.items()))
-    out = write_targets(args.out / "targets.json", seeds, widths, tables, scores, fd_plan=fd_plan)
+    out = write_targets(args.out / "targets.json", seeds, widths, tables, scores, fd_plan=fd_plan, virtual=args.virtual)
     print(f"wrote {out}")
     return 0
 

@@ -102,3 +102,18 @@ def test_the_evaluator_scores_a_point_on_stand_in_runs_and_keeps_the_radius_to_t
     with pytest.raises(CalibrationError, match="radius is calibrated with --objective virtual"):
         targets.tasks({"radius": 0.2})
     assert np.isfinite(entry["epsilon_total"])
+
+
+def test_the_corridor_table_has_a_row_per_run_and_judges_each_on_every_tolerance():
+    from crowd_env.experiments.validation.calibration.objective import corridor_table
+
+    rows = corridor_table(_corridor(density_factor=1.14, speed_shift=0.09, flow_factor=1.09))
+    assert len(rows) == 9 and all(r["passed"] for r in rows)
+    assert rows[0]["target"].startswith("corridor uo-050-180-180 (entrance 0.5 m, exit 1.8 m, N = 61)")
+    assert "0.49 / 1.34 / 1.17" in rows[0]["criterion"]
+    off = corridor_table(_corridor(flow_factor=1.11))
+    assert not any(r["passed"] for r in off)
+    stalled = corridor_table(_corridor(complete=False))
+    assert all(not r["passed"] and r["figure"] == "stalled 2 of 2" for r in stalled)
+    some = corridor_table(_corridor() + _corridor(complete=False, seeds=(2,)))
+    assert not some[0]["passed"] and "(1 of 3 stalled or incomplete)" in some[0]["figure"]

@@ -79,7 +79,8 @@ __all__ = ["CAPACITY_RANGE", "CAPACITY_SIZES", "CAPACITY_WIDTHS_M", "FAILED_POIN
            "FD_SPEED_TOLERANCE_M_S", "CORRIDOR_FD_RANGE_PER_M2", "HEADWAY_A_RANGE_M", "HEADWAY_B_RANGE_S",
            "UNDEFINED_FIT_MISS", "DENSITY_MATCH", "corridor_fd_bins", "single_file_bins", "speed_band_miss", "fd_terms",
            "FD_PEAK_FLOW_RANGE_PER_M_S", "FD_PEAK_DENSITY_RANGE_PER_M2", "FD_ROUNDING_M_S", "fd_table",
-           "single_file_terms", "corridor_runs_term", "virtual_error", "VIRTUAL_TERMS"]
+           "single_file_terms", "corridor_runs_term", "virtual_error", "VIRTUAL_TERMS", "single_file_table",
+           "corridor_table"]
 
 # Stationary discharge rate of the larger crowd over the smaller one, at these widths.
 CAPACITY_SIZES = (60, 120)
@@ -574,7 +575,14 @@ def fd_table(records: list) -> list:
         figure = "one bin: no pair"
     rows.append({"target": "corridor 1.8 m: speed never rising with density", "figure": figure,
                  "criterion": "none beyond the bins'", "passed": bool(np.all(excess <= FD_ROUNDING_M_S))})
-    rows.append(_fd_speed_row("single file", "/m", *_fd_speeds(records, "single_file", single_file_bins())))
+    return rows + single_file_table(records)
+
+
+def single_file_table(records: list) -> list:
+    """The single file's rows of :func:`fd_table` (its speeds at the bins, its headway fit) from the single-file
+    runs among ``records`` (records with ``setup`` = ``"single_file"``)."""
+    records = [r for r in records if r.get("setup") == "single_file"]
+    rows = [_fd_speed_row("single file", "/m", *_fd_speeds(records, "single_file", single_file_bins()))]
     a, b, n = _single_file_fit(records)
     fitted = bool(np.isfinite(a) and np.isfinite(b))
     if fitted:
@@ -587,4 +595,29 @@ def fd_table(records: list) -> list:
     rows.append({"target": "single file: headway d = a + b v", "figure": figure,
                  "criterion": f"a [{a_lo:g}, {a_hi:g}] m, b [{b_lo:g}, {b_hi:g}] s",
                  "passed": fitted and bool(a_lo <= a <= a_hi and b_lo <= b <= b_hi)})
+    return rows
+
+
+def corridor_table(records: list) -> list:
+    """One row per Jülich corridor run among ``records`` (keys as :func:`target_table`'s): the seed means of the
+    complete runs, density / speed / exit flow beside the experiment's, within every tolerance of
+    :data:`~crowd_env.experiments.validation.corridor_runs.CORRIDOR_TOLERANCES` (density ±15 %, speed ±0.10 m/s, exit
+    flow ±10 %) or not; a run of which no seed completed fails, named stalled."""
+    tol = CORRIDOR_TOLERANCES
+    rows = []
+    for s in summarise_corridor(records):
+        label = (f"corridor {s['run']} (entrance {s['entrance_width_m']:g} m, exit {s['exit_width_m']:g} m, "
+                 f"N = {s['n_pedestrians']}): ρ / v / J")
+        if not s["complete"]:
+            figure = f"stalled {s['stalled']} of {s['runs']}" if s["stalled"] else f"incomplete {s['runs']} of {s['runs']}"
+            passed = False
+        else:
+            figure = f"{s['density_per_m2']:.2f} / {s['speed_m_s']:.2f} / {s['flow_exit_per_s']:.2f}"
+            if s["complete"] < s["runs"]:
+                figure += f" ({s['runs'] - s['complete']} of {s['runs']} stalled or incomplete)"
+            passed = s["complete"] == s["runs"] and max(s["density_miss"], s["speed_miss"], s["flow_exit_miss"]) <= 1.0
+        rows.append({"target": label, "figure": figure,
+                     "criterion": f"{s['density_exp']:.2f} / {s['speed_exp']:.2f} / {s['flow_exit_exp']:.2f} "
+                                  f"±{tol['density_relative']:.0%} / ±{tol['speed_m_s']:g} / ±{tol['flow_exit_relative']:.0%}",
+                     "passed": passed})
     return rows
