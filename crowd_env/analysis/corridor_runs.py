@@ -38,7 +38,7 @@ from crowd_env.errors import ExperimentError, InputError, NotFoundError
 from .flow import MeasurementLine, trajectory_crossings
 from .trajectories import Trajectories, require_pedpy
 
-__all__ = ["UORun", "juelich_uo_runs", "uo_run", "recorded_uo_trajectories", "uo_measurement_walkable_area",
+__all__ = ["SteadyStateFigures", "UORun", "juelich_uo_runs", "uo_run", "recorded_uo_trajectories", "uo_measurement_walkable_area",
            "uo_measurement_area", "steady_frames", "UORunMeasures", "measure_uo_run", "crossing_times_s",
            "STEADY_CROSSING_FRACTIONS", "UO_FRAME_RATE_PER_S", "UO_SPEED_FRAME_STEP", "DoorPassage", "door_passage",
            "approach_profile"]
@@ -54,16 +54,10 @@ _COLUMNS = ["run", "b_entrance_m", "b_corridor_m", "b_exit_m", "n_pedestrians", 
 
 
 @dataclass(frozen=True)
-class UORun:
-    """One run of the shipped table: its set-up (entrance, corridor, exit widths in m, N), the hand-chosen steady
-    frames and the figures measured over them (Voronoi density and speed with their spread over frames, flows
-    across y = 0 and the exit)."""
+class SteadyStateFigures:
+    """What a UO run's steady state measures (module docstring): its first and last frame, the Voronoi density and
+    speed (means over its frames, ``*_sd`` their spread over frames), the flows across y = 0 and the exit."""
 
-    name: str
-    entrance_width_m: float
-    corridor_width_m: float
-    exit_width_m: float
-    n_pedestrians: int
     steady_from_frame: int
     steady_to_frame: int
     density_per_m2: float
@@ -74,6 +68,18 @@ class UORun:
     flow_exit_per_s: float
 
 
+@dataclass(frozen=True)
+class UORun(SteadyStateFigures):
+    """One run of the shipped table: its set-up (entrance, corridor, exit widths in m, N) and the figures measured
+    over its hand-chosen steady frames."""
+
+    name: str
+    entrance_width_m: float
+    corridor_width_m: float
+    exit_width_m: float
+    n_pedestrians: int
+
+
 @lru_cache(maxsize=1)
 def juelich_uo_runs() -> tuple:
     """The nine runs (:class:`UORun`), in the file's order: five with a narrowed entrance, three with a narrowed exit,
@@ -82,8 +88,9 @@ def juelich_uo_runs() -> tuple:
     rows = [ln.split(",") for ln in text.splitlines() if ln.strip()]
     if rows[0] != _COLUMNS:
         raise ExperimentError(f"juelich_uo_runs_1.8m.csv: expected columns {_COLUMNS}, got {rows[0]}")
-    return tuple(UORun(r[0], float(r[1]), float(r[2]), float(r[3]), int(r[4]), int(r[5]), int(r[6]), float(r[7]),
-                       float(r[8]), float(r[9]), float(r[10]), float(r[11]), float(r[12])) for r in rows[1:])
+    return tuple(UORun(int(r[5]), int(r[6]), float(r[7]), float(r[8]), float(r[9]), float(r[10]), float(r[11]),
+                       float(r[12]), name=r[0], entrance_width_m=float(r[1]), corridor_width_m=float(r[2]),
+                       exit_width_m=float(r[3]), n_pedestrians=int(r[4])) for r in rows[1:])
 
 
 def uo_run(name: str) -> UORun:
@@ -143,18 +150,10 @@ def steady_frames(y0_crossing_times_s, *, frame_rate_per_s: float, fractions=STE
 
 
 @dataclass(frozen=True)
-class UORunMeasures:
-    """A run measured as the shipped rows (module docstring): the steady frames, Voronoi density and speed (means
-    over its frames, ``*_sd`` their spread), the flows across y = 0 and the exit, and the passages counted."""
+class UORunMeasures(SteadyStateFigures):
+    """A run measured as the shipped rows (module docstring): its steady state's figures and the passages counted
+    across y = 0 and the exit over the whole run."""
 
-    steady_from_frame: int
-    steady_to_frame: int
-    density_per_m2: float
-    density_sd_per_m2: float
-    speed_m_s: float
-    speed_sd_m_s: float
-    flow_y0_per_s: float
-    flow_exit_per_s: float
     n_crossings_y0: int
     n_crossings_exit: int
 
