@@ -16,7 +16,8 @@ from ..experiments.validation.bottleneck import GEOMETRY_OPTIONS, bottleneck_con
 from ..experiments.running.evaluation import (DEFAULT_POLICY_RESOLVER, ScenarioSpec, episode_setup,
                                               recorded_env_config)
 
-__all__ = ["add_geometry_arguments", "model_params_from_args", "navigation_clearance_from_args", "config_of",
+__all__ = ["add_geometry_arguments", "model_params_from_args", "navigation_clearance_from_args", "radius_from_args",
+           "config_of",
            "DEFAULT_POLICY_RESOLVER", "key_values", "policy_env_options", "MODEL_ENV_KEYS", "PICKLED_MODELS_NOTE",
            "policy_run_setup", "DEFAULT_SCENARIO"]
 
@@ -113,6 +114,11 @@ def policy_run_setup(model=None, *, scenario=None, scenario_option=(), widths=No
 def add_geometry_arguments(group, clearance_help: str) -> None:
     """The scenario's geometry and navigation options."""
     for flag, (_, default) in GEOMETRY_OPTIONS.items():
+        if flag == "radius":  # the preset's body (Preset.radius_m), resolved with the preset in config_of
+            group.add_argument("--radius", type=float, default=None, dest="radius",
+                               help=f"every pedestrian's radius (m; default the preset's: {default} unless it calibrated "
+                                    "its body)")
+            continue
         group.add_argument(f"--{flag.replace('_', '-')}", type=float, default=default, dest=flag,
                            help=f"default {default}")
     group.add_argument("--navigation-clearance", type=float, default=None, dest="navigation_clearance",
@@ -144,6 +150,12 @@ def navigation_clearance_from_args(args) -> float:
     return float(get_preset(getattr(args, "preset", DEFAULT_PRESET)).navigation_clearance_m if value is None else value)
 
 
+def radius_from_args(args) -> float:
+    """--radius if given, else the preset's body (:attr:`~crowd_env.core.presets.Preset.radius_m`)."""
+    value = getattr(args, "radius", None)
+    return float(get_preset(getattr(args, "preset", DEFAULT_PRESET)).radius_m if value is None else value)
+
+
 def config_of(args, params: ModelParams) -> dict:
     """The configuration of the runs the flags describe
     (:func:`~crowd_env.experiments.validation.bottleneck.bottleneck_config`)."""
@@ -152,4 +164,5 @@ def config_of(args, params: ModelParams) -> dict:
                              navigation_wall_slowdown=getattr(args, "navigation_wall_slowdown", None),
                              stall_window_s=getattr(args, "stall_window", None),
                              stall_speed_m_s=getattr(args, "stall_speed", None),
-                             **{opt: getattr(args, flag) for flag, (opt, _) in GEOMETRY_OPTIONS.items()})
+                             **{opt: radius_from_args(args) if flag == "radius" else getattr(args, flag)
+                                for flag, (opt, _) in GEOMETRY_OPTIONS.items()})

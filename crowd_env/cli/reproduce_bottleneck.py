@@ -41,7 +41,7 @@ from ..experiments.validation.bottleneck import (SetupError, SweepError, check_s
 from ..core.timestep import check_time_step_floor
 from ..experiments.running.runner import check_step_limit
 from ..experiments.running.store import RunStore, RunStoreError
-from .options import add_geometry_arguments, config_of, model_params_from_args
+from .options import add_geometry_arguments, config_of, model_params_from_args, radius_from_args
 
 # Configurations of the model and the navigation, the base that explicit flags override: see
 # crowd_env.core.presets (calibrated, the default; paper, the literal Section 4; recalibrated).
@@ -188,7 +188,7 @@ def main(argv=None) -> int:
     write_results(records, args.out)
     rows = summarise(records)
     write_summary(rows, args.out)
-    print_summary(rows, records, params, args.radius)
+    print_summary(rows, records, params, radius_from_args(args))
     if not args.no_figures:
         for path in bottleneck_figures(records, rows, args.out):
             print(f"figure: {path}")

@@ -62,7 +62,7 @@ def main(argv=None) -> int:
     preset = get_preset(args.preset)
     params = preset.params()
     geometry = bottleneck_config(params, navigation_clearance_m=preset.navigation_clearance_m,
-                                 max_time_s=args.max_time)["geometry"]
+                                 max_time_s=args.max_time, radius_m=preset.radius_m)["geometry"]
     config = base_config(geometry, params, args.max_time)
     print(f"scorecard of {1 + len(policies)} policies ({'quick plan' if args.quick else 'full plan'}: "
           f"{describe_plan(plan)}); distances are sums of squared relative misses, 0 inside the experiment's bands: "

@@ -42,7 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="per-pedestrian defaults on top of Kabalan's Table 2: tau_s, desired_speed_mean_m_s, "
                          "desired_speed_std_m_s")
     ap.add_argument("--radius", type=float, default=None, metavar="R",
-                    help="every pedestrian's radius in m (default Kabalan's Table 2, 0.23), in every experiment")
+                    help="every pedestrian's radius in m, in every experiment (default the preset's: Kabalan's Table 2, "
+                         "0.23, unless the preset calibrated its body)")
     ap.add_argument("--corridor-option", nargs="+", default=[], metavar="NAME=VALUE",
                     help="options of the juelich_corridor scenario for every corridor run (the set-up's undocumented "
                          "dimensions: barrier_thickness_m, end_wall_thickness_m, floor_width_m, outflow_width_m, "
@@ -79,7 +80,7 @@ def main(argv=None) -> int:
         plan = QUICK_PLAN if args.quick else VirtualPlan(seeds=tuple(range(args.seeds)))
         plan = replace(plan, experiments=tuple(args.experiments), max_time_s=args.max_time)
         config = virtual_config(params, navigation_clearance_m=preset.navigation_clearance_m, pedestrian=pedestrian,
-                                radius_m=args.radius,
+                                radius_m=preset.body_radius_m if args.radius is None else args.radius,
                                 corridor_geometry=key_values(args.corridor_option,
                                                              "--corridor-option expects NAME=VALUE"))
         if args.snapshot:

@@ -38,12 +38,22 @@ _RADIUS_M = PedestrianDefaults().radius_m
 
 @dataclass(frozen=True)
 class Preset:
-    """``model``: ModelParams overrides; ``navigation_clearance_m``: clearance of the eikonal field."""
+    """``model``: ModelParams overrides; ``navigation_clearance_m``: clearance of the eikonal field; ``radius_m``: every
+    pedestrian's radius, the body the model was calibrated with (Kabalan's Table 2 unless the preset calibrated it):
+    the environment and the commands that run a preset give it to every scenario whose factory takes ``radius_m``
+    and whose options set none (:func:`crowd_env.scenarios.registry.body_options`)."""
 
     name: str
     model: dict = field(default_factory=dict)
     navigation_clearance_m: float = 0.0
     summary: str = ""
+    radius_m: float = _RADIUS_M
+
+    @property
+    def body_radius_m(self) -> float | None:
+        """The preset's radius when it differs from Kabalan's Table 2, else None: what scenario options must carry
+        for this preset (None: the factories' own default, the same body)."""
+        return None if self.radius_m == _RADIUS_M else float(self.radius_m)
 
     def params(self, **changes) -> ModelParams:
         """ModelParams of this preset, with ``changes`` on top (unknown names raise ParameterError)."""

@@ -134,7 +134,8 @@ from ..core.angles import direction_angles_rad
 from ..core.checks import check_integer, check_seed
 from ..core.periodic import minimum_image_dx
 from ..core.simulator import Simulator
-from ..scenarios import Scenario, make_scenario
+from ..core.presets import get_preset
+from ..scenarios import Scenario, body_options, make_scenario
 from ..walking.agent import SocialForceAgent, desired_direction, hold_waiting
 from .background import is_observation_policy, load_named_background
 from .config import (DEFAULT_ACTION_MAX_M_S, ENV_DEFAULTS, ENV_OPTIONS, OPTION_ALIASES, CrowdEnvConfig, agent_id,
@@ -234,8 +235,10 @@ class CrowdParallelEnv(ParallelEnv):
         scenario = config.scenario
         if isinstance(scenario, Scenario):
             self._scenario_name, self._scenario_kwargs = None, {}
-        else:
-            self._scenario_name, self._scenario_kwargs = scenario, dict(config.scenario_options or {})
+        else:  # a preset that calibrated its body gives it to the scenario (Preset.radius_m)
+            preset, _ = config.model()
+            body = None if preset is None else get_preset(preset).body_radius_m
+            self._scenario_name, self._scenario_kwargs = scenario, body_options(scenario, config.scenario_options, body)
             scenario = make_scenario(scenario, **self._scenario_kwargs)
         self._scenario = scenario
         self._base_positions = scenario.position_m

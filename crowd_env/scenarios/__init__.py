@@ -12,7 +12,7 @@ periodic along x, no exits: the fundamental diagram's instrument) and "polygon" 
 from .checks import check_clearance
 from .doors import door_exit
 from .placement import form_groups, place_pedestrians
-from .registry import list_scenarios, make_scenario, register_scenario, scenario_options
+from .registry import body_options, list_scenarios, make_scenario, register_scenario, scenario_options
 from .scenario import Scenario, ScenarioError
 from .bottleneck import bottleneck_geometry, seyfried_bottleneck
 from .corner import corner_90
@@ -25,7 +25,7 @@ from .demographics import RIMEA_ADULTS, WEIDMANN_SPEEDS_BY_AGE_M_S, desired_spee
 from .rimea import rimea_scenario
 from .room import room_pillar
 
-__all__ = ["Scenario", "ScenarioError", "list_scenarios", "make_scenario", "place_pedestrians", "register_scenario",
+__all__ = ["Scenario", "ScenarioError", "body_options", "list_scenarios", "make_scenario", "place_pedestrians", "register_scenario",
            "scenario_options", "form_groups", "door_exit", "check_clearance", "bottleneck_geometry",
            "seyfried_bottleneck", "bottleneck_groups", "corridor_bidirectional", "juelich_corridor", "room_pillar", "corner_90",
            "scenario_from_polygon", "periodic_corridor", "rimea_scenario", "desired_speeds_for_ages", "RIMEA_ADULTS",

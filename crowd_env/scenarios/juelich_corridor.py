@@ -5,7 +5,8 @@ y from +4 m (its start) to −4 m (the end wall); people walk towards −y. Set-
 each dimension with its source (``metadata['confidence']``):
 
 - a waiting area ``waiting_width_m`` = 5 m wide [sketch], as deep as N people need at
-  ``waiting_density_per_m2`` = 3 /m² [sketch: "about 3 /m²"], behind
+  ``waiting_density_per_m2`` = 3 /m² [sketch: "about 3 /m²"] (at least 1 m: a few walkers stand in its front rows
+  nearest the entrance), behind
 - a barrier ``barrier_thickness_m`` = 0.3 m thick [our choice: not documented] at y = 8 m [the recordings:
   people appear there, 4 m before the corridor] with the entrance b_e on the corridor's axis [the recordings'
   lateral positions at y = 7.5-8 m];
@@ -42,6 +43,7 @@ UO_CORRIDOR_END_Y_M = -4.0  # the end wall's upstream face, where the exit line 
 UO_BARRIER_Y_M = 8.0  # the entrance barrier's downstream face: 4 m of floor before the corridor
 UO_MEASUREMENT_Y_M = (-2.0, 0.0)  # the measurement area along y (PedPy's notebook for these runs)
 UO_VIEW_Y_M = (-6.5, 8.0)  # y range of the camera view as PedPy's notebook bounds its walkable area
+MIN_WAITING_DEPTH_M = 1.0  # the waiting area of a few walkers (N < 15 at 3 /m²): they stand in its front rows
 
 
 def juelich_corridor_geometry(entrance_width_m: float = 1.8, exit_width_m: float = 1.8, *,
@@ -73,7 +75,8 @@ def juelich_corridor_geometry(entrance_width_m: float = 1.8, exit_width_m: float
     y_end = UO_CORRIDOR_START_Y_M - corridor_length_m  # the end wall's upstream face
     y_floor = UO_CORRIDOR_START_Y_M + floor_length_m  # the barrier's downstream face
     y_wait = y_floor + barrier_thickness_m
-    depth = n / (waiting_density_per_m2 * waiting_width_m)
+    # N at the density, at least MIN_WAITING_DEPTH_M deep (a few walkers stand in the front rows at the barrier)
+    depth = max(n / (waiting_density_per_m2 * waiting_width_m), MIN_WAITING_DEPTH_M)
     y_out = y_end - end_wall_thickness_m
     y_leave = y_out - outflow_depth_m
 
@@ -125,8 +128,11 @@ def juelich_corridor(entrance_width_m: float = 1.8, exit_width_m: float = 1.8, n
         barrier_thickness_m=barrier_thickness_m, end_wall_thickness_m=end_wall_thickness_m,
         outflow_width_m=outflow_width_m)
     try:
+        x0, y0, x1, _ = waiting.bounds
+        front = n / (waiting_density_per_m2 * waiting_width_m) < MIN_WAITING_DEPTH_M  # a few: the front rows
         position = place_pedestrians(waiting, n, radius_m, np.random.default_rng(seed),
-                                     density_per_m2=waiting_density_per_m2)
+                                     density_per_m2=waiting_density_per_m2,
+                                     toward=(0.5 * (x0 + x1), y0) if front else None)
     except ScenarioError as exc:
         raise ScenarioError(f"waiting area ({waiting_width_m:g} m wide at {waiting_density_per_m2:g} /m²): {exc}") from exc
     clearance = check_clearance(navigation_clearance_m, radius_m)

@@ -10,7 +10,7 @@ from typing import Callable
 from ..core.checks import check_seed
 from .scenario import Scenario
 
-__all__ = ["register_scenario", "make_scenario", "list_scenarios", "scenario_options", "scenario_factory"]
+__all__ = ["register_scenario", "make_scenario", "list_scenarios", "scenario_options", "scenario_factory", "body_options"]
 
 
 _REGISTRY: dict[str, Callable[..., Scenario]] = {}
@@ -60,3 +60,13 @@ def make_scenario(name: str, **options) -> Scenario:
     if "seed" in options:
         options["seed"] = check_seed("seed", options["seed"], error=ScenarioError)
     return factory(**options)
+
+
+def body_options(name: str, options: dict | None, radius_m: float | None) -> dict:
+    """``options`` of the registered scenario ``name`` with every pedestrian's radius ``radius_m`` (a preset's body,
+    :attr:`~crowd_env.core.presets.Preset.body_radius_m`) when its factory takes ``radius_m`` and ``options`` set none;
+    a copy of ``options`` otherwise (``radius_m`` None: the factory's own default)."""
+    out = dict(options or {})
+    if radius_m is not None and "radius_m" not in out and "radius_m" in scenario_options(name):
+        out["radius_m"] = float(radius_m)
+    return out

@@ -61,3 +61,9 @@ def test_bad_set_ups_are_refused_by_name():
         make_scenario("juelich_corridor", n_pedestrians=0)
     with pytest.raises(ScenarioError, match="barrier_thickness_m"):
         make_scenario("juelich_corridor", barrier_thickness_m=-0.1)
+
+
+def test_a_few_walkers_stand_in_the_front_rows_of_a_waiting_area_one_metre_deep():
+    sc = make_scenario("juelich_corridor", n_pedestrians=12, seed=0)
+    assert sc.spawn_area.bounds[3] - sc.spawn_area.bounds[1] == pytest.approx(1.0)
+    assert sc.n_pedestrians == 12 and sc.position_m[:, 1].max() < 8.3 + 1.0

@@ -47,7 +47,7 @@ def geometry_config(preset: str, corridor_width_m: float, channel_length_m: floa
     """The configuration ``crowd-bottleneck`` writes for this preset and geometry (Seyfried's otherwise)."""
     return bottleneck_config(model_params(preset), navigation_clearance_m=get_preset(preset).navigation_clearance_m,
                              max_time_s=float(max_time_s), corridor_width_m=float(corridor_width_m),
-                             channel_length_m=float(channel_length_m))
+                             channel_length_m=float(channel_length_m), radius_m=get_preset(preset).radius_m)
 
 
 def check_setups(configs: dict, widths, sizes, seed: int) -> None:

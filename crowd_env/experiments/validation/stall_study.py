@@ -31,7 +31,7 @@ def stall_run(job: dict) -> dict:
     preset = get_preset(job["preset"])
     scenario = make_scenario("seyfried_bottleneck", width_m=job["width_m"], n_pedestrians=job["n"], seed=job["seed"],
                              corridor_width_m=job["corridor_width_m"],
-                             navigation_clearance_m=preset.navigation_clearance_m)
+                             navigation_clearance_m=preset.navigation_clearance_m, radius_m=preset.radius_m)
     agent = SocialForceAgent(scenario.navigation())
     snap = {}
     t_snap = job.get("snapshot_s")
