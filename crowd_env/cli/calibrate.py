@@ -42,6 +42,7 @@ from ..experiments.validation.calibration.errors import PAPER_VALLEY_FIT, Calibr
 from ..analysis.experiment import ExperimentError, ExperimentTable
 from ..experiments.validation.calibration.objective import TargetWeights, required_cases
 from ..core.params import ParameterError
+from ..errors import InputError
 from ..core.presets import DEFAULT_PRESET, PRESETS
 from ..experiments.running.backends import DeferredBackend, make_backend
 from ..experiments.validation.bottleneck import check_setups
@@ -149,6 +150,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_optimize_parser(sub, common)
     _add_targets_parser(sub, common)
     _add_landscape_parser(sub, common)
+    bp = sub.add_parser("band", help="the door against the corridor for every point scored on the virtual experiments "
+                                     "(crowd_env.experiments.validation.door_band): OUT/band.csv and OUT/band.png")
+    bp.add_argument("files", nargs="+", type=Path,
+                    help="calibration evaluations.jsonl (--objective virtual) and targets.json (targets --virtual)")
+    bp.add_argument("--out", type=Path, default=Path("out/band"), help="output folder")
+    bp.add_argument("--highlight", nargs="+", default=["calibrated", "joint", "paper", "recalibrated", "vision"],
+                    help="points to label (preset names in a targets.json)")
     return ap
 
 
@@ -350,7 +358,21 @@ def _grid_axes(args):
     return tuple(axes)
 
 
+def run_band(args) -> int:
+    """``crowd-calibrate band``: :func:`crowd_env.experiments.validation.door_band.write_band`."""
+    from ..experiments.validation.door_band import write_band
+
+    paths, missing = write_band(args.out, args.files, highlight=args.highlight)
+    for source, label, reason in missing:
+        print(f"not drawn: {label} ({source}): {reason}", file=sys.stderr)
+    for p in paths:
+        print(f"wrote {p}")
+    return 0
+
+
 def run(args) -> int:
+    if args.mode == "band":
+        return run_band(args)
     if args.mode == "targets":
         return run_targets(args)
     if args.mode == "landscape":
@@ -427,7 +449,7 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return run(args)
-    except (CalibrationError, ParameterError, ValueError) as exc:
+    except (CalibrationError, ParameterError, InputError, ValueError) as exc:
         raise SystemExit(f"error: {exc}") from None
     except KeyboardInterrupt:
         raise SystemExit("interrupted: finished runs are saved; rerun the same command to continue") from None

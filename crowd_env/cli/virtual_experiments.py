@@ -50,6 +50,8 @@ def build_parser() -> argparse.ArgumentParser:
                          "waiting_width_m, waiting_density_per_m2)")
     ap.add_argument("--experiments", nargs="+", choices=EXPERIMENTS, default=list(EXPERIMENTS),
                     help="which experiments (default: all three)")
+    ap.add_argument("--corridor-runs", nargs="+", choices=CORRIDOR_RUN_NAMES, default=None, metavar="RUN",
+                    help="only these corridor runs (default: all nine; e.g. uo-180-180-070 --seeds 20 for its clog rate)")
     ap.add_argument("--seeds", type=int, default=5, help="seeds 0..S-1, the same in every experiment (default 5)")
     ap.add_argument("--quick", action="store_true",
                     help="the reduced plan: two corridor runs (uo-070-180-180, uo-180-180-095), b = 1.0 m at N = 60, "
@@ -79,6 +81,8 @@ def main(argv=None) -> int:
         pedestrian = key_values(args.pedestrian, "--pedestrian expects NAME=VALUE")
         plan = QUICK_PLAN if args.quick else VirtualPlan(seeds=tuple(range(args.seeds)))
         plan = replace(plan, experiments=tuple(args.experiments), max_time_s=args.max_time)
+        if args.corridor_runs:
+            plan = replace(plan, corridor_runs=tuple(args.corridor_runs))
         config = virtual_config(params, navigation_clearance_m=preset.navigation_clearance_m, pedestrian=pedestrian,
                                 radius_m=preset.body_radius_m if args.radius is None else args.radius,
                                 corridor_geometry=key_values(args.corridor_option,

@@ -23,7 +23,14 @@ def test_body_options_set_the_radius_only_where_the_factory_takes_one_and_the_op
     assert body_options("juelich_corridor", {"n_pedestrians": 20}, 0.2) == {"n_pedestrians": 20, "radius_m": 0.2}
     assert body_options("juelich_corridor", {"radius_m": 0.25}, 0.2) == {"radius_m": 0.25}
     assert body_options("juelich_corridor", None, None) == {}
-    assert all(p.body_radius_m is None for p in PRESETS.values())  # Kabalan's body: nothing to pass
+    # Kabalan's body: nothing to pass; only the joint calibration freed the body
+    assert {name for name, p in PRESETS.items() if p.body_radius_m is not None} == {"joint"}
+
+
+def test_every_presets_field_is_the_point_field_or_its_own_bodys_configuration_space():
+    """A configuration-space field (Eq. 11-13 with walls inflated by r) is only right for the body it was built for."""
+    for name, p in PRESETS.items():
+        assert p.navigation_clearance_m in (0.0, p.radius_m), name
 
 
 def test_the_environment_builds_its_scenario_with_the_presets_body(slim):

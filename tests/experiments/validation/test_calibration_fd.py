@@ -227,6 +227,7 @@ def test_cli_targets_with_the_fundamental_diagram(tmp_path, capsys):
     assert cli.main(TARGETS_ARGV + TARGETS_FD_ARGV + ["--out", str(out)]) == 0
     printed = capsys.readouterr().out
     stored = json.loads((out / "targets.json").read_text())
+    assert set(stored["figures"]) == {"calibrated"}  # each preset's seed means, for crowd-calibrate band
     rows = stored["tables"]["calibrated"]
     fd_rows = rows[-5:]
     assert [r["target"].split(":")[0] for r in fd_rows] == ["corridor 1.8 m"] * 3 + ["single file"] * 2

@@ -75,13 +75,15 @@ def preset_targets(out, configs: dict, widths_m, seeds, backend, fd_plan: FDPlan
 
 def write_targets(path, seeds, widths_m, tables: dict, scores: dict, fd_plan: FDPlan | None = None,
                   virtual: bool = False) -> Path:
-    """``targets.json``: the seeds, widths, every table, and per preset its objective and terms; with
+    """``targets.json``: the seeds, widths, every table, and per preset its objective, terms and figures (the seed
+    means the terms came from); with
     ``fd_plan`` (the fundamental diagram's runs were part of it) also the plan, under ``fd``; ``virtual``: marks
     the virtual experiments' tables."""
     path = Path(path)
     content = {"seeds": seeds, "widths_m": widths_m, "tables": tables, "virtual_experiments": bool(virtual),
                "objective": {n: e.objective for n, e in scores.items()},
-               "terms": {n: {k: v for k, v in e.terms.items() if k not in e.unscored} for n, e in scores.items()}}
+               "terms": {n: {k: v for k, v in e.terms.items() if k not in e.unscored} for n, e in scores.items()},
+               "figures": {n: e.figures for n, e in scores.items()}}
     if fd_plan is not None:
         content["fd"] = fd_plan.as_dict()
     write_json_atomic(path, content, indent=2)

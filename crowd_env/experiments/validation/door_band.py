@@ -1,0 +1,120 @@
+"""The door against the corridor, measured on the experiments as they were run.
+
+The fundamental-diagram work found every candidate on one band in the periodic corridor: the more a crowd slows
+with density, the less its door passes ({doc}`fundamental_diagram`). This module redraws that band with the
+virtual experiments' measure (:mod:`crowd_env.experiments.validation.virtual_experiments`): for every model point
+scored on them (a calibration's ``evaluations.jsonl`` under ``--objective virtual``, a ``targets.json`` of
+``crowd-calibrate targets --virtual``), the door, Seyfried's J_s at b = 1.0 m and N = 60, against
+
+- the queue: the Voronoi density behind the 0.95 m exit (run ``uo-180-180-095``, 2.45 /m²), where people keep
+  their distance in a queue that carries the exit's flow;
+- the narrow entrance: the flow through the 0.70 m entrance (run ``uo-070-180-180``, 1.64 /s), a short opening fed
+  by a dense crowd.
+
+A point lacks a figure when its runs at that case all stalled; it is counted and named, never drawn.
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from crowd_env.errors import InputError
+from crowd_env.files import write_csv_atomic
+
+from ...analysis.corridor_runs import uo_run
+from ...analysis.experiment import seyfried_2009
+from ...analysis.figures import pyplot, save_figure
+
+__all__ = ["BAND_FIGURES", "band_points", "band_figure", "write_band"]
+
+DOOR = "specific_flow_per_m_s b1 n60"
+QUEUE = "density_per_m2 uo-180-180-095"
+ENTRANCE = "flow_exit_per_s uo-070-180-180"
+BAND_FIGURES = (DOOR, QUEUE, ENTRANCE)  # the keys of a point's figures (the calibration objective's names)
+BAND_COLUMNS = ("source", "label", "door_js_per_m_s", "queue_density_per_m2", "entrance_flow_per_s")
+
+
+def _experiment() -> dict:
+    ref = seyfried_2009()
+    return {DOOR: float(ref.specific_flow_per_m_s[ref.lookup(1.0, 60)[0]]),
+            QUEUE: uo_run("uo-180-180-095").density_per_m2, ENTRANCE: uo_run("uo-070-180-180").flow_exit_per_s}
+
+
+def _label(values: dict) -> str:
+    return ", ".join(f"{k}={v:.4g}" for k, v in values.items())
+
+
+def band_points(paths) -> tuple:
+    """``(points, missing)`` from calibration ``evaluations.jsonl`` files and ``targets.json`` files: each point a
+    dict with ``source`` (the file), ``label`` (the preset or the free parameters' values) and :data:`BAND_FIGURES`;
+    ``missing``: ``(source, label, reason)`` of the points that lack one (a failed point: a run stalled or stayed
+    incomplete, and the calibration kept no figures; or a point scored without the corridor runs). A file of neither kind raises :class:`~crowd_env.errors.InputError`."""
+    points, missing = [], []
+
+    def add(source, label, figures, failed=False):
+        absent = [k for k in BAND_FIGURES if not _finite(figures.get(k))]
+        if failed:
+            missing.append((source, label, "a failed point: a run stalled or stayed incomplete"))
+        elif absent:
+            missing.append((source, label, f"no {', '.join(absent)}"))
+        else:
+            points.append({"source": source, "label": label, **{k: float(figures[k]) for k in BAND_FIGURES}})
+
+    for path in map(Path, paths):
+        if not path.is_file():
+            raise InputError(f"{path}: no such file (give a calibration's evaluations.jsonl or a targets.json)")
+        if path.suffix == ".jsonl":
+            for i, line in enumerate(path.read_text().splitlines()):
+                if line.strip():
+                    entry = json.loads(line)
+                    if "values" not in entry:
+                        raise InputError(f"{path}, line {i + 1}: not a calibration evaluation (no 'values')")
+                    add(str(path), _label(entry["values"]), entry.get("figures") or {}, bool(entry.get("failed_point")))
+        else:
+            content = json.loads(path.read_text())
+            if "figures" not in content:
+                raise InputError(f"{path}: a targets.json without figures (written before they were stored: rerun "
+                                 "crowd-calibrate targets --virtual, it resumes from its runs)")
+            for name, figures in content["figures"].items():
+                add(str(path), name, figures)
+    return points, missing
+
+
+def _finite(value) -> bool:
+    return isinstance(value, (int, float)) and math.isfinite(value)
+
+
+def band_figure(points: list, path, *, highlight=()) -> Path:
+    """Two panels, the door's J_s (b = 1.0 m, N = 60) against the queue's density (left) and against the narrow
+    entrance's flow (right): every point grey, the names in ``highlight`` (presets) labelled, the experiment a
+    star."""
+    if not points:
+        raise InputError("no point has every figure of the band (see band_points' missing)")
+    plt = pyplot()
+    exp = _experiment()
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
+    for ax, key, xlabel in ((axes[0], QUEUE, "density behind the 0.95 m exit (1/m²)"),
+                            (axes[1], ENTRANCE, "flow through the 0.70 m entrance (1/s)")):
+        ax.scatter([p[key] for p in points], [p[DOOR] for p in points], s=14, color="0.6", label="calibration points")
+        for p in points:
+            if p["label"] in highlight:
+                ax.scatter(p[key], p[DOOR], s=40, color="C3", zorder=3)
+                ax.annotate(p["label"], (p[key], p[DOOR]), textcoords="offset points", xytext=(5, 4), fontsize=8)
+        ax.scatter(exp[key], exp[DOOR], marker="*", s=180, color="k", zorder=4, label="experiments")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel("Seyfried J_s, b = 1.0 m, N = 60 (1/(m s))")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def write_band(out, paths, *, highlight=()) -> tuple:
+    """``OUT/band.csv`` (every point's figures) and ``OUT/band.png``; returns ``(paths written, missing)``."""
+    points, missing = band_points(paths)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = [[p["source"], p["label"], p[DOOR], p[QUEUE], p[ENTRANCE]] for p in points]
+    write_csv_atomic(out / "band.csv", BAND_COLUMNS, rows)
+    return [out / "band.csv", band_figure(points, out / "band.png", highlight=highlight)], missing

@@ -1,0 +1,64 @@
+"""The door-against-corridor band (crowd_env.experiments.validation.door_band): points from a calibration's
+evaluations and a targets.json, failed points named and never drawn, the experiment's own figures."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from crowd_env.errors import InputError
+from crowd_env.experiments.validation import door_band
+from crowd_env.experiments.validation.door_band import BAND_FIGURES, DOOR, ENTRANCE, QUEUE, band_points, write_band
+
+
+def _figures(door, queue, entrance):
+    return {DOOR: door, QUEUE: queue, ENTRANCE: entrance, "speed_m_s uo-180-180-180": 1.0}
+
+
+@pytest.fixture()
+def files(tmp_path):
+    evaluations = tmp_path / "evaluations.jsonl"
+    entries = [{"values": {"A": 200.0, "B": 0.3}, "failed_point": False, "figures": _figures(1.8, 3.2, 1.5)},
+               {"values": {"A": 250.0, "B": 0.35}, "failed_point": True, "figures": {}},
+               {"values": {"A": 300.0, "B": 0.4}, "failed_point": False, "figures": {DOOR: 1.7}}]
+    evaluations.write_text("\n".join(json.dumps(e) for e in entries) + "\n")
+    targets = tmp_path / "targets.json"
+    targets.write_text(json.dumps({"figures": {"calibrated": _figures(1.95, 4.3, 0.9), "joint": _figures(1.82, 3.3, 1.34)}}))
+    return evaluations, targets
+
+
+def test_points_carry_every_figure_and_the_others_are_named_with_their_reason(files):
+    points, missing = band_points(files)
+    assert [p["label"] for p in points] == ["A=200, B=0.3", "calibrated", "joint"]
+    assert points[1][QUEUE] == 4.3 and set(BAND_FIGURES) <= set(points[0])
+    assert [(label, "failed" in reason) for _, label, reason in missing] == [("A=250, B=0.35", True),
+                                                                            ("A=300, B=0.4", False)]
+    assert QUEUE in missing[1][2] and ENTRANCE in missing[1][2]  # the absent figures are named
+
+
+def test_the_experiment_is_the_shipped_rows():
+    exp = door_band._experiment()
+    assert exp == {DOOR: pytest.approx(1.90, abs=0.005), QUEUE: pytest.approx(2.45, abs=0.005),
+                   ENTRANCE: pytest.approx(1.64, abs=0.005)}
+
+
+def test_write_band_writes_the_table_and_the_figure(files, tmp_path):
+    paths, missing = write_band(tmp_path / "out", files, highlight=("joint",))
+    lines = paths[0].read_text().splitlines()
+    assert lines[0] == "source,label,door_js_per_m_s,queue_density_per_m2,entrance_flow_per_s" and len(lines) == 4
+    assert paths[1].stat().st_size > 10_000 and len(missing) == 2
+
+
+def test_unreadable_inputs_are_refused_by_name(tmp_path):
+    with pytest.raises(InputError, match="no such file"):
+        band_points([tmp_path / "absent.jsonl"])
+    old = tmp_path / "targets.json"
+    old.write_text(json.dumps({"objective": {}}))
+    with pytest.raises(InputError, match="without figures"):
+        band_points([old])
+    bad = tmp_path / "other.jsonl"
+    bad.write_text('{"x": 1}\n')
+    with pytest.raises(InputError, match="line 1: not a calibration evaluation"):
+        band_points([bad])
+    with pytest.raises(InputError, match="no point"):
+        door_band.band_figure([], tmp_path / "x.png")
