@@ -1,8 +1,8 @@
 """The door against the corridor, measured on the experiments as they were run.
 
 The fundamental-diagram work found every candidate on one band in the periodic corridor: the more a crowd slows
-with density, the less its door passes ({doc}`fundamental_diagram`). This module redraws that band with the
-virtual experiments' measure (:mod:`crowd_env.experiments.validation.virtual_experiments`): for every model point
+with density, the less its door passes (docs/validation/fundamental_diagram.md). This module redraws that band
+with the virtual experiments' measure (:mod:`crowd_env.experiments.validation.virtual_experiments`): for every model point
 scored on them (a calibration's ``evaluations.jsonl`` under ``--objective virtual``, a ``targets.json`` of
 ``crowd-calibrate targets --virtual``), the door, Seyfried's J_s at b = 1.0 m and N = 60, against
 

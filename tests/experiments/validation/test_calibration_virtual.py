@@ -82,6 +82,27 @@ def test_a_point_runs_every_experiment_with_its_body():
     assert all(t["params"]["social_range_m"] == 0.3 and t["pedestrian"] == {"tau_s": 0.4} for t in corridor)
 
 
+def test_a_presets_body_reaches_every_experiment_when_no_radius_is_given():
+    """``crowd-calibrate targets --virtual`` and a calibration of a preset with its own body give no radius: the
+    configuration's body (joint's 0.214 m) is every experiment's, the corridor runs' and the single file's too;
+    Kabalan's body leaves every task as it was (stored runs stay valid)."""
+    def tasks_of(name):
+        preset = get_preset(name)
+        params = preset.params()
+        geometry = bottleneck_config(params, navigation_clearance_m=preset.navigation_clearance_m,
+                                     radius_m=preset.radius_m)["geometry"]
+        return make_virtual_tasks(base_config(geometry, params, 300.0), {}, {}, WIDTHS, (0,))
+
+    joint = tasks_of("joint")
+    assert all(t["geometry"]["radius_m"] == 0.214 for t in joint if t.get("experiment") == "corridor")
+    assert all(t["radius_m"] == 0.214 for t in joint if t.get("setup") == "single_file")
+    assert all(t["geometry"]["radius_m"] == 0.214 == t["geometry"]["navigation_clearance_m"]
+               for t in joint if "setup" not in t and t.get("experiment") != "corridor")
+    calibrated = tasks_of("calibrated")
+    assert all(t["geometry"] == {} for t in calibrated if t.get("experiment") == "corridor")
+    assert all("radius_m" not in t for t in calibrated if t.get("setup") == "single_file")
+
+
 def test_the_evaluator_scores_a_point_on_stand_in_runs_and_keeps_the_radius_to_this_objective(tmp_path):
     preset = get_preset("calibrated")
     params = preset.params()

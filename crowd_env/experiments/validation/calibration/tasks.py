@@ -171,6 +171,9 @@ def make_virtual_tasks(config: dict, model: dict, pedestrian: dict, widths_m, se
     params = _point_params(config, model)
     ped = check_pedestrian(pedestrian)
     limit = float(config["max_time_s"] if max_time_s is None else max_time_s)
+    if radius_m is None:  # the configuration's body (a preset's, e.g. joint's) in every experiment, not only its own
+        own = config["geometry"].get("radius_m")
+        radius_m = None if own is None or float(own) == PedestrianDefaults().radius_m else float(own)
     neck = [with_body(make_task(config, model, pedestrian, b, n, s), radius_m) for b, n in required_cases(widths_m)
             for s in seeds]
     corridor = corridor_tasks(params, seeds=seeds, pedestrian=ped or None, max_time_s=limit,
