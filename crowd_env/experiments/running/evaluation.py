@@ -23,7 +23,8 @@ measures below cover everybody whatever the agents did:
   first measurement line (e.g. "door" of ``room_pillar``, "middle" of ``corridor_bidirectional``), and
   none (NaN) without lines; ``flow_per_s`` likewise;
 - ``complete``: nobody remains at the end (each pedestrian crossed the line or left; without a line:
-  left); ``partial_specific_flow_per_m_s`` / ``partial_flow_per_s``: Eq. 22 over the passages that
+  left) and, with a line, somebody crossed it (``missed_line``: people left but nobody crossed the line, which
+  then lies off their path or counts the other way); ``partial_specific_flow_per_m_s`` / ``partial_flow_per_s``: Eq. 22 over the passages that
   happened, for incomplete episodes too;
 - ``stalled`` / ``stall_time_s``: the runner's stall rule (:class:`crowd_env.experiments.running.runner.StallDetector`:
   nobody crossed the line or left for 20 s while those remaining, and started, got nowhere, mean net speed below
@@ -108,6 +109,7 @@ class EpisodeMetrics:
     mean_return: float
     wall_time_s: float
     complete: bool = True
+    missed_line: bool = False  # people left but nobody crossed the line: not complete (RunResult.missed_line)
     stalled: bool = False
     stall_time_s: float = field(default=float("nan"), compare=False)  # nan unless stalled (nan != nan)
     partial_specific_flow_per_m_s: float = float("nan")
@@ -351,7 +353,7 @@ def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", se
         n_percussions=probe.n_perc,
         mean_percussion_kg_m_s=probe.perc_sum / probe.n_perc if probe.n_perc else 0.0,
         min_gap_m=run.min_gap_m, mean_return=float(np.mean(list(returns.values()))),
-        wall_time_s=time.perf_counter() - t0, complete=run.complete, stalled=run.stalled,
+        wall_time_s=time.perf_counter() - t0, complete=run.complete, missed_line=run.missed_line, stalled=run.stalled,
         stall_time_s=run.stall_time_s, partial_specific_flow_per_m_s=js, partial_flow_per_s=j,
         density_front_per_m2=run.mean_density_per_m2("front", "passages") if "front" in run.density_per_m2
         else float("nan"), lane_order=lanes, lane_order_mixed=lanes_mixed)
@@ -385,6 +387,7 @@ def evaluate(policies, scenarios=("seyfried_bottleneck",), seeds=(0, 1, 2), *, e
                     progress(f"  {r.policy:>12s} | {r.scenario} | seed {seed}: J_s {r.specific_flow_per_m_s:.3f}, "
                              f"evacuated {r.n_evacuated}/{r.n_pedestrians}"
                              + (f", stalled at {r.stall_time_s:.1f} s" if r.stalled else "")
+                             + (", nobody crossed the measurement line" if r.missed_line else "")
                              + f" ({r.wall_time_s:.1f} s wall)")
     return results
 

@@ -8,7 +8,10 @@ the channel, and tracks the minimum gap. It stops early when the crowd has *stal
 (:class:`StallDetector`): nobody passes any more, and those left get nowhere.
 
 Complete and incomplete runs. A run is *complete* when nobody remains: every pedestrian crossed the
-measurement line or left (without a line: left). Only a complete run reports a flow: ``flow_per_s`` and
+measurement line or left (without a line: left), and, with a line, somebody crossed it: a run where people left
+but nobody crossed the line (``missed_line``: a line off their path, or counting the other way) is not complete.
+A line counts passages towards the side :meth:`~crowd_env.scenarios.Scenario.line_direction` gives (by default
+towards the walkers' destination). Only a complete run reports a flow: ``flow_per_s`` and
 ``specific_flow_per_m_s`` (Eq. 22, Δt from the first to the last of all N passages) are nan otherwise,
 and ``partial_flow_per_s`` / ``partial_specific_flow_per_m_s`` hold the figure of the passages that
 happened (equal to the flow when complete). An incomplete run either *stalled* (``stalled``, with
@@ -143,11 +146,12 @@ class RunResult:
     speed_m_s: dict = field(default_factory=dict)  # area name -> (n_steps,) mean speed there (nan: empty)
     lateral_positions_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
     n_fallback_solves: int = 0
-    complete: bool = True  # nobody remains: each pedestrian crossed the line or left
+    complete: bool = True  # nobody remains: each pedestrian crossed the line or left (and the line was crossed)
     stalled: bool = False  # stopped by the stall rule (StallDetector)
     stall_time_s: float = float("nan")  # when the stall was detected (the run stopped there)
     partial_flow_per_s: float = float("nan")  # Eq. 22 over the passages that happened (nan: < 2)
     partial_specific_flow_per_m_s: float = float("nan")
+    missed_line: bool = False  # people left but nobody crossed the measurement line: not complete
 
     def __post_init__(self):
         if self.complete:  # a complete run's partial figures are its flows
@@ -312,7 +316,7 @@ class _RunMeasures:
                 raise NotFoundError(f"scenario has no measurement line {line!r}; it has "
                                     f"{sorted(geometry.measurement_lines)}")
             ends = np.asarray(geometry.measurement_lines[line], dtype=float)
-            m = MeasurementLine(ends[0], ends[1])
+            m = MeasurementLine(ends[0], ends[1], scenario.line_direction(line))  # counted towards the destination
             self.line = (m.start_m, m.segment_m, m.normal)
         self.area_names = [name for name in density_areas if name in geometry.measurement_areas]
         polys = [geometry.measurement_areas[name] for name in self.area_names]
@@ -522,7 +526,8 @@ def _run_result(scenario, sim, measures: _RunMeasures, stall: StallDetector, wid
     else:
         j = js = float("nan")
     n_left = int(np.count_nonzero(~state.active))
-    complete = not (state.active & ~measures.passed).any()  # nobody left who has not passed
+    missed = bool(measures.has_line and n_left and not n_cross)  # the line is not where (or not how) they walk
+    complete = not (state.active & ~measures.passed).any() and not missed  # nobody left who has not passed
     n_measured = int(measures.counts[COUNT_STEPS])
     return RunResult(
         n_pedestrians=state.n, width_m=width_m, seed=scenario.seed, n_steps=sim.step_count,
@@ -534,5 +539,5 @@ def _run_result(scenario, sim, measures: _RunMeasures, stall: StallDetector, wid
         speed_m_s={k: measures.speed[:n_measured, a].copy() for a, k in enumerate(measures.area_names)},
         lateral_positions_m=measures.lateral_positions(),
         n_fallback_solves=sim.n_fallback_solves, complete=bool(complete), stalled=stall.stalled,
-        stall_time_s=stall.stall_time_s, partial_flow_per_s=j, partial_specific_flow_per_m_s=js,
+        stall_time_s=stall.stall_time_s, partial_flow_per_s=j, partial_specific_flow_per_m_s=js, missed_line=missed,
     )
