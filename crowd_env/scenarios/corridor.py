@@ -18,13 +18,14 @@ from ..core.geometry import Geometry
 from .checks import check_clearance, check_count, check_positive
 from .placement import place_pedestrians
 from .registry import register_scenario
-from .scenario import Scenario, ScenarioError
+from .scenario import Measurement, Scenario, ScenarioError
 
 __all__ = ["corridor_bidirectional", "EXIT_INSET_M"]
 
 EXIT_INSET_M = 0.01  # gap between an exit strip and the walls around it (keeps the corridor closed)
 
 
+@register_scenario("corridor_bidirectional", aliases=("corridor",))
 def corridor_bidirectional(length_m: float = 10.0, width_m: float = 3.0, n_per_direction: int = 10,
                            seed: int | None = 0, radius_m: float = 0.23, spawn_depth_m: float = 3.0,
                            exit_depth_m: float = 0.5, density_per_m2: float | None = None,
@@ -72,7 +73,4 @@ def corridor_bidirectional(length_m: float = 10.0, width_m: float = 3.0, n_per_d
                     spawn_area=unary_union(list(blocks.values())), name="corridor_bidirectional", metadata=metadata,
                     seed=seed, navigation_resolution_m=navigation_resolution_m,
                     navigation_clearance_m=check_clearance(navigation_clearance_m, radius_m),
-                    destination=destination, exit_names=("west", "east"))
-
-
-register_scenario("corridor_bidirectional", corridor_bidirectional, aliases=("corridor",))
+                    destination=destination, exit_names=("west", "east"), measurement=Measurement("middle"))

@@ -25,7 +25,7 @@ from ..walking.navigation import DestinationNavigation, NavigationField, Rigidly
 from ..walking.route_choice import QuickestExitNavigation
 from .doors import door_widths_m
 
-__all__ = ["Scenario", "ScenarioError", "ROUTE_CHOICES", "PEDESTRIAN_PARAMS"]
+__all__ = ["Scenario", "ScenarioError", "Measurement", "ROUTE_CHOICES", "PEDESTRIAN_PARAMS"]
 
 
 ROUTE_CHOICES = ("quickest",)
@@ -47,6 +47,22 @@ def _line_middle(ends, floor) -> np.ndarray:
 
 PEDESTRIAN_PARAMS = ("radius_m", "mass_kg", "inertia_kg_m2", "desired_speed_m_s", "tau_s", "heading_stiffness",
                      "heading_damping", "velocity_m_s", "angular_velocity_rad_s", "premovement_s")
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """What a run of a scenario measures unless told otherwise
+    (:func:`~crowd_env.experiments.running.runner.run_scenario`, the evaluation harness): the passages of the
+    measurement ``line`` (a name of the geometry's lines; None: none), the densities and speeds in the
+    ``density_areas`` (names of its areas) and the lateral positions in ``lane_area`` (None: none)."""
+
+    line: str | None = None
+    density_areas: tuple = ()
+    lane_area: str | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "density_areas", (self.density_areas,) if isinstance(self.density_areas, str)
+                           else tuple(self.density_areas))
 
 
 @dataclass(eq=False)
@@ -75,7 +91,8 @@ class Scenario:
     ``route_choice``: None, or ``"quickest"``: with ``destination`` None and two or more exits, each
     pedestrian heads for the exit it expects to leave by soonest, re-chosen as the crowd moves
     (:class:`~crowd_env.walking.route_choice.QuickestExitNavigation`; RiMEA test 11), and leaves through
-    any exit. Validated on construction.
+    any exit. ``measurement``: what a run measures unless told otherwise (:class:`Measurement`); None: the
+    geometry's first measurement line, no areas. Validated on construction.
     """
 
     geometry: Geometry
@@ -95,6 +112,7 @@ class Scenario:
     exit_names: tuple | None = None
     navigation_field: object = field(default=None, repr=False, compare=False)
     route_choice: str | None = None
+    measurement: Measurement | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.geometry, Geometry):
@@ -138,8 +156,25 @@ class Scenario:
                 raise ScenarioError(f"route_choice must be None or one of {ROUTE_CHOICES}, got {self.route_choice!r}")
             if self.destination is not None or len(self.geometry.exits) < 2:
                 raise ScenarioError("route_choice needs two or more exits and no fixed destinations (destination=None)")
+        self.measurement = self._check_measurement(self.measurement)
         self._navigation = None
         self.validate()
+
+    def _check_measurement(self, measurement) -> Measurement:
+        """``measurement`` (None: the first line, no areas) with names the geometry has, else ScenarioError."""
+        g = self.geometry
+        if measurement is None:
+            return Measurement(next(iter(g.measurement_lines), None))
+        if not isinstance(measurement, Measurement):
+            raise ScenarioError(f"measurement must be a Measurement or None, got {measurement!r}")
+        if measurement.line is not None and measurement.line not in g.measurement_lines:
+            raise ScenarioError(f"measurement line {measurement.line!r} is not one of the geometry's lines "
+                                f"{sorted(g.measurement_lines)}")
+        for area in (*measurement.density_areas, *([measurement.lane_area] if measurement.lane_area else [])):
+            if area not in g.measurement_areas:
+                raise ScenarioError(f"measurement area {area!r} is not one of the geometry's areas "
+                                    f"{sorted(g.measurement_areas)}")
+        return measurement
 
     def _check_exit_names(self, names) -> tuple:
         n_exits = len(self.geometry.exits)

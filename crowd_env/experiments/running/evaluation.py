@@ -19,9 +19,10 @@ measures below cover everybody whatever the agents did:
 
 - ``specific_flow_per_m_s`` J_s = N / (Δt b) at the scenario's measurement line (Kabalan Eq. 22;
   NaN with fewer than two passages or no width in the scenario metadata, and NaN unless the episode is
-  ``complete``); the line is ``line``, by default "bottleneck" where the geometry has one, else its
-  first measurement line (e.g. "door" of ``room_pillar``, "middle" of ``corridor_bidirectional``), and
-  none (NaN) without lines; ``flow_per_s`` likewise;
+  ``complete``); the line is ``line``, by default the scenario's
+  (:attr:`Scenario.measurement <crowd_env.scenarios.Scenario.measurement>`: "bottleneck" of the Seyfried
+  bottleneck, "door" of ``room_pillar``, "middle" of ``corridor_bidirectional``, else the geometry's first line),
+  and none (NaN) without one; ``flow_per_s`` likewise;
 - ``complete``: nobody remains at the end (each pedestrian crossed the line or left; without a line:
   left) and, with a line, somebody crossed it (``missed_line``: people left but nobody crossed the line, which
   then lies off their path or counts the other way); ``partial_specific_flow_per_m_s`` / ``partial_flow_per_s``: Eq. 22 over the passages that
@@ -68,7 +69,7 @@ from ...analysis.lanes import lane_order_parameter, mixed_lane_order_parameter
 from ...core.params import ModelParams
 from ...envs.crowd_v0 import CrowdParallelEnv, decisions_for_time
 from .rollout import measure_step
-from .runner import StallDetector, _RunMeasures, _run_result
+from .runner import StallDetector, _RunMeasures, _run_result, measured
 
 __all__ = ["DEFAULT_POLICY_RESOLVER", "EpisodeMetrics", "ScenarioSpec", "import_object", "resolve_policy", "run_episode",
            "evaluate", "summarize", "METRICS", "ENV_CONFIG_FILE", "recorded_env_config", "episode_setup",
@@ -214,14 +215,6 @@ def resolve_policy(spec, name: str | None = None, resolve=None):
     return policy
 
 
-def _line_name(geometry, line: str | None):
-    """``line``, or by default "bottleneck" if the geometry has it, else its first measurement line (or None)."""
-    if line is not None:
-        return line
-    lines = list(geometry.measurement_lines)
-    return "bottleneck" if "bottleneck" in lines else (lines[0] if lines else None)
-
-
 class _Probe:
     """Substep hook collecting the metrics: each simulator step measured by the runner's
     :func:`~crowd_env.experiments.running.rollout.measure_step` (passages of the line, the density in "front", the
@@ -230,7 +223,8 @@ class _Probe:
 
     def __init__(self, env: CrowdParallelEnv, line_name: str | None):
         sim, n = env.sim, env.n_pedestrians
-        self.measures = _RunMeasures(env.scenario, n, 1, _line_name(env.geometry, line_name),
+        line_name = measured(env.scenario)[0] if line_name is None else line_name
+        self.measures = _RunMeasures(env.scenario, n, 1, line_name,
                                      ("front",) if "front" in env.geometry.measurement_areas else (), None,
                                      sim.min_gap_m(), 0)
         self.stall = StallDetector(sim.params.dt_s, start_s=sim.time_s, n_pedestrians=n)

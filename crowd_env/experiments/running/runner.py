@@ -34,6 +34,7 @@ from ...core.checks import check_integer, check_number
 from ...core.params import ModelParams
 from ...core.polygons import pack_polygons
 from ...core.presets import DEFAULT_PRESET, get_preset
+from ...scenarios.scenario import Measurement
 from ...walking.agent import SocialForceAgent, compiled_agent
 from crowd_env.files import read_signed, write_signed_atomic
 from .rollout import (COUNT_FRAMES, COUNT_LATERAL, COUNT_PASSED, COUNT_STEPS, ROLLOUT_CHUNK_STEPS, ROLLOUT_PYTHON_STEP,
@@ -404,8 +405,19 @@ def _compiled_agent(policy, sim, compiled: bool):
     return None if nav is None else compiled_agent(nav, sim.params)
 
 
+class _FromScenario:
+    """The default of :func:`run_scenario`'s ``line``, ``density_areas`` and ``lane_area``: the scenario's own
+    (:attr:`Scenario.measurement <crowd_env.scenarios.Scenario.measurement>`)."""
+
+    def __repr__(self) -> str:
+        return "FROM_SCENARIO"
+
+
+FROM_SCENARIO = _FromScenario()
+
+
 def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_time_s: float = 300.0,
-                 line: str = "bottleneck", density_areas=("front", "inside"), lane_area: str | None = "inside",
+                 line=FROM_SCENARIO, density_areas=FROM_SCENARIO, lane_area=FROM_SCENARIO,
                  width_m: float | None = None, state=None, rng=None, progress=None,
                  stall_window_s: float | None = STALL_WINDOW_S, stall_speed_m_s: float = STALL_SPEED_M_S,
                  compiled: bool = True, recorder=None, record_every: int = 1,
@@ -414,6 +426,10 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     """Simulate ``scenario`` driven by ``policy(sim) -> (intents, desired_heading)`` until all leave, the
     time limit ``max_time_s``, or a stall.
 
+    ``line``, ``density_areas``, ``lane_area``: what to measure (the measurement line's passages, the densities
+    and speeds in the areas, the lateral positions in the lane area; None / ``()``: nothing); by default the
+    scenario's own (:class:`~crowd_env.scenarios.scenario.Measurement`: the Seyfried bottleneck's line
+    "bottleneck" and areas "front" and "inside", the Jülich corridor's "exit" and "measurement", ...).
     ``width_m``: the bottleneck width used in J_s = N/(Δt b) (Eq. 22); defaults to the scenario's
     ``metadata['width_m']``. ``stall_window_s`` / ``stall_speed_m_s``: the stall rule of
     :class:`StallDetector` (None switches it off); a stalled run stops at once with ``stalled`` set. A periodic
@@ -432,6 +448,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     complete (module docstring).
     """
     params = get_preset(DEFAULT_PRESET).params() if params is None else params
+    line, density_areas, lane_area = measured(scenario, line, density_areas, lane_area)
     record_every = check_integer("record_every", record_every, error=InputError, minimum=1)
     chunk_steps = check_integer("chunk_steps", chunk_steps, error=InputError, minimum=1)
     max_time_s = check_number("max_time_s", max_time_s, error=InputError, positive=True)
@@ -479,6 +496,15 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     if checkpoint is not None and checkpoint.remove_when_done:
         checkpoint.remove()
     return _run_result(scenario, sim, measures, stall, width_m, wall_before_s + time.perf_counter() - t_wall)
+
+
+def measured(scenario, line=FROM_SCENARIO, density_areas=FROM_SCENARIO, lane_area=FROM_SCENARIO) -> tuple:
+    """``(line, density_areas, lane_area)``: each as given, or the scenario's own where it is :data:`FROM_SCENARIO`
+    (:attr:`Scenario.measurement <crowd_env.scenarios.Scenario.measurement>`; nothing for an object without one)."""
+    own = getattr(scenario, "measurement", None) or Measurement()
+    return (own.line if line is FROM_SCENARIO else line,
+            own.density_areas if density_areas is FROM_SCENARIO else density_areas,
+            own.lane_area if lane_area is FROM_SCENARIO else lane_area)
 
 
 def _check_step_limit(max_time_s: float, dt_s: float, step_limit) -> None:
