@@ -45,8 +45,8 @@ from .state import CrowdState, StateError, first_overlap, pair_distances
 from .timestep import check_time_step
 from .bundles import StepParams, World, empty_exits
 from .step import (FUSED_OK, MAX_INPUT_SPEED_M_S, MAX_REDETECT, advance, compact_bodies, detection_reach,
-                   finish_step, first_out_of_bound, impact_stage, kinetic_energy, leave_at_exits, redetection_round,
-                   smooth_update)
+                   finish_step, first_out_of_bound, grown_margins, impact_stage, kinetic_energy, leave_at_exits,
+                   redetection_round, smooth_update)
 
 
 
@@ -473,10 +473,12 @@ class Simulator:
         lam_p = _EMPTY_1D
         projected = once = False
         for _ in range(MAX_REDETECT + 1):
-            det_speed, candidates, percussions, lam_p, added, projected = redetection_round(
-                position, radius, idx, world, params, r_max, vel, v_impact, det_speed, candidates, percussions, lam_p,
-                projected)
-            self.n_redetections += added
+            grown = grown_margins(vel, det_speed, params.contact_tolerance_m, params.dt_s)
+            if grown.shape[0]:
+                det_speed, candidates, percussions, lam_p, added, projected = redetection_round(
+                    position, radius, idx, world, params, r_max, vel, v_impact, det_speed, grown, candidates,
+                    percussions, lam_p, projected)
+                self.n_redetections += added
             if projected:
                 break
             con = dict(zip(CONTACT_FIELDS, candidates))  # a projection again: a new candidate bound (lam_p extended)

@@ -370,12 +370,13 @@ def redetect_candidates(position, radius, index, walls, wall_owner, eps_m, dt_s,
 
 
 @nb.njit(cache=True)
-def redetection_round(position, radius, index, world, params, r_max, vel, v_impact, det_speed, candidates, percussions,
-                      lam_p, projected):
+def redetection_round(position, radius, index, world, params, r_max, vel, v_impact, det_speed, grown, candidates,
+                      percussions, lam_p, projected):
     """One round of stage 5's re-detection, as both steps run it (the fused one with the dense projection, the
-    staged one with the solver cascade; the module docstring, stage 5). The candidates (``candidates``: the
-    arrays of :data:`~crowd_env.core.contacts.CONTACT_FIELDS`) were chosen with margins from the speeds
-    ``det_speed``: where the compact velocities ``vel`` grew beyond them (:func:`grown_margins`), the speeds are
+    staged one with the solver cascade; the module docstring, stage 5), for the rows ``grown`` of
+    :func:`grown_margins` (non-empty; the callers test it first, the cheap common case). The candidates
+    (``candidates``: the arrays of :data:`~crowd_env.core.contacts.CONTACT_FIELDS`) were chosen with margins from
+    the speeds ``det_speed``: where the compact velocities ``vel`` grew beyond them, the speeds are
     raised to ‖u‖ and the candidates they now call for (:func:`redetect_candidates`) appended, with zero
     percussions (``percussions``: normal, tangential, in the impact set) and, when ``projected`` (the gap
     projection's percussions ``lam_p`` are those of ``vel``), zero projection percussions. If a new candidate
@@ -386,9 +387,6 @@ def redetection_round(position, radius, index, world, params, r_max, vel, v_impa
     Returns ``(det_speed, candidates, percussions, lam_p, added, projected)``: ``added`` whether candidates were
     added (one re-detection), ``projected`` whether ``lam_p`` still holds for ``vel``."""
     eps_m, dt_s = params.contact_tolerance_m, params.dt_s
-    grown = grown_margins(vel, det_speed, eps_m, dt_s)
-    if not grown.shape[0]:
-        return det_speed, candidates, percussions, lam_p, False, projected
     det_speed = np.maximum(det_speed, speeds(vel))
     c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall = candidates
     new = redetect_candidates(position, radius, index, world.walls, world.wall_owner, eps_m, dt_s, r_max, det_speed,
@@ -446,26 +444,25 @@ def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached
     # Stage 5 as Simulator._staged_projection runs it, with the dense projection
     v_impact = vel[:, :2].copy()
     det_speed = speed_star
-    candidates = (c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall)
-    percussions = (p_n, p_t, in_impact)
     lam_p = np.zeros(0)
     projected = False
     n_redetect = 0
     for _ in range(MAX_REDETECT + 1):
-        det_speed, candidates, percussions, lam_p, added, projected = redetection_round(
-            position, radius, index, world, params, r_max, vel, v_impact, det_speed, candidates, percussions, lam_p,
-            projected)
-        n_redetect += added
+        grown = grown_margins(vel, det_speed, eps_m, dt_s)
+        if grown.shape[0]:
+            det_speed, candidates, percussions, lam_p, added, projected = redetection_round(
+                position, radius, index, world, params, r_max, vel, v_impact, det_speed, grown,
+                (c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall), (p_n, p_t, in_impact), lam_p, projected)
+            c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall = candidates
+            p_n, p_t, in_impact = percussions
+            n_redetect += added
         if projected:
             break
-        c_a, c_b, c_gap, c_nx, c_ny = candidates[:5]
         lam_p, _, st = project_gaps(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, PROJECTION_TOL_M_S,
                                     params.max_dense_projection_rows)
         if st != STATUS_OK:
             return FUSED_PROJECTION, none, ke0, ke1, 0.0, 0, 0, np.inf, 0
         projected = True
-    c_a, c_b, c_wall = candidates[0], candidates[1], candidates[7]
-    p_n, p_t, in_impact = percussions
     ke2 = kinetic_energy(vel, mass, inertia)
     min_gap, contacts = finish_step(position, bodies.velocity_m_s, bodies.angular_velocity_rad_s, bodies.heading_rad,
                                     radius, index, vel, dt_s, params.rotation, walls, c_a, c_b, c_wall, p_n, p_t, lam_p,
