@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from crowd_env.errors import InputError
+from crowd_env.errors import InputError, NotFoundError
 
 from ...core.checks import check_number
 
@@ -114,7 +114,9 @@ class TermReward:
             read = tuple(info.get(key, np.nan if key == "dt_s" else _NO_ARRAY) for key in _INFO_READ)
         missing = _sum_terms(self._table, *read, given, np.ndarray((n, len(self.terms)), np.float64, terms), out)
         if missing >= 0:
-            raise KeyError(next(key for key in _READS[missing] if key not in info))
+            key = next(key for key in _READS[missing] if key not in info)
+            raise NotFoundError(f"the step's info has no {key!r}, which the reward term(s) "
+                                f"{[t.name for t in self.terms if _kind(t) == missing]} read")
         info["reward_terms"] = terms
         return out
 
