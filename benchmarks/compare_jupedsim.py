@@ -52,7 +52,7 @@ MAX_TIME_S = 300.0
 
 def _counter(scenario):
     ends = np.asarray(scenario.geometry.measurement_lines["bottleneck"], dtype=float)
-    return PassageCounter(MeasurementLine(ends[0], ends[1]))
+    return PassageCounter(MeasurementLine(ends[0], ends[1], scenario.line_direction("bottleneck")))
 
 
 def _summary(name, agent_steps, wall_s, counter, width_m, n, n_left, min_gap):

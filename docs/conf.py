@@ -9,6 +9,7 @@ import os
 import sys
 
 sys.path.insert(0, os.path.abspath(".."))  # the package from the checkout, installed or not
+sys.path.insert(0, os.path.abspath("_ext"))  # this site's own extension: generated_lists
 
 project = "crowd_env"
 author = "crowd_env developers"
@@ -22,6 +23,7 @@ extensions = [
     "sphinx.ext.napoleon",
     "sphinx.ext.mathjax",
     "sphinx.ext.viewcode",
+    "generated_lists",  # the lists that follow the scenarios (docs/_ext/generated_lists.py)
 ]
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 myst_enable_extensions = ["dollarmath", "colon_fence", "deflist"]

@@ -305,7 +305,9 @@ def write_geometry(path, geometry, metadata: dict | None = None) -> list:
     The walkable area written is the geometry's navigable area (walkable area united with the exits),
     where every recorded position lies. JSON keys: ``walkable_area_wkt``, ``exits_wkt`` (list),
     ``measurement_lines`` (name -> [[x0, y0], [x1, y1]] in m), ``measurement_areas_wkt`` (name -> WKT),
-    ``name``, ``metadata`` and, for a periodic geometry, ``period_x_m``. Returns the paths written.
+    ``name``, ``metadata``, for a periodic geometry ``period_x_m``, and for lines given a direction
+    ``measurement_line_directions`` (name -> {"direction": [x, y], "against_walkers": bool}). Returns the paths
+    written.
     """
     path = Path(path)
     record = {
@@ -318,6 +320,10 @@ def write_geometry(path, geometry, metadata: dict | None = None) -> list:
     }
     if getattr(geometry, "period_x_m", 0.0):
         record["period_x_m"] = float(geometry.period_x_m)
+    if geometry.measurement_line_directions:
+        record["measurement_line_directions"] = {
+            k: {"direction": d.tolist(), "against_walkers": k in geometry.lines_against_walkers}
+            for k, d in geometry.measurement_line_directions.items()}
     wkt_path = geometry_paths(path)[1]
     for p, text in ((path, json.dumps(record, indent=1)), (wkt_path, record["walkable_area_wkt"] + "\n")):
         write_atomic(p, text)
@@ -345,9 +351,14 @@ def read_geometry(path):
     if not isinstance(record, dict) or "walkable_area_wkt" not in record or "exits_wkt" not in record:
         raise TrajectoryFormatError(f"{path} is not a crowd_env geometry file: keys 'walkable_area_wkt' and "
                                     f"'exits_wkt' are required")
+    lines = dict(record.get("measurement_lines") or {})
+    directions = record.get("measurement_line_directions") or {}
     try:
+        if not isinstance(directions, dict) or not all(isinstance(d, dict) for d in directions.values()):
+            raise GeometryError(f"measurement_line_directions must map line names to dicts, got {directions!r}")
+        lines.update({k: {"ends": lines.get(k), **d} for k, d in directions.items()})
         return Geometry.from_wkt(record["walkable_area_wkt"], list(record["exits_wkt"]),
-                                 measurement_lines=record.get("measurement_lines") or {},
+                                 measurement_lines=lines,
                                  measurement_areas=record.get("measurement_areas_wkt") or {},
                                  name=record.get("name", "geometry"), period_x_m=record.get("period_x_m", 0.0))
     except GeometryError as exc:

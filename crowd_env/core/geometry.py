@@ -68,6 +68,39 @@ def as_polygon(obj, what: str):
     return geom
 
 
+_LINE_KEYS = ("ends", "direction", "against_walkers")
+
+
+def _line_spec(name: str, value) -> tuple:
+    """``(ends, direction or None, against_walkers)`` of a measurement line given as its two end points or as a
+    dict of :data:`_LINE_KEYS` (``ends`` required); ``direction`` becomes a read-only unit (2,) vector."""
+    if not isinstance(value, dict):
+        return _as_line(name, value), None, False
+    unknown = sorted(set(value) - set(_LINE_KEYS))
+    if unknown or "ends" not in value:
+        raise GeometryError(f"measurement line {name!r}: a dict takes the keys {list(_LINE_KEYS)} ('ends' required), "
+                            f"got {sorted(value)}")
+    ends = _as_line(name, value["ends"])
+    against = value.get("against_walkers", False)
+    if not isinstance(against, (bool, np.bool_)):
+        raise GeometryError(f"measurement line {name!r}: against_walkers must be True or False, got {against!r}")
+    direction = value.get("direction")
+    if direction is None:
+        if against:
+            raise GeometryError(f"measurement line {name!r}: against_walkers needs a direction (without one the line "
+                                "counts towards the walkers' destination)")
+        return ends, None, False
+    d = np.array(direction, dtype=np.float64).reshape(-1) if np.size(direction) == 2 else np.full(3, np.nan)
+    t = ends[1] - ends[0]
+    norm = float(np.hypot(*d)) if d.shape == (2,) and np.isfinite(d).all() else 0.0
+    if norm <= 0.0 or abs(d[0] * t[1] - d[1] * t[0]) <= 1e-9 * norm * float(np.hypot(*t)):
+        raise GeometryError(f"measurement line {name!r}: direction must be a finite (x, y) vector across the line "
+                            f"(not along it), got {direction!r}")
+    d = d / norm
+    d.setflags(write=False)
+    return ends, d, bool(against)
+
+
 def _as_line(name: str, value) -> np.ndarray:
     line = np.array(value, dtype=np.float64)
     if line.shape != (2, 2):
@@ -199,7 +232,11 @@ class Geometry:
     ``walkable_area``: shapely (Multi)Polygon, WKT string or (K, 2) outer-ring coordinates; holes of a
     polygon are obstacles. ``obstacles``: polygons subtracted from it. ``exits``: one or more polygons
     where pedestrians leave (each must overlap the walkable area or share a boundary stretch with it).
-    ``measurement_lines``: name -> two end points. ``measurement_areas``: name -> polygon (density).
+    ``measurement_lines``: name -> two end points, or a dict ``{"ends": two end points, "direction": (x, y),
+    "against_walkers": False}``: the side a line counts passages towards (:attr:`measurement_line_directions`;
+    without one, a scenario counts them towards its walkers' destination,
+    :meth:`~crowd_env.scenarios.Scenario.line_direction`), and whether it counts against its walkers on purpose.
+    ``measurement_areas``: name -> polygon (density).
     ``period_x_m``: L > 0 makes the geometry periodic along x (module docstring; no exits then, ``exits``
     empty); 0 (the default) for none. Raises :class:`GeometryError` naming the problem.
     """
@@ -247,7 +284,10 @@ class Geometry:
         self._navigable = shapely.union_all([area, exit_union])
         for g in (self._area, self._exit_union, self._navigable):
             shapely.prepare(g)
-        lines = {str(k): _as_line(str(k), v) for k, v in dict(measurement_lines or {}).items()}
+        specs = {str(k): _line_spec(str(k), v) for k, v in dict(measurement_lines or {}).items()}
+        lines = {k: spec[0] for k, spec in specs.items()}
+        self._line_directions = MappingProxyType({k: spec[1] for k, spec in specs.items() if spec[1] is not None})
+        self._against_walkers = frozenset(k for k, spec in specs.items() if spec[2])
         for k, line in lines.items():
             if not shapely.LineString(line).intersects(self._navigable):
                 raise GeometryError(f"measurement line {k!r} {line.tolist()} does not cross the walkable area")
@@ -315,6 +355,26 @@ class Geometry:
         return self._lines
 
     @property
+    def measurement_line_directions(self):
+        """Read-only mapping name -> unit (2,) vector: the side each line given a direction counts passages
+        towards (lines without one are not in it: a scenario counts them towards its walkers' destination)."""
+        return self.__dict__.get("_line_directions", MappingProxyType({}))  # none in geometries pickled before
+
+    @property
+    def lines_against_walkers(self) -> frozenset:
+        """The names of the lines whose direction points against their walkers on purpose (a scenario refuses
+        any other such line)."""
+        return self.__dict__.get("_against_walkers", frozenset())
+
+    def measurement_line_spec(self, name: str):
+        """Line ``name`` as the constructor takes it: its end points, or a dict with its direction (the inverse
+        of the ``measurement_lines`` argument; a moved copy of a geometry passes them on)."""
+        direction = self.measurement_line_directions.get(name)
+        if direction is None:
+            return self._lines[name]
+        return {"ends": self._lines[name], "direction": direction, "against_walkers": name in self.lines_against_walkers}
+
+    @property
     def measurement_areas(self):
         """Read-only mapping name -> shapely polygon."""
         return self._areas
@@ -329,11 +389,13 @@ class Geometry:
         mappings travel as plain dicts and come back read-only."""
         state = self.__dict__.copy()
         state["_lines"], state["_areas"] = dict(self._lines), dict(self._areas)
+        state["_line_directions"] = dict(self.measurement_line_directions)
         return state
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
         self._lines, self._areas = MappingProxyType(self._lines), MappingProxyType(self._areas)
+        self._line_directions = MappingProxyType(state.get("_line_directions", {}))
 
     def __repr__(self) -> str:
         b = ", ".join(f"{v:.3g}" for v in self.bounds)

@@ -39,14 +39,14 @@ from .periodic import wrap_positions
 from .polygons import PackedPolygons, pack_polygons
 from .segments import as_segments, endpoint_owners, wall_proximity
 from .solvers.cascade import SolverCascade
-from .solvers.graph import contact_keys, gap_residuals
+from .solvers.graph import contact_keys
 from .solvers.impact import solve_clusters
 from .state import CrowdState, StateError, first_overlap, pair_distances
 from .timestep import check_time_step
 from .bundles import StepParams, World, empty_exits
 from .step import (FUSED_OK, MAX_INPUT_SPEED_M_S, MAX_REDETECT, advance, compact_bodies, detection_reach,
                    finish_step, first_out_of_bound, grown_margins, impact_stage, kinetic_energy, leave_at_exits,
-                   redetect_candidates, smooth_update, speeds)
+                   redetection_round, smooth_update)
 
 
 
@@ -461,45 +461,31 @@ class Simulator:
 
     def _staged_projection(self, vel, mass, con, p_n, p_t, in_impact, speed_star, idx, r_max):
         """Stage 5 of the staged step, in place on ``vel``: ``(con, p_n, p_t, in_impact, lam_p)`` with the
-        candidates the re-detection added.
-
-        The candidates were chosen with margins from the pre-impact speeds s_i: a pair left out has
-        gap > ε + 2h (s_i + s_j), so it cannot close within the step while every speed satisfies
-        |u_i| ≤ 2 s_i + ε/(2h). Impacts and the projection can speed a pedestrian up beyond that (a push
-        passed along a jammed chain): then detect again with the larger speeds (before projecting, and
-        after it if needed) and, if a new candidate binds, project from the post-impact velocities again."""
-        h = self.params.dt_s
+        candidates the re-detection added. The loop of the fused step (:func:`~crowd_env.core.step.fused_step`)
+        with the solver cascade's projection: each round is :func:`~crowd_env.core.step.redetection_round` (its
+        docstring says why candidates are detected again), and a projection repeated after a new candidate
+        bound starts from the last one's multipliers (``lam_warm``)."""
+        world, params, position, radius = self.world, self.step_params, self.state.position_m, self.state.radius_m
         v_impact = vel[:, :2].copy()
         det_speed = speed_star
-        lam_p = None
-        lam_warm = None  # the last projection's multipliers, extended to the new candidates (zeros)
+        candidates = tuple(con[k] for k in CONTACT_FIELDS)
+        percussions = (p_n, p_t, in_impact)
+        lam_p = _EMPTY_1D
+        projected = once = False
         for _ in range(MAX_REDETECT + 1):
-            grown = grown_margins(vel, det_speed, self.params.contact_tolerance_m, h)
-            if grown.size:
-                det_speed = np.maximum(det_speed, speeds(vel))
-                merged = self._redetect(con, det_speed, grown, idx, r_max, h)
-                if merged is not None:
-                    extra = merged["a"].shape[0] - con["a"].shape[0]
-                    con = merged
-                    p_n = np.concatenate([p_n, np.zeros(extra)])
-                    p_t = np.concatenate([p_t, np.zeros(extra)])
-                    in_impact = np.concatenate([in_impact, np.zeros(extra, dtype=bool)])
-                    self.n_redetections += 1
-                    if lam_p is not None:
-                        lam_p = np.concatenate([lam_p, np.zeros(extra)])
-                        new = slice(con["a"].shape[0] - extra, None)
-                        if gap_residuals(vel, con["gap"][new] / h, con["a"][new], con["b"][new], con["nx"][new],
-                                         con["ny"][new]).min() < 0.0:  # a new candidate binds: project again
-                            vel[:, :2] = v_impact
-                            lam_warm = lam_p
-                            lam_p = None
-                        # else the projected velocities satisfy the new candidates too: with zero percussion
-                        # on them they are the exact projection over all (its KKT point), nothing to redo
-            if lam_p is not None:
+            grown = grown_margins(vel, det_speed, params.contact_tolerance_m, params.dt_s)
+            if grown.shape[0]:
+                det_speed, candidates, percussions, lam_p, added, projected = redetection_round(
+                    position, radius, idx, world, params, r_max, vel, v_impact, det_speed, grown, candidates,
+                    percussions, lam_p, projected)
+                self.n_redetections += added
+            if projected:
                 break
-            lam_p = self.cascade.project(vel, mass, con, h, self.step_count,
-                                         functools.partial(self._candidate_keys, idx, con), lam_warm)
-        return con, p_n, p_t, in_impact, lam_p
+            con = dict(zip(CONTACT_FIELDS, candidates))  # a projection again: a new candidate bound (lam_p extended)
+            lam_p = self.cascade.project(vel, mass, con, self.params.dt_s, self.step_count,
+                                         functools.partial(self._candidate_keys, idx, con), lam_p if once else None)
+            projected = once = True
+        return dict(zip(CONTACT_FIELDS, candidates)), *percussions, lam_p
 
     def _leave_at_exits(self, idx, previous_m) -> np.ndarray:
         """Deactivate pedestrians whose centre's straight path of the step, from ``previous_m`` ((n, 2)
@@ -537,17 +523,6 @@ class Simulator:
         the same key for the same contact in every step, as the cascade's warm starts need."""
         return contact_keys(idx[con["a"]], np.where(con["b"] >= 0, idx[np.maximum(con["b"], 0)], -1), con["wall"],
                             self.state.n, self.walls.shape[0])
-
-    def _redetect(self, con, speed, grown, idx, r_max, h):
-        """Candidates with margins from the speeds ``speed`` (compact, (n,)) appended to ``con``; None when
-        there is no new one (:func:`~crowd_env.core.step.redetect_candidates`)."""
-        p = self.params
-        new = redetect_candidates(self.state.position_m, self.state.radius_m, idx, self.walls, self._wall_owner,
-                                  p.contact_tolerance_m, h, r_max, speed, grown, con["a"], con["b"], con["wall"],
-                                  self.period_m)
-        if not new[0].shape[0]:
-            return None
-        return {k: np.concatenate([con[k], v]) for k, v in zip(CONTACT_FIELDS, new)}
 
     def _active_links(self, idx):
         """Hand links between active pedestrians, rows into ``idx``, with their shoulder geometry

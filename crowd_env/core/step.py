@@ -369,6 +369,45 @@ def redetect_candidates(position, radius, index, walls, wall_owner, eps_m, dt_s,
     return a[new], b[new], gap[new], nx[new], ny[new], rho_a[new], rho_b[new], wall[new]
 
 
+@nb.njit(cache=True)
+def redetection_round(position, radius, index, world, params, r_max, vel, v_impact, det_speed, grown, candidates,
+                      percussions, lam_p, projected):
+    """One round of stage 5's re-detection, as both steps run it (the fused one with the dense projection, the
+    staged one with the solver cascade; the module docstring, stage 5), for the rows ``grown`` of
+    :func:`grown_margins` (non-empty; the callers test it first, the cheap common case). The candidates
+    (``candidates``: the arrays of :data:`~crowd_env.core.contacts.CONTACT_FIELDS`) were chosen with margins from
+    the speeds ``det_speed``: where the compact velocities ``vel`` grew beyond them, the speeds are
+    raised to ‖u‖ and the candidates they now call for (:func:`redetect_candidates`) appended, with zero
+    percussions (``percussions``: normal, tangential, in the impact set) and, when ``projected`` (the gap
+    projection's percussions ``lam_p`` are those of ``vel``), zero projection percussions. If a new candidate
+    then binds (its gap would close at ``vel``), ``vel[:, :2]`` goes back to the post-impact ``v_impact`` and
+    the projection must run again; else the projected velocities satisfy the new candidates too (with zero
+    percussion on them they are the exact projection over all, its KKT point).
+
+    Returns ``(det_speed, candidates, percussions, lam_p, added, projected)``: ``added`` whether candidates were
+    added (one re-detection), ``projected`` whether ``lam_p`` still holds for ``vel``."""
+    eps_m, dt_s = params.contact_tolerance_m, params.dt_s
+    det_speed = np.maximum(det_speed, speeds(vel))
+    c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall = candidates
+    new = redetect_candidates(position, radius, index, world.walls, world.wall_owner, eps_m, dt_s, r_max, det_speed,
+                              grown, c_a, c_b, c_wall, world.period_m)
+    extra = new[0].shape[0]
+    if not extra:
+        return det_speed, candidates, percussions, lam_p, False, projected
+    candidates = (np.concatenate((c_a, new[0])), np.concatenate((c_b, new[1])), np.concatenate((c_gap, new[2])),
+                  np.concatenate((c_nx, new[3])), np.concatenate((c_ny, new[4])), np.concatenate((c_rho_a, new[5])),
+                  np.concatenate((c_rho_b, new[6])), np.concatenate((c_wall, new[7])))
+    p_n, p_t, in_impact = percussions
+    percussions = (np.concatenate((p_n, np.zeros(extra))), np.concatenate((p_t, np.zeros(extra))),
+                   np.concatenate((in_impact, np.zeros(extra, np.bool_))))
+    if projected:
+        lam_p = np.concatenate((lam_p, np.zeros(extra)))
+        if gap_residuals(vel, new[2] / dt_s, new[0], new[1], new[3], new[4]).min() < 0.0:  # a new one binds
+            vel[:, :2] = v_impact
+            projected = False
+    return det_speed, candidates, percussions, lam_p, True, projected
+
+
 @nb.njit(cache=True, inline="always")
 def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached_radius_m):
     """The stages 1-6 (but the exit test) in one compiled call, with the dense solvers only (module docstring).
@@ -402,43 +441,28 @@ def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached
     if unsolved.shape[0]:
         return FUSED_LARGE_CLUSTER, none, ke0, 0.0, 0.0, 0, 0, np.inf, 0
     ke1 = kinetic_energy(vel, mass, inertia)
-    # Stage 5 as Simulator._staged_step runs it with the dense projection (its comments say why).
+    # Stage 5 as Simulator._staged_projection runs it, with the dense projection
     v_impact = vel[:, :2].copy()
     det_speed = speed_star
-    have_lam = False
     lam_p = np.zeros(0)
+    projected = False
     n_redetect = 0
     for _ in range(MAX_REDETECT + 1):
         grown = grown_margins(vel, det_speed, eps_m, dt_s)
         if grown.shape[0]:
-            det_speed = np.maximum(det_speed, speeds(vel))
-            na, nb_, ngap, nnx, nny, nra, nrb, nwall = redetect_candidates(
-                position, radius, index, walls, wall_owner, eps_m, dt_s, r_max, det_speed, grown, c_a, c_b, c_wall,
-                period_m)
-            extra = na.shape[0]
-            if extra:
-                c_a = np.concatenate((c_a, na))
-                c_b = np.concatenate((c_b, nb_))
-                c_gap = np.concatenate((c_gap, ngap))
-                c_nx = np.concatenate((c_nx, nnx))
-                c_ny = np.concatenate((c_ny, nny))
-                c_wall = np.concatenate((c_wall, nwall))
-                p_n = np.concatenate((p_n, np.zeros(extra)))
-                p_t = np.concatenate((p_t, np.zeros(extra)))
-                in_impact = np.concatenate((in_impact, np.zeros(extra, np.bool_)))
-                n_redetect += 1
-                if have_lam:
-                    lam_p = np.concatenate((lam_p, np.zeros(extra)))
-                    if gap_residuals(vel, ngap / dt_s, na, nb_, nnx, nny).min() < 0.0:  # a new one binds
-                        vel[:, :2] = v_impact
-                        have_lam = False
-        if have_lam:
+            det_speed, candidates, percussions, lam_p, added, projected = redetection_round(
+                position, radius, index, world, params, r_max, vel, v_impact, det_speed, grown,
+                (c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall), (p_n, p_t, in_impact), lam_p, projected)
+            c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall = candidates
+            p_n, p_t, in_impact = percussions
+            n_redetect += added
+        if projected:
             break
         lam_p, _, st = project_gaps(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, PROJECTION_TOL_M_S,
                                     params.max_dense_projection_rows)
         if st != STATUS_OK:
             return FUSED_PROJECTION, none, ke0, ke1, 0.0, 0, 0, np.inf, 0
-        have_lam = True
+        projected = True
     ke2 = kinetic_energy(vel, mass, inertia)
     min_gap, contacts = finish_step(position, bodies.velocity_m_s, bodies.angular_velocity_rad_s, bodies.heading_rad,
                                     radius, index, vel, dt_s, params.rotation, walls, c_a, c_b, c_wall, p_n, p_t, lam_p,

@@ -48,7 +48,7 @@ from ..core.segments import GeometryError
 from .checks import check_clearance, check_count, check_positive as _positive
 from .placement import place_pedestrians
 from .registry import register_scenario
-from .scenario import Scenario, ScenarioError
+from .scenario import Measurement, Scenario, ScenarioError
 
 __all__ = ["seyfried_bottleneck", "bottleneck_geometry", "BottleneckScenario"]
 
@@ -146,6 +146,7 @@ def _fill_sections(n_pedestrians: int, n_sections: int, per_section: int, rng, *
     return sections, np.vstack(positions)
 
 
+@register_scenario("seyfried_bottleneck", aliases=("bottleneck",))
 def seyfried_bottleneck(width_m: float = 1.0, n_pedestrians: int = 60, seed: int | None = 0,
                         corridor_width_m: float = 4.0, channel_length_m: float = 2.8,
                         initial_density_per_m2: float = 3.3, section_depth_m: float = 1.515,
@@ -205,7 +206,5 @@ def seyfried_bottleneck(width_m: float = 1.0, n_pedestrians: int = 60, seed: int
     return BottleneckScenario(geometry=geometry, position_m=position, pedestrian_params={"radius_m": float(radius_m)},
                               spawn_area=unary_union(sections), name="seyfried_bottleneck", metadata=metadata,
                               seed=seed, navigation_resolution_m=navigation_resolution_m,
-                              navigation_clearance_m=clearance, wall_slowdown=slowdown)
-
-
-register_scenario("seyfried_bottleneck", seyfried_bottleneck, aliases=("bottleneck",))
+                              navigation_clearance_m=clearance, wall_slowdown=slowdown,
+                              measurement=Measurement("bottleneck", ("front", "inside"), "inside"))

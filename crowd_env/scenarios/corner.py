@@ -18,11 +18,12 @@ from .checks import check_clearance, check_count, check_positive
 from .doors import door_exit
 from .placement import place_pedestrians
 from .registry import register_scenario
-from .scenario import Scenario, ScenarioError
+from .scenario import Measurement, Scenario, ScenarioError
 
 __all__ = ["corner_90"]
 
 
+@register_scenario("corner_90", aliases=("corner",))
 def corner_90(leg1_length_m: float = 8.0, leg2_length_m: float = 6.0, width_m: float = 2.0, n_pedestrians: int = 20,
               seed: int | None = 0, spawn_depth_m: float = 3.0, radius_m: float = 0.23,
               density_per_m2: float | None = None, exit_depth_m: float = 0.5,
@@ -61,7 +62,5 @@ def corner_90(leg1_length_m: float = 8.0, leg2_length_m: float = 6.0, width_m: f
     return Scenario(geometry=geometry, position_m=position, pedestrian_params={"radius_m": float(radius_m)},
                     spawn_area=spawn, name="corner_90", metadata=metadata, seed=seed,
                     navigation_resolution_m=navigation_resolution_m,
-                    navigation_clearance_m=check_clearance(navigation_clearance_m, radius_m))
-
-
-register_scenario("corner_90", corner_90, aliases=("corner",))
+                    navigation_clearance_m=check_clearance(navigation_clearance_m, radius_m),
+                    measurement=Measurement("turn_in"))

@@ -6,7 +6,7 @@ ends set ``EXIT_INSET_M`` inside the walls, so that the corridor stays closed: e
 only through its own destination exit (:attr:`Scenario.destination`) and one pushed into the other
 group's exit is stopped by the end wall behind it. Pedestrians 0..n-1 start in the western spawn
 block and walk east; n..2n-1 start in the eastern block and walk west. Measurement line ``"middle"``
-across the corridor at x = length/2.
+across the corridor at x = length/2, crossed both ways: it counts the eastbound group (direction +x).
 """
 from __future__ import annotations
 
@@ -18,13 +18,14 @@ from ..core.geometry import Geometry
 from .checks import check_clearance, check_count, check_positive
 from .placement import place_pedestrians
 from .registry import register_scenario
-from .scenario import Scenario, ScenarioError
+from .scenario import Measurement, Scenario, ScenarioError
 
 __all__ = ["corridor_bidirectional", "EXIT_INSET_M"]
 
 EXIT_INSET_M = 0.01  # gap between an exit strip and the walls around it (keeps the corridor closed)
 
 
+@register_scenario("corridor_bidirectional", aliases=("corridor",))
 def corridor_bidirectional(length_m: float = 10.0, width_m: float = 3.0, n_per_direction: int = 10,
                            seed: int | None = 0, radius_m: float = 0.23, spawn_depth_m: float = 3.0,
                            exit_depth_m: float = 0.5, density_per_m2: float | None = None,
@@ -52,7 +53,8 @@ def corridor_bidirectional(length_m: float = 10.0, width_m: float = 3.0, n_per_d
     west = box(inset, -hw + inset, exit_depth_m, hw - inset)
     east = box(length_m - exit_depth_m, -hw + inset, length_m - inset, hw - inset)
     geometry = Geometry(box(0.0, -hw, length_m, hw), exits=[west, east],
-                        measurement_lines={"middle": [(0.5 * length_m, -hw), (0.5 * length_m, hw)]},
+                        measurement_lines={"middle": {"ends": [(0.5 * length_m, -hw), (0.5 * length_m, hw)],
+                                                      "direction": (1.0, 0.0)}},
                         name=f"corridor_{length_m:g}x{width_m:g}")
     rng = np.random.default_rng(seed)
     blocks = {"east": box(exit_depth_m, -hw, exit_depth_m + spawn_depth_m, hw),
@@ -71,7 +73,4 @@ def corridor_bidirectional(length_m: float = 10.0, width_m: float = 3.0, n_per_d
                     spawn_area=unary_union(list(blocks.values())), name="corridor_bidirectional", metadata=metadata,
                     seed=seed, navigation_resolution_m=navigation_resolution_m,
                     navigation_clearance_m=check_clearance(navigation_clearance_m, radius_m),
-                    destination=destination, exit_names=("west", "east"))
-
-
-register_scenario("corridor_bidirectional", corridor_bidirectional, aliases=("corridor",))
+                    destination=destination, exit_names=("west", "east"), measurement=Measurement("middle"))

@@ -22,6 +22,7 @@ from .bottleneck import seyfried_bottleneck
 __all__ = ["bottleneck_groups"]
 
 
+@register_scenario("bottleneck_groups")
 def bottleneck_groups(width_m: float = 1.2, n_pedestrians: int = 40, seed: int | None = 0, n_pairs: int = 4,
                       n_triples: int = 2, hand_gap_m: float = 0.05, **bottleneck_options):
     """The Seyfried bottleneck (``width_m``, ``n_pedestrians``, any other of its options) with hand-holding
@@ -52,6 +53,3 @@ def bottleneck_groups(width_m: float = 1.2, n_pedestrians: int = 40, seed: int |
 def _group_rng(seed):
     """The RNG choosing the groups: independent of the placement's stream, reproducible from ``seed``."""
     return np.random.default_rng(None if seed is None else [int(seed), 1])
-
-
-register_scenario("bottleneck_groups", bottleneck_groups)

@@ -33,7 +33,7 @@ from ..core.geometry import Geometry
 from .checks import check_clearance, check_count, check_positive
 from .placement import place_pedestrians
 from .registry import register_scenario
-from .scenario import Scenario, ScenarioError
+from .scenario import Measurement, Scenario, ScenarioError
 
 __all__ = ["juelich_corridor", "juelich_corridor_geometry", "UO_CORRIDOR_START_Y_M", "UO_CORRIDOR_END_Y_M",
            "UO_BARRIER_Y_M", "UO_VIEW_Y_M", "UO_MEASUREMENT_Y_M"]
@@ -100,6 +100,7 @@ def juelich_corridor_geometry(entrance_width_m: float = 1.8, exit_width_m: float
     return geometry, waiting
 
 
+@register_scenario("juelich_corridor", aliases=("uo_corridor",))
 def juelich_corridor(entrance_width_m: float = 1.8, exit_width_m: float = 1.8, n_pedestrians: int = 220,
                      seed: int | None = 0, corridor_width_m: float = 1.8, radius_m: float = 0.23,
                      floor_width_m: float = 5.0, waiting_width_m: float = 5.0, waiting_density_per_m2: float = 3.0,
@@ -153,7 +154,5 @@ def juelich_corridor(entrance_width_m: float = 1.8, exit_width_m: float = 1.8, n
     }
     return Scenario(geometry=geometry, position_m=position, pedestrian_params={"radius_m": float(radius_m)},
                     spawn_area=waiting, name="juelich_corridor", metadata=metadata, seed=seed,
-                    navigation_resolution_m=navigation_resolution_m, navigation_clearance_m=clearance)
-
-
-register_scenario("juelich_corridor", juelich_corridor, aliases=("uo_corridor",))
+                    navigation_resolution_m=navigation_resolution_m, navigation_clearance_m=clearance,
+                    measurement=Measurement("exit", ("measurement",)))

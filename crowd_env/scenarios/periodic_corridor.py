@@ -34,6 +34,7 @@ EAST, WEST = 0, 1  # the navigation keys of the two walking directions
 DEFAULT_DENSITY_PER_M2 = 1.0  # when neither density_per_m2 nor n_pedestrians is given
 
 
+@register_scenario("periodic_corridor")
 def periodic_corridor(length_m: float = 20.0, width_m: float = 1.8, density_per_m2: float | None = None,
                       n_pedestrians: int | None = None, westbound_fraction: float = 0.0, seed: int | None = 0,
                       radius_m: float = 0.23, navigation_resolution_m: float = 0.1) -> Scenario:
@@ -83,6 +84,3 @@ def periodic_corridor(length_m: float = 20.0, width_m: float = 1.8, density_per_
                     spawn_area=strip, name="periodic_corridor", metadata=metadata, seed=seed,
                     navigation_resolution_m=navigation_resolution_m,
                     navigation_field=DestinationNavigation(fields, heading_to))
-
-
-register_scenario("periodic_corridor", periodic_corridor)

@@ -33,7 +33,7 @@ from .checks import check_clearance, check_count, check_positive
 from .doors import door_exit, door_widths_m
 from .placement import place_pedestrians
 from .registry import register_scenario
-from .scenario import Scenario, ScenarioError
+from .scenario import Measurement, Scenario, ScenarioError
 
 __all__ = ["scenario_from_polygon", "walkable_polygon", "exit_polygons"]
 
@@ -100,18 +100,21 @@ def exit_polygons(exits, walkable_area, depth_m: float = 0.5) -> list:
     return out
 
 
+@register_scenario("polygon", aliases=("custom",))
 def scenario_from_polygon(walkable_area, exits, spawn_area, n_pedestrians: int, holes=(), seed: int | None = 0,
                           radius_m: float = 0.23, density_per_m2: float | None = None, exit_depth_m: float = 0.5,
                           exit_names=None, destination=None, measurement_lines=None,
                           navigation_clearance_m: float | None = None, navigation_resolution_m: float = 0.05,
-                          name: str = "polygon") -> Scenario:
+                          name: str = "polygon", measurement: Measurement | None = None) -> Scenario:
     """A validated :class:`Scenario` on a user geometry with ``n_pedestrians`` placed in ``spawn_area``.
 
     ``walkable_area``: (K, 2) outer-ring coordinates (with ``holes``: a list of (K, 2) rings) or a WKT
     string / shapely polygon (holes inside it; extra ``holes`` are subtracted too). ``exits``: list
     of exit polygons and/or door segments (or a dict name -> exit, which also names them).
     ``spawn_area``: polygon (coordinates, WKT or shapely) inside the walkable area. ``destination``:
-    optional per-pedestrian exit names/indices (see :class:`Scenario`). Raises
+    optional per-pedestrian exit names/indices (see :class:`Scenario`). ``measurement_lines`` (see
+    :class:`~crowd_env.core.geometry.Geometry`) and ``measurement`` (:class:`~crowd_env.scenarios.scenario.Measurement`,
+    default: the first line) say what a run measures. Raises
     :class:`~crowd_env.core.segments.GeometryError` / :class:`ScenarioError` naming the problem: an
     invalid (e.g. self-intersecting) polygon, no exit, an exit not touching the walkable area or
     unreachable from the spawn area, a spawn area outside the walkable area, N too large for it.
@@ -143,7 +146,7 @@ def scenario_from_polygon(walkable_area, exits, spawn_area, n_pedestrians: int, 
     return Scenario(geometry=geometry, position_m=position, pedestrian_params={"radius_m": float(radius_m)},
                     spawn_area=spawn, name=name, metadata=metadata, seed=seed,
                     navigation_resolution_m=navigation_resolution_m, navigation_clearance_m=clearance,
-                    destination=destination, exit_names=exit_names)
+                    destination=destination, exit_names=exit_names, measurement=measurement)
 
 
 def _check_doors_passable(geometry: Geometry, radius_m: float, clearance_m: float, exit_names=None) -> None:
@@ -198,6 +201,3 @@ def _check_exits_reachable(geometry: Geometry, spawn, resolution_m: float, clear
         if not reached & set(np.unique(labels[at_exit]).tolist()):
             raise ScenarioError(f"exit {k} is unreachable from the spawn area: no path for a pedestrian of radius "
                                 f"{clearance_m} m (navigation_clearance_m) joins them")
-
-
-register_scenario("polygon", scenario_from_polygon, aliases=("custom",))

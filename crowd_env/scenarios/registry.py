@@ -1,5 +1,6 @@
-"""The registry of scenarios by name: :func:`register_scenario`, :func:`make_scenario` (options checked against
-the factory's signature), :func:`list_scenarios`, :func:`scenario_options`."""
+"""The registry of scenarios by name: :func:`register_scenario` (a decorator of the factory, or a call),
+:func:`make_scenario` (options checked against the factory's signature), :func:`list_scenarios`,
+:func:`scenario_options`, :func:`scenario_aliases`."""
 from __future__ import annotations
 
 from crowd_env.errors import ScenarioError
@@ -10,14 +11,27 @@ from typing import Callable
 from ..core.checks import check_seed
 from .scenario import Scenario
 
-__all__ = ["register_scenario", "make_scenario", "list_scenarios", "scenario_options", "scenario_factory", "body_options"]
+__all__ = ["register_scenario", "make_scenario", "list_scenarios", "scenario_options", "scenario_factory",
+           "scenario_aliases", "body_options"]
 
 
 _REGISTRY: dict[str, Callable[..., Scenario]] = {}
+_ALIASES: dict[str, tuple] = {}  # name -> the aliases registered with it
 
 
-def register_scenario(name: str, factory: Callable[..., Scenario], *, aliases=(), overwrite: bool = False) -> None:
-    """Register ``factory(**options) -> Scenario`` under ``name`` (and ``aliases``)."""
+def register_scenario(name: str, factory: Callable[..., Scenario] | None = None, *, aliases=(),
+                      overwrite: bool = False):
+    """Register ``factory(**options) -> Scenario`` under ``name`` (and ``aliases``); returns the factory. Without
+    a factory, a decorator that registers the function it decorates and returns it::
+
+        @register_scenario("stadium", aliases=("arena",))
+        def stadium(n_pedestrians: int = 100, seed: int | None = 0) -> Scenario:
+            ...
+    """
+    if factory is None:
+        def register(function):
+            return register_scenario(name, function, aliases=aliases, overwrite=overwrite)
+        return register
     if not callable(factory):
         raise ScenarioError(f"scenario factory for {name!r} is not callable")
     for key in (name, *aliases):
@@ -27,6 +41,13 @@ def register_scenario(name: str, factory: Callable[..., Scenario], *, aliases=()
             raise ScenarioError(f"a scenario named {key!r} is already registered (pass overwrite=True)")
     for key in (name, *aliases):
         _REGISTRY[key] = factory
+    _ALIASES[name] = tuple(aliases)
+    return factory
+
+
+def scenario_aliases(name: str) -> tuple:
+    """The aliases registered with the scenario ``name`` (``()`` for an alias itself or an unknown name)."""
+    return _ALIASES.get(name, ())
 
 
 def list_scenarios() -> list:

@@ -19,13 +19,14 @@ from .checks import check_clearance, check_count, check_positive
 from .doors import door_exit
 from .placement import place_pedestrians
 from .registry import register_scenario
-from .scenario import Scenario, ScenarioError
+from .scenario import Measurement, Scenario, ScenarioError
 
 __all__ = ["room_pillar", "PILLAR_SHAPES"]
 
 PILLAR_SHAPES = ("circle", "square")
 
 
+@register_scenario("room_pillar")
 def room_pillar(length_m: float = 8.0, width_m: float = 6.0, door_width_m: float = 1.0, n_pedestrians: int = 30,
                 seed: int | None = 0, pillar_shape: str = "circle", pillar_size_m: float = 0.6,
                 pillar_distance_m: float = 1.2, pillar_offset_m: float = 0.0, spawn_depth_m: float = 4.0,
@@ -72,7 +73,5 @@ def room_pillar(length_m: float = 8.0, width_m: float = 6.0, door_width_m: float
     return Scenario(geometry=geometry, position_m=position, pedestrian_params={"radius_m": float(radius_m)},
                     spawn_area=spawn, name="room_pillar", metadata=metadata, seed=seed,
                     navigation_resolution_m=navigation_resolution_m,
-                    navigation_clearance_m=check_clearance(navigation_clearance_m, radius_m))
-
-
-register_scenario("room_pillar", room_pillar)
+                    navigation_clearance_m=check_clearance(navigation_clearance_m, radius_m),
+                    measurement=Measurement("door"))

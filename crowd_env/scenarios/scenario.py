@@ -25,14 +25,44 @@ from ..walking.navigation import DestinationNavigation, NavigationField, Rigidly
 from ..walking.route_choice import QuickestExitNavigation
 from .doors import door_widths_m
 
-__all__ = ["Scenario", "ScenarioError", "ROUTE_CHOICES", "PEDESTRIAN_PARAMS"]
+__all__ = ["Scenario", "ScenarioError", "Measurement", "ROUTE_CHOICES", "PEDESTRIAN_PARAMS"]
 
 
 ROUTE_CHOICES = ("quickest",)
+# A measurement line's walkers cross it when the navigation field at its midpoint makes more than this cosine with
+# the line's normal (about 6° off the line's direction); below it the field runs along the line there.
+LINE_MIN_CROSSING = 0.1
+LINE_SIDE_STEPS = 2  # the field is read this many grid cells before and beyond the midpoint too
+
+
+def _line_middle(ends, floor) -> np.ndarray:
+    """The midpoint of the longest part of the segment ``ends`` (2, 2) across ``floor`` (its middle when it is
+    all on the floor)."""
+    parts = [p for p in shapely.get_parts(shapely.LineString(ends).intersection(floor)) if p.length > 0.0]
+    if not parts:
+        return 0.5 * (ends[0] + ends[1])
+    best = np.asarray(max(parts, key=lambda p: p.length).coords)
+    return 0.5 * (best[0] + best[-1])
 
 
 PEDESTRIAN_PARAMS = ("radius_m", "mass_kg", "inertia_kg_m2", "desired_speed_m_s", "tau_s", "heading_stiffness",
                      "heading_damping", "velocity_m_s", "angular_velocity_rad_s", "premovement_s")
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """What a run of a scenario measures unless told otherwise
+    (:func:`~crowd_env.experiments.running.runner.run_scenario`, the evaluation harness): the passages of the
+    measurement ``line`` (a name of the geometry's lines; None: none), the densities and speeds in the
+    ``density_areas`` (names of its areas) and the lateral positions in ``lane_area`` (None: none)."""
+
+    line: str | None = None
+    density_areas: tuple = ()
+    lane_area: str | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "density_areas", (self.density_areas,) if isinstance(self.density_areas, str)
+                           else tuple(self.density_areas))
 
 
 @dataclass(eq=False)
@@ -61,7 +91,8 @@ class Scenario:
     ``route_choice``: None, or ``"quickest"``: with ``destination`` None and two or more exits, each
     pedestrian heads for the exit it expects to leave by soonest, re-chosen as the crowd moves
     (:class:`~crowd_env.walking.route_choice.QuickestExitNavigation`; RiMEA test 11), and leaves through
-    any exit. Validated on construction.
+    any exit. ``measurement``: what a run measures unless told otherwise (:class:`Measurement`); None: the
+    geometry's first measurement line, no areas. Validated on construction.
     """
 
     geometry: Geometry
@@ -81,6 +112,7 @@ class Scenario:
     exit_names: tuple | None = None
     navigation_field: object = field(default=None, repr=False, compare=False)
     route_choice: str | None = None
+    measurement: Measurement | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.geometry, Geometry):
@@ -124,8 +156,25 @@ class Scenario:
                 raise ScenarioError(f"route_choice must be None or one of {ROUTE_CHOICES}, got {self.route_choice!r}")
             if self.destination is not None or len(self.geometry.exits) < 2:
                 raise ScenarioError("route_choice needs two or more exits and no fixed destinations (destination=None)")
+        self.measurement = self._check_measurement(self.measurement)
         self._navigation = None
         self.validate()
+
+    def _check_measurement(self, measurement) -> Measurement:
+        """``measurement`` (None: the first line, no areas) with names the geometry has, else ScenarioError."""
+        g = self.geometry
+        if measurement is None:
+            return Measurement(next(iter(g.measurement_lines), None))
+        if not isinstance(measurement, Measurement):
+            raise ScenarioError(f"measurement must be a Measurement or None, got {measurement!r}")
+        if measurement.line is not None and measurement.line not in g.measurement_lines:
+            raise ScenarioError(f"measurement line {measurement.line!r} is not one of the geometry's lines "
+                                f"{sorted(g.measurement_lines)}")
+        for area in (*measurement.density_areas, *([measurement.lane_area] if measurement.lane_area else [])):
+            if area not in g.measurement_areas:
+                raise ScenarioError(f"measurement area {area!r} is not one of the geometry's areas "
+                                    f"{sorted(g.measurement_areas)}")
+        return measurement
 
     def _check_exit_names(self, names) -> tuple:
         n_exits = len(self.geometry.exits)
@@ -243,9 +292,16 @@ class Scenario:
             p = np.asarray(p, dtype=np.float64).reshape(-1, 2)
             return np.stack((c * p[:, 0] - s_ * p[:, 1] + t[0], s_ * p[:, 0] + c * p[:, 1] + t[1]), axis=1)
 
+        def move_line(name):
+            spec = g.measurement_line_spec(name)
+            if not isinstance(spec, dict):
+                return move_points(spec)
+            d = spec["direction"]
+            return {**spec, "ends": move_points(spec["ends"]), "direction": (c * d[0] - s_ * d[1], s_ * d[0] + c * d[1])}
+
         g = self.geometry
         geometry = Geometry(move(g.walkable_area), [move(e) for e in g.exits],
-                            measurement_lines={k: move_points(v) for k, v in g.measurement_lines.items()},
+                            measurement_lines={k: move_line(k) for k in g.measurement_lines},
                             measurement_areas={k: move(v) for k, v in g.measurement_areas.items()}, name=g.name)
         return replace(self, geometry=geometry, position_m=move_points(self.position_m),
                        heading_rad=np.asarray(self.heading_rad, dtype=np.float64) + phi,
@@ -260,10 +316,81 @@ class Scenario:
         state = self.make_state(rng=rng) if state is None else state
         return Simulator(state, geometry=self.geometry, params=params, destination=self.destination)
 
+    # -- measurement lines --------------------------------------------------------------------------
+    def line_direction(self, name: str) -> np.ndarray:
+        """The unit normal (2,) of measurement line ``name`` on the side it counts passages towards: the side of
+        the direction the geometry gives it (:attr:`~crowd_env.core.geometry.Geometry.measurement_line_directions`),
+        else the side the navigation field leads the walkers to at the line's midpoint (the middle of its
+        longest part across the floor): towards their destination. Without walkers to tell (per-pedestrian
+        destinations and nobody), the side it was drawn with (its clockwise normal). Checked for every line
+        when the scenario is made (:meth:`validate`)."""
+        if name not in self.geometry.measurement_lines:
+            raise ScenarioError(f"scenario {self.name!r} has no measurement line {name!r}; it has "
+                                f"{sorted(self.geometry.measurement_lines)}")
+        known = self.__dict__.setdefault("_line_normals", {})
+        if name not in known:
+            known[name] = self._line_normal(name)
+        return known[name].copy()
+
+    def _line_normal(self, name: str) -> np.ndarray:
+        """:meth:`line_direction`, resolved; :class:`ScenarioError` for a line given a direction against all its
+        walkers (unless the geometry says so), and for a line without one that the field crosses both ways or
+        runs along."""
+        g = self.geometry
+        ends = g.measurement_lines[name]
+        t = ends[1] - ends[0]
+        normal = np.array([t[1], -t[0]]) / float(np.hypot(t[0], t[1]))  # the clockwise normal
+        middle = _line_middle(ends, g.navigable_area)
+        walkers = self._walkers_across(middle, normal)  # the side each walker crosses to, or None: no walkers
+        ahead = walkers is not None and bool((walkers > 0).any())
+        behind = walkers is not None and bool((walkers < 0).any())
+        given = g.measurement_line_directions.get(name)
+        where = f"measurement line {name!r} of scenario {self.name!r} (midpoint {np.round(middle, 3).tolist()})"
+        if given is not None:
+            side = 1.0 if float(given @ normal) > 0.0 else -1.0
+            if (behind if side > 0 else ahead) and not (ahead if side > 0 else behind) \
+                    and name not in g.lines_against_walkers:
+                raise ScenarioError(f"{where} counts towards {np.round(side * normal, 3).tolist()}, against its "
+                                    "walkers, whom the navigation field leads the other way there: give the direction "
+                                    "towards their destination, or against_walkers=True if that is meant")
+            return side * normal
+        if walkers is None:
+            return normal
+        if ahead and behind:
+            raise ScenarioError(f"{where} is crossed both ways (walkers to different destinations): give it a "
+                                "direction, measurement_lines={name: {'ends': ..., 'direction': (x, y)}}")
+        if not (ahead or behind):
+            raise ScenarioError(f"{where}: the navigation field runs along it there (or does not reach it), so the "
+                                "side its walkers cross to is unknown: give it a direction")
+        return normal if ahead else -normal
+
+    def _walkers_across(self, point, normal):
+        """The side each walker's field crosses the line at ``point`` to: +1 along ``normal``, −1 against it, 0 where
+        it cannot tell (the field runs along the line, does not reach it, or turns there: a watershed nobody
+        crosses). The field e_d is read at ``point`` and a step of :data:`LINE_SIDE_STEPS` grid cells before and
+        beyond it, and the three must agree. One value for all without destinations; None without walkers to
+        tell (per-pedestrian destinations and nobody)."""
+        nav = self.navigation()
+        step = LINE_SIDE_STEPS * float(self.navigation_resolution_m) * normal
+        points = np.array([point - step, point, point + step])
+        if not nav.per_pedestrian:
+            e, _ = nav.sample(points)
+            across = (e @ normal)[None]
+        elif self.n_pedestrians:
+            n = self.n_pedestrians
+            e, _ = nav.sample(np.tile(points, (n, 1)), np.repeat(np.arange(n), 3))
+            across = (e @ normal).reshape(n, 3)
+        else:
+            return None
+        ahead = (across >= LINE_MIN_CROSSING).all(axis=1)
+        behind = (across <= -LINE_MIN_CROSSING).all(axis=1)
+        return ahead.astype(np.int64) - behind.astype(np.int64)
+
     # -- validation ---------------------------------------------------------------------------------
     def validate(self) -> None:
         """Raise naming the pedestrian when a start is outside the walkable area, crosses a wall, lies in
-        an exit, overlaps another one, or cannot reach any exit."""
+        an exit, overlaps another one, or cannot reach any exit; and naming the line when a measurement line
+        counts against its walkers or cannot tell their side (:meth:`line_direction`)."""
         pos = self.position_m
         n = pos.shape[0]
         r = self.radius_m()
@@ -293,6 +420,7 @@ class Scenario:
                 nav.check_reachable(pos, np.arange(n), what="pedestrian")
             else:
                 nav.check_reachable(pos, what="pedestrian")
+            self._line_normals = {k: self._line_normal(k) for k in self.geometry.measurement_lines}
         if self.heading_rad is None:
             self.heading_rad = self._initial_headings()
         heading = np.array(self.heading_rad, dtype=np.float64)

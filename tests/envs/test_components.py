@@ -21,10 +21,11 @@ from crowd_env.envs.observations import (COMPONENTS, DEFAULT_COMPONENTS, EGOCENT
 from crowd_env.envs.observations.free_distance import FreeDistance
 from crowd_env.envs.observations.local_density import LocalDensity
 from crowd_env.envs.rewards import DEFAULT_TERMS, DefaultReward, TermReward, resolve_terms
-from crowd_env.envs.rewards.terms import Progress
+from crowd_env.envs.rewards.terms import Progress, TimeCost
 from crowd_env.errors import EnvOptionError, UnknownOptionError
 from tests.envs.observation_reference import CASES, PATH, rollout
 from tests.envs.test_env import room_scenario
+from tests.envs.user_component import VelocityError
 
 SMALL = {"scenario_options": {"n_pedestrians": 12}, "frame_skip": 5, "max_steps": 40}
 USER_COMPONENT = "tests.envs.user_component:VelocityError"
@@ -48,18 +49,70 @@ def test_default_observation_rewards_and_bounds_are_bitwise_the_frozen_ones(case
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_the_fused_default_pass_equals_the_components_one_by_one(case, monkeypatch):
-    """Two implementations: the default components in one compiled call (ObservationBuilder._default_pass) and
-    each component's own ``write`` in turn give the same bits, in every frozen case."""
+    """The built-in components in one compiled call (ObservationBuilder: _observe, _write_builtins) and each
+    component's own ``write`` in turn give the same bits, in every frozen case."""
     from crowd_env.envs.observations.assembler import ObservationBuilder
 
     env = crowd_v0.parallel_env(**CASES[case][0])
     assert env._observer._fused is not None  # the default takes the fused pass
     fused = rollout(*CASES[case])
-    monkeypatch.setattr(ObservationBuilder, "_default_columns", lambda self: None)
+    monkeypatch.setattr(ObservationBuilder, "_compiled_table", lambda self: None)
     one_by_one = rollout(*CASES[case])
     assert fused.keys() == one_by_one.keys()
     for key in fused:
         np.testing.assert_array_equal(_bits(fused[key]), _bits(one_by_one[key]), err_msg=f"{case}/{key}")
+
+
+@pytest.mark.parametrize("frame", ["world", "egocentric"])
+def test_every_built_in_component_takes_the_one_compiled_pass_with_the_bits_of_its_own_write(frame, monkeypatch):
+    """Any list of built-in components, a user's among them or not, is written by the one compiled pass
+    (_write_builtins: every class of COMPONENTS has its kind there, so a new built-in cannot fall back to a call
+    of its own unnoticed) with the bits of each component's own ``write``."""
+    from crowd_env.envs.observations.assembler import _KINDS, ObservationBuilder
+
+    assert set(COMPONENTS.values()) <= set(_KINDS)
+    every = [*reversed(list(COMPONENTS)), LocalDensity(radius_m=1.7, max_count=5)]
+    every.remove("local_density")
+    options = dict(SMALL, scenario_options={"n_pedestrians": 12, "width_m": 1.0}, observation_frame=frame,
+                   n_neighbors=3, n_rays=5)
+
+    def run(components):
+        env = crowd_v0.parallel_env(**options, observation_components=components)
+        obs, _ = env.reset(seed=2)
+        rows = [np.stack(list(obs.values()))]
+        for _ in range(6):
+            obs, *_ = env.step({a: np.array([1.0, 0.3]) for a in env.agents})
+            rows.append(np.stack(list(obs.values())))
+        return env, np.concatenate(rows)
+
+    for components in (every, [every[0], USER_COMPONENT, *every[1:]]):
+        env, compiled = run(components)
+        assert env._observer._fused is not None  # the built-ins in the compiled pass, the user's alone from Python
+        assert [type(write.__self__) for write, _, _ in env._observer._writers] == [VelocityError] * (len(components) > 8)
+        with monkeypatch.context() as m:
+            m.setattr(ObservationBuilder, "_compiled_table", lambda self: None)
+            one_by_one = run(components)[1]
+        np.testing.assert_array_equal(_bits(compiled), _bits(one_by_one))
+
+
+def test_every_built_in_reward_term_is_computed_in_the_compiled_sum():
+    """Each term of REWARD_TERMS names a kind that the one compiled sum computes (none left to a value() of its
+    own); a subclass that computes its own value() is summed with it."""
+    from crowd_env.envs.rewards import REWARD_TERMS
+    from crowd_env.envs.rewards.base import GIVEN, _kind
+
+    assert all(_kind(term()) != GIVEN for term in REWARD_TERMS.values())
+
+    class Halved(Progress):
+        def value(self, env, info):
+            return 0.5 * info["progress_s"]
+
+    assert _kind(Halved()) == GIVEN
+    info = {"progress_s": np.array([0.25, -1.0]), "dt_s": 0.1}
+    got = TermReward([Halved(2.0), TimeCost()])(None, [0, 1], info)
+    np.testing.assert_array_equal(got, 2.0 * (0.5 * info["progress_s"]) + 0.1 * -0.1)
+    with pytest.raises(KeyError, match="progress_s"):
+        TermReward([Progress()])(None, [0, 1], {"dt_s": 0.1})
 
 
 def test_default_fields_and_layout_are_unchanged():

@@ -85,6 +85,7 @@ def scratch_registry(monkeypatch):
     from crowd_env.scenarios import registry
 
     monkeypatch.setattr(registry, "_REGISTRY", dict(registry._REGISTRY))
+    monkeypatch.setattr(registry, "_ALIASES", dict(registry._ALIASES))
 
 
 def test_registry(scratch_registry):

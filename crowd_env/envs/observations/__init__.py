@@ -50,7 +50,9 @@ Components
     bilinear sampling, one k-nearest search on a cell grid,
     :func:`crowd_env.core.neighbors.grid_k_nearest`, the headings' cos and sin:
     :class:`~.base.ObservationContext`) and lets each fill its columns for all agents at once; nothing
-    loops over agents in Python.
+    loops over agents in Python. The built-in components are written in one compiled call
+    (:func:`~.assembler._write_builtins`, the kernels their ``write`` calls), a component of another module
+    from Python after it.
 """
 from __future__ import annotations
 

@@ -5,7 +5,10 @@ built-in names of :data:`COMPONENTS`, ``"module:attribute"`` import paths or com
 their blocks out in that order, computes the work they share once per step in one compiled call
 (:func:`_prepare`: the navigation sampling, the k-nearest search on a cell grid,
 :func:`crowd_env.core.neighbors.grid_k_nearest`, and the headings' cos and sin) and lets each component
-fill its own columns for all agents at once; nothing loops over agents in Python.
+fill its own columns for all agents at once; nothing loops over agents in Python. The built-in components
+(:data:`_KINDS`) are written by one compiled function, :func:`_write_builtins`, in the same call as the shared work
+when every component is built in (:func:`_observe`); a component of another module then fills its columns from
+Python.
 """
 from __future__ import annotations
 
@@ -20,9 +23,9 @@ from ...core.neighbors import grid_k_nearest
 from ...walking.navigation import NavigationField, sample_bilinear
 from .base import ObservationComponent, ObservationContext, ObservationSpec, check_frame
 from .desired_direction import DesiredDirection
-from .free_distance import FreeDistance
+from .free_distance import FreeDistance, write_free_distance
 from .heading import Heading, write_heading
-from .local_density import LocalDensity
+from .local_density import LocalDensity, write_density
 from .neighbors import Neighbors, write_neighbors
 from .travel_time import TravelTime, write_column
 from .velocity import Velocity, write_in_frame
@@ -139,21 +142,24 @@ class ObservationBuilder:
             (self.walls[:, :2], self.walls[:, 2:] - self.walls[:, :2])))  # start (x, y) and direction (ex, ey)
         self._parts, self.low, self.high = self._lay_out()
         self._search_k = self.n_neighbors if any(c.uses_neighbors for c, _, _ in self._parts) else 0
-        self._writers = tuple((c.write, col, size) for c, col, size in self._parts)
-        self._fused = self._default_columns()
+        self._fused = self._compiled_table()
+        compiled = () if self._fused is None else self._fused[1][-1]
+        self._writers = tuple((c.write, col, size) for c, col, size in self._parts if type(c) not in _KINDS
+                              or not len(compiled))  # written from Python: components of other modules
 
-    def _default_columns(self):
-        """For the default components (these classes, in this order): the first column of each (−1: absent,
-        as the heading in the egocentric frame) and the ray table, which :func:`_default_pass` fills in one
-        compiled call (the same kernels as the components' own ``write``); None for any other list."""
-        if tuple(type(c) for c in self.components) != _DEFAULT_TYPES:
+    def _compiled_table(self):
+        """The arguments of :func:`_write_builtins` that stay the same at every step, its table last: a row per
+        built-in component (:data:`_KINDS`: every one of :data:`COMPONENTS`) with entries, in their order (its
+        kind, its first column and its constants); None when there is none. The builder writes them all in one
+        compiled call (with the shared work, :func:`_observe`, when no other component needs the context)."""
+        rows = [_table_row(c, col) for c, col, _ in self._parts if type(c) in _KINDS]
+        if not rows:
             return None
-        first = {type(c): col for c, col, _ in self._parts}
-        cols = np.array([first.get(kind, -1) for kind in _DEFAULT_TYPES], np.int64)
         ray_cos, ray_sin = ray_table(self.n_rays)
-        spec = self.spec  # the arguments of _default_pass that stay the same at every step, in its order
+        spec = self.spec
         return ((self._search_k, spec.neighbor_radius_m, spec.period_m),
-                (self.frame == "world", self._walls_d, ray_cos, ray_sin, spec.ray_range_m, cols))
+                (self.frame == "world", self.walls, self._walls_d, ray_cos, ray_sin, spec.ray_range_m,
+                 np.array(rows, np.float64)))
 
     def _lay_out(self) -> tuple:
         """The (component, first column, size) of every component with entries, and the bounds."""
@@ -201,10 +207,10 @@ class ObservationBuilder:
             else:
                 e_d, travel = self.navigation.sample(pos)
             nav = _NO_GRID
-        if self._fused is not None:
-            head, tail = self._fused
-            bad = _default_pass(state.position_m, state.velocity_m_s, state.heading_rad, state.active, index,
-                                nav[0], nav[1], nav[2], nav is not _NO_GRID, *head, e_d, travel, speed, *tail, obs)
+        fused = self._fused
+        if fused is not None and not self._writers:  # built-in components only: one compiled call
+            bad = _observe(state.position_m, state.velocity_m_s, state.heading_rad, state.active, state.radius_m, index,
+                           nav[0], nav[1], nav[2], nav is not _NO_GRID, *fused[0], e_d, travel, speed, *fused[1], obs)
             if bad >= 0:  # outside the navigation grid: the field raises its own error
                 self.navigation.sample(state.position_m[index[bad:bad + 1]])
             return obs, travel, speed
@@ -218,6 +224,9 @@ class ObservationBuilder:
         if bad >= 0:  # outside the navigation grid: the field raises its own error
             self.navigation.sample(state.position_m[index[bad:bad + 1]])
             return obs, travel, speed
+        if fused is not None:
+            _write_builtins(state.position_m, state.velocity_m_s, state.radius_m, index, act, near, velocity, cos_t,
+                            sin_t, e_d, travel, spec.period_m, *fused[1], obs)
         ctx = ObservationContext(state, index, spec, self.walls, self._walls_d, velocity, cos_t, sin_t, e_d, travel,
                                  speed, act, near)
         for write, col, size in self._writers:
@@ -226,7 +235,19 @@ class ObservationBuilder:
 
 
 _NO_GRID = (np.zeros(3), np.zeros((2, 2)), np.zeros((2, 2, 2)))
-_DEFAULT_TYPES = (Velocity, Heading, DesiredDirection, TravelTime, Neighbors, WallRays)  # DEFAULT_COMPONENTS' classes
+# The built-in components that _write_builtins writes, by class (a subclass, which may write otherwise, is not one):
+# every one of COMPONENTS (tests/envs/test_components.py), so that none is left to a call of its own from Python.
+VELOCITY, HEADING, DESIRED_DIRECTION, TRAVEL_TIME, NEIGHBORS, WALL_RAYS, FREE_DISTANCE, LOCAL_DENSITY = range(8)
+_KINDS = {Velocity: VELOCITY, Heading: HEADING, DesiredDirection: DESIRED_DIRECTION, TravelTime: TRAVEL_TIME,
+          Neighbors: NEIGHBORS, WallRays: WALL_RAYS, FreeDistance: FREE_DISTANCE, LocalDensity: LOCAL_DENSITY}
+
+
+def _table_row(component, col: int) -> tuple:
+    """A row of :func:`_write_builtins`' table: the component's kind, its first column and its constants (the
+    local density's count limit, radius ρ and 1/(π ρ²))."""
+    if type(component) is LocalDensity:
+        return LOCAL_DENSITY, col, component.max_count, component.radius_m, component.per_area
+    return _KINDS[type(component)], col, 0.0, 0.0, 0.0
 
 
 def _grid_of(field: NavigationField) -> tuple:
@@ -268,11 +289,39 @@ def _prepare(position, velocity, heading, active, index, grid_xyh, grid_t, grid_
 
 
 @nb.njit(cache=True)
-def _default_pass(position, velocity, heading, active, index, grid_xyh, grid_t, grid_d, sample, k, radius_m,
-                  period_m, e_d, travel, speed, world, walls_d, ray_cos, ray_sin, ray_range_m, cols, obs):
-    """The default observation in one compiled call: :func:`_prepare`, then the kernels the default components'
-    ``write`` call, in their order, at the columns ``cols`` (velocity, heading, desired direction, travel time,
-    neighbours, wall rays; −1: absent). Returns −1, or the first row outside the navigation grid."""
+def _write_builtins(position, velocity, radius, index, act, near, vel, cos_t, sin_t, e_d, travel, period_m, world,
+                    walls, walls_d, ray_cos, ray_sin, ray_range_m, table, obs):
+    """The built-in components' columns (``table``: a row per component, :func:`_table_row`), each by the kernel its
+    own ``write`` calls, from the shared work of :func:`_prepare` (``act``, ``near``, ``vel``, ``cos_t``, ``sin_t``,
+    ``e_d``, ``travel``); ``walls`` (S, 4) the segments, ``walls_d`` the same as start and direction."""
+    for row in range(table.shape[0]):
+        kind = int(table[row, 0])
+        col = int(table[row, 1])
+        if kind == VELOCITY:
+            write_in_frame(vel, cos_t, sin_t, world, obs, col)
+        elif kind == HEADING:
+            write_heading(cos_t, sin_t, obs, col)
+        elif kind == DESIRED_DIRECTION:
+            write_in_frame(e_d, cos_t, sin_t, world, obs, col)
+        elif kind == TRAVEL_TIME:
+            write_column(travel, obs, col)
+        elif kind == NEIGHBORS:
+            write_neighbors(position, velocity, index, act, near, cos_t, sin_t, world, period_m, obs, col)
+        elif kind == WALL_RAYS:
+            write_rays(position, index, cos_t, sin_t, walls_d, ray_cos, ray_sin, ray_range_m, obs, col)
+        elif kind == FREE_DISTANCE:
+            write_free_distance(position, radius, index, act, near, cos_t, sin_t, walls, period_m, ray_range_m, obs,
+                                col)
+        elif kind == LOCAL_DENSITY:
+            found = grid_k_nearest(position, act, index, int(table[row, 2]), table[row, 3], period_m)
+            write_density(found, table[row, 4], obs, col)
+
+
+@nb.njit(cache=True)
+def _observe(position, velocity, heading, active, radius, index, grid_xyh, grid_t, grid_d, sample, k, radius_m,
+             period_m, e_d, travel, speed, world, walls, walls_d, ray_cos, ray_sin, ray_range_m, table, obs):
+    """An observation of built-in components only, in one compiled call: :func:`_prepare`, then
+    :func:`_write_builtins`. Returns −1, or the first row outside the navigation grid."""
     m = index.shape[0]
     vel = np.empty((m, 2))
     cos_t = np.empty(m)
@@ -281,13 +330,6 @@ def _default_pass(position, velocity, heading, active, index, grid_xyh, grid_t, 
                               radius_m, period_m, e_d, travel, speed, vel, cos_t, sin_t)
     if bad >= 0:
         return bad
-    write_in_frame(vel, cos_t, sin_t, world, obs, cols[0])
-    if cols[1] >= 0:
-        write_heading(cos_t, sin_t, obs, cols[1])
-    write_in_frame(e_d, cos_t, sin_t, world, obs, cols[2])
-    write_column(travel, obs, cols[3])
-    if cols[4] >= 0:
-        write_neighbors(position, velocity, index, act, near, cos_t, sin_t, world, period_m, obs, cols[4])
-    if cols[5] >= 0 and ray_cos.shape[0] > 0:
-        write_rays(position, index, cos_t, sin_t, walls_d, ray_cos, ray_sin, ray_range_m, obs, cols[5])
+    _write_builtins(position, velocity, radius, index, act, near, vel, cos_t, sin_t, e_d, travel, period_m, world,
+                    walls, walls_d, ray_cos, ray_sin, ray_range_m, table, obs)
     return -1

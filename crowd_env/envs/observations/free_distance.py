@@ -12,7 +12,7 @@ from ...core.periodic import minimum_image_dx
 from ...walking.vision import _ray_capsule_distance, ray_circle_distance
 from .base import ObservationComponent, ObservationField
 
-__all__ = ["FreeDistance"]
+__all__ = ["FreeDistance", "write_free_distance"]
 
 
 @dataclass(frozen=True)
@@ -30,13 +30,15 @@ class FreeDistance(ObservationComponent):
 
     def write(self, ctx, obs, col, size):
         st = ctx.state
-        _write_free_distance(st.position_m, st.radius_m, ctx.index, ctx.active_index, ctx.neighbor_rows,
-                             ctx.cos_heading, ctx.sin_heading, ctx.walls, ctx.spec.period_m, ctx.spec.ray_range_m,
-                             obs, col)
+        write_free_distance(st.position_m, st.radius_m, ctx.index, ctx.active_index, ctx.neighbor_rows,
+                            ctx.cos_heading, ctx.sin_heading, ctx.walls, ctx.spec.period_m, ctx.spec.ray_range_m,
+                            obs, col)
 
 
 @nb.njit(cache=True)
-def _write_free_distance(position, radius, index, act, near, cos_t, sin_t, walls, period_m, cap_m, obs, col):
+def write_free_distance(position, radius, index, act, near, cos_t, sin_t, walls, period_m, cap_m, obs, col):
+    """The free distance ahead of each pedestrian ``index`` (neighbours ``near`` (m, k), rows into ``act``; walls
+    (S, 4) segments), capped at ``cap_m``, into column ``col``."""
     for a in range(index.shape[0]):
         i = index[a]
         ox = position[i, 0]

@@ -14,7 +14,7 @@ from ...core.checks import check_integer, check_number
 from crowd_env.errors import EnvOptionError
 from .base import ObservationComponent, ObservationField
 
-__all__ = ["LocalDensity"]
+__all__ = ["LocalDensity", "write_density"]
 
 
 @dataclass(frozen=True)
@@ -39,11 +39,18 @@ class LocalDensity(ObservationComponent):
     def write(self, ctx, obs, col, size):
         near = grid_k_nearest(ctx.state.position_m, ctx.active_index, ctx.index, int(self.max_count),
                               float(self.radius_m), ctx.spec.period_m)
-        _write_density(near, 1.0 / (math.pi * self.radius_m ** 2), obs, col)
+        write_density(near, self.per_area, obs, col)
+
+    @property
+    def per_area(self) -> float:
+        """1 / (π ρ²), the density of one pedestrian in the disc (1/m²)."""
+        return 1.0 / (math.pi * self.radius_m ** 2)
 
 
 @nb.njit(cache=True)
-def _write_density(near, per_area, obs, col):
+def write_density(near, per_area, obs, col):
+    """(1 + the real slots of ``near`` (m, k), rows into the active pedestrians, −1: none) × ``per_area`` into
+    column ``col``."""
     for a in range(near.shape[0]):
         n = 1
         for slot in range(near.shape[1]):

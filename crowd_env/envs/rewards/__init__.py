@@ -24,7 +24,6 @@ import dataclasses
 import importlib
 from dataclasses import dataclass
 
-import numba as nb
 import numpy as np
 
 from crowd_env.errors import EnvOptionError, InputError
@@ -61,10 +60,11 @@ REWARD_INFO_KEYS = {
 
 
 @dataclass(frozen=True)
-class DefaultReward:
+class DefaultReward(TermReward):
     """r = progress_weight × (T_before − T_after) − collision_weight × P − time_cost_per_s × Δt
     (+ exit_bonus on the step the agent leaves): the terms ``progress``, ``contact_percussion``, ``time``
-    and ``exit`` of :mod:`.terms` with these weights, summed in that order.
+    and ``exit`` of :mod:`.terms` with these weights, summed in that order: the :class:`~.base.TermReward` of
+    them (a frozen dataclass of the four weights).
 
     P is the sum of the normal percussions (kg m/s) the agent received in contacts this step
     (impacts and the non-penetration projection), T the eikonal travel time in s, Δt the step's
@@ -84,49 +84,7 @@ class DefaultReward:
             check_number(f"DefaultReward.{name}", getattr(self, name), error=InputError)
         terms = (Progress(float(self.progress_weight)), ContactPercussion(float(self.collision_weight)),
                  TimeCost(float(self.time_cost_per_s)), ExitBonus(float(self.exit_bonus)))
-        object.__setattr__(self, "_sum", TermReward(terms))
-        object.__setattr__(self, "_weights", (float(self.progress_weight), float(self.collision_weight),
-                                              float(self.time_cost_per_s), float(self.exit_bonus)))
-
-    @property
-    def terms(self) -> tuple:
-        """The four :class:`~.base.RewardTerm` objects, in order."""
-        return self._sum.terms
-
-    @property
-    def names(self) -> tuple:
-        """The terms' names, in order (the fields of ``info["reward_terms"]``)."""
-        return self._sum.names
-
-    def __call__(self, env, agent_ids, info):
-        """The :class:`~.base.TermReward` of :attr:`terms`, in one compiled loop (the same operations in the
-        same order, so the same bits: ``tests/envs/test_components.py``)."""
-        n = len(agent_ids)
-        terms = np.empty(n, self._sum.dtype)
-        out = np.empty(n)  # made here: numba hands an array back to Python for 0.3 µs
-        w_progress, w_collision, w_time, w_exit = self._weights
-        info["reward_terms"] = terms
-        _default_reward(info["progress_s"], info["contact_percussion_kg_m_s"], info["exited"], w_progress, w_collision,
-                        w_time, info["dt_s"], w_exit, np.ndarray((n, 4), np.float64, terms), out)
-        return out
-
-
-@nb.njit(cache=True)
-def _default_reward(progress, percussion, exited, progress_weight, collision_weight, time_cost_per_s, dt_s,
-                    exit_bonus, parts, out):
-    """:func:`~.base._weighted_sum` of the four default terms, v = (progress, −P, −Δt, exited): writes the
-    contributions w_t v_t to ``parts`` (n, 4) and their sums to ``out`` (n,)."""
-    time_value = -dt_s
-    for a in range(out.shape[0]):
-        c0 = progress_weight * progress[a]
-        c1 = collision_weight * -percussion[a]
-        c2 = time_cost_per_s * time_value
-        c3 = exit_bonus * (1.0 if exited[a] else 0.0)
-        parts[a, 0] = c0
-        parts[a, 1] = c1
-        parts[a, 2] = c2
-        parts[a, 3] = c3
-        out[a] = c0 + c1 + c2 + c3
+        self.__dict__.update(self._lay_out(terms))  # the TermReward of the four terms (frozen: set apart)
 
 
 def _term(item, weight=None):

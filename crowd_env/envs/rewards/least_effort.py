@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from crowd_env.errors import InputError
 
 from ...core.checks import check_number
-from .base import RewardTerm
+from .base import METABOLIC_EFFORT, RewardTerm
 
 __all__ = ["E_S_J_KG_S", "E_W_J_S_KG_M2", "PREFERRED_SPEED_M_S", "COST_OF_TRANSPORT_J_KG_M", "MetabolicEffort",
            "LEAST_EFFORT_TERMS"]
@@ -54,15 +54,16 @@ class MetabolicEffort(RewardTerm):
     e_w_j_s_kg_m2: float = E_W_J_S_KG_M2
 
     name = "metabolic_effort"
+    kind = METABOLIC_EFFORT  # its value, computed in compiled code: crowd_env.envs.rewards.base._sum_terms
 
     def __post_init__(self):
         super().__post_init__()
         check_number("MetabolicEffort.e_s_j_kg_s", self.e_s_j_kg_s, error=InputError, minimum=0.0)
         check_number("MetabolicEffort.e_w_j_s_kg_m2", self.e_w_j_s_kg_m2, error=InputError, minimum=0.0)
 
-    def value(self, env, info):
-        v2 = 0.5 * (info["speed_before_m_s"] ** 2 + info["speed_m_s"] ** 2)
-        return -(self.e_s_j_kg_s + self.e_w_j_s_kg_m2 * v2) * info["dt_s"]
+    @property
+    def constants(self) -> tuple:
+        return float(self.e_s_j_kg_s), float(self.e_w_j_s_kg_m2)
 
 
 # The least-effort reward, term -> weight (the environment's reward_terms="least_effort" is this).

@@ -7,48 +7,52 @@ what the rollout compiles: regenerate it then.
 """
 from numba.core.types import Array, NamedTuple, Tuple, UniTuple, boolean, float64, int64
 
-from crowd_env.core.bundles import Bodies, StepInputs
+from crowd_env.core.bundles import Bodies, StepInputs, StepParams, World
 from crowd_env.core.contacts import active_links, contact_candidates
 from crowd_env.core.solvers.dense_projection import project_gaps
-from crowd_env.core.solvers.graph import gap_residuals
 from crowd_env.core.step import (active_rows, compact_bodies, compact_contacts, detection_reach, finish_step,
-    first_bad_input, grown_margins, impact_stage, leave_at_exits, redetect_candidates, smooth_update)
+    first_bad_input, grown_margins, impact_stage, leave_at_exits, redetection_round, smooth_update)
 from crowd_env.experiments.running.rollout import Measures, StallRule, measure_step
 from crowd_env.walking.agent import agent_step
 
 PARTS = (
-    (  # 23.2 s of compilation, measured
+    (  # 26.0 s of compilation, measured
         (impact_stage, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(int64, 1,
             'C'), Array(int64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
             Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
             Array(float64, 2, 'C'), Array(float64, 2, 'C'), Array(float64, 2, 'C'), float64, float64, float64,
             float64, boolean, int64, int64),)),
-        (leave_at_exits, ((Array(float64, 2, 'C'), Array(boolean, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 2,
-            'C'), Array(int64, 1, 'C'), Array(float64, 2, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
-            Array(float64, 2, 'C')),)),
+        (project_gaps, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
+            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), float64, float64, int64),)),
+        (contact_candidates, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(int64,
+            1, 'C'), Array(int64, 2, 'C'), Array(float64, 2, 'C', readonly=True), Array(int64, 3, 'C'), float64,
+            float64, float64),)),
         (active_links, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(boolean, 1, 'C'), Array(int64, 1,
             'C'), Array(int64, 2, 'C'), Array(float64, 2, 'C'), float64),)),
-        (finish_step, ((Array(float64, 2, 'C'), Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 1,
-            'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 2, 'C'), float64, boolean,
-            Array(float64, 2, 'C', readonly=True), Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
-            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(boolean, 1, 'C'),
-            float64),)),
+        (smooth_update, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1,
+            'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
+            Array(float64, 2, 'C'), Array(float64, 1, 'C'), boolean, Array(float64, 2, 'C'), boolean, Array(int64,
+            1, 'C'), float64, boolean),)),
         (compact_contacts, ((Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
             Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(boolean, 1, 'C')),)),
-        (active_rows, ((Array(boolean, 1, 'C'),),)),
+        (compact_bodies, ((Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C')),)),
     ),
-    (  # 23.2 s of compilation, measured
+    (  # 26.0 s of compilation, measured
+        (redetection_round, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'),
+            NamedTuple((Array(float64, 2, 'C', readonly=True), Array(int64, 3, 'C'), Array(float64, 2, 'C'),
+            Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 2, 'C'), Array(int64, 1, 'C'), float64),
+            World), NamedTuple((float64, float64, float64, float64, float64, boolean, int64, int64, int64),
+            StepParams), float64, Array(float64, 2, 'C'), Array(float64, 2, 'C'), Array(float64, 1, 'C'),
+            Array(int64, 1, 'C'), Tuple((Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 1, 'C'),
+            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
+            Array(int64, 1, 'C'))), Tuple((Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(boolean, 1, 'C'))),
+            Array(float64, 1, 'C'), boolean),)),
         (agent_step, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 1, 'C'),
             float64, Array(float64, 3, 'C'), Array(float64, 4, 'C'), Array(int64, 1, 'C'), Array(float64, 1, 'C'),
             Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 2, 'C'),
             Array(float64, 2, 'C', readonly=True), Array(int64, 3, 'C'), boolean, float64, float64, float64,
             float64, float64, float64, Array(float64, 1, 'C'), float64, Tuple((float64, float64, float64, int64,
             float64, float64, float64, float64, float64)), UniTuple(float64, 4), float64),)),
-        (project_gaps, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
-            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), float64, float64, int64),)),
-        (redetect_candidates, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), Array(float64,
-            2, 'C', readonly=True), Array(int64, 3, 'C'), float64, float64, float64, Array(float64, 1, 'C'),
-            Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'), float64),)),
         (measure_step, ((NamedTuple((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 2, 'C'),
             Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
             Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
@@ -61,20 +65,19 @@ PARTS = (
             Array(boolean, 2, 'C'), Array(int64, 1, 'C'), Array(float64, 1, 'C')), Measures),
             NamedTuple((Array(float64, 3, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), int64, int64,
             float64, float64), StallRule)),)),
-        (contact_candidates, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(int64,
-            1, 'C'), Array(int64, 2, 'C'), Array(float64, 2, 'C', readonly=True), Array(int64, 3, 'C'), float64,
-            float64, float64),)),
+        (finish_step, ((Array(float64, 2, 'C'), Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 1,
+            'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 2, 'C'), float64, boolean,
+            Array(float64, 2, 'C', readonly=True), Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
+            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(boolean, 1, 'C'),
+            float64),)),
+        (leave_at_exits, ((Array(float64, 2, 'C'), Array(boolean, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 2,
+            'C'), Array(int64, 1, 'C'), Array(float64, 2, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
+            Array(float64, 2, 'C')),)),
         (first_bad_input, ((NamedTuple((Array(float64, 2, 'C'), Array(float64, 1, 'C'), boolean, Array(float64, 2,
             'C'), boolean), StepInputs), Array(float64, 1, 'C'), Array(float64, 1, 'C')),)),
-        (smooth_update, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1,
-            'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
-            Array(float64, 2, 'C'), Array(float64, 1, 'C'), boolean, Array(float64, 2, 'C'), boolean, Array(int64,
-            1, 'C'), float64, boolean),)),
         (detection_reach, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), float64,
             float64),)),
         (grown_margins, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), float64, float64),)),
-        (compact_bodies, ((Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C')),)),
-        (gap_residuals, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1,
-            'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C')),)),
+        (active_rows, ((Array(boolean, 1, 'C'),),)),
     ),
 )

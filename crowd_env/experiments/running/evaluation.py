@@ -10,20 +10,25 @@ baselines and users' own policies are plugged in.
 
 Each episode runs the parallel environment (every pedestrian controlled by the policy by default)
 for at most ``max_time_s`` of simulated time, measuring at every simulator step (through the
-environment's ``substep_hooks``). When only some pedestrians are agents, the episode goes on after the
+environment's ``substep_hooks``) with the runner's own measurement,
+:func:`~crowd_env.experiments.running.rollout.measure_step` (passages, densities, the smallest gap, the last
+exit, the stall rule), so that an episode is measured as :func:`~crowd_env.experiments.running.runner.run_scenario`
+measures a run. When only some pedestrians are agents, the episode goes on after the
 last agent has left until the whole crowd has (``CrowdParallelEnv.step_background``), so that the crowd's
 measures below cover everybody whatever the agents did:
 
 - ``specific_flow_per_m_s`` J_s = N / (Δt b) at the scenario's measurement line (Kabalan Eq. 22;
   NaN with fewer than two passages or no width in the scenario metadata, and NaN unless the episode is
-  ``complete``); the line is ``line``, by default "bottleneck" where the geometry has one, else its
-  first measurement line (e.g. "door" of ``room_pillar``, "middle" of ``corridor_bidirectional``), and
-  none (NaN) without lines; ``flow_per_s`` likewise;
+  ``complete``); the line is ``line``, by default the scenario's
+  (:attr:`Scenario.measurement <crowd_env.scenarios.Scenario.measurement>`: "bottleneck" of the Seyfried
+  bottleneck, "door" of ``room_pillar``, "middle" of ``corridor_bidirectional``, else the geometry's first line),
+  and none (NaN) without one; ``flow_per_s`` likewise;
 - ``complete``: nobody remains at the end (each pedestrian crossed the line or left; without a line:
-  left); ``partial_specific_flow_per_m_s`` / ``partial_flow_per_s``: Eq. 22 over the passages that
+  left) and, with a line, somebody crossed it (``missed_line``: people left but nobody crossed the line, which
+  then lies off their path or counts the other way); ``partial_specific_flow_per_m_s`` / ``partial_flow_per_s``: Eq. 22 over the passages that
   happened, for incomplete episodes too;
 - ``stalled`` / ``stall_time_s``: the runner's stall rule (:class:`crowd_env.experiments.running.runner.StallDetector`:
-  nobody crossed the line or left for 20 s while those remaining got nowhere, mean net speed below
+  nobody crossed the line or left for 20 s while those remaining, and started, got nowhere, mean net speed below
   0.05 m/s) fired at that time. Unlike ``run_scenario`` the episode is not stopped there, so that every
   policy's return covers the same horizon; ``stall_time_s`` is the first detection;
 - ``evacuation_time_s``: time of the last exit if everybody left, else NaN (``n_evacuated`` says
@@ -36,7 +41,8 @@ measures below cover everybody whatever the agents did:
   in the geometry's measurement area "front" (the Seyfried bottleneck's area before the entrance; NaN
   for geometries without one), averaged over the simulator steps between the first and the last passage
   at the line (the window of J_s; NaN with fewer than two passages);
-- ``min_gap_m``: smallest gap between two pedestrians or a pedestrian and a wall (negative = overlap);
+- ``min_gap_m``: smallest gap between two pedestrians or a pedestrian and a wall (negative = overlap), as the
+  runner tracks it: at the start, then among each step's contact candidates (pairs within the contact margin);
 - ``mean_return``: mean over agents of the summed environment reward;
 - ``lane_order`` and ``lane_order_mixed``: in a counterflow whose scenario says each pedestrian's walking
   direction (metadata ``direction_x``, ±1: the periodic corridor), the lane order parameter Φ
@@ -57,14 +63,13 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-import shapely
-from scipy.spatial import cKDTree
 
-from ...analysis.flow import MeasurementLine, PassageCounter, specific_flow
+from ...analysis.flow import specific_flow
 from ...analysis.lanes import lane_order_parameter, mixed_lane_order_parameter
 from ...core.params import ModelParams
 from ...envs.crowd_v0 import CrowdParallelEnv, decisions_for_time
-from .runner import StallDetector
+from .rollout import measure_step
+from .runner import StallDetector, _RunMeasures, _run_result, measured
 
 __all__ = ["DEFAULT_POLICY_RESOLVER", "EpisodeMetrics", "ScenarioSpec", "import_object", "resolve_policy", "run_episode",
            "evaluate", "summarize", "METRICS", "ENV_CONFIG_FILE", "recorded_env_config", "episode_setup",
@@ -105,6 +110,7 @@ class EpisodeMetrics:
     mean_return: float
     wall_time_s: float
     complete: bool = True
+    missed_line: bool = False  # people left but nobody crossed the line: not complete (RunResult.missed_line)
     stalled: bool = False
     stall_time_s: float = field(default=float("nan"), compare=False)  # nan unless stalled (nan != nan)
     partial_specific_flow_per_m_s: float = float("nan")
@@ -209,42 +215,28 @@ def resolve_policy(spec, name: str | None = None, resolve=None):
     return policy
 
 
-def _line_name(geometry, line: str | None):
-    """``line``, or by default "bottleneck" if the geometry has it, else its first measurement line (or None)."""
-    if line is not None:
-        return line
-    lines = list(geometry.measurement_lines)
-    return "bottleneck" if "bottleneck" in lines else (lines[0] if lines else None)
-
-
 class _Probe:
-    """Substep hook collecting the metrics."""
+    """Substep hook collecting the metrics: each simulator step measured by the runner's
+    :func:`~crowd_env.experiments.running.rollout.measure_step` (passages of the line, the density in "front", the
+    smallest gap, the time of the last exit, the stall rule) as :func:`~crowd_env.experiments.running.runner.run_scenario`
+    measures its runs; the mean speed, the percussions and the lane order besides."""
 
     def __init__(self, env: CrowdParallelEnv, line_name: str | None):
-        geom = env.geometry
-        self.counter = None
-        line_name = _line_name(geom, line_name)
-        if line_name in geom.measurement_lines:
-            ends = np.asarray(geom.measurement_lines[line_name], dtype=float)
-            self.counter = PassageCounter(MeasurementLine(ends[0], ends[1]))
-        self.ids = np.arange(env.n_pedestrians)
+        sim, n = env.sim, env.n_pedestrians
+        line_name = measured(env.scenario)[0] if line_name is None else line_name
+        self.measures = _RunMeasures(env.scenario, n, 1, line_name,
+                                     ("front",) if "front" in env.geometry.measurement_areas else (), None,
+                                     sim.min_gap_m(), 0)
+        self.stall = StallDetector(sim.params.dt_s, start_s=sim.time_s, n_pedestrians=n)
         self.speed_sum = 0.0
         self.speed_n = 0
         self.n_perc = 0
         self.perc_sum = 0.0
-        self.last_exit_s = float("nan")
-        self.min_gap = self._gap(env)
-        self.passed = np.zeros(env.n_pedestrians, dtype=bool)
-        self.stall = StallDetector(env.sim.params.dt_s, start_s=env.sim.time_s, n_pedestrians=env.n_pedestrians)
-        self.front = geom.measurement_areas.get("front")
-        if self.front is not None:
-            shapely.prepare(self.front)  # tested against the crowd at every step
-        self.front_density, self.front_time = [], []
         direction = np.asarray(env.scenario.metadata.get("direction_x", ()), dtype=float)
-        two_ways = direction.shape == (env.n_pedestrians,) and (direction > 0).any() and (direction < 0).any()
+        two_ways = direction.shape == (n,) and (direction > 0).any() and (direction < 0).any()
         self.eastbound = direction > 0 if two_ways else None
         self.lanes, self.lanes_mixed = [], []
-        self.next_lane_s = env.sim.time_s + LANE_TRANSIENT_S
+        self.next_lane_s = sim.time_s + LANE_TRANSIENT_S
 
     def _sample_lanes(self, st, time_s: float) -> None:
         """Φ of this frame and of its shuffled directions, every LANE_SAMPLE_S from the end of the transient."""
@@ -262,42 +254,20 @@ class _Probe:
             return float("nan"), float("nan")
         return float(np.nanmean(self.lanes)), float(np.nanmean(self.lanes_mixed))
 
-    def front_density_per_m2(self) -> float:
-        """Mean density in the "front" area over the steps between the first and the last passage (NaN
-        without the area or with fewer than two passages)."""
-        if self.front is None or self.counter is None or len(self.counter.times_s) < 2:
-            return float("nan")
-        t = np.asarray(self.front_time)
-        times = np.sort(self.counter.times_s)
-        window = (t >= times[0]) & (t <= times[-1])
-        return float(np.mean(np.asarray(self.front_density)[window])) if window.any() else float("nan")
-
-    @staticmethod
-    def _gap(env) -> float:
-        st = env.sim.state
-        idx = np.flatnonzero(st.active)
-        if idx.size == 0:
-            return float("inf")
-        pos, r = st.position_m[idx], st.radius_m[idx]
-        best = float("inf")
-        if idx.size >= 2:
-            pairs = cKDTree(pos).query_pairs(2.0 * float(r.max()) + 0.05, output_type="ndarray")
-            if pairs.size:
-                d = np.hypot(*(pos[pairs[:, 0]] - pos[pairs[:, 1]]).T)
-                best = float(np.min(d - r[pairs[:, 0]] - r[pairs[:, 1]]))
-        if env.geometry.walls.shape[0]:
-            best = min(best, float(np.min(env.geometry.distance_to_walls(pos) - r)))
-        return best
+    def result(self, env, wall_s: float):
+        """The run's :class:`~crowd_env.experiments.running.runner.RunResult`, as the runner reports its runs."""
+        return _run_result(env.scenario, env.sim, self.measures, self.stall, env.scenario.metadata.get("width_m"),
+                           wall_s)
 
     def __call__(self, env, res, prev_pos, prev_t):
-        st = env.sim.state
-        progressed = res.exited.size > 0
-        if self.counter is not None:
-            new = self.counter.update(prev_pos, st.position_m, prev_t, env.sim.time_s, self.ids)
-            if new:
-                self.passed[self.counter.ids[-new:]] = True
-                progressed = True
-        self.stall.update(env.sim.time_s, st.position_m, st.active & ~self.passed, progressed)
+        sim = env.sim
+        st = sim.state
+        idx = np.flatnonzero(st.active)  # those on the floor before the step: these and who left in it
+        if res.exited.size:
+            idx = np.sort(np.concatenate((idx, res.exited)))
+        self.measures.room_for(1)
+        measure_step(st.arrays(), idx, prev_pos[idx], res.exited.shape[0], prev_t, sim.time_s, sim.step_count,
+                     res.min_gap_m, sim.params.dt_s, sim.period_m, self.measures.bundle(), self.stall.bundle())
         v = st.velocity_m_s[st.active]
         if v.shape[0]:
             self.speed_sum += float(np.hypot(v[:, 0], v[:, 1]).sum())
@@ -306,15 +276,7 @@ class _Probe:
         nz = pn[np.abs(pn) > 0]
         self.n_perc += int(nz.size)
         self.perc_sum += float(np.abs(nz).sum())
-        if res.exited.size:
-            self.last_exit_s = env.sim.time_s
-        self.min_gap = min(self.min_gap, self._gap(env))
-        if self.front is not None:
-            pos = st.position_m[st.active]
-            inside = int(np.count_nonzero(shapely.contains_xy(self.front, pos[:, 0], pos[:, 1]))) if pos.size else 0
-            self.front_density.append(inside / self.front.area)
-            self.front_time.append(env.sim.time_s)
-        self._sample_lanes(st, env.sim.time_s)
+        self._sample_lanes(st, sim.time_s)
 
 
 def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", seed: int = 0, *,
@@ -367,30 +329,28 @@ def run_episode(policy, scenario: ScenarioSpec | str = "seyfried_bottleneck", se
         if video is not None:
             video.end(env, completed)
     env.substep_hooks.remove(probe)
+    run = probe.result(env, time.perf_counter() - t0)
     n = env.n_pedestrians
-    n_out = int(np.count_nonzero(~env.sim.state.active))
-    times = np.sort(probe.counter.times_s) if probe.counter is not None else np.zeros(0)
-    width = env.scenario.metadata.get("width_m")
+    times = run.crossing_times_s
+    width = run.width_m
     j = js = float("nan")
     if times.size >= 2 and times[-1] > times[0]:
         fr = specific_flow(times, width if width else 1.0)
         j = fr.flow_per_s
         js = fr.specific_flow_per_m_s if width else float("nan")
-    complete = not (env.sim.state.active & ~probe.passed).any()
     lanes, lanes_mixed = probe.lane_orders()
     result = EpisodeMetrics(
         policy=getattr(policy, "name", type(policy).__name__), scenario=spec.label, seed=int(seed), n_pedestrians=n,
-        n_evacuated=n_out,
-        simulated_time_s=env.sim.time_s,
-        evacuation_time_s=probe.last_exit_s if n_out == n else float("nan"),
-        specific_flow_per_m_s=js if complete else float("nan"), flow_per_s=j if complete else float("nan"),
+        n_evacuated=run.n_evacuated, simulated_time_s=env.sim.time_s, evacuation_time_s=run.evacuation_time_s,
+        specific_flow_per_m_s=js if run.complete else float("nan"), flow_per_s=j if run.complete else float("nan"),
         mean_speed_m_s=probe.speed_sum / probe.speed_n if probe.speed_n else float("nan"),
         n_percussions=probe.n_perc,
         mean_percussion_kg_m_s=probe.perc_sum / probe.n_perc if probe.n_perc else 0.0,
-        min_gap_m=probe.min_gap, mean_return=float(np.mean(list(returns.values()))),
-        wall_time_s=time.perf_counter() - t0, complete=bool(complete), stalled=probe.stall.stalled,
-        stall_time_s=probe.stall.stall_time_s, partial_specific_flow_per_m_s=js, partial_flow_per_s=j,
-        density_front_per_m2=probe.front_density_per_m2(), lane_order=lanes, lane_order_mixed=lanes_mixed)
+        min_gap_m=run.min_gap_m, mean_return=float(np.mean(list(returns.values()))),
+        wall_time_s=time.perf_counter() - t0, complete=run.complete, missed_line=run.missed_line, stalled=run.stalled,
+        stall_time_s=run.stall_time_s, partial_specific_flow_per_m_s=js, partial_flow_per_s=j,
+        density_front_per_m2=run.mean_density_per_m2("front", "passages") if "front" in run.density_per_m2
+        else float("nan"), lane_order=lanes, lane_order_mixed=lanes_mixed)
     env.close()
     return result
 
@@ -421,6 +381,7 @@ def evaluate(policies, scenarios=("seyfried_bottleneck",), seeds=(0, 1, 2), *, e
                     progress(f"  {r.policy:>12s} | {r.scenario} | seed {seed}: J_s {r.specific_flow_per_m_s:.3f}, "
                              f"evacuated {r.n_evacuated}/{r.n_pedestrians}"
                              + (f", stalled at {r.stall_time_s:.1f} s" if r.stalled else "")
+                             + (", nobody crossed the measurement line" if r.missed_line else "")
                              + f" ({r.wall_time_s:.1f} s wall)")
     return results
 

@@ -8,7 +8,10 @@ the channel, and tracks the minimum gap. It stops early when the crowd has *stal
 (:class:`StallDetector`): nobody passes any more, and those left get nowhere.
 
 Complete and incomplete runs. A run is *complete* when nobody remains: every pedestrian crossed the
-measurement line or left (without a line: left). Only a complete run reports a flow: ``flow_per_s`` and
+measurement line or left (without a line: left), and, with a line, somebody crossed it: a run where people left
+but nobody crossed the line (``missed_line``: a line off their path, or counting the other way) is not complete.
+A line counts passages towards the side :meth:`~crowd_env.scenarios.Scenario.line_direction` gives (by default
+towards the walkers' destination). Only a complete run reports a flow: ``flow_per_s`` and
 ``specific_flow_per_m_s`` (Eq. 22, Δt from the first to the last of all N passages) are nan otherwise,
 and ``partial_flow_per_s`` / ``partial_specific_flow_per_m_s`` hold the figure of the passages that
 happened (equal to the flow when complete). An incomplete run either *stalled* (``stalled``, with
@@ -31,6 +34,7 @@ from ...core.checks import check_integer, check_number
 from ...core.params import ModelParams
 from ...core.polygons import pack_polygons
 from ...core.presets import DEFAULT_PRESET, get_preset
+from ...scenarios.scenario import Measurement
 from ...walking.agent import SocialForceAgent, compiled_agent
 from crowd_env.files import read_signed, write_signed_atomic
 from .rollout import (COUNT_FRAMES, COUNT_LATERAL, COUNT_PASSED, COUNT_STEPS, ROLLOUT_CHUNK_STEPS, ROLLOUT_PYTHON_STEP,
@@ -143,11 +147,12 @@ class RunResult:
     speed_m_s: dict = field(default_factory=dict)  # area name -> (n_steps,) mean speed there (nan: empty)
     lateral_positions_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
     n_fallback_solves: int = 0
-    complete: bool = True  # nobody remains: each pedestrian crossed the line or left
+    complete: bool = True  # nobody remains: each pedestrian crossed the line or left (and the line was crossed)
     stalled: bool = False  # stopped by the stall rule (StallDetector)
     stall_time_s: float = float("nan")  # when the stall was detected (the run stopped there)
     partial_flow_per_s: float = float("nan")  # Eq. 22 over the passages that happened (nan: < 2)
     partial_specific_flow_per_m_s: float = float("nan")
+    missed_line: bool = False  # people left but nobody crossed the measurement line: not complete
 
     def __post_init__(self):
         if self.complete:  # a complete run's partial figures are its flows
@@ -312,7 +317,7 @@ class _RunMeasures:
                 raise NotFoundError(f"scenario has no measurement line {line!r}; it has "
                                     f"{sorted(geometry.measurement_lines)}")
             ends = np.asarray(geometry.measurement_lines[line], dtype=float)
-            m = MeasurementLine(ends[0], ends[1])
+            m = MeasurementLine(ends[0], ends[1], scenario.line_direction(line))  # counted towards the destination
             self.line = (m.start_m, m.segment_m, m.normal)
         self.area_names = [name for name in density_areas if name in geometry.measurement_areas]
         polys = [geometry.measurement_areas[name] for name in self.area_names]
@@ -400,8 +405,19 @@ def _compiled_agent(policy, sim, compiled: bool):
     return None if nav is None else compiled_agent(nav, sim.params)
 
 
+class _FromScenario:
+    """The default of :func:`run_scenario`'s ``line``, ``density_areas`` and ``lane_area``: the scenario's own
+    (:attr:`Scenario.measurement <crowd_env.scenarios.Scenario.measurement>`)."""
+
+    def __repr__(self) -> str:
+        return "FROM_SCENARIO"
+
+
+FROM_SCENARIO = _FromScenario()
+
+
 def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_time_s: float = 300.0,
-                 line: str = "bottleneck", density_areas=("front", "inside"), lane_area: str | None = "inside",
+                 line=FROM_SCENARIO, density_areas=FROM_SCENARIO, lane_area=FROM_SCENARIO,
                  width_m: float | None = None, state=None, rng=None, progress=None,
                  stall_window_s: float | None = STALL_WINDOW_S, stall_speed_m_s: float = STALL_SPEED_M_S,
                  compiled: bool = True, recorder=None, record_every: int = 1,
@@ -410,6 +426,10 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     """Simulate ``scenario`` driven by ``policy(sim) -> (intents, desired_heading)`` until all leave, the
     time limit ``max_time_s``, or a stall.
 
+    ``line``, ``density_areas``, ``lane_area``: what to measure (the measurement line's passages, the densities
+    and speeds in the areas, the lateral positions in the lane area; None / ``()``: nothing); by default the
+    scenario's own (:class:`~crowd_env.scenarios.scenario.Measurement`: the Seyfried bottleneck's line
+    "bottleneck" and areas "front" and "inside", the Jülich corridor's "exit" and "measurement", ...).
     ``width_m``: the bottleneck width used in J_s = N/(Δt b) (Eq. 22); defaults to the scenario's
     ``metadata['width_m']``. ``stall_window_s`` / ``stall_speed_m_s``: the stall rule of
     :class:`StallDetector` (None switches it off); a stalled run stops at once with ``stalled`` set. A periodic
@@ -428,6 +448,7 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     complete (module docstring).
     """
     params = get_preset(DEFAULT_PRESET).params() if params is None else params
+    line, density_areas, lane_area = measured(scenario, line, density_areas, lane_area)
     record_every = check_integer("record_every", record_every, error=InputError, minimum=1)
     chunk_steps = check_integer("chunk_steps", chunk_steps, error=InputError, minimum=1)
     max_time_s = check_number("max_time_s", max_time_s, error=InputError, positive=True)
@@ -477,6 +498,15 @@ def run_scenario(scenario, policy, params: ModelParams | None = None, *, max_tim
     return _run_result(scenario, sim, measures, stall, width_m, wall_before_s + time.perf_counter() - t_wall)
 
 
+def measured(scenario, line=FROM_SCENARIO, density_areas=FROM_SCENARIO, lane_area=FROM_SCENARIO) -> tuple:
+    """``(line, density_areas, lane_area)``: each as given, or the scenario's own where it is :data:`FROM_SCENARIO`
+    (:attr:`Scenario.measurement <crowd_env.scenarios.Scenario.measurement>`; nothing for an object without one)."""
+    own = getattr(scenario, "measurement", None) or Measurement()
+    return (own.line if line is FROM_SCENARIO else line,
+            own.density_areas if density_areas is FROM_SCENARIO else density_areas,
+            own.lane_area if lane_area is FROM_SCENARIO else lane_area)
+
+
 def check_step_limit(max_time_s: float, dt_s: float, step_limit=MAX_RUN_STEPS) -> None:
     """Refuse a run of more than ``step_limit`` steps (:data:`MAX_RUN_STEPS` by default) at once, with
     :class:`~crowd_env.errors.InputError` (:func:`run_scenario` does; a command checks its runs with it before it
@@ -524,7 +554,8 @@ def _run_result(scenario, sim, measures: _RunMeasures, stall: StallDetector, wid
     else:
         j = js = float("nan")
     n_left = int(np.count_nonzero(~state.active))
-    complete = not (state.active & ~measures.passed).any()  # nobody left who has not passed
+    missed = bool(measures.has_line and n_left and not n_cross)  # the line is not where (or not how) they walk
+    complete = not (state.active & ~measures.passed).any() and not missed  # nobody left who has not passed
     n_measured = int(measures.counts[COUNT_STEPS])
     return RunResult(
         n_pedestrians=state.n, width_m=width_m, seed=scenario.seed, n_steps=sim.step_count,
@@ -536,5 +567,5 @@ def _run_result(scenario, sim, measures: _RunMeasures, stall: StallDetector, wid
         speed_m_s={k: measures.speed[:n_measured, a].copy() for a, k in enumerate(measures.area_names)},
         lateral_positions_m=measures.lateral_positions(),
         n_fallback_solves=sim.n_fallback_solves, complete=bool(complete), stalled=stall.stalled,
-        stall_time_s=stall.stall_time_s, partial_flow_per_s=j, partial_specific_flow_per_m_s=js,
+        stall_time_s=stall.stall_time_s, partial_flow_per_s=j, partial_specific_flow_per_m_s=js, missed_line=missed,
     )

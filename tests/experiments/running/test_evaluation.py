@@ -80,3 +80,22 @@ def test_summaries_carry_bootstrap_intervals_of_the_means():
     assert rows[0]["mean_return_ci_low"] < rows[0]["mean_return"] < rows[0]["mean_return_ci_high"]
     table = format_intervals(rows)
     assert f"{rows[0]['mean_return_ci_low']:.3f}..{rows[0]['mean_return_ci_high']:.3f}" in table
+
+
+def test_the_harness_measures_an_episode_as_the_runner_measures_the_same_run():
+    """The calibrated baseline through the harness runs the runner's crowd to the bit (CalibratedPolicy), and the
+    harness measures it with the runner's own kernels (measure_step): the same flow, exit time, smallest gap and
+    density in front, to the bit."""
+    from crowd_env.experiments.running.runner import run_scenario
+    from crowd_env.scenarios import make_scenario
+    from crowd_env.walking.agent import SocialForceAgent
+
+    sc = make_scenario("seyfried_bottleneck", n_pedestrians=10, seed=0)
+    run = run_scenario(sc, SocialForceAgent(sc.navigation()), max_time_s=40.0, density_areas=("front",),
+                       lane_area=None)
+    ep = run_episode(as_policy("baseline"), ScenarioSpec("seyfried_bottleneck", {"n_pedestrians": 10, "seed": 0}), 0,
+                     max_time_s=40.0)
+    assert run.complete and ep.complete and ep.n_evacuated == run.n_evacuated == 10
+    assert ep.specific_flow_per_m_s == run.specific_flow_per_m_s and ep.flow_per_s == run.flow_per_s
+    assert ep.evacuation_time_s == run.evacuation_time_s and ep.min_gap_m == run.min_gap_m
+    assert ep.density_front_per_m2 == run.mean_density_per_m2("front", "passages") > 0.0
