@@ -153,7 +153,8 @@ def build_parser() -> argparse.ArgumentParser:
     bp = sub.add_parser("band", help="the door against the corridor for every point scored on the virtual experiments "
                                      "(crowd_env.experiments.validation.door_band): OUT/band.csv and OUT/band.png")
     bp.add_argument("files", nargs="+", type=Path,
-                    help="calibration evaluations.jsonl (--objective virtual) and targets.json (targets --virtual)")
+                    help="calibration evaluations.jsonl (--objective virtual), targets.json (targets --virtual) and "
+                         "virtual_experiments.csv (crowd-virtual-experiments; labelled by its folder)")
     bp.add_argument("--out", type=Path, default=Path("out/band"), help="output folder")
     bp.add_argument("--highlight", nargs="+", default=["calibrated", "joint", "paper", "recalibrated", "vision"],
                     help="points to label (preset names in a targets.json)")

@@ -4,7 +4,7 @@ The fundamental-diagram work found every candidate on one band in the periodic c
 with density, the less its door passes (docs/validation/fundamental_diagram.md). This module redraws that band
 with the virtual experiments' measure (:mod:`crowd_env.experiments.validation.virtual_experiments`): for every model point
 scored on them (a calibration's ``evaluations.jsonl`` under ``--objective virtual``, a ``targets.json`` of
-``crowd-calibrate targets --virtual``), the door, Seyfried's J_s at b = 1.0 m and N = 60, against
+``crowd-calibrate targets --virtual``, a ``virtual_experiments.csv`` of ``crowd-virtual-experiments``), the door, Seyfried's J_s at b = 1.0 m and N = 60, against
 
 - the queue: the Voronoi density behind the 0.95 m exit (run ``uo-180-180-095``, 2.45 /m²), where people keep
   their distance in a queue that carries the exit's flow;
@@ -46,8 +46,11 @@ def _label(values: dict) -> str:
 
 
 def band_points(paths) -> tuple:
-    """``(points, missing)`` from calibration ``evaluations.jsonl`` files and ``targets.json`` files: each point a
-    dict with ``source`` (the file), ``label`` (the preset or the free parameters' values) and :data:`BAND_FIGURES`;
+    """``(points, missing)`` from calibration ``evaluations.jsonl`` files, ``targets.json`` files and
+    ``virtual_experiments.csv`` tables: each point a dict with ``source`` (the file), ``label`` (the preset, the free
+    parameters' values, or the virtual experiments' folder name) and :data:`BAND_FIGURES` (a virtual experiments'
+    table gives the means over its complete runs; a targets.json keeps no figures for a preset whose runs stalled
+    anywhere: draw its virtual experiments' table instead);
     ``missing``: ``(source, label, reason)`` of the points that lack one (a failed point: a run stalled or stayed
     incomplete, and the calibration kept no figures; or a point scored without the corridor runs). A file of neither kind raises :class:`~crowd_env.errors.InputError`."""
     points, missing = [], []
@@ -64,7 +67,9 @@ def band_points(paths) -> tuple:
     for path in map(Path, paths):
         if not path.is_file():
             raise InputError(f"{path}: no such file (give a calibration's evaluations.jsonl or a targets.json)")
-        if path.suffix == ".jsonl":
+        if path.suffix == ".csv":
+            add(str(path), path.parent.name, _virtual_figures(path))
+        elif path.suffix == ".jsonl":
             for i, line in enumerate(path.read_text().splitlines()):
                 if line.strip():
                     entry = json.loads(line)
@@ -79,6 +84,24 @@ def band_points(paths) -> tuple:
             for name, figures in content["figures"].items():
                 add(str(path), name, figures)
     return points, missing
+
+
+def _virtual_figures(path) -> dict:
+    """The band's figures from a ``virtual_experiments.csv`` (the model's mean over the complete runs of each row)."""
+    import csv
+
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    if not rows or not {"experiment", "case", "quantity", "model"} <= set(rows[0]):
+        raise InputError(f"{path}: not a table of crowd-virtual-experiments (columns experiment, case, quantity, model)")
+    wanted = {DOOR: ("bottleneck", "b = 1.0 m, N = 60", "J_s"), QUEUE: ("corridor", "uo-180-180-095", "density"),
+              ENTRANCE: ("corridor", "uo-070-180-180", "exit flow")}
+    figures = {}
+    for key, (experiment, case, quantity) in wanted.items():
+        for r in rows:
+            if r["experiment"] == experiment and r["case"].startswith(case) and r["quantity"].startswith(quantity):
+                figures[key] = float(r["model"])
+    return figures
 
 
 def _finite(value) -> bool:

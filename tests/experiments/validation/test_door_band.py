@@ -62,3 +62,24 @@ def test_unreadable_inputs_are_refused_by_name(tmp_path):
         band_points([bad])
     with pytest.raises(InputError, match="no point"):
         door_band.band_figure([], tmp_path / "x.png")
+
+
+def test_a_virtual_experiments_table_gives_its_point_labelled_by_its_folder(tmp_path):
+    folder = tmp_path / "virtual_joint"
+    folder.mkdir()
+    rows = ["experiment,case,quantity,model",
+            "bottleneck,\"b = 1.0 m, N = 60\",J_s (1/(m s)),1.82",
+            "bottleneck,\"b = 1.0 m, N = 60\",speed inside (m/s),1.27",
+            "corridor,\"uo-180-180-095 (entrance 1.80 m, exit 0.95 m, N = 159)\",density (1/m²),3.33",
+            "corridor,\"uo-070-180-180 (entrance 0.70 m, exit 1.80 m, N = 111)\",exit flow (1/s),1.34",
+            "corridor,\"uo-070-180-180 (entrance 0.70 m, exit 1.80 m, N = 111)\",density (1/m²),0.55"]
+    (folder / "virtual_experiments.csv").write_text("\n".join(rows) + "\n")
+    points, missing = band_points([folder / "virtual_experiments.csv"])
+    assert not missing and points[0]["label"] == "virtual_joint"
+    assert (points[0][DOOR], points[0][QUEUE], points[0][ENTRANCE]) == (1.82, 3.33, 1.34)
+    (folder / "virtual_experiments.csv").write_text("\n".join(rows[:3]) + "\n")  # no corridor runs: named, not drawn
+    points, missing = band_points([folder / "virtual_experiments.csv"])
+    assert not points and QUEUE in missing[0][2]
+    (folder / "virtual_experiments.csv").write_text("a,b\n1,2\n")
+    with pytest.raises(InputError, match="not a table of crowd-virtual-experiments"):
+        band_points([folder / "virtual_experiments.csv"])
