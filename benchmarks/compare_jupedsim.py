@@ -42,7 +42,7 @@ from crowd_env.analysis.flow import MeasurementLine, PassageCounter, specific_fl
 from crowd_env.core.bundles import Bodies, StepInputs, World  # noqa: E402
 from crowd_env.core.state import min_gap_m  # noqa: E402
 from crowd_env.core.step import FUSED_OK, active_rows, advance  # noqa: E402
-from crowd_env.core.presets import DEFAULT_PRESET, PRESETS, get_preset  # noqa: E402
+from crowd_env.walking.presets import DEFAULT_PRESET, PRESETS, get_preset  # noqa: E402
 from crowd_env.experiments.running.runner import run_scenario  # noqa: E402
 from crowd_env.scenarios import make_scenario  # noqa: E402
 from crowd_env.walking.agent import AGENT_OK, compiled_agent, decide  # noqa: E402

@@ -22,7 +22,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from crowd_env.core.presets import DEFAULT_PRESET, get_preset  # noqa: E402
+from crowd_env.walking.presets import DEFAULT_PRESET, get_preset  # noqa: E402
 from crowd_env.experiments.running.runner import run_scenario  # noqa: E402
 from crowd_env.scenarios import make_scenario  # noqa: E402
 from crowd_env.walking.agent import SocialForceAgent  # noqa: E402

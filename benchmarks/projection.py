@@ -37,7 +37,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from scaling import dense_room  # noqa: E402
 
 from baselines.social_force import SocialForceAgent  # noqa: E402
-from crowd_env.core import ModelParams, Simulator  # noqa: E402
+from crowd_env.core import Simulator  # noqa: E402
+from crowd_env.walking import ModelParams
 from crowd_env.core.solvers.cascade import ALM_NEWTON_BUDGET, SolverCascade  # noqa: E402
 from crowd_env.core.solvers.external import project_gaps_ipm  # noqa: E402
 from crowd_env.core.solvers.graph import gap_residuals  # noqa: E402

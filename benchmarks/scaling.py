@@ -73,7 +73,8 @@ def _policy_timed(agent, sim, timings):
 
 def measure(n: int, steps: int, warmup: int, seed: int = 0, restart: bool = False) -> dict:
     from baselines.social_force import SocialForceAgent
-    from crowd_env.core import ModelParams, Simulator
+    from crowd_env.core import Simulator
+    from crowd_env.walking import ModelParams
     from crowd_env.envs.observations import ObservationBuilder
 
     scenario = dense_room(n, seed)

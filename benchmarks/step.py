@@ -24,7 +24,8 @@ import time
 
 import numpy as np
 
-from crowd_env.core import CrowdState, ModelParams, Simulator
+from crowd_env.core import CrowdState, Simulator
+from crowd_env.walking import ModelParams
 from crowd_env.core.step import STAGES as PHASES
 
 

@@ -58,7 +58,7 @@ def test_every_raise_names_an_error_of_the_hierarchy():
 
 
 @pytest.mark.parametrize("call, cls, builtin", [
-    (lambda: __import__("crowd_env.core.params", fromlist=["x"]).ModelParams(dt_s=-1.0), errors.ParameterError, ValueError),
+    (lambda: __import__("crowd_env.walking.model", fromlist=["x"]).ModelParams(dt_s=-1.0), errors.ParameterError, ValueError),
     (lambda: __import__("crowd_env.scenarios", fromlist=["x"]).make_scenario("no_such_scenario"), errors.ScenarioError,
      ValueError),
 ])

@@ -43,7 +43,7 @@ from ..analysis.experiment import ExperimentError, ExperimentTable
 from ..experiments.validation.calibration.objective import TargetWeights, required_cases
 from ..core.params import ParameterError
 from ..errors import InputError
-from ..core.presets import DEFAULT_PRESET, PRESETS
+from ..walking.presets import DEFAULT_PRESET, PRESETS
 from ..experiments.running.backends import DeferredBackend, make_backend
 from ..experiments.validation.bottleneck import check_setups
 from ..experiments.validation.corridor_runs import CORRIDOR_RUN_NAMES
@@ -190,7 +190,7 @@ def _common_parser() -> argparse.ArgumentParser:
                            "default: the preset's (0 for 'paper', 0.23 for 'calibrated' and 'recalibrated')")
     m = common.add_argument_group("fixed model parameters")
     m.add_argument("--preset", choices=sorted(PRESETS), default=DEFAULT_PRESET,
-                   help="base configuration as in crowd-bottleneck (crowd_env.core.presets; A, B and the other free "
+                   help="base configuration as in crowd-bottleneck (crowd_env.walking.presets; A, B and the other free "
                         "parameters are then set by the grid/optimiser)")
     m.add_argument("--anisotropy", type=float, default=None, dest="social_anisotropy", help="λ in [0, 1]")
     m.add_argument("--kn", type=float, default=None, dest="normal_dissipation_kg", help="K_n (kg)")

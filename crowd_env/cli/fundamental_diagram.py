@@ -40,7 +40,7 @@ from ..analysis.figures import candidates_figure, fd_sweep_figure, fundamental_d
 from ..analysis.trajectories import (DEFAULT_FRAME_RATE_PER_S, Trajectories, TrajectoryFormatError,
                                      fundamental_diagram_data, pedpy_measurement_area, read_geometry)
 from ..core.params import ParameterError
-from ..core.presets import DEFAULT_PRESET, PRESETS, get_preset
+from ..walking.presets import DEFAULT_PRESET, PRESETS, get_preset
 from ..experiments.running.backends import execute, failure_report, make_backend
 from ..experiments.validation.bottleneck import params_dict
 from ..experiments.validation.fundamental_diagram import (CORRIDOR_DENSITIES, SETUPS, SINGLE_FILE_DENSITIES, door_and_corridor,

@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.params import ParameterError
-from ..core.presets import DEFAULT_PRESET, PRESETS
+from ..walking.presets import DEFAULT_PRESET, PRESETS
 from ..experiments.validation.bottleneck import flow_fit, summarise
 from ..experiments.validation.generalisation import (DEFAULT_CHANNEL_LENGTHS_M, DEFAULT_CORRIDOR_WIDTHS_M, DEFAULT_SEEDS,
                                           DEFAULT_SIZES, DEFAULT_WIDTHS_M, QUICK, GeneralisationError, figure,

@@ -9,9 +9,9 @@ from __future__ import annotations
 import json
 import os
 
-from ..core.params import ModelParams
+from ..walking.model import ModelParams
 from ..errors import OptionError
-from ..core.presets import DEFAULT_PRESET, get_preset
+from ..walking.presets import DEFAULT_PRESET, get_preset
 from ..experiments.validation.bottleneck import GEOMETRY_OPTIONS, bottleneck_config, model_params
 from ..experiments.running.evaluation import (DEFAULT_POLICY_RESOLVER, ScenarioSpec, episode_setup,
                                               recorded_env_config)
@@ -151,7 +151,7 @@ def navigation_clearance_from_args(args) -> float:
 
 
 def radius_from_args(args) -> float:
-    """--radius if given, else the preset's body (:attr:`~crowd_env.core.presets.Preset.radius_m`)."""
+    """--radius if given, else the preset's body (:attr:`~crowd_env.walking.presets.Preset.radius_m`)."""
     value = getattr(args, "radius", None)
     return float(get_preset(getattr(args, "preset", DEFAULT_PRESET)).radius_m if value is None else value)
 

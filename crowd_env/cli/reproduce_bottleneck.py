@@ -35,7 +35,7 @@ from ..analysis.figures import bottleneck_figures
 from ..analysis.trajectories import DEFAULT_FRAME_RATE_PER_S, TrajectoryFormatError, steps_per_frame
 from ..core.params import ParameterError, PedestrianDefaults
 from ..errors import InputError, OptionError
-from ..core.presets import DEFAULT_PRESET, PRESETS
+from ..walking.presets import DEFAULT_PRESET, PRESETS
 from ..experiments.validation.bottleneck import (SetupError, SweepError, check_setups, flow_fit, run_sweep, summarise,
                                                  write_results, write_summary)
 from ..core.timestep import check_time_step_floor
@@ -44,7 +44,7 @@ from ..experiments.running.store import RunStore, RunStoreError
 from .options import add_geometry_arguments, config_of, model_params_from_args, radius_from_args
 
 # Configurations of the model and the navigation, the base that explicit flags override: see
-# crowd_env.core.presets (calibrated, the default; paper, the literal Section 4; recalibrated).
+# crowd_env.walking.presets (calibrated, the default; paper, the literal Section 4; recalibrated).
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -72,7 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
                            "preset's")
     m = ap.add_argument_group("model (Kabalan Table 2 with the preset's social force)")
     m.add_argument("--preset", choices=sorted(PRESETS), default=DEFAULT_PRESET,
-                   help="base configuration of model and navigation (crowd_env.core.presets): "
+                   help="base configuration of model and navigation (crowd_env.walking.presets): "
                         + "; ".join(f"'{k}'{' (default)' if k == DEFAULT_PRESET else ''}: {v.summary}"
                                     for k, v in sorted(PRESETS.items()))
                         + "; the flags below override it")

@@ -18,7 +18,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..core.presets import PRESETS, get_preset
+from ..walking.presets import PRESETS, get_preset
 from ..envs.background import shipped_policy_names
 from ..experiments.running.backends import make_backend
 from ..experiments.validation.bottleneck import bottleneck_config

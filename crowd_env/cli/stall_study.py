@@ -30,7 +30,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..core.presets import get_preset
+from ..walking.presets import get_preset
 from ..experiments.validation.stall_study import figure, run_jobs, stall_jobs
 from .options import key_values
 

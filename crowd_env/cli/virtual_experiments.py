@@ -22,7 +22,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from ..core.presets import DEFAULT_PRESET, PRESETS, get_preset
+from ..walking.presets import DEFAULT_PRESET, PRESETS, get_preset
 from ..errors import CrowdEnvError
 from ..experiments.running.backends import make_backend
 from ..experiments.validation.corridor_runs import CORRIDOR_RUN_NAMES, corridor_snapshot

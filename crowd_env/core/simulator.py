@@ -33,7 +33,7 @@ import numpy as np
 
 from .contacts import CONTACT_FIELDS, active_links, contact_candidates
 from .neighbors import grid_pairs
-from .params import ModelParams, ParameterError
+from .params import DEFAULT_INTERACTION_REACH_M, ParameterError, PhysicsParams
 from .checks import check_number
 from .periodic import wrap_positions
 from .polygons import PackedPolygons, pack_polygons
@@ -71,27 +71,35 @@ class StepResult:
 
 
 class Simulator:
-    """Owns a :class:`CrowdState`, the walls and the :class:`ModelParams`; advances with :meth:`step`.
+    """Owns a :class:`CrowdState`, the walls and the parameters; advances with :meth:`step`.
+
+    ``params``: the core's :class:`~crowd_env.core.params.PhysicsParams` (default), or any object that carries them
+    as ``params.physics`` (the model a preset names, :class:`crowd_env.walking.model.ModelParams`, whose walking
+    parameters the calibrated agent reads from :attr:`params`); the step reads :attr:`physics` only.
 
     ``geometry`` may be any object with ``walls`` ((S, 4) segments) and ``in_exit(points)``
     (bool mask); or pass ``walls`` directly and optionally ``exit_test``. ``destination``: None (a
     pedestrian leaves through any exit) or (N,) int indices into ``geometry.exits``, -1 for any exit:
     pedestrian i then leaves only when its centre enters exit ``destination[i]`` (another exit is floor
     for it; see :class:`~crowd_env.scenarios.Scenario`). ``period_m``: the periodicity L along x (module
-    docstring; None: the geometry's ``period_x_m``, 0 without one); it must exceed 2 (2 r_max +
-    ``social_cutoff_m``), so that the nearest image is the only one any interaction reaches. The start
+    docstring; None: the geometry's ``period_x_m``, 0 without one); it must exceed 2 (2 r_max + reach), the reach
+    being how far beyond the bodies the behaviour's forces act: ``params.interaction_reach_m`` (a ModelParams: its
+    ``social_cutoff_m``), :data:`~crowd_env.core.params.DEFAULT_INTERACTION_REACH_M` for physics alone; so that the
+    nearest image is the only one any interaction reaches. The start
     positions are brought into [0, L) (in place) and checked for overlaps across the seam.
     """
 
     period_m = 0.0  # the periodicity along x (set per instance; simulators pickled before it existed have none)
 
     def __init__(self, state: CrowdState, *, geometry=None, walls=None, exit_test=None,
-                 params: ModelParams | None = None, profile: bool = False, destination=None, period_m=None):
+                 params=None, profile: bool = False, destination=None, period_m=None):
         if not isinstance(state, CrowdState):
             raise StateError(f"state must be a CrowdState, got {type(state).__name__}")
-        self.params = ModelParams() if params is None else params
-        if not isinstance(self.params, ModelParams):
-            raise ParameterError(f"params must be a ModelParams, got {type(self.params).__name__}")
+        self.params = PhysicsParams() if params is None else params
+        self.physics = self.params if isinstance(self.params, PhysicsParams) else getattr(self.params, "physics", None)
+        if not isinstance(self.physics, PhysicsParams):
+            raise ParameterError(f"params must be a ModelParams (crowd_env.walking) or the core's PhysicsParams (any "
+                                 f"object carrying one as .physics), got {type(self.params).__name__}")
         if geometry is not None and walls is not None:
             raise ParameterError("give either geometry or walls, not both")
         self.geometry = geometry
@@ -109,14 +117,14 @@ class Simulator:
         state.validate()
         self.period_m = self._check_period(period_m, state)
         self._check_walls(state)
-        check_time_step(state, self.params)  # refuses an unstable dt_s, warns above the safe step (timestep.py)
+        check_time_step(state, self.physics)  # refuses an unstable dt_s, warns above the safe step (timestep.py)
         self.state = state
         self.time_s = 0.0
         self.step_count = 0
         self.n_redetections = 0  # steps where faster post-impact speeds called for more candidates
         self.n_staged_steps = 0  # steps run stage by stage (profiling, large problems, re-detection)
         # The choice of solver, its size limits, budgets, warm starts and counters: see SolverCascade.
-        self.cascade = SolverCascade(reference=self.params.solver == "cvxpy")
+        self.cascade = SolverCascade(reference=self.physics.solver == "cvxpy")
         self.profile = profile
         self._pairs_key = -1
         self._pairs = None
@@ -137,10 +145,12 @@ class Simulator:
         if period == 0.0:
             return 0.0
         idx = np.flatnonzero(state.active)
-        reach = 2.0 * (2.0 * float(state.radius_m.max(initial=0.0)) + float(self.params.social_cutoff_m))
+        interaction = float(getattr(self.params, "interaction_reach_m", DEFAULT_INTERACTION_REACH_M))
+        reach = 2.0 * (2.0 * float(state.radius_m.max(initial=0.0)) + interaction)
         if period <= reach:
-            raise ParameterError(f"period_m = {period:g} m must exceed 2 (2 r_max + social_cutoff_m) = {reach:g} m: "
-                                 "the nearest image must be the only one an interaction reaches")
+            raise ParameterError(f"period_m = {period:g} m must exceed 2 (2 r_max + the interactions' reach "
+                                 f"{interaction:g} m, social_cutoff_m) = {reach:g} m: the nearest image must be the "
+                                 "only one an interaction reaches")
         wrap_positions(state.position_m, period)
         pair = first_overlap(state.position_m[idx], state.radius_m[idx], tolerance_m, period)
         if pair is not None:
@@ -230,7 +240,7 @@ class Simulator:
     def _step_fields(self) -> tuple:
         """:attr:`step_params` as a plain tuple (as :func:`~crowd_env.core.step.advance` takes it), kept while the
         params object and the cascade's limits stay the same."""
-        p, c = self.params, self.cascade
+        p, c = self.physics, self.cascade
         key = (c.reference, c.max_dense_rows, c.max_dense_bodies, c.max_dense_projection_rows)
         kept = self.__dict__.get("_step_kept")
         if kept is None or kept[0] is not p or kept[1] != key:
@@ -241,8 +251,8 @@ class Simulator:
             kept = self._step_kept = (p, key, fields)
         return kept[2]
 
-    def _world_fields(self) -> tuple:
-        """:attr:`world` as a plain tuple (as :func:`~crowd_env.core.step.advance` takes it)."""
+    def world_fields(self) -> tuple:
+        """:attr:`world` as a plain tuple (as :func:`~crowd_env.core.step.advance` takes it; kept)."""
         fields = self.__dict__.get("_world_kept")
         if fields is None:
             fields = self._world_kept = tuple(self.world)
@@ -387,7 +397,7 @@ class Simulator:
         idx = self.active_index
         t0 = time.perf_counter()
         status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, time_s = advance(
-            self.state.array_fields(), self._world_fields(), self._step_fields(), inputs, idx, *self._cached_pairs(),
+            self.state.array_fields(), self.world_fields(), self._step_fields(), inputs, idx, *self._cached_pairs(),
             self.time_s)
         if status != FUSED_OK:
             return None
@@ -407,7 +417,7 @@ class Simulator:
         problems beyond the dense limits and the re-detection loop of stage 5 (:meth:`_staged_projection`)."""
         self.n_staged_steps += 1
         st = self.state
-        p = self.params
+        p = self.physics
         h, eps_m = p.dt_s, p.contact_tolerance_m
         timings = {}
         t0 = time.perf_counter()
@@ -455,7 +465,7 @@ class Simulator:
                                         st.radius_m, idx, vel, h, p.rotation, self.walls, con["a"], con["b"],
                                         con["wall"], p_n, p_t, lam_p, in_impact, self.period_m)
         exited = self._leave_at_exits(idx, previous)
-        self._tick(self.time_s + self.params.dt_s)
+        self._tick(self.time_s + p.dt_s)
         timings["integrate"] = time.perf_counter() - t5
         return self._result(contacts, ke0, ke1, ke2, n_clusters, max_cluster, exited, timings, min_gap)
 
@@ -482,7 +492,7 @@ class Simulator:
             if projected:
                 break
             con = dict(zip(CONTACT_FIELDS, candidates))  # a projection again: a new candidate bound (lam_p extended)
-            lam_p = self.cascade.project(vel, mass, con, self.params.dt_s, self.step_count,
+            lam_p = self.cascade.project(vel, mass, con, self.physics.dt_s, self.step_count,
                                          functools.partial(self._candidate_keys, idx, con), lam_p if once else None)
             projected = once = True
         return dict(zip(CONTACT_FIELDS, candidates)), *percussions, lam_p

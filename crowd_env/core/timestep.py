@@ -1,4 +1,4 @@
-"""The time step h (``ModelParams.dt_s``) a crowd can be stepped with: the stability limit, and the safe step.
+"""The time step h (``PhysicsParams.dt_s``) a crowd can be stepped with: the stability limit, and the safe step.
 
 The step (:mod:`crowd_env.core.step`) integrates the smooth dynamics explicitly (Kabalan et al. 2016 use
 h = 0.01 s, Table 2), so h has two bounds, both derived from the crowd's own parameters:

@@ -19,8 +19,9 @@ import numpy as np
 from crowd_env.errors import EnvOptionError, UnknownOptionError
 
 from ..core.checks import check_integer, check_number
-from ..core.params import ModelParams, ParameterError
-from ..core.presets import DEFAULT_PRESET, get_preset
+from ..core.params import ParameterError
+from ..walking.model import ModelParams
+from ..walking.presets import DEFAULT_PRESET, get_preset
 from ..core.step import MAX_INPUT_SPEED_M_S
 from ..core.timestep import check_time_step_floor
 from ..scenarios import Scenario

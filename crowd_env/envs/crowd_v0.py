@@ -134,7 +134,7 @@ from ..core.angles import direction_angles_rad
 from ..core.checks import check_integer, check_seed
 from ..core.periodic import minimum_image_dx
 from ..core.simulator import Simulator
-from ..core.presets import get_preset
+from ..walking.presets import get_preset
 from ..scenarios import Scenario, body_options, make_scenario
 from ..walking.agent import SocialForceAgent, desired_direction, hold_waiting
 from .background import is_observation_policy, load_named_background
@@ -185,9 +185,9 @@ class CrowdParallelEnv(ParallelEnv):
       background pedestrians with its own observation options and decision interval, or a name:
       ``"calibrated"``, a shipped trained policy (``baselines.trained.list_trained()``) or a ``.npz``
       policy file (:mod:`crowd_env.envs.background`).
-    - ``preset``: the model configuration (:mod:`crowd_env.core.presets`; default ``"calibrated"``,
+    - ``preset``: the model configuration (:mod:`crowd_env.walking.presets`; default ``"calibrated"``,
       calibrated on every figure of the Seyfried experiment); ``params``: a
-      :class:`~crowd_env.core.params.ModelParams` used as it is instead, or a dict of fields that
+      :class:`~crowd_env.walking.model.ModelParams` used as it is instead, or a dict of fields that
       override the preset's. The preset's navigation clearance applies to the bottleneck scenarios
       through their factory defaults (the radius), not here: pass ``navigation_clearance_m`` in
       ``scenario_options`` to change it.

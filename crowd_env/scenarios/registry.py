@@ -85,7 +85,7 @@ def make_scenario(name: str, **options) -> Scenario:
 
 def body_options(name: str, options: dict | None, radius_m: float | None) -> dict:
     """``options`` of the registered scenario ``name`` with every pedestrian's radius ``radius_m`` (a preset's body,
-    :attr:`~crowd_env.core.presets.Preset.body_radius_m`) when its factory takes ``radius_m`` and ``options`` set none;
+    :attr:`~crowd_env.walking.presets.Preset.body_radius_m`) when its factory takes ``radius_m`` and ``options`` set none;
     a copy of ``options`` otherwise (``radius_m`` None: the factory's own default)."""
     out = dict(options or {})
     if radius_m is not None and "radius_m" not in out and "radius_m" in scenario_options(name):

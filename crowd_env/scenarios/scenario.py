@@ -18,7 +18,8 @@ import shapely.affinity
 
 from ..core.checks import check_number, is_integer
 from ..core.geometry import Geometry, as_polygon
-from ..core.params import ModelParams, PedestrianDefaults
+from ..core.params import PedestrianDefaults
+from ..walking.model import ModelParams
 from ..core.simulator import Simulator
 from ..core.state import CrowdState, first_overlap
 from ..walking.navigation import DestinationNavigation, NavigationField, RigidlyMovedNavigation
@@ -312,9 +313,11 @@ class Scenario:
     def make_simulator(self, state: CrowdState | None = None, params: ModelParams | None = None,
                        rng: np.random.Generator | None = None) -> Simulator:
         """A :class:`Simulator` on this geometry starting from ``state`` (default: :meth:`make_state` with
-        ``rng``), with this scenario's destinations."""
+        ``rng``), with this scenario's destinations, under ``params`` (default ``ModelParams()``, the paper's
+        literal model)."""
         state = self.make_state(rng=rng) if state is None else state
-        return Simulator(state, geometry=self.geometry, params=params, destination=self.destination)
+        return Simulator(state, geometry=self.geometry, params=ModelParams() if params is None else params,
+                         destination=self.destination)
 
     # -- measurement lines --------------------------------------------------------------------------
     def line_direction(self, name: str) -> np.ndarray:

@@ -9,6 +9,17 @@ Helbing's social repulsion (Eq. 16) exactly: with every pedestrian on this agent
 paper's model. e_d comes from the eikonal field (Eq. 11-13, :mod:`crowd_env.walking.navigation`); the
 desired heading θ_d of the heading spring-damper (Eq. 15) is the angle of e_d. The environment's
 default background policy and the experiments use it; ``baselines.social_force`` names it for users.
+
+The agent's parameters are :class:`WalkingParams`, a named tuple of small frozen groups, each checked beside the
+kernel that reads it: :class:`~crowd_env.walking.social_force.SocialForce` and
+:class:`~crowd_env.walking.social_force.WallForce` (Eq. 16), :class:`~crowd_env.walking.vision.Vision`,
+:class:`~crowd_env.walking.time_to_collision.TimeToCollision` and the agent's own :class:`Intent`. A model's
+``<group>_<field>`` parameter (``social_strength_n``, ``vision_time_gap_s``, ...) is the field of its group
+(:class:`crowd_env.walking.model.ModelParams` pairs them with the core's physics). The kernels take the
+resolved bundle (:meth:`WalkingParams.resolved`, plain numbers) beside the core's :class:`~crowd_env.core.bundles.Bodies`
+and :class:`~crowd_env.core.bundles.World`, and return named results (:class:`Intents`, :class:`Decision`). One body
+serves both paths: :meth:`SocialForceAgent.__call__` (a simulator stepped from Python) and :func:`decide` (compiled
+rollouts) call the same :func:`pair_radius_m` and :func:`baseline_intents`.
 """
 from __future__ import annotations
 
@@ -18,16 +29,105 @@ import numba as nb
 import numpy as np
 
 from ..core.angles import direction_angles_rad
+from ..core.bundles import Bodies, World
 from ..core.neighbors import grid_pairs
+from ..core.params import check_parameter
 from .navigation import DestinationNavigation, NavigationField, sample_bilinear
-from .social_force import social_repulsion, total_social_forces
-from .time_to_collision import total_ttc_accelerations
-from .vision import vision_reach_m, vision_walk
+from .social_force import SocialForce, WallForce, social_repulsion, total_social_forces
+from .time_to_collision import TimeToCollision, total_ttc_accelerations
+from .vision import Vision, vision_reach_m, vision_walk
 
 # agent_step's status: the intents are ready, or a pedestrian's e_d is undefined (outside the grid, not
 # finite, or unreachable): the caller must take the Python path, which raises naming it.
 AGENT_OK = 0
 AGENT_BAD_DIRECTION = 1
+
+
+class Intent(NamedTuple):
+    """The calibrated agent's own numbers (the model's ``intent_<field>`` parameters): what shapes its intent beyond
+    the social force, vision and the time to collision, read by :func:`baseline_intents`. The paper's model has none;
+    docs/architecture/layers.md adds one (a cap on the intent's speed) as the worked example of a new walking-model
+    parameter. Each is a finite number >= 0."""
+
+    def checked(self) -> "Intent":
+        """This group, once checked (:class:`~crowd_env.errors.ParameterError` naming the model parameter)."""
+        for name, value in zip(self._fields, self):
+            check_parameter(f"intent_{name}", value, minimum=0.0)
+        return self
+
+    def resolved(self) -> "Intent":
+        """Plain numbers for the kernels."""
+        return type(self)(*(float(value) for value in self))
+
+
+class WalkingParams(NamedTuple):
+    """The calibrated agent's parameters, one frozen group each, defaults the paper's model (Kabalan's validation
+    point, no wall term of its own, vision and time to collision off). The model's parameter ``<group>_<field>``
+    (``social_strength_n``, ``wall_social_range_m``, ``vision_rays``, ``ttc_horizon_s``, ...) is ``field`` of the
+    group ``group`` (:class:`crowd_env.walking.model.ModelParams`)."""
+
+    social: SocialForce = SocialForce()
+    wall_social: WallForce = WallForce()
+    vision: Vision = Vision()
+    ttc: TimeToCollision = TimeToCollision()
+    intent: Intent = Intent()
+
+    def checked(self) -> "WalkingParams":
+        """These parameters, once every group is checked beside its kernel (:class:`~crowd_env.errors.ParameterError`
+        naming the model parameter)."""
+        for group in self:
+            group.checked()
+        return self
+
+    def resolved(self) -> "WalkingParams":
+        """The bundle the kernels take: plain numbers, the walls' A and B where None the pedestrians', vision's κ_0
+        and right of way resolved (:meth:`Vision.resolved <crowd_env.walking.vision.Vision.resolved>`)."""
+        return WalkingParams(self.social.resolved(), self.wall_social.resolved(self.social), self.vision.resolved(),
+                             self.ttc.resolved(), self.intent.resolved())
+
+
+DEFAULT_WALKING = WalkingParams().resolved()
+
+
+def walking_bundle(params) -> WalkingParams:
+    """The resolved :class:`WalkingParams` of a simulator's parameters: a
+    :class:`~crowd_env.walking.model.ModelParams`' own (``params.walking_bundle``, resolved once), or the defaults,
+    the paper's walking model, for the core's :class:`~crowd_env.core.params.PhysicsParams` alone."""
+    bundle = getattr(params, "walking_bundle", None)
+    return DEFAULT_WALKING if bundle is None else bundle
+
+
+def plain_walking(walking: WalkingParams) -> tuple:
+    """A resolved bundle as nested plain tuples, the form a call from Python passes (numba's dispatcher types a plain
+    tuple about 2 µs faster than a named one); :func:`named_walking` names it again in compiled code."""
+    return tuple(tuple(group) for group in walking)
+
+
+@nb.njit(cache=True, inline="always")
+def named_walking(plain):
+    """:func:`plain_walking`'s tuples as the :class:`WalkingParams` they came from (in compiled code)."""
+    return WalkingParams(SocialForce(*plain[0]), WallForce(*plain[1]), Vision(*plain[2]), TimeToCollision(*plain[3]),
+                         Intent(*plain[4]))
+
+
+class Intents(NamedTuple):
+    """What :func:`baseline_intents` decides: the velocity intents u_int (N, 2) of Eq. 14 (zero for inactive rows)
+    and the desired headings θ_d (N,) of Eq. 15 (the current heading for inactive rows)."""
+
+    intents_m_s: np.ndarray
+    desired_heading_rad: np.ndarray
+
+
+class Decision(NamedTuple):
+    """What :func:`agent_step` decides: its ``status`` (:data:`AGENT_OK`, or :data:`AGENT_BAD_DIRECTION`: the
+    caller takes the Python path, which raises naming the pedestrian), the :class:`Intents`' two arrays, and the
+    neighbour ``pairs`` it built with their radius ``pair_radius_m`` (−1: none built), which the step may reuse."""
+
+    status: int
+    intents_m_s: np.ndarray
+    desired_heading_rad: np.ndarray
+    pairs: np.ndarray
+    pair_radius_m: float
 
 
 @nb.njit(cache=True)
@@ -47,46 +147,42 @@ def hold_waiting(intents, theta_d, heading, premovement_s, time_s, index):
 
 
 @nb.njit(cache=True)
-def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, heading, velocity, pairs, walls,
-                     wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n, wall_range_m, premovement_s,
-                     time_s, vision, ttc, travel_time_s, period_m=0.0):
+def baseline_intents(bodies, world, index, e_d, travel_time_s, pairs, walking, time_s):
     """u_int = ‖u_d‖ e_d + (τ/m) Σ f_social (Eq. 14, 16) and θ_d = angle of e_d, in one compiled call (with
-    vision: u_int = v e(α*) + (τ/m) Σ f_social and θ_d = α*; with the time-to-collision interaction, + τ Σ f_ttc/m).
+    vision: u_int = v e(α*) + (τ/m) Σ f_social and θ_d = α*; with the time-to-collision interaction, + τ Σ f_ttc/m):
+    the :class:`Intents` of the pedestrians ``index`` of ``bodies`` (:class:`~crowd_env.core.bundles.Bodies`) in
+    ``world`` (:class:`~crowd_env.core.bundles.World`) under the resolved :class:`WalkingParams` ``walking``.
 
-    ``index`` (n,) active pedestrians, ``e_d`` (n, 2) their desired directions (Eq. 13), ``pairs``
-    rows into ``index``. Returns full (N, 2) intents (zero for inactive rows) and (N,) desired
-    headings (the current heading for inactive rows). The forces are :func:`social_repulsion`'s
-    compiled core, :func:`~crowd_env.walking.social_force.total_social_forces`. Pedestrians whose
-    premovement time has not come at ``time_s`` stand still (:func:`hold_waiting`). ``vision``
-    ``(T, l, half-angle, rays, κ, κ_0, w, T_a)`` (:func:`vision_parameters`): with T > 0 the speed and direction of the
-    driving term are :func:`~crowd_env.walking.vision.vision_walk`'s (``pairs`` must then reach 2 r_max +
-    :func:`~crowd_env.walking.vision.vision_reach_m`), and θ_d is the walking direction's angle; with its right of
-    way (``vision[8]`` > 0) ``travel_time_s`` (n,) are the walkers' travel times T (Eq. 11), else unused. ``ttc``
-    ``(k, τ0, range, cap)`` (:func:`ttc_parameters`): with k > 0 the time-to-collision interaction of
-    :mod:`crowd_env.walking.time_to_collision` over ``pairs`` within the range (``pairs`` must reach it).
-    ``period_m``: the simulation's periodicity along x (``Simulator.period_m``; 0: none).
+    ``e_d`` (n, 2) their desired directions (Eq. 13), ``pairs`` rows into ``index`` within :func:`pair_radius_m`.
+    The forces are :func:`~crowd_env.walking.social_force.total_social_forces` (``walking.social`` on). With
+    vision (``walking.vision.time_gap_s`` > 0) the speed and direction of the driving term are
+    :func:`~crowd_env.walking.vision.vision_walk`'s and θ_d is the walking direction's angle; with its right of way
+    ``travel_time_s`` (n,) are the walkers' travel times T (Eq. 11), else unused. With ``walking.ttc.strength_m2_s2``
+    > 0 the time-to-collision interaction of :mod:`crowd_env.walking.time_to_collision`. Pedestrians whose
+    premovement time has not come at ``time_s`` stand still (:func:`hold_waiting`).
     """
+    position, radius, heading, velocity = bodies.position_m, bodies.radius_m, bodies.heading_rad, bodies.velocity_m_s
+    tau, mass = bodies.tau_s, bodies.mass_kg
     n = index.shape[0]
     intents = np.zeros((position.shape[0], 2))
     theta_d = heading.copy()
     force = np.zeros((n, 2))
-    if social and n:
+    if walking.social.forces and n:
         pos = np.empty((n, 2))
         rad = np.empty(n)
         for k in range(n):
             pos[k, 0] = position[index[k], 0]
             pos[k, 1] = position[index[k], 1]
             rad[k] = radius[index[k]]
-        total_social_forces(pos, rad, e_d, pairs, np.arange(n), walls, wall_owner, strength_n, range_m, anisotropy,
-                            cutoff_m, wall_strength_n, wall_range_m, force, period_m)
-    if vision[0] > 0.0:  # the walking speed and direction of vision instead of ‖u_d‖ and e_d
-        speed, walk = vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, walls, period_m,
-                                  vision[0], vision[1], vision[2], vision[3], vision[4], vision[5], vision[6],
-                                  vision[7], vision[8], travel_time_s)
+        total_social_forces(pos, rad, e_d, pairs, np.arange(n), world.walls, world.wall_owner, walking.social,
+                            walking.wall_social, force, world.period_m)
+    if walking.vision.time_gap_s > 0.0:  # the walking speed and direction of vision instead of ‖u_d‖ and e_d
+        speed, walk = vision_walk(position, radius, index, e_d, bodies.desired_speed_m_s, velocity, pairs,
+                                  world.walls, world.period_m, walking.vision, travel_time_s)
     else:
         speed = np.empty(n)
         for k in range(n):
-            speed[k] = desired_speed[index[k]]
+            speed[k] = bodies.desired_speed_m_s[index[k]]
         walk = e_d
     angles = direction_angles_rad(walk)
     for k in range(n):
@@ -95,15 +191,40 @@ def baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, hea
         intents[i, 0] = speed[k] * walk[k, 0] + scale * force[k, 0]
         intents[i, 1] = speed[k] * walk[k, 1] + scale * force[k, 1]
         theta_d[i] = angles[k]
-    if ttc[0] > 0.0 and n:  # + τ_i Σ f_ttc / m_i
-        accel = total_ttc_accelerations(position, velocity, radius, index, pairs, period_m, ttc[0], ttc[1], ttc[2],
-                                        ttc[3])
+    if walking.ttc.strength_m2_s2 > 0.0 and n:  # + τ_i Σ f_ttc / m_i
+        accel = total_ttc_accelerations(position, velocity, radius, index, pairs, world.period_m, walking.ttc)
         for k in range(n):
             i = index[k]
             intents[i, 0] += tau[i] * accel[k, 0]
             intents[i, 1] += tau[i] * accel[k, 1]
-    hold_waiting(intents, theta_d, heading, premovement_s, time_s, index)
-    return intents, theta_d
+    hold_waiting(intents, theta_d, heading, bodies.premovement_s, time_s, index)
+    return Intents(intents, theta_d)
+
+
+@nb.njit(cache=True)
+def pair_reach_m(desired_speed, index, walking):
+    """How far beyond 2 r_max the agent under ``walking`` needs its neighbour pairs: the social cut-off, vision's
+    horizon (:func:`~crowd_env.walking.vision.vision_reach_m`), the time-to-collision range, the largest of them; −1
+    when it needs none."""
+    reach = walking.social.cutoff_m if walking.social.forces else -1.0
+    if walking.vision.time_gap_s > 0.0:
+        reach = max(reach, vision_reach_m(desired_speed, index, walking.vision))
+    if walking.ttc.strength_m2_s2 > 0.0:
+        reach = max(reach, walking.ttc.range_m)
+    return reach
+
+
+@nb.njit(cache=True)
+def pair_radius_m(bodies, index, walking):
+    """The centre distance within which the agent needs the pairs of the pedestrians ``index``: 2 r_max +
+    :func:`pair_reach_m`; −1 when it needs none."""
+    reach = pair_reach_m(bodies.desired_speed_m_s, index, walking)
+    if reach < 0.0:
+        return -1.0
+    r_max = 0.0
+    for k in range(index.shape[0]):
+        r_max = max(r_max, bodies.radius_m[index[k]])
+    return 2.0 * r_max + reach
 
 
 class CompiledNavigation(NamedTuple):
@@ -140,11 +261,12 @@ def compile_navigation(navigation, n_pedestrians: int) -> CompiledNavigation | N
 
 
 @nb.njit(cache=True)
-def sample_directions(position, index, origin_m, resolution_m, travel_time, direction, field_of):
-    """e_d (Eq. 13) of the pedestrians ``index``, each from its own field, by the same bilinear kernel as
-    :meth:`NavigationField.sample` (point by point: the same bits). Returns ``(e_d (n, 2), ok)``; ``ok``
-    is False when a point is outside the grid or not finite, or has no direction (unreachable). Also returns the
-    travel times T (n,) of the same samples: ``(e_d, T, ok)``."""
+def sample_directions(position, index, navigation):
+    """e_d (Eq. 13) of the pedestrians ``index``, each from its own field of the :class:`CompiledNavigation`
+    ``navigation``, by the same bilinear kernel as :meth:`NavigationField.sample` (point by point: the same bits).
+    Returns ``(e_d (n, 2), T (n,), ok)``: the travel times T of the same samples, and ``ok`` False when a point is
+    outside the grid or not finite, or has no direction (unreachable)."""
+    origin_m, resolution_m, travel_time, direction, field_of = navigation
     n = index.shape[0]
     e_d = np.empty((n, 2))
     times = np.empty(n)
@@ -168,7 +290,7 @@ def sample_directions(position, index, origin_m, resolution_m, travel_time, dire
         out_dir = np.empty((count, 2))
         out_time = np.empty(count)
         if sample_bilinear(pts, origin_m[0], origin_m[1], resolution_m, travel_time[f], direction[f], out_dir,
-                            out_time) >= 0:
+                           out_time) >= 0:
             ok = False
         for q in range(count):
             e_d[rows[q], 0] = out_dir[q, 0]
@@ -181,101 +303,57 @@ def sample_directions(position, index, origin_m, resolution_m, travel_time, dire
 
 
 @nb.njit(cache=True)
-def pair_reach_m(desired_speed, index, social, cutoff_m, vision, ttc):
-    """How far beyond 2 r_max the agent needs its neighbour pairs: the social cut-off, vision's horizon
-    (:func:`~crowd_env.walking.vision.vision_reach_m`), the time-to-collision range, the largest of them; −1 when
-    it needs none."""
-    reach = cutoff_m if social else -1.0
-    if vision[0] > 0.0:
-        reach = max(reach, vision_reach_m(desired_speed, index, vision[0], vision[1]))
-    if ttc[0] > 0.0:
-        reach = max(reach, ttc[2])
-    return reach
-
-
-def ttc_parameters(params) -> tuple:
-    """``(k, τ0, range, cap)`` of :class:`~crowd_env.core.params.ModelParams` ``params`` for the kernels (the
-    time-to-collision interaction, :mod:`crowd_env.walking.time_to_collision`; k = 0: off)."""
-    return (float(params.ttc_strength_m2_s2), float(params.ttc_horizon_s), float(params.ttc_range_m),
-            float(params.ttc_max_accel_m_s2))
-
-
-def vision_parameters(params) -> tuple:
-    """``(T, l, half-angle, rays, κ, κ_0, w, T_a, right of way)`` of :class:`~crowd_env.core.params.ModelParams`
-    ``params`` for the kernels (κ_0 = κ when ``vision_body_scale_standing`` is None; w the anticipation, T_a the
-    leader time, the right of way 1.0 or 0.0)."""
-    standing = params.vision_body_scale if params.vision_body_scale_standing is None \
-        else params.vision_body_scale_standing
-    return (float(params.vision_time_gap_s), float(params.vision_jam_gap_m), float(params.vision_half_angle_rad),
-            int(params.vision_rays), float(params.vision_body_scale), float(standing),
-            float(params.vision_anticipation), float(params.vision_leader_time_s),
-            1.0 if params.vision_time_gap_s > 0 and params.vision_right_of_way else 0.0)
-
-
-@nb.njit(cache=True)
-def agent_step(position, radius, index, origin_m, resolution_m, travel_time, direction, field_of, desired_speed, tau,
-               mass, heading, velocity, walls, wall_owner, social, strength_n, range_m, anisotropy, cutoff_m,
-               wall_strength_n, wall_range_m, premovement_s, time_s, vision, ttc, period_m=0.0):
+def agent_step(bodies, world, index, navigation, walking, time_s):
     """One decision of :class:`SocialForceAgent` in compiled code, exactly as its ``__call__``: e_d from the
-    fields (:func:`sample_directions`), the neighbour pairs within 2 r_max + cut-off (the ones
-    ``Simulator.neighbor_pairs`` would build, which the step may reuse) and :func:`baseline_intents`.
-    Returns ``(status, intents, θ_d, pairs, pair_radius_m)``, ``pair_radius_m`` −1 when no pairs were built."""
-    n = index.shape[0]
+    :class:`CompiledNavigation` ``navigation`` (:func:`sample_directions`), the neighbour pairs within
+    :func:`pair_radius_m` (the ones ``Simulator.neighbor_pairs`` would build, which the step may reuse) and
+    :func:`baseline_intents` under the resolved :class:`WalkingParams` ``walking``. Returns a :class:`Decision`."""
+    position = bodies.position_m
     no_pairs = np.zeros((0, 2), np.int64)
-    e_d, times, ok = sample_directions(position, index, origin_m, resolution_m, travel_time, direction, field_of)
+    e_d, times, ok = sample_directions(position, index, navigation)
     if not ok:
-        return AGENT_BAD_DIRECTION, np.zeros((position.shape[0], 2)), heading.copy(), no_pairs, -1.0
-    pairs = no_pairs
-    pair_radius = -1.0
-    reach = pair_reach_m(desired_speed, index, social, cutoff_m, vision, ttc)
-    if reach >= 0.0:
-        r_max = 0.0
-        for k in range(n):
-            r_max = max(r_max, radius[index[k]])
-        pair_radius = 2.0 * r_max + reach
-        pairs = grid_pairs(position, index, pair_radius, period_m)
-    intents, theta_d = baseline_intents(position, radius, index, e_d, desired_speed, tau, mass, heading, velocity,
-                                        pairs, walls, wall_owner, social, strength_n, range_m, anisotropy, cutoff_m, wall_strength_n,
-                                        wall_range_m, premovement_s, time_s, vision, ttc, times, period_m)
-    return AGENT_OK, intents, theta_d, pairs, pair_radius
+        return Decision(AGENT_BAD_DIRECTION, np.zeros((position.shape[0], 2)), bodies.heading_rad.copy(), no_pairs,
+                        -1.0)
+    radius = pair_radius_m(bodies, index, walking)
+    pairs = grid_pairs(position, index, radius, world.period_m) if radius >= 0.0 else no_pairs
+    chosen = baseline_intents(bodies, world, index, e_d, times, pairs, walking, time_s)
+    return Decision(AGENT_OK, chosen.intents_m_s, chosen.desired_heading_rad, pairs, radius)
 
 
 class CompiledAgent(NamedTuple):
-    """:class:`SocialForceAgent` for compiled code (:func:`decide`): its navigation and the parameters of
-    :class:`~crowd_env.core.params.ModelParams` it reads (Eq. 16's A, B, λ and cut-off, the walls' A and B,
-    :func:`vision_parameters`, :func:`ttc_parameters`). Built by :func:`compiled_agent`."""
+    """:class:`SocialForceAgent` for compiled code (:func:`decide`): its :class:`CompiledNavigation` and the resolved
+    :class:`WalkingParams` it decides with. Built by :func:`compiled_agent`."""
 
     navigation: CompiledNavigation
-    social: bool
-    strength_n: float
-    range_m: float
-    anisotropy: float
-    cutoff_m: float
-    wall_strength_n: float
-    wall_range_m: float
-    vision: tuple
-    ttc: tuple
+    walking: WalkingParams
 
 
 def compiled_agent(navigation: CompiledNavigation, params) -> CompiledAgent:
-    """The :class:`CompiledAgent` of a compiled ``navigation`` (:meth:`SocialForceAgent.compiled`) under
-    ``params``."""
-    return CompiledAgent(navigation, bool(params.social_forces), float(params.social_strength_n),
-                         float(params.social_range_m), float(params.social_anisotropy), float(params.social_cutoff_m),
-                         float(params.wall_strength_n), float(params.wall_range_m), vision_parameters(params),
-                         ttc_parameters(params))
+    """The :class:`CompiledAgent` of a compiled ``navigation`` (:meth:`SocialForceAgent.compiled`) under a
+    simulator's ``params`` (:func:`walking_bundle`)."""
+    return CompiledAgent(navigation, walking_bundle(params))
 
 
 @nb.njit(cache=True, inline="always")
 def decide(agent, bodies, world, index, time_s):
     """:func:`agent_step` of the :class:`CompiledAgent` ``agent`` for the pedestrians ``index`` of ``bodies`` in
-    ``world`` (:mod:`crowd_env.core.bundles`) at ``time_s``: ``(status, intents, θ_d, pairs, pair_radius_m)``."""
-    nav = agent.navigation
-    return agent_step(bodies.position_m, bodies.radius_m, index, nav.origin_m, nav.resolution_m, nav.travel_time_s,
-                      nav.direction, nav.field_of, bodies.desired_speed_m_s, bodies.tau_s, bodies.mass_kg,
-                      bodies.heading_rad, bodies.velocity_m_s, world.walls, world.wall_owner, agent.social,
-                      agent.strength_n, agent.range_m, agent.anisotropy, agent.cutoff_m, agent.wall_strength_n,
-                      agent.wall_range_m, bodies.premovement_s, time_s, agent.vision, agent.ttc, world.period_m)
+    ``world`` (:mod:`crowd_env.core.bundles`) at ``time_s``: a :class:`Decision`."""
+    return agent_step(bodies, world, index, agent.navigation, agent.walking, time_s)
+
+
+@nb.njit(cache=True)
+def python_pair_radius_m(bodies, index, walking):
+    """:func:`pair_radius_m` called from Python, the bundles as plain tuples (:meth:`CrowdState.array_fields
+    <crowd_env.core.state.CrowdState.array_fields>`, :func:`plain_walking`)."""
+    return pair_radius_m(Bodies(*bodies), index, named_walking(walking))
+
+
+@nb.njit(cache=True)
+def python_intents(bodies, world, index, e_d, travel_time_s, pairs, walking, time_s):
+    """:func:`baseline_intents` called from Python, the bundles as plain tuples (:meth:`CrowdState.array_fields
+    <crowd_env.core.state.CrowdState.array_fields>`, ``tuple(Simulator.world)``, :func:`plain_walking`)."""
+    return baseline_intents(Bodies(*bodies), World(*world), index, e_d, travel_time_s, pairs, named_walking(walking),
+                            time_s)
 
 
 def travel_time(navigation, position_m: np.ndarray, index: np.ndarray) -> np.ndarray:
@@ -310,8 +388,11 @@ class SocialForceAgent:
     true, ``direction(points, index)`` (a :class:`~crowd_env.walking.navigation.DestinationNavigation`:
     each pedestrian follows the field of its own destination exit; a navigation with an ``update(sim)``
     method, e.g. :class:`~crowd_env.walking.route_choice.QuickestExitNavigation`, is updated once per
-    decision). Social parameters (A, B, λ,
-    cut-off, on/off) are read from the simulator's :class:`~crowd_env.core.params.ModelParams`.
+    decision). The walking parameters (the social force, vision, ...) are the simulator's
+    (:func:`walking_bundle` of ``sim.params``: a :class:`~crowd_env.walking.model.ModelParams`' own, the paper's
+    for the core's physics alone). A call decides as :func:`agent_step` does, with the same
+    :func:`pair_radius_m` and :func:`baseline_intents`: e_d from the navigation object, the pairs from
+    ``sim.neighbor_pairs`` (which the step then reuses).
     """
 
     def __init__(self, navigation):
@@ -325,12 +406,14 @@ class SocialForceAgent:
     def social_force(self, sim, e_d: np.ndarray) -> np.ndarray:
         """Σ f_social (N) on every active pedestrian, from pedestrians and walls (Eq. 16); compact rows."""
         st = sim.state
-        p = sim.params
+        walking = walking_bundle(sim.params)
         idx = sim.active_index
         pos = st.position_m[idx]
         radius = st.radius_m[idx]
-        pairs = sim.neighbor_pairs(2.0 * float(radius.max()) + p.social_cutoff_m) if idx.size else np.zeros((0, 2), np.int64)
-        return social_repulsion(pos, radius, e_d, pairs, sim.walls, sim.wall_owner, p, period_m=sim.period_m)
+        pairs = sim.neighbor_pairs(2.0 * float(radius.max()) + walking.social.cutoff_m) if idx.size \
+            else np.zeros((0, 2), np.int64)
+        return social_repulsion(pos, radius, e_d, pairs, sim.walls, sim.wall_owner, walking.social,
+                                walking.wall_social, period_m=sim.period_m)
 
     def compiled(self, n_pedestrians: int) -> CompiledNavigation | None:
         """The agent's navigation for :func:`agent_step` (None: this agent has no compiled form, e.g. a
@@ -340,25 +423,32 @@ class SocialForceAgent:
             return None
         return compile_navigation(self.navigation, n_pedestrians)
 
+    def _walking(self, params) -> tuple:
+        """``(resolved WalkingParams, its plain tuples)`` of the simulator's ``params``, kept while they stay the same
+        object."""
+        kept = self.__dict__.get("_walking_kept")
+        if kept is None or kept[0] is not params:
+            walking = walking_bundle(params)
+            kept = self._walking_kept = (params, walking, plain_walking(walking))
+        return kept[1], kept[2]
+
     def __call__(self, sim):
         st = sim.state
-        p = sim.params
         idx = sim.active_index
         if idx.size == 0:
             return np.zeros((st.n, 2)), st.heading_rad.copy()
         update = getattr(self.navigation, "update", None)  # a navigation that changes with the crowd
         if update is not None:
             update(sim)
+        walking, plain = self._walking(sim.params)
         e_d = self.desired_direction(sim, idx)
-        vision = vision_parameters(p)
-        ttc = ttc_parameters(p)
-        times = travel_time(self.navigation, st.position_m, idx) if vision[8] > 0.0 else np.zeros(0)
-        reach = pair_reach_m(st.desired_speed_m_s, idx, bool(p.social_forces), float(p.social_cutoff_m), vision, ttc)
-        pairs = sim.neighbor_pairs(2.0 * float(st.radius_m[idx].max()) + reach) if reach >= 0.0 \
-            else np.zeros((0, 2), np.int64)
-        return baseline_intents(st.position_m, st.radius_m, idx, e_d, st.desired_speed_m_s, st.tau_s, st.mass_kg,
-                                st.heading_rad, st.velocity_m_s, pairs, sim.walls, sim.wall_owner, p.social_forces,
-                                float(p.social_strength_n), float(p.social_range_m), float(p.social_anisotropy),
-                                float(p.social_cutoff_m), float(p.wall_strength_n), float(p.wall_range_m),
-                                st.premovement_s, float(sim.time_s), vision, ttc, np.asarray(times, np.float64),
-                                sim.period_m)
+        times = np.asarray(travel_time(self.navigation, st.position_m, idx), np.float64) \
+            if walking.vision.right_of_way else _NO_TIMES
+        bodies = st.array_fields()
+        radius = python_pair_radius_m(bodies, idx, plain)
+        pairs = sim.neighbor_pairs(radius) if radius >= 0.0 else _NO_PAIRS
+        return python_intents(bodies, sim.world_fields(), idx, e_d, times, pairs, plain, float(sim.time_s))
+
+
+_NO_TIMES = np.zeros(0)
+_NO_PAIRS = np.zeros((0, 2), np.int64)

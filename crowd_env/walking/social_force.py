@@ -12,8 +12,9 @@ weight, so Newton's third law holds only for λ = 1. Forces act at the centre (n
 Walls: the paper defines Eq. 16 between pedestrians only (its walls act through the Frémond collisions
 alone); the wall term here is Helbing, Farkas & Vicsek's (2000), with R = r_i, d the distance to the
 wall's closest point, n the wall's normal into the pedestrian, and its own strength and range
-(``wall_social_strength_n``, ``wall_social_range_m`` of :class:`~crowd_env.core.params.ModelParams`;
-``wall_social_strength_n = 0`` is the paper-literal model).
+(:class:`WallForce`, the model's ``wall_social_strength_n`` and ``wall_social_range_m``; ``wall_social_strength_n
+= 0`` is the paper-literal model). The parameters come in two small frozen groups checked here, :class:`SocialForce`
+and :class:`WallForce` (:class:`crowd_env.walking.agent.WalkingParams` holds them with the agent's others).
 
 Neighbour pairs come from the simulator's cell grid (:mod:`crowd_env.core.neighbors`), pedestrian/wall
 pairs from :func:`crowd_env.core.segments.wall_proximity`; pairs whose surface gap exceeds ``cutoff_m``
@@ -24,15 +25,70 @@ contribute nothing. The simulator itself never calls this module: the calibrated
 """
 from __future__ import annotations
 
-from crowd_env.errors import InputError
+from crowd_env.errors import InputError, ParameterError
+
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
 
+from ..core.params import check_flag, check_parameter
 from ..core.periodic import minimum_image_dx
 from ..core.segments import as_segments, closest_point_on_segment, wall_proximity
 
 _TINY_M = 1e-12  # centre distances below this have no defined direction: the pair is skipped
+
+
+class SocialForce(NamedTuple):
+    """Eq. 16 between pedestrians (the model's ``social_<field>`` parameters): ``forces`` on or off, A
+    ``strength_n``, B ``range_m``, λ ``anisotropy`` (1 = isotropic; Eq. 16 states 0 < λ < 1), pairs interacting while
+    their surface gap is below ``cutoff_m`` (walls too). Defaults: Kabalan's validation point (Section 4.1.3)."""
+
+    forces: bool = True
+    strength_n: float = 790.0
+    range_m: float = 0.08
+    anisotropy: float = 1.0
+    cutoff_m: float = 1.0
+
+    def checked(self) -> "SocialForce":
+        """This group, once its values are checked (:class:`~crowd_env.errors.ParameterError` naming the model
+        parameter)."""
+        check_flag("social_forces", self.forces)
+        check_parameter("social_strength_n", self.strength_n, minimum=0.0)
+        check_parameter("social_range_m", self.range_m, positive=True)
+        if isinstance(self.anisotropy, bool) or not isinstance(self.anisotropy, (int, float, np.floating)) \
+                or not 0.0 <= self.anisotropy <= 1.0:
+            raise ParameterError(f"social_anisotropy (lambda) must lie in [0, 1], got {self.anisotropy!r}")
+        check_parameter("social_cutoff_m", self.cutoff_m, positive=True)
+        return self
+
+    def resolved(self) -> "SocialForce":
+        """Plain numbers for the kernels (one numba type whatever was given)."""
+        return SocialForce(bool(self.forces), float(self.strength_n), float(self.range_m), float(self.anisotropy),
+                           float(self.cutoff_m))
+
+
+class WallForce(NamedTuple):
+    """Helbing's wall repulsion (the model's ``wall_social_<field>`` parameters): A ``strength_n`` and B ``range_m``
+    for walls, None for the pedestrians' own (:class:`SocialForce`); ``strength_n = 0`` is the paper-literal model
+    (walls act through the Frémond contacts alone). λ and the cut-off are the pedestrians'."""
+
+    strength_n: float | None = None
+    range_m: float | None = None
+
+    def checked(self) -> "WallForce":
+        """This group, once checked (each a non-negative finite number or None; the range > 0)."""
+        for name, value in (("wall_social_strength_n", self.strength_n), ("wall_social_range_m", self.range_m)):
+            if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float, np.integer,
+                                                                                       np.floating))
+                                      or not np.isfinite(value) or value < 0 or (name.endswith("_m") and value == 0)):
+                raise ParameterError(f"{name} must be a positive finite number or None, got {value!r}")
+        return self
+
+    def resolved(self, social: SocialForce) -> "WallForce":
+        """Plain numbers for the kernels: None takes the pedestrians' A or B (``social``)."""
+        return WallForce(float(social.strength_n if self.strength_n is None else self.strength_n),
+                         float(social.range_m if self.range_m is None else self.range_m))
 
 
 @nb.njit(cache=True, inline="always")
@@ -120,14 +176,16 @@ def wall_forces_within(position, radius, desired_direction, index, segments, own
 
 
 @nb.njit(cache=True)
-def total_social_forces(position, radius, desired_direction, pairs, index, segments, owner, strength_n, range_m,
-                        anisotropy, cutoff_m, wall_strength_n, wall_range_m, out, period_m=0.0):
+def total_social_forces(position, radius, desired_direction, pairs, index, segments, owner, social, wall, out,
+                        period_m=0.0):
     """Compiled core of :func:`social_repulsion` (Eq. 16 between the ``pairs`` and from the walls near
-    pedestrians ``index``), accumulated into ``out``; also called from other compiled code. ``period_m``:
+    pedestrians ``index``) with the :class:`SocialForce` ``social`` and the resolved :class:`WallForce` ``wall``
+    (:meth:`WallForce.resolved`), accumulated into ``out``; also called from other compiled code. ``period_m``:
     the periodicity along x of the pedestrians' displacements (0: none)."""
-    social_forces(position, radius, desired_direction, pairs, strength_n, range_m, anisotropy, cutoff_m, out, period_m)
-    return wall_forces_within(position, radius, desired_direction, index, segments, owner, wall_strength_n,
-                              wall_range_m, anisotropy, cutoff_m, out)
+    social_forces(position, radius, desired_direction, pairs, social.strength_n, social.range_m, social.anisotropy,
+                  social.cutoff_m, out, period_m)
+    return wall_forces_within(position, radius, desired_direction, index, segments, owner, wall.strength_n,
+                              wall.range_m, social.anisotropy, social.cutoff_m, out)
 
 
 def wall_repulsion(position, radius, desired_direction, segments, owner, strength_n, range_m, anisotropy,
@@ -143,14 +201,12 @@ def wall_repulsion(position, radius, desired_direction, segments, owner, strengt
                               float(range_m), float(anisotropy), float(cutoff_m), out)
 
 
-def social_repulsion(position, radius, desired_direction, pairs, segments, owner, params, index=None, out=None,
-                     period_m: float = 0.0):
-    """Total social force (N, 2) in newtons from pedestrians and walls with :class:`ModelParams` ``params``.
-
-    Uses ``social_strength_n``/``social_range_m`` between pedestrians, ``wall_strength_n``/
-    ``wall_range_m`` for walls, ``social_anisotropy`` and ``social_cutoff_m`` for both. ``pairs`` must
-    only hold pedestrians that should interact (e.g. active ones); ``index`` restricts wall queries.
-    ``period_m``: the periodicity along x (``Simulator.period_m``; 0: none).
+def social_repulsion(position, radius, desired_direction, pairs, segments, owner, social: SocialForce,
+                     wall: WallForce = WallForce(), index=None, out=None, period_m: float = 0.0):
+    """Total social force (N, 2) in newtons from pedestrians and walls: the :class:`SocialForce` ``social`` between
+    pedestrians (A, B, λ and the cut-off for both) and the :class:`WallForce` ``wall`` for walls (None fields: the
+    pedestrians' A, B). ``pairs`` must only hold pedestrians that should interact (e.g. active ones); ``index``
+    restricts wall queries. ``period_m``: the periodicity along x (``Simulator.period_m``; 0: none).
     """
     n = position.shape[0]
     if out is None:
@@ -163,10 +219,9 @@ def social_repulsion(position, radius, desired_direction, pairs, segments, owner
     if pairs.size and (pairs.min() < 0 or pairs.max() >= n):
         raise InputError(f"neighbour pairs index pedestrians outside 0..{n - 1}")
     index = np.arange(n, dtype=np.int64) if index is None else np.ascontiguousarray(index, dtype=np.int64)
-    return total_social_forces(position, radius, desired_direction, pairs, index, segments, owner,
-                               float(params.social_strength_n), float(params.social_range_m),
-                               float(params.social_anisotropy), float(params.social_cutoff_m),
-                               float(params.wall_strength_n), float(params.wall_range_m), out, float(period_m))
+    social = social.checked().resolved()
+    return total_social_forces(position, radius, desired_direction, pairs, index, segments, owner, social,
+                               wall.checked().resolved(social), out, float(period_m))
 
 
 def social_forces_dense_reference(position, radius, desired_direction, segments, strength_n, range_m, anisotropy,
@@ -228,6 +283,8 @@ def social_forces_dense_reference(position, radius, desired_direction, segments,
 
 
 __all__ = [
+    "SocialForce",
+    "WallForce",
     "social_forces",
     "wall_social_forces",
     "wall_repulsion",

@@ -15,9 +15,10 @@ The force on i is f = −∇_x E (the gradient in the relative position, the vel
 
     f = k m e^(−τ/τ0) / (a τ²) · (2/τ + 1/τ0) · (−v + (a x + b v) / √(b² − a c)).
 
-Constants: k = ``ttc_strength_m2_s2`` (the paper's fit: 1.5 m²/s², per unit mass), τ0 = ``ttc_horizon_s`` (3 s,
-the paper's interaction horizon), neighbours whose centres lie within ``ttc_range_m``, and the force per unit
-mass capped at ``ttc_max_accel_m_s2``: E diverges as τ → 0 at contact, where the core's Frémond contacts keep the
+Constants (:class:`TimeToCollision`, the model's ``ttc_<field>`` parameters): k = ``strength_m2_s2`` (the paper's
+fit: 1.5 m²/s², per unit mass; 0, the default, switches the interaction off), τ0 = ``horizon_s`` (3 s, the paper's
+interaction horizon), neighbours whose centres lie within ``range_m``, and the force per unit mass capped at
+``max_accel_m_s2``: E diverges as τ → 0 at contact, where the core's Frémond contacts keep the
 bodies apart anyway. Two pedestrians at the same velocity (a = 0) or moving apart never interact, so the
 interaction slows a walker that closes on a slower one and deflects walkers that would collide; pedestrians
 who already touch (c ≤ 0) leave it to the contacts. The force is antisymmetric (f_ji = −f_ij for equal
@@ -25,12 +26,35 @@ masses), like the social force of Eq. 16, and enters the agent's intent the same
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba as nb
 import numpy as np
 
+from ..core.params import check_parameter
 from ..core.periodic import minimum_image_dx
 
-__all__ = ["time_to_collision_s", "ttc_acceleration", "total_ttc_accelerations"]
+__all__ = ["TimeToCollision", "time_to_collision_s", "ttc_acceleration", "total_ttc_accelerations"]
+
+
+class TimeToCollision(NamedTuple):
+    """The interaction's constants (module docstring; the model's ``ttc_<field>`` parameters)."""
+
+    strength_m2_s2: float = 0.0
+    horizon_s: float = 3.0
+    range_m: float = 3.0
+    max_accel_m_s2: float = 5.0
+
+    def checked(self) -> "TimeToCollision":
+        """This group, once checked (:class:`~crowd_env.errors.ParameterError` naming the model parameter)."""
+        check_parameter("ttc_strength_m2_s2", self.strength_m2_s2, minimum=0.0)
+        for name in ("horizon_s", "range_m", "max_accel_m_s2"):
+            check_parameter(f"ttc_{name}", getattr(self, name), positive=True)
+        return self
+
+    def resolved(self) -> "TimeToCollision":
+        """Plain numbers for the kernels."""
+        return TimeToCollision(*(float(value) for value in self))
 
 
 @nb.njit(cache=True)
@@ -73,10 +97,11 @@ def ttc_acceleration(x, y, vx, vy, radius_sum_m, strength_m2_s2, horizon_s, max_
 
 
 @nb.njit(cache=True)
-def total_ttc_accelerations(position, velocity, radius, index, pairs, period_m, strength_m2_s2, horizon_s, range_m,
-                            max_accel_m_s2):
+def total_ttc_accelerations(position, velocity, radius, index, pairs, period_m, ttc):
     """Σ_j f_ij/m_i (n, 2) on the pedestrians ``index`` from every pair of ``pairs`` (rows into ``index``)
-    whose centres lie within ``range_m`` (minimum image along x when ``period_m`` > 0)."""
+    whose centres lie within the :class:`TimeToCollision` ``ttc``'s range (minimum image along x when ``period_m``
+    > 0)."""
+    range_m = ttc.range_m
     n = index.shape[0]
     out = np.zeros((n, 2))
     for p in range(pairs.shape[0]):
@@ -89,7 +114,7 @@ def total_ttc_accelerations(position, velocity, radius, index, pairs, period_m, 
         if x * x + y * y > range_m * range_m:
             continue
         fx, fy = ttc_acceleration(x, y, velocity[i, 0] - velocity[j, 0], velocity[i, 1] - velocity[j, 1],
-                                  radius[i] + radius[j], strength_m2_s2, horizon_s, max_accel_m_s2)
+                                  radius[i] + radius[j], ttc.strength_m2_s2, ttc.horizon_s, ttc.max_accel_m_s2)
         out[a, 0] += fx
         out[a, 1] += fy
         out[b, 0] -= fx

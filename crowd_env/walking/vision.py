@@ -44,13 +44,84 @@ learned agents choose their own velocities, and the core's Frémond contacts are
 """
 from __future__ import annotations
 
+import math
+from typing import NamedTuple
+
 import numba as nb
 import numpy as np
 
+from crowd_env.errors import ParameterError
+
+from ..core.params import check_flag, check_parameter
 from ..core.periodic import minimum_image_dx
 
-__all__ = ["vision_reach_m", "vision_walk", "ray_circle_distance", "moving_circle_distance", "free_distances",
-           "gives_way"]
+__all__ = ["Vision", "Sight", "vision_reach_m", "vision_walk", "ray_circle_distance", "moving_circle_distance",
+           "free_distances", "gives_way"]
+
+
+class Vision(NamedTuple):
+    """The rule's parameters (module docstring; the model's ``vision_<field>`` parameters): T ``time_gap_s`` (0, the
+    default: off, the paper's walking model), l ``jam_gap_m``, the fan's ``half_angle_rad`` and ``rays`` (odd: e_d
+    is one of them), κ ``body_scale`` and κ_0 ``body_scale_standing`` (None: κ always), w ``anticipation``, T_a
+    ``leader_time_s`` and the ``right_of_way``."""
+
+    time_gap_s: float = 0.0
+    jam_gap_m: float = 0.0
+    half_angle_rad: float = 0.0
+    rays: int = 1
+    body_scale: float = 1.0
+    body_scale_standing: float | None = None
+    anticipation: float = 0.0
+    leader_time_s: float = 0.0
+    right_of_way: bool = False
+
+    def checked(self) -> "Vision":
+        """This group, once checked (:class:`~crowd_env.errors.ParameterError` naming the model parameter)."""
+        for name in ("time_gap_s", "jam_gap_m", "half_angle_rad", "leader_time_s"):
+            check_parameter(f"vision_{name}", getattr(self, name), minimum=0.0)
+        _unit("vision_body_scale (kappa)", self.body_scale, low_open=True)
+        if self.body_scale_standing is not None:
+            _unit("vision_body_scale_standing (kappa_0)", self.body_scale_standing, low_open=True, none=True)
+        _unit("vision_anticipation", self.anticipation, low_open=False)
+        if self.half_angle_rad > math.pi:
+            raise ParameterError(f"vision_half_angle_rad must lie in [0, pi], got {self.half_angle_rad!r}")
+        rays = self.rays
+        if isinstance(rays, bool) or not isinstance(rays, (int, np.integer)) or rays < 1 or rays % 2 == 0:
+            raise ParameterError(f"vision_rays must be an odd integer >= 1, got {rays!r}")
+        if rays > 1 and self.half_angle_rad == 0:
+            raise ParameterError(f"vision_rays = {rays} needs vision_half_angle_rad > 0 (a fan of directions); with one "
+                                 "direction set vision_rays = 1")
+        check_flag("vision_right_of_way", self.right_of_way)
+        return self
+
+    def resolved(self) -> "Vision":
+        """Plain numbers for the kernels: κ_0 = κ when None, the right of way only while the rule is on (T > 0)."""
+        standing = self.body_scale if self.body_scale_standing is None else self.body_scale_standing
+        return Vision(float(self.time_gap_s), float(self.jam_gap_m), float(self.half_angle_rad), int(self.rays),
+                      float(self.body_scale), float(standing), float(self.anticipation), float(self.leader_time_s),
+                      bool(self.time_gap_s > 0 and self.right_of_way))
+
+
+def _unit(name: str, value, *, low_open: bool, none: bool = False) -> None:
+    """``value`` must lie in (0, 1] (``low_open``) or [0, 1]; :class:`ParameterError` naming ``name`` otherwise."""
+    bad = isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) or not (
+        (0.0 < value <= 1.0) if low_open else (0.0 <= value <= 1.0))
+    if bad:
+        interval = "(0, 1]" if low_open else "[0, 1]"
+        raise ParameterError(f"{name} must lie in {interval}{' or be None' if none else ''}, got {value!r}")
+
+
+class Sight(NamedTuple):
+    """What a walker sees with (:func:`free_distances`), per walker of ``rows``: its ``horizon`` (m), its κ_i
+    ``body_scale``, the speed it would walk at (``walk_speed``, for the anticipation), and for everyone the
+    ``anticipation`` w and the ``right_of_way`` mode (0: everyone blocks, 1: by travel times, 2: by position along
+    e_d; :func:`gives_way`)."""
+
+    horizon: np.ndarray
+    body_scale: np.ndarray
+    walk_speed: np.ndarray
+    anticipation: float
+    right_of_way: int
 
 
 @nb.njit(cache=True, inline="always")
@@ -121,20 +192,23 @@ def _ray_capsule_distance(ox, oy, dx, dy, x0, y0, x1, y1, radius):
 
 
 @nb.njit(cache=True)
-def free_distances(position, radius, index, rows, angles, neighbours, neighbour_start, walls, period_m, horizon,
-                   body_scale, velocity, walk_speed, anticipation, right_of_way, travel_time_s, e_d):
+def free_distances(position, radius, velocity, index, rows, angles, neighbourhood, walls, period_m, sight,
+                   travel_time_s, e_d):
     """f(α) of the pedestrians ``rows`` (rows into ``index``), one per angle in ``angles`` (len(rows), K), each
-    capped at its ``horizon`` (len(rows),): the free walk before the centre comes within κ (r_i + r_j) of a
-    neighbour's centre (κ = ``body_scale`` (len(rows),), each walker's own; CSR lists
-    ``neighbours[neighbour_start[k]:neighbour_start[k + 1]]`` of rows into ``index``) or the disk touches a wall
-    segment. With ``anticipation`` w > 0 each neighbour moves on at w times its ``velocity`` (N, 2) while the
-    walker walks at ``walk_speed`` (len(rows),) (:func:`moving_circle_distance`); w = 0: the others stand.
-    ``right_of_way`` 0: everyone blocks; 1: the walkers have the right of way over neighbours farther from the
-    exit by the travel times ``travel_time_s`` (len(index),); 2: over neighbours behind them along their desired
+    capped at its horizon (the :class:`Sight` ``sight``, len(rows) each): the free walk before the centre comes
+    within κ (r_i + r_j) of a neighbour's centre (κ: the walker's own ``sight.body_scale``; ``neighbourhood`` =
+    ``(neighbours, start)``, CSR lists ``neighbours[start[k]:start[k + 1]]`` of rows into ``index``) or the disk
+    touches a wall segment. With ``sight.anticipation`` w > 0 each neighbour moves on at w times its ``velocity``
+    (N, 2) while the walker walks at ``sight.walk_speed`` (:func:`moving_circle_distance`); w = 0: the others stand.
+    ``sight.right_of_way`` 0: everyone blocks; 1: the walkers have the right of way over neighbours farther from
+    the exit by the travel times ``travel_time_s`` (len(index),); 2: over neighbours behind them along their desired
     directions ``e_d`` (len(index), 2) (:func:`gives_way`).
 
     Returns f (len(rows), K) and, per ray, the velocity along the ray ``u_j · e(α)`` of the neighbour that ends
     the free walk (0 when a wall ends it or nothing does before the horizon)."""
+    neighbours, neighbour_start = neighbourhood
+    horizon, body_scale, walk_speed = sight.horizon, sight.body_scale, sight.walk_speed
+    anticipation, right_of_way = sight.anticipation, sight.right_of_way
     m = rows.shape[0]
     k_rays = angles.shape[1]
     out = np.empty((m, k_rays))
@@ -207,20 +281,19 @@ def _neighbour_lists(n, pairs):
 
 
 @nb.njit(cache=True)
-def vision_reach_m(desired_speed, index, time_gap_s, jam_gap_m):
-    """Largest horizon l + T v0 over the pedestrians ``index``: pairs of centres closer than this + 2 r_max are
-    all vision can see."""
+def vision_reach_m(desired_speed, index, vision):
+    """Largest horizon l + T v0 over the pedestrians ``index`` (the :class:`Vision` ``vision``): pairs of centres
+    closer than this + 2 r_max are all vision can see."""
     v_max = 0.0
     for k in range(index.shape[0]):
         v_max = max(v_max, desired_speed[index[k]])
-    return jam_gap_m + time_gap_s * v_max
+    return vision.jam_gap_m + vision.time_gap_s * v_max
 
 
 @nb.njit(cache=True)
-def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, walls, period_m, time_gap_s, jam_gap_m,
-                half_angle_rad, n_rays, body_scale, body_scale_standing, anticipation, leader_time_s,
-                right_of_way, travel_time_s):
-    """Walking speed (n,) and unit walking direction (n, 2) of the pedestrians ``index`` (module docstring).
+def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, walls, period_m, vision, travel_time_s):
+    """Walking speed (n,) and unit walking direction (n, 2) of the pedestrians ``index`` (module docstring), with the
+    resolved :class:`Vision` ``vision`` (:meth:`Vision.resolved`).
 
     ``e_d`` (n, 2) their desired directions (Eq. 13), ``pairs`` rows into ``index`` of every pair of centres
     within 2 r_max + :func:`vision_reach_m` (more is harmless). A pedestrian without a desired direction
@@ -231,9 +304,12 @@ def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, wa
     T_a > 0: a leader pulling away lends its gap ahead, v = (f + T_a max(0, u_l − u_i) − l)/T with u_l the
     velocity along the chosen direction of the neighbour that ends its free walk (:func:`free_distances`) and
     u_i the walker's own (a wall's u_l is 0); where the gap is not opening (u_l ≤ u_i) nothing changes.
-    ``right_of_way`` > 0: the right of way (:func:`gives_way`) by the walkers' travel times ``travel_time_s`` (n,)
+    ``right_of_way``: the right of way (:func:`gives_way`) by the walkers' travel times ``travel_time_s`` (n,)
     (Eq. 11), or, in a periodic world or when ``travel_time_s`` is empty (a navigation without travel times), by
-    their positions along e_d; 0: everyone blocks."""
+    their positions along e_d; off: everyone blocks."""
+    time_gap_s, jam_gap_m, half_angle_rad, n_rays = vision.time_gap_s, vision.jam_gap_m, vision.half_angle_rad, vision.rays
+    body_scale, body_scale_standing = vision.body_scale, vision.body_scale_standing
+    anticipation, leader_time_s = vision.anticipation, vision.leader_time_s
     n = index.shape[0]
     speed = np.zeros(n)
     direction = np.zeros((n, 2))
@@ -241,7 +317,7 @@ def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, wa
         return speed, direction
     neighbours, start = _neighbour_lists(n, pairs)
     rows = np.arange(n)
-    mode = 0 if right_of_way <= 0.0 else (2 if period_m > 0.0 or travel_time_s.shape[0] == 0 else 1)
+    mode = 0 if not vision.right_of_way else (2 if period_m > 0.0 or travel_time_s.shape[0] == 0 else 1)
     angles = np.empty((n, n_rays))
     horizon = np.empty(n)
     base = np.empty(n)
@@ -263,8 +339,8 @@ def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, wa
     v0 = np.empty(n)
     for k in range(n):
         v0[k] = desired_speed[index[k]]
-    free, leader = free_distances(position, radius, index, rows, angles, neighbours, start, walls, period_m,
-                                  horizon, scale, velocity, v0, anticipation, mode, travel_time_s, e_d)
+    free, leader = free_distances(position, radius, velocity, index, rows, angles, (neighbours, start), walls, period_m,
+                                  Sight(horizon, scale, v0, anticipation, mode), travel_time_s, e_d)
     for k in range(n):
         norm = e_d[k, 0] * e_d[k, 0] + e_d[k, 1] * e_d[k, 1]
         if norm == 0.0:

@@ -34,7 +34,7 @@ from crowd_env.analysis.trajectories import (Trajectories, TrajectoryFormatError
                                              trajectory_frame_rate)
 from crowd_env.cli.fundamental_diagram import main as fundamental_diagram  # noqa: E402
 from crowd_env.cli.reproduce_bottleneck import main as reproduce  # noqa: E402
-from crowd_env.core import ModelParams  # noqa: E402
+from crowd_env.walking import ModelParams  # noqa: E402
 from crowd_env.errors import InputError  # noqa: E402
 from crowd_env.experiments.running.recording import record_run  # noqa: E402
 from crowd_env.experiments.running.runner import run_scenario  # noqa: E402

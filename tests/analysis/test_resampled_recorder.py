@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from crowd_env.analysis.recorder import ResampledRecorder
-from crowd_env.core.presets import get_preset
+from crowd_env.walking.presets import get_preset
 from crowd_env.errors import RecorderError
 from crowd_env.experiments.running.recording import record_run
 from crowd_env.scenarios import make_scenario

@@ -2,8 +2,8 @@
 literal set (the `paper` preset), while the environment and the commands' pipeline default to DEFAULT_PRESET."""
 from __future__ import annotations
 
-from crowd_env.core import ModelParams
-from crowd_env.core.presets import DEFAULT_PRESET, get_preset
+from crowd_env.walking import ModelParams
+from crowd_env.walking.presets import DEFAULT_PRESET, get_preset
 from crowd_env.experiments.validation.bottleneck import model_params
 from crowd_env.scenarios import make_scenario
 

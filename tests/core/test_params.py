@@ -1,7 +1,8 @@
 """ModelParams (crowd_env.core.params): bad names and values are refused by name."""
 import pytest
 
-from crowd_env.core import ModelParams, ParameterError
+from crowd_env.core import ParameterError
+from crowd_env.walking import ModelParams
 
 
 def test_bad_model_params():

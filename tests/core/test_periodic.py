@@ -10,7 +10,7 @@ from crowd_env.core.geometry import PERIODIC_WALL_EXTENSION_M, Geometry, Geometr
 from crowd_env.core.neighbors import grid_k_nearest, grid_pairs, grid_pairs_around
 from crowd_env.core.params import ParameterError
 from crowd_env.core.periodic import minimum_image_dx, wrap_positions, wrap_x
-from crowd_env.core.presets import DEFAULT_PRESET, get_preset
+from crowd_env.walking.presets import DEFAULT_PRESET, get_preset
 from crowd_env.core.state import StateError
 
 L = 10.0

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from crowd_env.experiments.validation.collision import simulate_oblique_rotation
-from crowd_env.core import CrowdState, ModelParams, ParameterError, Simulator, StateError
+from crowd_env.core import CrowdState, ParameterError, Simulator, StateError
+from crowd_env.walking import ModelParams
 from crowd_env.core.segments import GeometryError
 from crowd_env.core.solvers import closed_form
 

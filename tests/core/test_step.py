@@ -1,7 +1,8 @@
 """The step's stage list (crowd_env.core.step.STAGES) is the order a staged step runs and times its stages."""
 import numpy as np
 
-from crowd_env.core import CrowdState, ModelParams, Simulator
+from crowd_env.core import CrowdState, Simulator
+from crowd_env.walking import ModelParams
 from crowd_env.core.step import STAGES
 
 

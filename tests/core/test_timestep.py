@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 import crowd_env.core.simulator as simulator_module
-from crowd_env.core import CrowdState, ModelParams, ParameterError, Simulator
+from crowd_env.core import CrowdState, ParameterError, Simulator
+from crowd_env.walking import ModelParams
 from crowd_env.core.timestep import (PAPER_TIME_STEP_S, TimeStepWarning, check_time_step, safe_time_step_s,
                                      stability_limit_s)
 from crowd_env.scenarios import make_scenario

@@ -1,6 +1,6 @@
 """Shared helpers of the experiment tests: the reproduction's bottleneck geometry with the point field, and
 a calibration configuration on it."""
-from crowd_env.core.params import ModelParams
+from crowd_env.walking import ModelParams
 from crowd_env.experiments.validation.bottleneck import GEOMETRY_OPTIONS
 from crowd_env.experiments.validation.calibration import base_config
 

@@ -3,7 +3,7 @@ calibrated agent, and the exit each pedestrian left through."""
 import numpy as np
 
 from baselines import SocialForceAgent
-from crowd_env.core import ModelParams
+from crowd_env.walking import ModelParams
 
 
 R = 0.23

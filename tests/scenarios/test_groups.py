@@ -3,7 +3,7 @@ the links, bad inputs."""
 import numpy as np
 import pytest
 
-from crowd_env.core import ModelParams
+from crowd_env.walking import ModelParams
 from crowd_env.core.contacts import link_geometry
 from crowd_env.scenarios import ScenarioError, make_scenario
 from tests.scenarios.conftest import R, run_baseline

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from crowd_env.core import presets
-from crowd_env.core.presets import PRESETS, Preset, get_preset
+from crowd_env.walking import presets
+from crowd_env.walking.presets import PRESETS, Preset, get_preset
 from crowd_env.scenarios import body_options
 
 

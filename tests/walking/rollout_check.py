@@ -5,7 +5,7 @@ import numpy as np
 def assert_rollout_equals_stepping(params, *, n_pedestrians=20, seed=3, max_time_s=4.0):
     """Record the Seyfried bottleneck (b = 1.0 m) with ``params`` both ways, assert equal trajectories to the last
     bit and that they differ from the default preset's (the option acts), and return the trajectories."""
-    from crowd_env.core.presets import get_preset
+    from crowd_env.walking.presets import get_preset
     from crowd_env.experiments.running.recording import record_run
     from crowd_env.scenarios import make_scenario
     from crowd_env.walking.agent import SocialForceAgent

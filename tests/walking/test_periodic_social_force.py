@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from crowd_env.core.neighbors import grid_pairs
-from crowd_env.core.presets import DEFAULT_PRESET, get_preset
+from crowd_env.walking.presets import DEFAULT_PRESET, get_preset
 from crowd_env.walking.social_force import social_forces_dense_reference, social_repulsion
 
 L = 10.0
@@ -27,7 +27,8 @@ def _forces(pos, radius, e_d, params, period):
     from crowd_env.core.segments import endpoint_owners
 
     pairs = grid_pairs(pos, np.arange(pos.shape[0], dtype=np.int64), 2 * 0.23 + params.social_cutoff_m, period)
-    return social_repulsion(pos, radius, e_d, pairs, walls, endpoint_owners(walls), params, period_m=period), pairs
+    return social_repulsion(pos, radius, e_d, pairs, walls, endpoint_owners(walls), params.walking.social,
+                            params.walking.wall_social, period_m=period), pairs
 
 
 @pytest.mark.parametrize("shift", [-5.0, -3.3, 1.7 + 3.0])

@@ -7,7 +7,7 @@ from scipy.spatial import cKDTree
 
 from crowd_env.walking.social_force import (social_forces, social_forces_dense_reference, social_repulsion,
                                             wall_repulsion)
-from crowd_env.core.params import ModelParams
+from crowd_env.walking import ModelParams
 from crowd_env.core.segments import as_segments, endpoint_owners
 
 A_N, B_M = 790.0, 0.08
@@ -127,6 +127,11 @@ WALLS = np.array([
 ])
 
 
+def _groups(params):
+    """The social force's and the walls' groups of ``params`` (what social_repulsion takes)."""
+    return params.walking.social, params.walking.wall_social
+
+
 @pytest.mark.parametrize("seed,lam,cutoff", [(2, 1.0, 1.0), (3, 0.3, 0.5), (4, 0.0, 2.0)])
 def test_kernel_matches_dense_reference(seed, lam, cutoff):
     rng = np.random.default_rng(seed)
@@ -138,7 +143,7 @@ def test_kernel_matches_dense_reference(seed, lam, cutoff):
     params = ModelParams(social_strength_n=A_N, social_range_m=B_M, social_anisotropy=lam, social_cutoff_m=cutoff,
                          wall_social_strength_n=500.0, wall_social_range_m=0.12)
     seg = as_segments(WALLS)
-    got = social_repulsion(pos, radius, desired, _pairs(pos, radius, cutoff), seg, endpoint_owners(seg), params)
+    got = social_repulsion(pos, radius, desired, _pairs(pos, radius, cutoff), seg, endpoint_owners(seg), *_groups(params))
     want = social_forces_dense_reference(pos, radius, desired, seg, A_N, B_M, lam, cutoff,
                                          wall_strength_n=500.0, wall_range_m=0.12)
     scale = np.abs(want).max()
@@ -154,11 +159,11 @@ def test_wall_repulsion_index_subset_and_empty_inputs():
                    index=np.array([1]))
     assert np.all(out[0] == 0.0) and out[1, 1] > 0.0
     none = social_repulsion(pos, np.full(2, 0.23), np.zeros((2, 2)), np.zeros((0, 2), np.int64),
-                            as_segments([]), endpoint_owners(as_segments([])), ModelParams())
+                            as_segments([]), endpoint_owners(as_segments([])), *_groups(ModelParams()))
     assert np.all(none == 0.0)
     as_set = social_repulsion(pos, np.full(2, 0.23), np.zeros((2, 2)), {(0, 1)}, as_segments([]),
-                              endpoint_owners(as_segments([])), ModelParams())
+                              endpoint_owners(as_segments([])), *_groups(ModelParams()))
     assert as_set[0, 0] < 0.0 < as_set[1, 0]
     with pytest.raises(ValueError, match="outside"):
         social_repulsion(pos, np.full(2, 0.23), np.zeros((2, 2)), [[0, 2]], as_segments([]),
-                         endpoint_owners(as_segments([])), ModelParams())
+                         endpoint_owners(as_segments([])), *_groups(ModelParams()))

@@ -5,9 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from crowd_env.core.params import ModelParams
+from crowd_env.walking import ModelParams
 from crowd_env.errors import ParameterError
-from crowd_env.walking.time_to_collision import time_to_collision_s, total_ttc_accelerations, ttc_acceleration
+from crowd_env.walking.time_to_collision import (TimeToCollision, time_to_collision_s, total_ttc_accelerations,
+                                                 ttc_acceleration)
 
 K, TAU0, CAP = 1.5, 3.0, 1e9
 
@@ -55,14 +56,14 @@ def test_pair_sum_is_antisymmetric_and_range_limited():
     vel = np.array([[1.3, 0.0], [-1.0, 0.0], [-1.0, 0.0]])
     radius = np.full(3, 0.23)
     pairs = np.array([[0, 1], [0, 2], [1, 2]], np.int64)
-    acc = total_ttc_accelerations(pos, vel, radius, np.arange(3), pairs, 0.0, K, TAU0, 3.0, CAP)
+    acc = total_ttc_accelerations(pos, vel, radius, np.arange(3), pairs, 0.0, TimeToCollision(K, TAU0, 3.0, CAP))
     fx, fy = ttc_acceleration(-2.0, -0.1, 2.3, 0.0, 0.46, K, TAU0, CAP)
     np.testing.assert_allclose(acc[0], [fx, fy])
     np.testing.assert_allclose(acc[1], [-fx, -fy])
     assert np.all(acc[2] == 0.0)  # 8 m from the nearest: beyond the range
     # across a periodic seam (period 12 m) the third is 2 m behind the first and closing: it interacts
     wrapped = total_ttc_accelerations(pos, np.array([[1.3, 0.0], [-1.0, 0.0], [2.0, 0.0]]), radius, np.arange(3),
-                                      pairs, 12.0, K, TAU0, 3.0, CAP)
+                                      pairs, 12.0, TimeToCollision(K, TAU0, 3.0, CAP))
     assert wrapped[2, 0] < 0.0
 
 
@@ -75,7 +76,7 @@ def test_ttc_parameters_are_checked():
 
 def test_compiled_rollout_equals_stepping_with_ttc():
     """The compiled rollout and Python stepping run the same interaction, to the last bit, and it acts."""
-    from crowd_env.core.presets import get_preset
+    from crowd_env.walking.presets import get_preset
 
     from .rollout_check import assert_rollout_equals_stepping
 

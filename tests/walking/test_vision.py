@@ -5,8 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from crowd_env.core.params import ModelParams, ParameterError
-from crowd_env.walking.vision import free_distances, gives_way, ray_circle_distance, vision_walk
+from crowd_env.core.params import ParameterError
+from crowd_env.walking import ModelParams
+from crowd_env.walking.vision import Sight, Vision, free_distances, gives_way, ray_circle_distance, vision_walk
 
 NO_WALLS = np.zeros((0, 4))
 ALL_PAIRS = np.array([[0, 1], [0, 2], [1, 2]], np.int64)
@@ -22,9 +23,9 @@ def _walk(position, e_d, v0=1.34, T=1.0, l=0.2, half=0.0, rays=1, kappa=1.0, wal
     velocity = np.zeros((n, 2)) if velocity is None else np.asarray(velocity, dtype=float)
     times = np.zeros(0) if travel_time is None else np.asarray(travel_time, dtype=float)
     return vision_walk(position, np.full(n, radius), np.arange(n), np.asarray(e_d, dtype=float), np.full(n, v0),
-                       velocity, pairs, walls, period_m, T, l, half, rays, kappa,
-                       kappa if kappa_standing is None else kappa_standing, anticipation, leader_time,
-                       1.0 if right_of_way or travel_time is not None else 0.0, times)
+                       velocity, pairs, walls, period_m,
+                       Vision(T, l, half, rays, kappa, kappa if kappa_standing is None else kappa_standing,
+                              anticipation, leader_time, bool(right_of_way or travel_time is not None)), times)
 
 
 def test_ray_circle_distance_analytic():
@@ -180,9 +181,10 @@ def test_wall_ahead_stops_the_walker():
     wall = np.array([[1.0, -5.0, 1.0, 5.0]])
     speed, _ = _walk([[0.0, 0.0]], [[1.0, 0.0]], walls=wall, T=1.0, l=0.2)
     assert speed[0] == pytest.approx((1.0 - 0.23 - 0.2) / 1.0)
-    free, leader = free_distances(np.zeros((1, 2)), np.full(1, 0.23), np.arange(1), np.arange(1), np.array([[0.0, math.pi]]),
-                          np.zeros(0, np.int64), np.zeros(2, np.int64), wall, 0.0, np.full(1, 5.0), np.ones(1),
-                          np.zeros((1, 2)), np.full(1, 1.34), 0.0, 0, np.zeros(0), np.array([[1.0, 0.0]]))
+    free, leader = free_distances(np.zeros((1, 2)), np.full(1, 0.23), np.zeros((1, 2)), np.arange(1), np.arange(1),
+                                  np.array([[0.0, math.pi]]), (np.zeros(0, np.int64), np.zeros(2, np.int64)), wall, 0.0,
+                                  Sight(np.full(1, 5.0), np.ones(1), np.full(1, 1.34), 0.0, 0), np.zeros(0),
+                                  np.array([[1.0, 0.0]]))
     assert free[0, 0] == pytest.approx(0.77) and free[0, 1] == 5.0
     assert leader[0, 0] == 0.0 and leader[0, 1] == 0.0
 
@@ -204,7 +206,7 @@ def test_vision_parameters_are_checked():
 def test_compiled_rollout_equals_stepping_with_vision(leader_time_s, right_of_way):
     """The compiled rollout and Python stepping run the same vision walk, to the last bit (trajectories), and it
     differs from the default preset's."""
-    from crowd_env.core.presets import get_preset
+    from crowd_env.walking.presets import get_preset
 
     from .rollout_check import assert_rollout_equals_stepping
 

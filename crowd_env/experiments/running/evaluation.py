@@ -66,7 +66,7 @@ import numpy as np
 
 from ...analysis.flow import specific_flow
 from ...analysis.lanes import lane_order_parameter, mixed_lane_order_parameter
-from ...core.params import ModelParams
+from ...walking.model import ModelParams
 from ...envs.crowd_v0 import CrowdParallelEnv, decisions_for_time
 from .rollout import measure_step
 from .runner import StallDetector, _RunMeasures, _run_result, measured

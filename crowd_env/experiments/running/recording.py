@@ -11,7 +11,7 @@ import numpy as np
 from ...analysis.recorder import ResampledRecorder, TrajectoryRecorder
 from ...analysis.trajectories import (DEFAULT_FRAME_RATE_PER_S, Trajectories, TrajectoryFormatError, export_run,
                                       steps_per_frame)
-from ...core.presets import DEFAULT_PRESET, get_preset
+from ...walking.presets import DEFAULT_PRESET, get_preset
 from ...scenarios import make_scenario
 from ...walking.agent import SocialForceAgent
 from .runner import run_scenario

@@ -31,9 +31,9 @@ import numpy as np
 
 from ...analysis.flow import MeasurementLine, specific_flow
 from ...core.checks import check_integer, check_number
-from ...core.params import ModelParams
+from ...walking.model import ModelParams
 from ...core.polygons import pack_polygons
-from ...core.presets import DEFAULT_PRESET, get_preset
+from ...walking.presets import DEFAULT_PRESET, get_preset
 from ...scenarios.scenario import Measurement
 from ...walking.agent import SocialForceAgent, compiled_agent
 from crowd_env.files import read_signed, write_signed_atomic

@@ -15,7 +15,7 @@ Two layouts, both of existing output folders:
   ``A<A>_B<B>_b<b>_n<N>_s<seed>_<hash of the task>.json`` holds ``{"task": ..., "record": ...}`` and is
   checked against its task on load.
 
-Model parameters at their :class:`~crowd_env.core.params.ModelParams` default count as absent when configurations
+Model parameters at their :class:`~crowd_env.walking.model.ModelParams` default count as absent when configurations
 and tasks are compared and hashed (:func:`canonical`): a folder written before a parameter existed (with the
 parameter off, at its default) stays valid and resumable after it is added, while any value that changes the
 model still differs.
@@ -35,7 +35,7 @@ from pathlib import Path
 from ...analysis.trajectories import trajectory_frame_rate
 from crowd_env.files import append_json_line, read_json_lines, write_json_atomic
 from ...core.checks import is_integer, is_number
-from ...core.params import ModelParams
+from ...walking.model import ModelParams
 
 __all__ = ["RunStoreError", "RunStore", "canonical", "config_hash", "normalise_record", "check_record", "run_key", "task_key",
            "CONFIG_NAME", "LAYOUTS"]
@@ -44,12 +44,12 @@ CONFIG_NAME = "config.json"
 LAYOUTS = ("run", "task")
 
 
-_MODEL_DEFAULTS = {name: value for name, value in vars(ModelParams()).items() if name != "extra"}
+_MODEL_DEFAULTS = ModelParams().to_dict()
 
 
 def canonical(config: dict) -> dict:
     """``config`` with the entries of its ``params`` dict (model parameters) that equal the
-    :class:`~crowd_env.core.params.ModelParams` default left out: the form configurations and tasks are compared
+    :class:`~crowd_env.walking.model.ModelParams` default left out: the form configurations and tasks are compared
     and hashed in, so that adding a parameter (at its default) changes no stored folder."""
     params = config.get("params") if isinstance(config, dict) else None
     if not isinstance(params, dict):

@@ -44,7 +44,7 @@ import numpy as np
 
 from crowd_env.errors import InputError, RunStoreError
 
-from ...core.params import ModelParams
+from ...walking.model import ModelParams
 from ...core.checks import check_integer
 from ...envs.crowd_v0 import decisions_for_time
 from ..running.evaluation import DEFAULT_POLICY_RESOLVER, ScenarioSpec, evaluate, import_object

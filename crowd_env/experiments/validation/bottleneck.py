@@ -2,7 +2,7 @@
 
 The task format, shared by the reproduction, the calibration and the generalisation: a JSON-able dict
 with ``width_m``, ``n_pedestrians``, ``seed``, ``geometry`` (``seyfried_bottleneck`` options), ``params``
-(:class:`~crowd_env.core.params.ModelParams` fields) and ``max_time_s``; optional ``pedestrian``
+(:class:`~crowd_env.walking.model.ModelParams` fields) and ``max_time_s``; optional ``pedestrian``
 (overrides of :class:`~crowd_env.core.params.PedestrianDefaults`), ``stall_window_s`` /
 ``stall_speed_m_s`` (the stall rule) and ``trajectory_fps`` (also record trajectories). :func:`run_one`
 runs a task and returns its record: J_s (Eq. 22), densities, speed, lanes, passages, stall state.
@@ -22,8 +22,9 @@ import numpy as np
 from ...analysis.experiment import seyfried_2009
 from ...analysis.flow import linear_fit
 from ...analysis.trajectories import export_run
-from ...core.params import ModelParams, PedestrianDefaults
-from ...core.presets import DEFAULT_PRESET, get_preset
+from ...core.params import PedestrianDefaults
+from ...walking.model import ModelParams
+from ...walking.presets import DEFAULT_PRESET, get_preset
 from ...core.segments import GeometryError
 from ...scenarios import ScenarioError, make_scenario
 from ..running.backends import ProcessBackend, SerialBackend, execute, failure_report
@@ -61,13 +62,14 @@ RESULT_COLUMNS = ["width_m", "n_pedestrians", "seed", "specific_flow_per_m_s", "
 
 
 def model_params(preset: str = DEFAULT_PRESET, changes: dict | None = None) -> ModelParams:
-    """The preset's model (:mod:`crowd_env.core.presets`) with ``changes`` (ModelParams fields) on top."""
+    """The preset's model (:mod:`crowd_env.walking.presets`) with ``changes`` (ModelParams fields) on top."""
     return get_preset(preset).params(**(changes or {}))
 
 
 def params_dict(params: ModelParams) -> dict:
-    """The ModelParams fields of a configuration (``extra`` left out)."""
-    return {f.name: getattr(params, f.name) for f in dataclasses.fields(params) if f.name != "extra"}
+    """The model parameters of a configuration, by their flat names (:meth:`ModelParams.to_dict
+    <crowd_env.walking.model.ModelParams.to_dict>`)."""
+    return params.to_dict()
 
 
 def bottleneck_config(params: ModelParams, *, navigation_clearance_m: float, max_time_s: float = 300.0,

@@ -19,7 +19,8 @@ import os
 
 import numpy as np
 
-from ...core import CrowdState, ModelParams, Simulator
+from ...core import CrowdState, Simulator
+from ...walking.model import ModelParams
 from ...core.solvers.closed_form import (MASS_KG, PAPER_CASES, RADIUS_M, fig5_data, fig6_data, fig7_data,
                                                 head_on_elastic, oblique_spin, theta_analytic, theta_max)
 

@@ -10,7 +10,7 @@ figure, only why. :func:`summarise_corridor` sets the seed means of the complete
 
 Task format (JSON): ``run`` (the experiment's name), ``entrance_width_m``, ``corridor_width_m``, ``exit_width_m``,
 ``width_m`` (the exit's, for the run store's file names), ``n_pedestrians``, ``seed``, ``params``
-(:class:`~crowd_env.core.params.ModelParams` fields), ``geometry`` (``juelich_corridor`` options beyond the widths
+(:class:`~crowd_env.walking.model.ModelParams` fields), ``geometry`` (``juelich_corridor`` options beyond the widths
 and N), ``max_time_s``; optional ``pedestrian`` (overrides of :class:`~crowd_env.core.params.PedestrianDefaults`)
 and ``policy`` (:mod:`crowd_env.experiments.running.crowd_policy`).
 """
@@ -26,7 +26,8 @@ from crowd_env.errors import InputError
 from ...analysis.corridor_runs import (UO_FRAME_RATE_PER_S, approach_profile, door_passage, juelich_uo_runs,
                                       measure_uo_run, recorded_uo_trajectories, uo_run)
 from ...scenarios.juelich_corridor import UO_CORRIDOR_END_Y_M
-from ...core.params import ModelParams, PedestrianDefaults
+from ...core.params import PedestrianDefaults
+from ...walking.model import ModelParams
 from ...scenarios import make_scenario
 from ..running.crowd_policy import crowd_policy
 from ..running.recording import record_run

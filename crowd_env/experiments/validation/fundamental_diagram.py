@@ -26,7 +26,8 @@ from crowd_env.errors import InputError
 from ...analysis.fd_reference import JUELICH_CORRIDOR_WIDTH_M, juelich_corridor, single_file
 from ...analysis.periodic import MIN_FIT_SPEED_M_S, headway_fit, trajectory_frames, unwrap_x
 from ...core.checks import check_number
-from ...core.params import ModelParams, PedestrianDefaults
+from ...core.params import PedestrianDefaults
+from ...walking.model import ModelParams
 from ...core.periodic import minimum_image_dx
 from ..running.crowd_policy import crowd_policy
 from .bottleneck import bottleneck_config, params_dict, run_one

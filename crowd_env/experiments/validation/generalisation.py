@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...core.presets import get_preset
+from ...walking.presets import get_preset
 from ...core.segments import GeometryError
 from ...scenarios import ScenarioError, make_scenario
 from .bottleneck import RESULT_COLUMNS, bottleneck_config, model_params, run_sweep, summarise

@@ -45,7 +45,7 @@ import shapely
 from scipy.spatial import cKDTree
 
 from ...core.geometry import Geometry
-from ...core.params import ModelParams
+from ...walking.model import ModelParams
 from ...core.state import first_overlap, min_gap_m
 from ...envs import crowd_v0
 from ...scenarios import list_scenarios, make_scenario, scenario_options

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from crowd_env.files import save_figure_atomic
-from ...core.presets import get_preset
+from ...walking.presets import get_preset
 from ...scenarios import make_scenario
 from ...walking.agent import SocialForceAgent
 from ..running.backends import make_backend, run_all

@@ -34,7 +34,7 @@ from ...analysis.experiment import (INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RA
 from ...analysis.corridor_runs import uo_run
 from ...analysis.fd_reference import single_file
 from ...analysis.figures import pyplot, save_figure
-from ...core.params import ModelParams
+from ...walking.model import ModelParams
 from ..running.backends import execute
 from ..running.store import RunStore
 from .bottleneck import GEOMETRY_OPTIONS, params_dict, run_one

@@ -7,8 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from crowd_env.core import ModelParams
-from crowd_env.core.presets import DEFAULT_PRESET, get_preset
+from crowd_env.walking import ModelParams
+from crowd_env.walking.presets import DEFAULT_PRESET, get_preset
 from crowd_env.experiments.running.recording import record_run
 from crowd_env.experiments.running.runner import run_scenario
 from crowd_env.scenarios import make_scenario

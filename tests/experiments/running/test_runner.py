@@ -56,7 +56,7 @@ def _small_bottleneck():
 @pytest.mark.parametrize("dt_s, count", [(1e-9, "300,000,000,000"), (1e-6, "300,000,000")])
 def test_run_needing_more_steps_than_the_limit_is_refused_with_the_count(dt_s, count):
     """dt_s = 1e-9 tried to allocate 4.37 TiB (series sized by max_time / dt); 1e-6 ran for ever."""
-    from crowd_env.core import ModelParams
+    from crowd_env.walking import ModelParams
     from crowd_env.errors import InputError
     from crowd_env.experiments.running.runner import run_scenario
     from crowd_env.walking.agent import SocialForceAgent
@@ -75,7 +75,7 @@ def test_series_grow_with_the_steps_run_not_with_max_time():
     import tracemalloc
 
     import crowd_env.experiments.running.runner as runner
-    from crowd_env.core import ModelParams
+    from crowd_env.walking import ModelParams
     from crowd_env.walking.agent import SocialForceAgent
 
     sc = _small_bottleneck()

@@ -99,7 +99,7 @@ def test_results_and_summary_are_written_atomically(tmp_path):
 def test_a_folder_from_before_a_parameter_existed_stays_valid_and_its_tasks_resolve(tmp_path):
     """Model parameters at their default count as absent: a config.json or a stored task written before a
     parameter was added (so without it) matches today's, while any value that changes the model is refused."""
-    from crowd_env.core.params import ModelParams
+    from crowd_env.walking import ModelParams
     from crowd_env.experiments.validation.bottleneck import params_dict
     from crowd_env.experiments.running.store import config_hash, task_key
 

@@ -9,7 +9,8 @@ from baselines import SocialForceAgent
 from crowd_env.analysis.density import force_balance_jam_density_per_m2
 from crowd_env.analysis.experiment import INSIDE_SPEED_RANGE_M_S, seyfried_2009
 from crowd_env.cli.reproduce_bottleneck import main as reproduce
-from crowd_env.core import ModelParams, Simulator
+from crowd_env.core import Simulator
+from crowd_env.walking import ModelParams
 from crowd_env.experiments.running.runner import run_scenario
 from crowd_env.scenarios import make_scenario
 
@@ -166,7 +167,7 @@ def test_lone_pedestrian_is_not_steered_into_the_entrance_corner():
 def test_presets_set_the_base_configuration_and_flags_override(tmp_path):
     from crowd_env.cli.reproduce_bottleneck import PRESETS, build_parser, config_of, model_params_from_args
 
-    from crowd_env.core.presets import DEFAULT_PRESET
+    from crowd_env.walking.presets import DEFAULT_PRESET
 
     cal = PRESETS["calibrated"].model
     assert DEFAULT_PRESET == "calibrated"

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from crowd_env.analysis.corridor_runs import juelich_uo_runs
-from crowd_env.core.presets import get_preset
+from crowd_env.walking.presets import get_preset
 from crowd_env.experiments.running.backends import SerialBackend
 from crowd_env.experiments.validation.bottleneck import bottleneck_config
 from crowd_env.experiments.validation.calibration.errors import CalibrationError

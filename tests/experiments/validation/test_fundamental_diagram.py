@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from crowd_env.analysis.fd_reference import juelich_corridor, single_file, weidmann_speed_m_s
-from crowd_env.core.presets import get_preset
+from crowd_env.walking.presets import get_preset
 from crowd_env.experiments.validation.fundamental_diagram import fd_tasks, headway_fit, run_fd_one, summarise_fd
 
 

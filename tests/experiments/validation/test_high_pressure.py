@@ -8,7 +8,8 @@ import pytest
 from scipy.spatial import cKDTree
 
 from baselines.social_force import SocialForceAgent
-from crowd_env.core import ModelParams, Simulator
+from crowd_env.core import Simulator
+from crowd_env.walking import ModelParams
 from crowd_env.experiments.validation.soak import OVERLAP_TOLERANCE_M, PRESSURE_CASES, InvariantChecker, pressure_soak
 from crowd_env.scenarios import make_scenario
 from tests.conftest import DATA, load_script

@@ -8,7 +8,7 @@ from shapely.geometry import box
 from crowd_env.analysis.periodic import periodic_corridor_point, trajectory_frames, unwrap_trajectories, unwrap_x
 from crowd_env.analysis.trajectories import Trajectories, export_run, read_geometry
 from crowd_env.core.geometry import Geometry
-from crowd_env.core.presets import DEFAULT_PRESET, get_preset
+from crowd_env.walking.presets import DEFAULT_PRESET, get_preset
 from crowd_env.experiments.validation.periodic import fundamental_diagram_point
 from crowd_env.experiments.running.recording import record_run
 from crowd_env.experiments.running.runner import run_scenario

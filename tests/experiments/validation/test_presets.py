@@ -1,4 +1,4 @@
-"""The presets (crowd_env.core.presets) on reduced cases of the experiment's targets: the calibrated preset's
+"""The presets (crowd_env.walking.presets) on reduced cases of the experiment's targets: the calibrated preset's
 J_s at b = 1.0 m, and the capacity criterion separating it from the paper's point."""
 import numpy as np
 
@@ -7,7 +7,7 @@ from crowd_env.experiments.validation.calibration.objective import CAPACITY_RANG
 
 def _runs(preset_name, width_m, n, seeds):
     from baselines import SocialForceAgent
-    from crowd_env.core.presets import get_preset
+    from crowd_env.walking.presets import get_preset
     from crowd_env.experiments.running.runner import run_scenario
     from crowd_env.scenarios import make_scenario
 

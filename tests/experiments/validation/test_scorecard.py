@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from crowd_env.core.presets import get_preset
+from crowd_env.walking.presets import get_preset
 from crowd_env.errors import InputError, PolicyError
 from crowd_env.experiments.running.crowd_policy import crowd_policy, policy_entry
 from crowd_env.experiments.validation.bottleneck import bottleneck_config

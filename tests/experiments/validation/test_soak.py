@@ -19,7 +19,8 @@ import numpy as np
 import pytest
 from shapely.geometry import MultiPolygon, box
 
-from crowd_env.core import CrowdState, ModelParams, Simulator
+from crowd_env.core import CrowdState, Simulator
+from crowd_env.walking import ModelParams
 from crowd_env.core.geometry import Geometry
 from crowd_env.envs import crowd_v0
 from crowd_env.experiments.validation.soak import (ACTION_MODES, InvariantChecker, MemoryProbe, distinct_scenarios,

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from baselines import SocialForceAgent
-from crowd_env.core import ModelParams
-from crowd_env.core.presets import DEFAULT_PRESET, get_preset
+from crowd_env.walking import ModelParams
+from crowd_env.walking.presets import DEFAULT_PRESET, get_preset
 from crowd_env.experiments.running.runner import STALL_SPEED_M_S, STALL_WINDOW_S, RunResult, StallDetector, run_scenario
 from crowd_env.scenarios import make_scenario
 from crowd_env.scenarios.bottleneck import BottleneckScenario, bottleneck_geometry
@@ -186,7 +186,7 @@ def test_reproduction_records_and_csv_carry_the_stall_columns(tmp_path):
     from crowd_env.experiments.validation.bottleneck import run_one, run_sweep, write_results
 
     geometry = point_field_geometry()
-    params = {k: v for k, v in vars(ModelParams()).items() if k != "extra"}
+    params = ModelParams().to_dict()
     task = {"width_m": 1.0, "n_pedestrians": 10, "seed": 0, "geometry": geometry, "params": params, "max_time_s": 60.0}
     rec = run_one(task)
     assert rec["complete"] is True and rec["stalled"] is False

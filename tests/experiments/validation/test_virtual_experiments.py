@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from crowd_env.analysis.corridor_runs import uo_run
-from crowd_env.core.presets import get_preset
+from crowd_env.walking.presets import get_preset
 from crowd_env.errors import InputError
 from crowd_env.experiments.validation.virtual_experiments import (QUICK_PLAN, VirtualPlan, format_rows, virtual_config,
                                                                   virtual_rows, virtual_tasks)

@@ -22,7 +22,8 @@ import numpy as np
 
 from .errors import CalibrationError
 from .objective import DENSITY_MATCH, corridor_fd_bins, single_file_bins
-from ....core.params import ModelParams, ParameterError, PedestrianDefaults
+from ....core.params import ParameterError, PedestrianDefaults
+from ....walking.model import ModelParams
 from ..bottleneck import params_dict, run_one
 from ..corridor_runs import corridor_tasks, run_corridor_one
 from ..fundamental_diagram import CORRIDOR_DENSITIES, SETUPS, SINGLE_FILE_DENSITIES, fd_tasks, run_fd_one

@@ -19,7 +19,7 @@ from crowd_env.errors import InputError, NotFoundError
 
 from ....analysis.trajectories import Trajectories
 from ....core.checks import check_number
-from ....core.presets import DEFAULT_PRESET, get_preset
+from ....walking.presets import DEFAULT_PRESET, get_preset
 from ....walking.agent import SocialForceAgent
 from ...running.recording import record_run
 

@@ -1,6 +1,7 @@
-"""Named configurations of the model: the social force's parameters and the navigation field.
+"""Named configurations of the model: the social force's parameters, the body and the navigation field.
 
-A preset is a set of :class:`~crowd_env.core.params.ModelParams` overrides plus the clearance of the
+A preset pairs the core's physics with the walking model's parameters: a set of
+:class:`~crowd_env.walking.model.ModelParams` overrides (by their flat names) plus the clearance of the
 eikonal field (Eq. 11-13): 0 solves it for points, as the paper does; the pedestrians' radius solves
 it in the configuration space of the disk centres (walls inflated by r), so e_d never points into a
 wall or at a corner a centre cannot reach. The reproduction (``crowd-bottleneck``), the calibration,
@@ -37,7 +38,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .params import ModelParams, ParameterError, PedestrianDefaults
+from crowd_env.errors import ParameterError
+
+from ..core.params import PedestrianDefaults
+from .model import ModelParams
 
 __all__ = ["DEFAULT_PRESET", "PRESETS", "Preset", "get_preset"]
 
