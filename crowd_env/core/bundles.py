@@ -13,7 +13,11 @@ Each bundle is built in one place:
 - :class:`StepParams`: :attr:`Simulator.step_params <crowd_env.core.simulator.Simulator.step_params>` (h,
   ε, the dissipations of Eq. 4-8, the dense solvers' limits);
 - :class:`StepInputs`: what a step is given (the intent of Eq. 14, θ_d of Eq. 15, external forces), by
-  :meth:`Simulator.step <crowd_env.core.simulator.Simulator.step>` or by a compiled decision.
+  :meth:`Simulator.step <crowd_env.core.simulator.Simulator.step>` or by a compiled decision;
+- :class:`Candidates`: a step's contact candidates, by
+  :func:`~crowd_env.core.contacts.contact_candidates` (and grown by the re-detection of stage 5);
+- :class:`Links`: the hand links between active pedestrians with their geometry, by
+  :func:`~crowd_env.core.contacts.active_links`.
 
 Every field has one numba type whatever the caller (floats as float64, counts as int64, arrays C-contiguous
 and writeable), so that each kernel is compiled once (``crowd_env.compilation``: the first run compiles).
@@ -24,7 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Bodies", "World", "StepParams", "StepInputs", "empty_exits"]
+__all__ = ["Bodies", "World", "StepParams", "StepInputs", "Candidates", "Links", "empty_exits"]
 
 
 class Bodies(NamedTuple):
@@ -89,6 +93,33 @@ class StepInputs(NamedTuple):
     has_desired_heading: bool
     external_force_n: np.ndarray
     has_external_force: bool
+
+
+class Candidates(NamedTuple):
+    """Contact candidates of a step, one entry per contact (pedestrian pairs, then walls): ``a``/``b`` rows into the
+    step's active index (b = −1 for a wall), ``gap`` (m), ``nx``/``ny`` (the unit normal from b to a),
+    ``rho_a``/``rho_b`` (the contact point's distances from the centres; ρ = r against a wall), ``wall`` (segment id
+    or −1). The fields are :data:`crowd_env.core.contacts.CONTACT_FIELDS`."""
+
+    a: np.ndarray  # (C,) int64
+    b: np.ndarray  # (C,) int64
+    gap: np.ndarray  # (C,)
+    nx: np.ndarray  # (C,)
+    ny: np.ndarray  # (C,)
+    rho_a: np.ndarray  # (C,)
+    rho_b: np.ndarray  # (C,)
+    wall: np.ndarray  # (C,) int64
+
+
+class Links(NamedTuple):
+    """Hand links (Eq. 2) whose two pedestrians are active: ``a``/``b`` rows into the step's active index, and the
+    shoulder geometry, ``d_m`` = A_a − A_b and the arms ``g_a_m`` = A_a − x_a, ``g_b_m`` = A_b − x_b (L, 2)."""
+
+    a: np.ndarray  # (L,) int64
+    b: np.ndarray  # (L,) int64
+    d_m: np.ndarray  # (L, 2)
+    g_a_m: np.ndarray  # (L, 2)
+    g_b_m: np.ndarray  # (L, 2)
 
 
 def empty_exits() -> tuple:

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from .bundles import Candidates, Links
 from .periodic import minimum_image_dx
 from .segments import wall_rows
 
@@ -85,7 +86,7 @@ def _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin_out, p
     return a_out, b_out, geo, m
 
 
-CONTACT_FIELDS = ("a", "b", "gap", "nx", "ny", "rho_a", "rho_b", "wall")
+CONTACT_FIELDS = Candidates._fields  # ("a", "b", "gap", "nx", "ny", "rho_a", "rho_b", "wall")
 
 
 @nb.njit(cache=True)
@@ -96,7 +97,7 @@ def contact_candidates(position, radius, speed, index, pairs, walls, wall_owner,
     2 r_max + margins); ``period_m``: nearest images along x (module docstring). Returns the arrays of :data:`CONTACT_FIELDS`, one entry per contact: ``a``/``b``
     rows into ``index`` (b = -1 for a wall), ``gap`` (m), ``nx``/``ny`` (unit normal from b to a),
     ``rho_a``/``rho_b`` (distances of the contact point from the centres, ρ_i = d r_i/(r_i + r_j),
-    ρ = r against a wall), ``wall`` (segment id or -1).
+    ρ = r against a wall), ``wall`` (segment id or -1): a :class:`~crowd_env.core.bundles.Candidates`.
     """
     n = index.shape[0]
     margin = np.empty(n)
@@ -137,7 +138,7 @@ def contact_candidates(position, radius, speed, index, pairs, walls, wall_owner,
         c_rho_a[c] = radius[index[wa[k]]]
         c_rho_b[c] = 0.0
         c_wall[c] = wseg[k]
-    return c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall
+    return Candidates(c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall)
 
 
 def detect_contacts(position, radius, velocity, index, pairs, walls, wall_owner, eps_m, dt_s, period_m=0.0):
@@ -181,7 +182,7 @@ def link_geometry(position, heading, links, offsets, period_m=0.0):
 @nb.njit(cache=True)
 def active_links(position, heading, active, index, links, offsets, period_m=0.0):
     """The hand links whose two pedestrians are active, with pedestrians as rows into ``index`` (the
-    active ones, ascending), and their :func:`link_geometry`: ``(l_a, l_b, d, g_i, g_j)``."""
+    active ones, ascending), and their :func:`link_geometry`: a :class:`~crowd_env.core.bundles.Links`."""
     rank = np.full(active.shape[0], -1, np.int64)
     for k in range(index.shape[0]):
         rank[index[k]] = k
@@ -203,18 +204,22 @@ def active_links(position, heading, active, index, links, offsets, period_m=0.0)
         l_a[q] = rank[kept[q, 0]]
         l_b[q] = rank[kept[q, 1]]
     dvec, gi, gj = link_geometry(position, heading, kept, kept_offsets, period_m)
-    return l_a, l_b, dvec, gi, gj
+    return Links(l_a, l_b, dvec, gi, gj)
 
 
 @nb.njit(cache=True)
-def build_rows(contact_ids, c_a, c_b, c_nx, c_ny, c_rho_a, c_rho_b, link_ids, l_a, l_b, dvec, gi, gj,
-               local, k_n, k_tg, k_v, rotation):
-    """Rows of B for the given contacts and links, with bodies renumbered by ``local``.
+def build_rows(contact_ids, contacts, link_ids, links, local, k_n, k_tg, k_v, rotation):
+    """Rows of B for the contacts ``contact_ids`` of the :class:`~crowd_env.core.bundles.Candidates` ``contacts``
+    and the links ``link_ids`` of the :class:`~crowd_env.core.bundles.Links` ``links``, with bodies renumbered by
+    ``local``.
 
     Normal rows come first (one per contact, in the order of ``contact_ids``), then tangent rows
     (only when K_tg > 0), then link rows (only when K_v > 0). Without rotation the θ coefficients
     are zero, so the impact cannot spin anyone.
     """
+    c_a, c_b, c_nx, c_ny, c_rho_a, c_rho_b = contacts.a, contacts.b, contacts.nx, contacts.ny, contacts.rho_a, \
+        contacts.rho_b
+    l_a, l_b, dvec, gi, gj = links
     nc = contact_ids.shape[0]
     nl = link_ids.shape[0] if k_v > 0.0 else 0
     nt = nc if k_tg > 0.0 else 0

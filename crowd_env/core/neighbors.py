@@ -14,6 +14,8 @@ found exactly once. ``period_m`` = 0 (the default) is the plain grid, unchanged 
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba as nb
 import numpy as np
 
@@ -41,10 +43,23 @@ def _bounds(position, index):
     return xmin, ymin, xmax, ymax
 
 
+class CellGrid(NamedTuple):
+    """The rows of an ``index`` sorted into cells (:func:`_cell_grid`): cell c = cx + ncx·cy holds the rows
+    ``order[start[c]:start[c + 1]]``; ``ncx`` × ``ncy`` cells of ``cell_x`` × ``cell_y`` m from (``xmin``, ``ymin``)."""
+
+    order: np.ndarray
+    start: np.ndarray
+    ncx: int
+    ncy: int
+    xmin: float
+    ymin: float
+    cell_x: float
+    cell_y: float
+
+
 @nb.njit(cache=True)
 def _cell_grid(position, index, radius_m, period_m):
-    """Counting sort of the rows of ``index`` into cells of sides ≥ ``radius_m``: ``(order, start, ncx, ncy,
-    xmin, ymin, cell_x, cell_y)``; cell c = cx + ncx·cy holds rows order[start[c]:start[c+1]]. Periodic
+    """Counting sort of the rows of ``index`` into cells of sides ≥ ``radius_m``: a :class:`CellGrid`. Periodic
     (``period_m`` > 0): ncx columns of width L/ncx tile [0, L) (square cells otherwise)."""
     n = index.shape[0]
     xmin, ymin, xmax, ymax = _bounds(position, index)
@@ -76,7 +91,7 @@ def _cell_grid(position, index, radius_m, period_m):
         c = cell_of[k]
         order[fill[c]] = k
         fill[c] += 1
-    return order, start, ncx, ncy, xmin, ymin, cell_x, cell
+    return CellGrid(order, start, ncx, ncy, xmin, ymin, cell_x, cell)
 
 
 @nb.njit(cache=True, inline="always")
@@ -120,24 +135,24 @@ def grid_pairs_around(position, index, rows, radius_m, period_m=0.0):
     n = index.shape[0]
     if n < 2 or rows.shape[0] == 0 or not radius_m > 0.0:
         return np.zeros((0, 2), np.int64)
-    order, start, ncx, ncy, xmin, ymin, cell_x, cell_y = _cell_grid(position, index, radius_m, period_m)
+    grid = _cell_grid(position, index, radius_m, period_m)
     marked = np.zeros(n, np.bool_)
     for k in range(rows.shape[0]):
         marked[rows[k]] = True
     cap = 16 * rows.shape[0] + 16
     while True:  # as grid_pairs: retry with a larger buffer when full
         out = np.empty((cap, 2), np.int64)
-        m = _fill_pairs_around(position, index, rows, marked, order, start, ncx, ncy, xmin, ymin, cell_x, cell_y,
-                               radius_m * radius_m, out, period_m)
+        m = _fill_pairs_around(position, index, rows, marked, grid, radius_m * radius_m, out, period_m)
         if m >= 0:
             return out[:m].copy()
         cap *= 4
 
 
 @nb.njit(cache=True)
-def _fill_pairs_around(position, index, rows, marked, order, start, ncx, ncy, xmin, ymin, cell_x, cell_y, r2, out,
-                       period_m):
-    """Write the pairs of :func:`grid_pairs_around` into ``out``; their number, or −1 when too small."""
+def _fill_pairs_around(position, index, rows, marked, grid, r2, out, period_m):
+    """Write the pairs of :func:`grid_pairs_around` (the rows ``rows``, ``marked`` among all, sorted into the
+    :class:`CellGrid` ``grid``) into ``out``; their number, or −1 when too small."""
+    order, start, ncx, ncy, xmin, ymin, cell_x, cell_y = grid
     m = 0
     lo, hi = _column_offsets(ncx, period_m)
     for k in range(rows.shape[0]):

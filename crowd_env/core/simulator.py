@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .contacts import CONTACT_FIELDS, active_links, contact_candidates
+from .contacts import active_links, contact_candidates
 from .neighbors import grid_pairs
 from .params import DEFAULT_INTERACTION_REACH_M, ParameterError, PhysicsParams
 from .checks import check_number
@@ -43,7 +43,7 @@ from .solvers.graph import contact_keys
 from .solvers.impact import solve_clusters
 from .state import CrowdState, StateError, first_overlap, pair_distances
 from .timestep import check_time_step
-from .bundles import StepParams, World, empty_exits
+from .bundles import Links, StepInputs, StepParams, World, empty_exits
 from .step import (FUSED_OK, MAX_INPUT_SPEED_M_S, MAX_REDETECT, advance, compact_bodies, detection_reach,
                    finish_step, first_out_of_bound, grown_margins, impact_stage, kinetic_energy, leave_at_exits,
                    redetection_round, smooth_update)
@@ -419,13 +419,12 @@ class Simulator:
         st = self.state
         p = self.physics
         h, eps_m = p.dt_s, p.contact_tolerance_m
+        bodies, world, params = st.arrays(), self.world, self.step_params
         timings = {}
         t0 = time.perf_counter()
         idx = self.active_index
         # 1. smooth
-        vel = smooth_update(st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad, st.mass_kg,
-                            st.inertia_kg_m2, st.tau_s, st.heading_stiffness, st.heading_damping, *inputs, idx, h,
-                            p.rotation)
+        vel = smooth_update(bodies, StepInputs(*inputs), idx, params)
         t1 = time.perf_counter()
         timings["smooth"] = t1 - t0
         # 2. neighbors
@@ -434,68 +433,60 @@ class Simulator:
         t2 = time.perf_counter()
         timings["neighbors"] = t2 - t1
         # 3. contacts
-        con = dict(zip(CONTACT_FIELDS, contact_candidates(st.position_m, st.radius_m, speed_star, idx, pairs,
-                                                          self.walls, self._wall_owner, eps_m, h, self.period_m)))
+        candidates = contact_candidates(st.position_m, st.radius_m, speed_star, idx, pairs, self.walls,
+                                        self._wall_owner, eps_m, h, self.period_m)
         links = self._active_links(idx)
         mass, inertia = compact_bodies(st.mass_kg, st.inertia_kg_m2, idx)
         t3 = time.perf_counter()
         timings["contacts"] = t3 - t2
         # 4. impacts: the dense ones compiled, the clusters they leave by the cascade
-        ke0, p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = impact_stage(
-            vel, mass, inertia, con["a"], con["b"], con["gap"], con["nx"], con["ny"], con["rho_a"], con["rho_b"],
-            *links, p.normal_dissipation_kg, p.tangential_dissipation_kg, p.link_dissipation_kg_per_m2, eps_m,
-            p.rotation, *self.cascade.impact_limits())
+        ke0, p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = impact_stage(vel, mass, inertia, candidates,
+                                                                                         links, params)
         if unsolved.shape[0]:
-            solve_clusters(unsolved, root, vel, mass, inertia, in_impact, con["a"], con["b"], con["nx"], con["ny"],
-                           con["rho_a"], con["rho_b"], *links, p.normal_dissipation_kg,
-                           p.tangential_dissipation_kg, p.link_dissipation_kg_per_m2, p.rotation,
+            solve_clusters(unsolved, root, vel, mass, inertia, in_impact, candidates, links, params,
                            self.cascade.solve_impact_cluster, p_n, p_t)
         ke1 = kinetic_energy(vel, mass, inertia)
         t4 = time.perf_counter()
         timings["impacts"] = t4 - t3
         # 5. projection
-        con, p_n, p_t, in_impact, lam_p = self._staged_projection(vel, mass, con, p_n, p_t, in_impact, speed_star, idx,
-                                                                  r_max)
+        candidates, percussions, lam_p = self._staged_projection(bodies, vel, mass, candidates, (p_n, p_t, in_impact),
+                                                                 speed_star, idx)
         ke2 = kinetic_energy(vel, mass, inertia)
         t5 = time.perf_counter()
         timings["projection"] = t5 - t4
         # 6. integrate and leave at exits
         previous = st.position_m[idx]
-        min_gap, contacts = finish_step(st.position_m, st.velocity_m_s, st.angular_velocity_rad_s, st.heading_rad,
-                                        st.radius_m, idx, vel, h, p.rotation, self.walls, con["a"], con["b"],
-                                        con["wall"], p_n, p_t, lam_p, in_impact, self.period_m)
+        min_gap, contacts = finish_step(bodies, world, params, idx, vel, candidates, percussions, lam_p)
         exited = self._leave_at_exits(idx, previous)
         self._tick(self.time_s + p.dt_s)
         timings["integrate"] = time.perf_counter() - t5
         return self._result(contacts, ke0, ke1, ke2, n_clusters, max_cluster, exited, timings, min_gap)
 
-    def _staged_projection(self, vel, mass, con, p_n, p_t, in_impact, speed_star, idx, r_max):
-        """Stage 5 of the staged step, in place on ``vel``: ``(con, p_n, p_t, in_impact, lam_p)`` with the
+    def _staged_projection(self, bodies, vel, mass, candidates, percussions, speed_star, idx):
+        """Stage 5 of the staged step, in place on ``vel``: ``(candidates, percussions, lam_p)`` with the
         candidates the re-detection added. The loop of the fused step (:func:`~crowd_env.core.step.fused_step`)
         with the solver cascade's projection: each round is :func:`~crowd_env.core.step.redetection_round` (its
         docstring says why candidates are detected again), and a projection repeated after a new candidate
         bound starts from the last one's multipliers (``lam_warm``)."""
-        world, params, position, radius = self.world, self.step_params, self.state.position_m, self.state.radius_m
+        world, params = self.world, self.step_params
         v_impact = vel[:, :2].copy()
         det_speed = speed_star
-        candidates = tuple(con[k] for k in CONTACT_FIELDS)
-        percussions = (p_n, p_t, in_impact)
         lam_p = _EMPTY_1D
         projected = once = False
         for _ in range(MAX_REDETECT + 1):
             grown = grown_margins(vel, det_speed, params.contact_tolerance_m, params.dt_s)
             if grown.shape[0]:
                 det_speed, candidates, percussions, lam_p, added, projected = redetection_round(
-                    position, radius, idx, world, params, r_max, vel, v_impact, det_speed, grown, candidates,
-                    percussions, lam_p, projected)
+                    bodies, idx, world, params, vel, v_impact, det_speed, grown, candidates, percussions, lam_p,
+                    projected)
                 self.n_redetections += added
             if projected:
                 break
-            con = dict(zip(CONTACT_FIELDS, candidates))  # a projection again: a new candidate bound (lam_p extended)
-            lam_p = self.cascade.project(vel, mass, con, self.physics.dt_s, self.step_count,
+            con = candidates._asdict()  # a projection again: a new candidate bound (lam_p extended)
+            lam_p = self.cascade.project(vel, mass, con, params.dt_s, self.step_count,
                                          functools.partial(self._candidate_keys, idx, con), lam_p if once else None)
             projected = once = True
-        return dict(zip(CONTACT_FIELDS, candidates)), *percussions, lam_p
+        return candidates, percussions, lam_p
 
     def _leave_at_exits(self, idx, previous_m) -> np.ndarray:
         """Deactivate pedestrians whose centre's straight path of the step, from ``previous_m`` ((n, 2)
@@ -572,6 +563,6 @@ def _describe(value) -> str:
 _F64 = np.dtype(np.float64)
 _EMPTY_1D = np.zeros(0)
 _NO_INDEX = np.zeros(0, np.int64)
-_NO_LINKS = (_NO_INDEX, _NO_INDEX, np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 2)))
+_NO_LINKS = Links(_NO_INDEX, _NO_INDEX, np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 2)))
 _EMPTY_2D = np.zeros((0, 2))
 _NO_PAIRS = np.zeros((0, 2), np.int64)

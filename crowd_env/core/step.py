@@ -45,7 +45,7 @@ import numba as nb
 import numpy as np
 
 from .angles import wrap_angle_scalar
-from .bundles import Bodies, StepInputs, StepParams, World
+from .bundles import Bodies, Candidates, Links, StepInputs, StepParams, World
 from .contacts import active_links, contact_candidates
 from .neighbors import grid_pairs, grid_pairs_around
 from .periodic import minimum_image_dx, wrap_x
@@ -65,13 +65,20 @@ MAX_REDETECT = 10  # re-detection rounds per step (speeds are bounded: one or tw
 
 
 @nb.njit(cache=True)
-def smooth_update(velocity, angular_velocity, heading, mass, inertia, tau, stiffness, damping, intents,
-                  theta_d, has_theta_d, force, has_force, index, dt_s, rotation):
-    """Stage 1, the smooth dynamics (Eq. 3, 14, 15) of the pedestrians ``index``: compact (n, 3) u*, ω*.
+def smooth_update(bodies, inputs, index, params):
+    """Stage 1, the smooth dynamics (Eq. 3, 14, 15) of the pedestrians ``index`` of ``bodies`` given ``inputs``
+    (:class:`~crowd_env.core.bundles.StepInputs`), with h and the heading dynamics on or off of ``params``: compact
+    (n, 3) u*, ω*.
 
     u* = u + h/τ (u_intent − u) + h f/m (explicit Euler);
     ω* = ω + h (−k wrap(θ − θ_d) − c ω)/I, with θ_d the intent's direction when not given.
     """
+    velocity, angular_velocity, heading = bodies.velocity_m_s, bodies.angular_velocity_rad_s, bodies.heading_rad
+    mass, inertia, tau = bodies.mass_kg, bodies.inertia_kg_m2, bodies.tau_s
+    stiffness, damping = bodies.heading_stiffness, bodies.heading_damping
+    intents, theta_d, has_theta_d = inputs.intents_m_s, inputs.desired_heading_rad, inputs.has_desired_heading
+    force, has_force = inputs.external_force_n, inputs.has_external_force
+    dt_s, rotation = params.dt_s, params.rotation
     n = index.shape[0]
     vel = np.empty((n, 3))
     for k in range(n):
@@ -299,39 +306,48 @@ def compact_bodies(mass_all, inertia_all, index):
 
 
 @nb.njit(cache=True)
-def impact_stage(vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, l_a, l_b, dvec, gi, gj,
-                 k_n, k_tg, k_v, eps_m, rotation, max_dense_rows, max_dense_bodies):
-    """Stage 4: the kinetic energy before the impacts, then the dense Frémond impacts of every cluster
-    within the limits (:func:`~crowd_env.core.solvers.impact.resolve_impacts`, in place on ``vel``):
+def impact_stage(vel, mass, inertia, contacts, links, params):
+    """Stage 4: the kinetic energy before the impacts, then the dense Frémond impacts of every cluster of the
+    candidates ``contacts`` and the hand links ``links`` within the limits of ``params``
+    (:func:`~crowd_env.core.solvers.impact.resolve_impacts`, in place on ``vel``):
     ``(ke_before, p_normal, p_tangent, in_impact, root, unsolved, n_clusters, max_cluster)``; the
     clusters in ``unsolved`` are left for the solver cascade."""
     ke0 = kinetic_energy(vel, mass, inertia)
-    p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = resolve_impacts(
-        vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, l_a, l_b, dvec, gi, gj,
-        k_n, k_tg, k_v, eps_m, VTOL_M_S, rotation, max_dense_rows, max_dense_bodies)
+    p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = resolve_impacts(vel, mass, inertia, contacts,
+                                                                                   links, params, VTOL_M_S)
     return ke0, p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster
 
 
 @nb.njit(cache=True)
-def finish_step(position, velocity, angular_velocity, heading, radius, index, vel, dt_s, rotation, walls,
-                c_a, c_b, c_wall, p_normal, p_tangent, p_projection, in_impact, period_m=0.0):
-    """Stage 6 (before the exit test): :func:`commit_step`, then the smallest gap after the step among the
-    candidates (pairs not among them cannot have closed) and the contacts that carried a percussion:
-    ``(min_gap, contacts)``, ``contacts`` being :func:`compact_contacts`."""
-    commit_step(position, velocity, angular_velocity, heading, index, vel, dt_s, rotation, period_m)
-    min_gap = candidate_gaps_min(position, radius, index, walls, c_a, c_b, c_wall, period_m)
-    return min_gap, compact_contacts(index, c_a, c_b, c_wall, p_normal, p_tangent, p_projection, in_impact)
+def finish_step(bodies, world, params, index, vel, contacts, percussions, p_projection):
+    """Stage 6 (before the exit test): :func:`commit_step` of the final compact velocities ``vel``, then the
+    smallest gap after the step among the candidates ``contacts`` (pairs not among them cannot have closed) and the
+    contacts that carried a percussion (``percussions`` = ``(normal, tangential, in the impact set)``, and the gap
+    projection's ``p_projection``): ``(min_gap, contacts)``, ``contacts`` being :func:`compact_contacts`."""
+    position, period_m = bodies.position_m, world.period_m
+    commit_step(position, bodies.velocity_m_s, bodies.angular_velocity_rad_s, bodies.heading_rad, index, vel,
+                params.dt_s, params.rotation, period_m)
+    min_gap = candidate_gaps_min(position, bodies.radius_m, index, world.walls, contacts.a, contacts.b, contacts.wall,
+                                 period_m)
+    p_normal, p_tangent, in_impact = percussions
+    return min_gap, compact_contacts(index, contacts.a, contacts.b, contacts.wall, p_normal, p_tangent, p_projection,
+                                     in_impact)
 
 
 @nb.njit(cache=True)
-def redetect_candidates(position, radius, index, walls, wall_owner, eps_m, dt_s, r_max, speed, grown, c_a, c_b, c_wall,
-                        period_m=0.0):
+def redetect_candidates(bodies, index, world, params, speed, grown, contacts):
     """Stage 5's re-detection: the candidates with margins from the speeds ``speed`` (compact (n,)) that
-    the list (``c_a``, ``c_b``, ``c_wall``) lacks, as the arrays of
-    :data:`~crowd_env.core.contacts.CONTACT_FIELDS` (rows into ``index``). Only pairs involving a
-    pedestrian whose margin grew (rows ``grown``) can be new (positions have not moved yet in this
+    ``contacts`` lacks, as a :class:`~crowd_env.core.bundles.Candidates` (rows into ``index``). Only pairs involving
+    a pedestrian whose margin grew (rows ``grown``) can be new (positions have not moved yet in this
     step): candidates are built among them and their neighbours within :func:`redetection_reach`."""
+    position, radius = bodies.position_m, bodies.radius_m
+    walls, wall_owner, period_m = world.walls, world.wall_owner, world.period_m
+    eps_m, dt_s = params.contact_tolerance_m, params.dt_s
+    c_a, c_b, c_wall = contacts.a, contacts.b, contacts.wall
     n = index.shape[0]
+    r_max = 0.0
+    for k in range(n):
+        r_max = max(r_max, radius[index[k]])
     g_max = 0.0
     for k in range(grown.shape[0]):
         g_max = max(g_max, speed[grown[k]])
@@ -366,16 +382,16 @@ def redetect_candidates(position, radius, index, walls, wall_owner, eps_m, dt_s,
     new = np.empty(a.shape[0], np.bool_)
     for c in range(a.shape[0]):
         new[c] = not (at[c] < known.shape[0] and known[at[c]] == keys[c])
-    return a[new], b[new], gap[new], nx[new], ny[new], rho_a[new], rho_b[new], wall[new]
+    return Candidates(a[new], b[new], gap[new], nx[new], ny[new], rho_a[new], rho_b[new], wall[new])
 
 
 @nb.njit(cache=True)
-def redetection_round(position, radius, index, world, params, r_max, vel, v_impact, det_speed, grown, candidates,
-                      percussions, lam_p, projected):
+def redetection_round(bodies, index, world, params, vel, v_impact, det_speed, grown, candidates, percussions, lam_p,
+                      projected):
     """One round of stage 5's re-detection, as both steps run it (the fused one with the dense projection, the
     staged one with the solver cascade; the module docstring, stage 5), for the rows ``grown`` of
     :func:`grown_margins` (non-empty; the callers test it first, the cheap common case). The candidates
-    (``candidates``: the arrays of :data:`~crowd_env.core.contacts.CONTACT_FIELDS`) were chosen with margins from
+    (``candidates``, a :class:`~crowd_env.core.bundles.Candidates`) were chosen with margins from
     the speeds ``det_speed``: where the compact velocities ``vel`` grew beyond them, the speeds are
     raised to ‖u‖ and the candidates they now call for (:func:`redetect_candidates`) appended, with zero
     percussions (``percussions``: normal, tangential, in the impact set) and, when ``projected`` (the gap
@@ -386,17 +402,17 @@ def redetection_round(position, radius, index, world, params, r_max, vel, v_impa
 
     Returns ``(det_speed, candidates, percussions, lam_p, added, projected)``: ``added`` whether candidates were
     added (one re-detection), ``projected`` whether ``lam_p`` still holds for ``vel``."""
-    eps_m, dt_s = params.contact_tolerance_m, params.dt_s
+    dt_s = params.dt_s
     det_speed = np.maximum(det_speed, speeds(vel))
     c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall = candidates
-    new = redetect_candidates(position, radius, index, world.walls, world.wall_owner, eps_m, dt_s, r_max, det_speed,
-                              grown, c_a, c_b, c_wall, world.period_m)
+    new = redetect_candidates(bodies, index, world, params, det_speed, grown, candidates)
     extra = new[0].shape[0]
     if not extra:
         return det_speed, candidates, percussions, lam_p, False, projected
-    candidates = (np.concatenate((c_a, new[0])), np.concatenate((c_b, new[1])), np.concatenate((c_gap, new[2])),
-                  np.concatenate((c_nx, new[3])), np.concatenate((c_ny, new[4])), np.concatenate((c_rho_a, new[5])),
-                  np.concatenate((c_rho_b, new[6])), np.concatenate((c_wall, new[7])))
+    candidates = Candidates(np.concatenate((c_a, new[0])), np.concatenate((c_b, new[1])),
+                            np.concatenate((c_gap, new[2])), np.concatenate((c_nx, new[3])),
+                            np.concatenate((c_ny, new[4])), np.concatenate((c_rho_a, new[5])),
+                            np.concatenate((c_rho_b, new[6])), np.concatenate((c_wall, new[7])))
     p_n, p_t, in_impact = percussions
     percussions = (np.concatenate((p_n, np.zeros(extra))), np.concatenate((p_t, np.zeros(extra))),
                    np.concatenate((in_impact, np.zeros(extra, np.bool_))))
@@ -412,7 +428,8 @@ def redetection_round(position, radius, index, world, params, r_max, vel, v_impa
 def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached_radius_m):
     """The stages 1-6 (but the exit test) in one compiled call, with the dense solvers only (module docstring).
     ``bodies``, ``world``, ``params``, ``inputs``: the bundles of :mod:`crowd_env.core.bundles`; ``index`` the
-    active pedestrians, ``links`` their :func:`~crowd_env.core.contacts.active_links`.
+    active pedestrians, ``links`` their :func:`~crowd_env.core.contacts.active_links` (a
+    :class:`~crowd_env.core.bundles.Links`).
 
     Returns ``(status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetections)``,
     ``contacts`` being :func:`compact_contacts`. With ``status != FUSED_OK`` nothing was written and the caller must run
@@ -423,27 +440,23 @@ def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached
     position, radius = bodies.position_m, bodies.radius_m
     walls, wall_owner, period_m = world.walls, world.wall_owner, world.period_m
     dt_s, eps_m = params.dt_s, params.contact_tolerance_m
-    vel = smooth_update(bodies.velocity_m_s, bodies.angular_velocity_rad_s, bodies.heading_rad, bodies.mass_kg,
-                        bodies.inertia_kg_m2, bodies.tau_s, bodies.heading_stiffness, bodies.heading_damping,
-                        inputs.intents_m_s, inputs.desired_heading_rad, inputs.has_desired_heading,
-                        inputs.external_force_n, inputs.has_external_force, index, dt_s, params.rotation)
+    vel = smooth_update(bodies, inputs, index, params)
     speed_star, r_max, reach = detection_reach(vel, radius, index, eps_m, dt_s)
     pairs = cached_pairs if reach <= cached_radius_m else grid_pairs(position, index, reach, period_m)
-    c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall = contact_candidates(
-        position, radius, speed_star, index, pairs, walls, wall_owner, eps_m, dt_s, period_m)
+    candidates = contact_candidates(position, radius, speed_star, index, pairs, walls, wall_owner, eps_m, dt_s,
+                                    period_m)
     mass, inertia = compact_bodies(bodies.mass_kg, bodies.inertia_kg_m2, index)
-    l_a, l_b, dvec, gi, gj = links
-    ke0, p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = impact_stage(
-        vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, l_a, l_b, dvec, gi, gj,
-        params.normal_dissipation_kg, params.tangential_dissipation_kg, params.link_dissipation_kg_per_m2, eps_m,
-        params.rotation, params.max_dense_rows, params.max_dense_bodies)
-    none = compact_contacts(index, c_a[:0], c_b[:0], c_wall[:0], p_n[:0], p_t[:0], p_n[:0], in_impact[:0])
+    ke0, p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = impact_stage(vel, mass, inertia, candidates,
+                                                                                     links, params)
+    none = compact_contacts(index, candidates.a[:0], candidates.b[:0], candidates.wall[:0], p_n[:0], p_t[:0], p_n[:0],
+                            in_impact[:0])
     if unsolved.shape[0]:
         return FUSED_LARGE_CLUSTER, none, ke0, 0.0, 0.0, 0, 0, np.inf, 0
     ke1 = kinetic_energy(vel, mass, inertia)
     # Stage 5 as Simulator._staged_projection runs it, with the dense projection
     v_impact = vel[:, :2].copy()
     det_speed = speed_star
+    percussions = (p_n, p_t, in_impact)
     lam_p = np.zeros(0)
     projected = False
     n_redetect = 0
@@ -451,22 +464,18 @@ def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached
         grown = grown_margins(vel, det_speed, eps_m, dt_s)
         if grown.shape[0]:
             det_speed, candidates, percussions, lam_p, added, projected = redetection_round(
-                position, radius, index, world, params, r_max, vel, v_impact, det_speed, grown,
-                (c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall), (p_n, p_t, in_impact), lam_p, projected)
-            c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall = candidates
-            p_n, p_t, in_impact = percussions
+                bodies, index, world, params, vel, v_impact, det_speed, grown, candidates, percussions, lam_p,
+                projected)
             n_redetect += added
         if projected:
             break
-        lam_p, _, st = project_gaps(vel, mass, c_a, c_b, c_gap, c_nx, c_ny, dt_s, PROJECTION_TOL_M_S,
-                                    params.max_dense_projection_rows)
+        lam_p, _, st = project_gaps(vel, mass, candidates.a, candidates.b, candidates.gap, candidates.nx,
+                                    candidates.ny, dt_s, PROJECTION_TOL_M_S, params.max_dense_projection_rows)
         if st != STATUS_OK:
             return FUSED_PROJECTION, none, ke0, ke1, 0.0, 0, 0, np.inf, 0
         projected = True
     ke2 = kinetic_energy(vel, mass, inertia)
-    min_gap, contacts = finish_step(position, bodies.velocity_m_s, bodies.angular_velocity_rad_s, bodies.heading_rad,
-                                    radius, index, vel, dt_s, params.rotation, walls, c_a, c_b, c_wall, p_n, p_t, lam_p,
-                                    in_impact, period_m)
+    min_gap, contacts = finish_step(bodies, world, params, index, vel, candidates, percussions, lam_p)
     return FUSED_OK, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect
 
 
@@ -551,7 +560,7 @@ def advance_named(bodies, world, params, inputs, index, cached_pairs, cached_rad
                              bodies.link_offsets_m, world.period_m)
     else:  # what active_links gives without links: empty views, no allocation
         none_2d = bodies.position_m[:0]
-        links = (index[:0], index[:0], none_2d, none_2d, none_2d)
+        links = Links(index[:0], index[:0], none_2d, none_2d, none_2d)
     status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect = fused_step(
         bodies, world, params, inputs, index, links, cached_pairs, cached_radius_m)
     if status != FUSED_OK:

@@ -13,11 +13,12 @@ from crowd_env.core.solvers import closed_form
 from crowd_env.core.solvers.cascade import project_gaps_large
 from crowd_env.core.solvers.dense_projection import project_gaps
 from crowd_env.core.solvers.external import project_gaps_qp, solve_rows_qp
-from crowd_env.core.solvers.impact import resolve_impacts, solve_rows
+from crowd_env.core.bundles import Candidates, Links, StepParams
+from crowd_env.core.solvers.impact import MAX_DENSE_BODIES, resolve_impacts, solve_rows
 from crowd_env.core.solvers.pivoting import lcp_bpp
 from crowd_env.core.solvers.sparse_qp import project_gaps_sparse, solve_rows_sparse
 from crowd_env.core.solvers.status import STATUS_OK
-from crowd_env.core.contacts import LINK, NORMAL, TANGENT, rows_to_dense
+from crowd_env.core.contacts import CONTACT_FIELDS, LINK, NORMAL, TANGENT, rows_to_dense
 from crowd_env.core.solvers.reference import random_cluster, solve_rows_cvxpy
 from tests.conftest import DATA
 
@@ -204,9 +205,10 @@ def test_three_disk_energy_regression():
     vel = v_minus.reshape(3, 3).copy()
     z = np.zeros(0, np.int64)
     e = np.zeros((0, 2))
-    p_n, p_t, in_impact, *_ = resolve_impacts(vel, np.ones(3), np.full(3, 0.5), con["a"], con["b"], con["gap"],
-                                              con["nx"], con["ny"], con["rho_a"], con["rho_b"], z, z, e, e, e,
-                                              1e8, 0.0, 0.0, 1e-3, 1e-9, True, 400)
+    contacts = Candidates(*(con.get(k, np.full(2, -1)) for k in CONTACT_FIELDS))  # no wall: -1
+    params = StepParams(0.01, 1e-3, 1e8, 0.0, 0.0, True, 400, MAX_DENSE_BODIES, 0)
+    p_n, p_t, in_impact, *_ = resolve_impacts(vel, np.ones(3), np.full(3, 0.5), contacts, Links(z, z, e, e, e), params,
+                                              1e-9)
     assert in_impact.tolist() == [True, False]
     ke_ours = 0.5 * mass_diag @ vel.ravel() ** 2
     assert ke_ours <= ke0 * (1.0 + 1e-12)

@@ -191,21 +191,27 @@ def solve_rows(mass_diag, row_a, row_b, coef_a, coef_b, row_k, row_kind, v_minus
 
 
 @nb.njit(cache=True)
-def resolve_impacts(vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b,
-                    l_a, l_b, dvec, gi, gj, k_n, k_tg, k_v, eps_m, vtol, rotation, max_dense_rows,
-                    max_dense_bodies=MAX_DENSE_BODIES):
-    """Frémond impacts of every connected cluster, in place on ``vel`` ((n, 3): u_x, u_y, ω).
+def resolve_impacts(vel, mass, inertia, contacts, links, params, vtol):
+    """Frémond impacts of every connected cluster, in place on ``vel`` ((n, 3): u_x, u_y, ω), of the contact
+    candidates ``contacts`` (:class:`~crowd_env.core.bundles.Candidates`) and hand links ``links``
+    (:class:`~crowd_env.core.bundles.Links`), with the step's numbers ``params``
+    (:class:`~crowd_env.core.bundles.StepParams`: ε, K_n, K_tg, K_v, rotation, the dense limits).
 
     The impact set holds the contacts that touch (gap ≤ ε) and approach or rest (Δ·n ≤ vtol), plus
     the hand links; clusters are connected components of that graph, solved when they contain a
     strictly approaching contact or a link. Contacts that touch but already separate are left out,
     so kinetic energy cannot increase.
-    Clusters with more than ``max_dense_rows`` normal rows or ``max_dense_bodies`` bodies (pass −1 to
-    route every cluster), or where pivoting fails, are left untouched and their root reported in
+    Clusters with more than ``params.max_dense_rows`` normal rows or ``params.max_dense_bodies`` bodies (rows −1
+    routes every cluster), or where pivoting fails, are left untouched and their root reported in
     ``unsolved`` for :func:`solve_clusters` (sparse or reference solvers).
     Returns ``(p_normal, p_tangent, in_impact, root, unsolved, n_clusters, max_cluster)``: total normal and
     tangential percussion per contact (kg m/s; reactive + dissipative), the impact-set mask, counts.
     """
+    c_a, c_b, c_gap, c_nx, c_ny = contacts.a, contacts.b, contacts.gap, contacts.nx, contacts.ny
+    l_a, l_b = links.a, links.b
+    k_n, k_tg, k_v = params.normal_dissipation_kg, params.tangential_dissipation_kg, params.link_dissipation_kg_per_m2
+    eps_m, rotation = params.contact_tolerance_m, params.rotation
+    max_dense_rows, max_dense_bodies = params.max_dense_rows, params.max_dense_bodies
     n = vel.shape[0]
     nc = c_a.shape[0]
     nl = l_a.shape[0] if k_v > 0.0 else 0
@@ -268,9 +274,8 @@ def resolve_impacts(vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_
             for k in range(nb_):
                 local[bodies[k]] = -1
             continue
-        row_a, row_b, coef_a, coef_b, row_k, row_kind = build_rows(
-            cids, c_a, c_b, c_nx, c_ny, c_rho_a, c_rho_b, lids, l_a, l_b, dvec, gi, gj,
-            local, k_n, k_tg, k_v, rotation)
+        row_a, row_b, coef_a, coef_b, row_k, row_kind = build_rows(cids, contacts, lids, links, local, k_n, k_tg,
+                                                                   k_v, rotation)
         mass_diag = np.empty(3 * nb_)
         v_minus = np.empty(3 * nb_)
         for k in range(nb_):
@@ -311,10 +316,13 @@ def resolve_impacts(vel, mass, inertia, c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_
     return p_normal, p_tangent, in_impact, root, unsolved, n_clusters, max_cluster
 
 
-def solve_clusters(roots, root, vel, mass, inertia, in_impact, c_a, c_b, c_nx, c_ny, c_rho_a, c_rho_b,
-                   l_a, l_b, dvec, gi, gj, k_n, k_tg, k_v, rotation, solve, p_normal, p_tangent):
-    """Solve the listed clusters (roots from :func:`resolve_impacts`) with ``solve`` (a function of
-    the :func:`solve_rows` inputs returning ``(v_plus, λ)``), in place on ``vel`` and the percussions."""
+def solve_clusters(roots, root, vel, mass, inertia, in_impact, contacts, links, params, solve, p_normal, p_tangent):
+    """Solve the listed clusters (roots from :func:`resolve_impacts`, with its ``contacts``, ``links`` and
+    ``params``) with ``solve`` (a function of the :func:`solve_rows` inputs returning ``(v_plus, λ)``), in place on
+    ``vel`` and the percussions."""
+    c_a, l_a = contacts.a, links.a
+    k_n, k_tg, k_v = params.normal_dissipation_kg, params.tangential_dissipation_kg, params.link_dissipation_kg_per_m2
+    rotation = params.rotation
     imp = np.flatnonzero(in_impact)
     local = np.full(vel.shape[0], -1, np.int64)
     nl = l_a.shape[0] if k_v > 0 else 0
@@ -323,8 +331,7 @@ def solve_clusters(roots, root, vel, mass, inertia, in_impact, c_a, c_b, c_nx, c
         local[bodies] = np.arange(bodies.shape[0])
         cids = imp[root[c_a[imp]] == rt]
         lids = np.flatnonzero(root[l_a[:nl]] == rt) if nl else np.zeros(0, np.int64)
-        rows = build_rows(cids, c_a, c_b, c_nx, c_ny, c_rho_a, c_rho_b, lids, l_a, l_b, dvec, gi, gj,
-                          local, k_n, k_tg, k_v, rotation)
+        rows = build_rows(cids, contacts, lids, links, local, k_n, k_tg, k_v, rotation)
         mass_diag = np.stack([mass[bodies], mass[bodies], inertia[bodies]], axis=1).ravel()
         v_minus = vel[bodies].ravel().copy()
         v_plus, lam = solve(mass_diag, *rows, v_minus, np.zeros_like(v_minus))

@@ -62,7 +62,8 @@ def random_cluster(n, rng, *, k_n=1.0e5, k_tg=0.0, k_v=0.0, n_links=0, wall=True
     Returns a dict with ``mass_diag``, the six row arrays, ``v_minus``, ``position``, ``radius``,
     ``contacts`` (the detect_contacts dict) and ``links``.
     """
-    from ..contacts import build_rows, detect_contacts, link_geometry
+    from ..bundles import Candidates, Links
+    from ..contacts import CONTACT_FIELDS, build_rows, detect_contacts, link_geometry
     from ..segments import as_segments, endpoint_owners
 
     spacing = 2.0 * radius_m
@@ -92,9 +93,8 @@ def random_cluster(n, rng, *, k_n=1.0e5, k_tg=0.0, k_v=0.0, n_links=0, wall=True
     offsets = np.tile([0.0, radius_m, 0.0, -radius_m], (links.shape[0], 1))
     dvec, gi, gj = link_geometry(pts, heading, links, offsets)
     cids = np.arange(con["a"].shape[0], dtype=np.int64)
-    rows = build_rows(cids, con["a"], con["b"], con["nx"], con["ny"], con["rho_a"], con["rho_b"],
-                      np.arange(links.shape[0], dtype=np.int64), links[:, 0].copy(), links[:, 1].copy(),
-                      dvec, gi, gj, index, k_n, k_tg, k_v, rotation)
+    rows = build_rows(cids, Candidates(*(con[k] for k in CONTACT_FIELDS)), np.arange(links.shape[0], dtype=np.int64),
+                      Links(links[:, 0].copy(), links[:, 1].copy(), dvec, gi, gj), index, k_n, k_tg, k_v, rotation)
     v_minus = np.stack([speed_m_s * rng.standard_normal(n), speed_m_s * rng.standard_normal(n),
                         rng.standard_normal(n)], axis=1).ravel()
     mass_diag = np.stack([mass, mass, inertia], axis=1).ravel()
