@@ -662,8 +662,8 @@ class CrowdParallelEnv(ParallelEnv):
         m = idx_c.shape[0]  # the outputs are made here: numba hands an array back to Python for 0.3 µs each
         progress, perc_c, contacts_c = np.empty(m), np.empty(m), np.empty(m, np.int64)
         exited, truncated = np.empty(m, np.bool_), np.empty(m, np.bool_)
-        n_done = _step_arrays(st.active, idx_c, t_before, t_after, self._travel_time, percussion, contacts,
-                              self._steps >= self.max_steps, progress, perc_c, contacts_c, exited, truncated)
+        n_done = _step_arrays(st.active, idx_c, (t_before, t_after), self._travel_time, (percussion, contacts),
+                              self._steps >= self.max_steps, (progress, perc_c, contacts_c, exited, truncated))
         if self._progress_period_s > 0.0:  # periodic corridor: T jumps by L/V at the seam (module docstring)
             progress = minimum_image_dx(progress, self._progress_period_s)
         info = {"agent_index": idx_c.copy(), "progress_s": progress, "travel_time_before_s": t_before,
@@ -785,11 +785,14 @@ def _travel_time_period_s(navigation, period_m: float) -> float:
 
 
 @nb.njit(cache=True)
-def _step_arrays(active, idx_c, t_before, t_after, travel_time, percussion, contacts, at_limit, progress, perc, cont,
-                 exited, truncated):
-    """Write the agents' step arrays: progress T_before − T_after, their percussions and contact counts,
-    exited, truncated (not exited at the step limit); returns how many ended; stores T_after in
-    ``travel_time``."""
+def _step_arrays(active, idx_c, times, travel_time, touched, at_limit, out):
+    """Write the agents' step arrays ``out`` = ``(progress, percussions, contact counts, exited, truncated)``:
+    progress T_before − T_after (``times`` = ``(T_before, T_after)``), their percussions and contact counts (of
+    ``touched`` = ``(percussion, contacts)`` per pedestrian), exited, truncated (not exited at the step limit);
+    returns how many ended; stores T_after in ``travel_time``."""
+    t_before, t_after = times
+    percussion, contacts = touched
+    progress, perc, cont, exited, truncated = out
     m = idx_c.shape[0]
     n_done = 0
     for a in range(m):

@@ -147,11 +147,16 @@ def _buffer_size(n: int, dim: tuple) -> int:
 
 
 @nb.njit(cache=True)
-def _record(slots, o, r, te, tr, obs, rewards, terminated, truncated, final_obs, has_final, ep_r, ep_l, has_ep,
-            ret, length, alive, term_rows, slot_terms):
-    """File one copy's step (rows in its live agents' order) into the slot arrays: an agent that ended
-    gets its last observation as the final one, its episode return and length, and turns into padding.
-    ``term_rows`` (n, T): each agent's reward terms, copied to ``slot_terms`` (none when T = 0)."""
+def _record(slots, step, out, running, term_rows, slot_terms):
+    """File one copy's ``step`` = ``(observations, rewards, terminated, truncated)`` (rows in its live agents'
+    order) into the slot arrays ``out`` = ``(obs, rewards, terminated, truncated, final_obs, has_final,
+    episode_return, episode_length, episode_ended)`` at ``slots``, with the episodes so far ``running`` = ``(return,
+    length, alive)``: an agent that ended gets its last observation as the final one, its episode return and length,
+    and turns into padding. ``term_rows`` (n, T): each agent's reward terms, copied to ``slot_terms`` (none when
+    T = 0)."""
+    o, r, te, tr = step
+    obs, rewards, terminated, truncated, final_obs, has_final, ep_r, ep_l, has_ep = out
+    ret, length, alive = running
     for a in range(slots.shape[0]):
         i = slots[a]
         for t in range(term_rows.shape[1]):
@@ -214,13 +219,15 @@ class _Copies:
         A = self.n_agents
         obs = out["obs"]
         slot_terms = out.get("reward_terms", _NO_TERMS)
+        slot_arrays = (obs, out["rewards"], out["terminated"], out["truncated"], out["final_obs"], out["_final_obs"],
+                       out["episode_return"], out["episode_length"], out["episode_ended"])
+        running = (self.ret, self.length, self.alive)
         for c, env in enumerate(self.envs):
             slots = self._slots(c, env)
             o, r, te, tr, info = env._advance(actions[slots])
             terms = info.get("reward_terms") if slot_terms is not _NO_TERMS else None
-            _record(slots, o, r, te, tr, obs, out["rewards"], out["terminated"], out["truncated"], out["final_obs"],
-                    out["_final_obs"], out["episode_return"], out["episode_length"], out["episode_ended"], self.ret,
-                    self.length, self.alive, _NO_TERMS if terms is None else term_rows(terms), slot_terms)
+            _record(slots, (o, r, te, tr), slot_arrays, running, _NO_TERMS if terms is None else term_rows(terms),
+                    slot_terms)
             if not env.agents:  # the copy's episode is over: reset it in this step
                 base = c * A
                 rows = slice(base, base + A)

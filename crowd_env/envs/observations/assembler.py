@@ -142,24 +142,25 @@ class ObservationBuilder:
             (self.walls[:, :2], self.walls[:, 2:] - self.walls[:, :2])))  # start (x, y) and direction (ex, ey)
         self._parts, self.low, self.high = self._lay_out()
         self._search_k = self.n_neighbors if any(c.uses_neighbors for c, _, _ in self._parts) else 0
+        self._search = (self._search_k, self.spec.neighbor_radius_m, self.spec.period_m)  # _prepare's search
         self._fused = self._compiled_table()
-        compiled = () if self._fused is None else self._fused[1][-1]
+        compiled = () if self._fused is None else self._fused[-1]
         self._writers = tuple((c.write, col, size) for c, col, size in self._parts if type(c) not in _KINDS
                               or not len(compiled))  # written from Python: components of other modules
 
     def _compiled_table(self):
-        """The arguments of :func:`_write_builtins` that stay the same at every step, its table last: a row per
-        built-in component (:data:`_KINDS`: every one of :data:`COMPONENTS`) with entries, in their order (its
-        kind, its first column and its constants); None when there is none. The builder writes them all in one
-        compiled call (with the shared work, :func:`_observe`, when no other component needs the context)."""
+        """What :func:`_write_builtins` reads that stays the same at every step (its ``tables``: the frame, the walls
+        twice, the rays and their range), its table last: a row per built-in component (:data:`_KINDS`: every one of
+        :data:`COMPONENTS`) with entries, in their order (its kind, its first column and its constants); None when
+        there is none. The builder writes them all in one compiled call (with the shared work, :func:`_observe`,
+        when no other component needs the context)."""
         rows = [_table_row(c, col) for c, col, _ in self._parts if type(c) in _KINDS]
         if not rows:
             return None
         ray_cos, ray_sin = ray_table(self.n_rays)
         spec = self.spec
-        return ((self._search_k, spec.neighbor_radius_m, spec.period_m),
-                (self.frame == "world", self.walls, self._walls_d, ray_cos, ray_sin, spec.ray_range_m,
-                 np.array(rows, np.float64)))
+        return (self.frame == "world", self.walls, self._walls_d, ray_cos, ray_sin, spec.ray_range_m,
+                np.array(rows, np.float64))
 
     def _lay_out(self) -> tuple:
         """The (component, first column, size) of every component with entries, and the bounds."""
@@ -208,9 +209,10 @@ class ObservationBuilder:
                 e_d, travel = self.navigation.sample(pos)
             nav = _NO_GRID
         fused = self._fused
+        crowd = (state.position_m, state.velocity_m_s, state.heading_rad, state.active, state.radius_m)
+        grid = (nav[0], nav[1], nav[2], nav is not _NO_GRID)
         if fused is not None and not self._writers:  # built-in components only: one compiled call
-            bad = _observe(state.position_m, state.velocity_m_s, state.heading_rad, state.active, state.radius_m, index,
-                           nav[0], nav[1], nav[2], nav is not _NO_GRID, *fused[0], e_d, travel, speed, *fused[1], obs)
+            bad = _observe(crowd, index, grid, self._search, (e_d, travel, speed), fused, obs)
             if bad >= 0:  # outside the navigation grid: the field raises its own error
                 self.navigation.sample(state.position_m[index[bad:bad + 1]])
             return obs, travel, speed
@@ -218,15 +220,12 @@ class ObservationBuilder:
         velocity = np.empty((m, 2))
         cos_t = np.empty(m)
         sin_t = np.empty(m)
-        bad, act, near = _prepare(state.position_m, state.velocity_m_s, state.heading_rad, state.active, index,
-                                  nav[0], nav[1], nav[2], nav is not _NO_GRID, self._search_k, spec.neighbor_radius_m,
-                                  spec.period_m, e_d, travel, speed, velocity, cos_t, sin_t)
+        bad, act, near = _prepare(crowd, index, grid, self._search, (e_d, travel, speed, velocity, cos_t, sin_t))
         if bad >= 0:  # outside the navigation grid: the field raises its own error
             self.navigation.sample(state.position_m[index[bad:bad + 1]])
             return obs, travel, speed
         if fused is not None:
-            _write_builtins(state.position_m, state.velocity_m_s, state.radius_m, index, act, near, velocity, cos_t,
-                            sin_t, e_d, travel, spec.period_m, *fused[1], obs)
+            _write_builtins(crowd, index, (act, near, velocity, cos_t, sin_t, e_d, travel), spec.period_m, fused, obs)
         ctx = ObservationContext(state, index, spec, self.walls, self._walls_d, velocity, cos_t, sin_t, e_d, travel,
                                  speed, act, near)
         for write, col, size in self._writers:
@@ -258,12 +257,17 @@ def _grid_of(field: NavigationField) -> tuple:
 
 
 @nb.njit(cache=True)
-def _prepare(position, velocity, heading, active, index, grid_xyh, grid_t, grid_d, sample, k, radius_m, period_m, e_d,
-             travel, speed, vel, cos_t, sin_t):
-    """The per-step work the components share (:class:`~.base.ObservationContext`), for pedestrians ``index``:
-    e_d and T (bilinear sampling of the grid when ``sample``; else given), speeds, velocities, cos θ and sin θ
-    of the headings, and the k nearest others on the floor within ``radius_m`` (k = 0: none searched).
-    Returns ``(bad, active rows, nearest (m, k))``: ``bad`` is −1, or the first row outside the grid."""
+def _prepare(crowd, index, grid, search, out):
+    """The per-step work the components share (:class:`~.base.ObservationContext`), for pedestrians ``index`` of
+    ``crowd`` = ``(position, velocity, heading, active, radius)`` (the state's arrays), into ``out`` = ``(e_d, T,
+    speeds, velocities, cos θ, sin θ)``: e_d and T by bilinear sampling of ``grid`` = ``((x0, y0, h), T grid, e_d
+    grid, sample)`` when ``sample`` (else given), and the k nearest others on the floor within ``radius_m``, with
+    ``search`` = ``(k, radius_m, period_m)`` (k = 0: none searched). Returns ``(bad, active rows, nearest (m,
+    k))``: ``bad`` is −1, or the first row outside the grid."""
+    position, velocity, heading, active, _ = crowd
+    grid_xyh, grid_t, grid_d, sample = grid
+    k, radius_m, period_m = search
+    e_d, travel, speed, vel, cos_t, sin_t = out
     m = index.shape[0]
     act = np.flatnonzero(active)
     if sample:
@@ -289,11 +293,15 @@ def _prepare(position, velocity, heading, active, index, grid_xyh, grid_t, grid_
 
 
 @nb.njit(cache=True)
-def _write_builtins(position, velocity, radius, index, act, near, vel, cos_t, sin_t, e_d, travel, period_m, world,
-                    walls, walls_d, ray_cos, ray_sin, ray_range_m, table, obs):
-    """The built-in components' columns (``table``: a row per component, :func:`_table_row`), each by the kernel its
-    own ``write`` calls, from the shared work of :func:`_prepare` (``act``, ``near``, ``vel``, ``cos_t``, ``sin_t``,
-    ``e_d``, ``travel``); ``walls`` (S, 4) the segments, ``walls_d`` the same as start and direction."""
+def _write_builtins(crowd, index, shared, period_m, tables, obs):
+    """The built-in components' columns of the pedestrians ``index`` of ``crowd`` (:func:`_prepare`), each by the
+    kernel its own ``write`` calls, from the shared work ``shared`` = ``(act, near, vel, cos_t, sin_t, e_d, travel)``
+    of :func:`_prepare`; ``tables`` = ``(world frame, walls (S, 4), walls as start and direction, ray cos, ray sin,
+    ray range, table)`` (:meth:`ObservationBuilder._compiled_table`; ``table``: a row per component,
+    :func:`_table_row`)."""
+    position, velocity, _, _, radius = crowd
+    act, near, vel, cos_t, sin_t, e_d, travel = shared
+    world, walls, walls_d, ray_cos, ray_sin, ray_range_m, table = tables
     for row in range(table.shape[0]):
         kind = int(table[row, 0])
         col = int(table[row, 1])
@@ -318,18 +326,17 @@ def _write_builtins(position, velocity, radius, index, act, near, vel, cos_t, si
 
 
 @nb.njit(cache=True)
-def _observe(position, velocity, heading, active, radius, index, grid_xyh, grid_t, grid_d, sample, k, radius_m,
-             period_m, e_d, travel, speed, world, walls, walls_d, ray_cos, ray_sin, ray_range_m, table, obs):
-    """An observation of built-in components only, in one compiled call: :func:`_prepare`, then
-    :func:`_write_builtins`. Returns −1, or the first row outside the navigation grid."""
+def _observe(crowd, index, grid, search, given, tables, obs):
+    """An observation of built-in components only, in one compiled call: :func:`_prepare` (``given`` = ``(e_d, T,
+    speeds)``, its first outputs), then :func:`_write_builtins`. Returns −1, or the first row outside the navigation
+    grid."""
+    e_d, travel, speed = given
     m = index.shape[0]
     vel = np.empty((m, 2))
     cos_t = np.empty(m)
     sin_t = np.empty(m)
-    bad, act, near = _prepare(position, velocity, heading, active, index, grid_xyh, grid_t, grid_d, sample, k,
-                              radius_m, period_m, e_d, travel, speed, vel, cos_t, sin_t)
+    bad, act, near = _prepare(crowd, index, grid, search, (e_d, travel, speed, vel, cos_t, sin_t))
     if bad >= 0:
         return bad
-    _write_builtins(position, velocity, radius, index, act, near, vel, cos_t, sin_t, e_d, travel, period_m, world,
-                    walls, walls_d, ray_cos, ray_sin, ray_range_m, table, obs)
+    _write_builtins(crowd, index, (act, near, vel, cos_t, sin_t, e_d, travel), search[2], tables, obs)
     return -1

@@ -53,10 +53,10 @@ def write_rays(position, index, cos_t, sin_t, walls, ray_cos, ray_sin, ray_range
     dys = np.empty(n_rays)
     best = np.empty(n_rays)
     inv_length2 = wall_inverse_lengths2(walls)
+    rays, scratch = (ray_cos, ray_sin, ray_range), (dxs, dys, best)
     for a in range(index.shape[0]):
         i = index[a]
-        cast_rays(position[i, 0], position[i, 1], cos_t[a], sin_t[a], walls, inv_length2, ray_cos, ray_sin, ray_range,
-                  obs[a], col, dxs, dys, best)
+        cast_rays(position[i, 0], position[i, 1], cos_t[a], sin_t[a], walls, inv_length2, rays, obs[a], col, scratch)
 
 
 @nb.njit(cache=True)
@@ -71,12 +71,14 @@ def wall_inverse_lengths2(walls):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def cast_rays(ox, oy, c, s, walls, inv_length2, ray_cos, ray_sin, max_range, out, col, dxs, dys, best):
+def cast_rays(ox, oy, c, s, walls, inv_length2, rays, out, col, scratch):
     """Distance from (ox, oy) to the first wall along each ray R(θ) (cos φ_r, sin φ_r), capped at
-    ``max_range``, written to ``out[col + r]``: the ray–segment test of
-    :func:`crowd_env.core.segments.ray_distances` (the same arithmetic), branch-free over the rays so that
+    ``max_range``, written to ``out[col + r]`` (``rays`` = ``(cos φ_r, sin φ_r, max_range)``): the ray–segment test
+    of :func:`crowd_env.core.segments.ray_distances` (the same arithmetic), branch-free over the rays so that
     it runs in SIMD lanes; ``walls`` (S, 4): start and direction of each segment, ``inv_length2`` their
-    :func:`wall_inverse_lengths2`; ``dxs``, ``dys``, ``best``: (R,) scratch."""
+    :func:`wall_inverse_lengths2`; ``scratch`` = ``(dxs, dys, best)``: (R,) each."""
+    ray_cos, ray_sin, max_range = rays
+    dxs, dys, best = scratch
     n_rays = ray_cos.shape[0]
     for r in range(n_rays):
         dxs[r] = c * ray_cos[r] - s * ray_sin[r]
