@@ -75,11 +75,11 @@ def _floor_steps(max_steps, time_s, bodies, world, params, agent):
         index = active_rows(named_bodies.active)
         if index.shape[0] == 0:
             break
-        status, intents, theta_d, pairs, pair_radius = decide(agent, named_bodies, named_world, index, time_s)
-        if status != AGENT_OK:
+        decision = decide(agent, named_bodies, named_world, index, time_s)
+        if decision.status != AGENT_OK:
             return done, agent_steps, time_s, False
-        step = advance(bodies, world, params, StepInputs(intents, theta_d, True, no_force, False)[:], index, pairs,
-                       pair_radius, time_s)
+        inputs = StepInputs(decision.intents_m_s, decision.desired_heading_rad, True, no_force, False)[:]
+        step = advance(bodies, world, params, inputs, index, decision.pairs, decision.pair_radius_m, time_s)
         if step[0] != FUSED_OK:
             return done, agent_steps, time_s, False
         time_s = step[-1]

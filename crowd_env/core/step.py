@@ -41,6 +41,8 @@ gap checks and the re-detection take every pedestrian-pedestrian displacement to
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba as nb
 import numpy as np
 
@@ -62,6 +64,34 @@ FUSED_LARGE_CLUSTER = 1  # an impact cluster needs the sparse solver
 FUSED_INPUT = 2  # an input beyond the step's bounds (advance): the Python path raises naming it
 FUSED_PROJECTION = 3  # the projection needs the sparse / interior-point path
 MAX_REDETECT = 10  # re-detection rounds per step (speeds are bounded: one or two rounds suffice in practice)
+
+
+class StepFigures(NamedTuple):
+    """What :func:`fused_step` reports: its ``status`` (``FUSED_*``), the ``contacts`` that carried a percussion
+    (:func:`compact_contacts`), the kinetic energies before the impacts, after them and after the projection (J),
+    the impact clusters' count and largest size, the smallest candidate gap after the step (m) and the re-detection
+    rounds."""
+
+    status: int
+    contacts: tuple
+    ke_before_impact_j: float
+    ke_after_impact_j: float
+    ke_after_projection_j: float
+    n_clusters: int
+    max_cluster: int
+    min_gap_m: float
+    n_redetections: int
+
+
+class StepOutcome(NamedTuple):
+    """What :func:`advance_named` reports: :func:`fused_step`'s :class:`StepFigures`, the pedestrians who left
+    (``exited``, indices), the compact positions before the move (``previous_m``, (n, 2)) and the clock after the step
+    (``time_s``; unchanged when ``figures.status`` is not ``FUSED_OK``)."""
+
+    figures: StepFigures
+    exited: np.ndarray
+    previous_m: np.ndarray
+    time_s: float
 
 
 @nb.njit(cache=True)
@@ -431,8 +461,7 @@ def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached
     active pedestrians, ``links`` their :func:`~crowd_env.core.contacts.active_links` (a
     :class:`~crowd_env.core.bundles.Links`).
 
-    Returns ``(status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetections)``,
-    ``contacts`` being :func:`compact_contacts`. With ``status != FUSED_OK`` nothing was written and the caller must run
+    Returns :class:`StepFigures`. With ``status != FUSED_OK`` nothing was written and the caller must run
     the staged step. ``cached_pairs`` (rows into ``index``, all pairs within ``cached_radius_m``, e.g.
     from the policy's social forces this step) are reused when they reach far enough, exactly like
     :meth:`Simulator.neighbor_pairs`.
@@ -451,7 +480,7 @@ def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached
     none = compact_contacts(index, candidates.a[:0], candidates.b[:0], candidates.wall[:0], p_n[:0], p_t[:0], p_n[:0],
                             in_impact[:0])
     if unsolved.shape[0]:
-        return FUSED_LARGE_CLUSTER, none, ke0, 0.0, 0.0, 0, 0, np.inf, 0
+        return StepFigures(FUSED_LARGE_CLUSTER, none, ke0, 0.0, 0.0, 0, 0, np.inf, 0)
     ke1 = kinetic_energy(vel, mass, inertia)
     # Stage 5 as Simulator._staged_projection runs it, with the dense projection
     v_impact = vel[:, :2].copy()
@@ -472,11 +501,11 @@ def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached
         lam_p, _, st = project_gaps(vel, mass, candidates.a, candidates.b, candidates.gap, candidates.nx,
                                     candidates.ny, dt_s, PROJECTION_TOL_M_S, params.max_dense_projection_rows)
         if st != STATUS_OK:
-            return FUSED_PROJECTION, none, ke0, ke1, 0.0, 0, 0, np.inf, 0
+            return StepFigures(FUSED_PROJECTION, none, ke0, ke1, 0.0, 0, 0, np.inf, 0)
         projected = True
     ke2 = kinetic_energy(vel, mass, inertia)
     min_gap, contacts = finish_step(bodies, world, params, index, vel, candidates, percussions, lam_p)
-    return FUSED_OK, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect
+    return StepFigures(FUSED_OK, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect)
 
 
 @nb.njit(cache=True)
@@ -527,24 +556,27 @@ def advance(bodies, world, params, inputs, index, cached_pairs, cached_radius_m,
     generates its callees' machine code again, and without this level the rollout's first compilation is
     about 10 s shorter (``docs/performance.md``).
 
-    Returns ``(status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetections, exited,
-    time_s)``: :func:`fused_step`'s figures, the pedestrians who left and the new clock; ``contacts`` is None
-    when no contact carried a percussion and ``exited`` None when nobody left (each array handed back to Python
-    costs about 0.3 µs, and most steps have neither). With ``status != FUSED_OK`` (``FUSED_INPUT``: an input out of
-    bounds) nothing was written and the clock is ``time_s``. (:func:`advance_named` also gives the positions
-    before the move, which the rollouts use; they are not handed back here.)
+    Returns the fields of :class:`StepFigures` then ``exited`` and ``time_s`` of :class:`StepOutcome`, as one plain
+    tuple (a named one costs Python about 0.5 µs more per step to build): :func:`fused_step`'s figures, the
+    pedestrians who left and the new clock; ``contacts`` is None when no contact carried a percussion and ``exited``
+    None when nobody left (each array handed back to Python costs about 0.3 µs, and most steps have neither). With
+    ``status != FUSED_OK`` (``FUSED_INPUT``: an input out of bounds) nothing was written and the clock is
+    ``time_s``. (:func:`advance_named` also gives the positions before the move, which the rollouts use; they are
+    not handed back here.)
     """
-    status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, _, t = advance_named(
-        Bodies(*bodies), World(*world), StepParams(*params), StepInputs(*inputs), index, cached_pairs,
-        cached_radius_m, time_s)
-    return (status, contacts if contacts[0].shape[0] else None, ke0, ke1, ke2, n_clusters, max_cluster, min_gap,
-            n_redetect, exited if exited.shape[0] else None, t)
+    outcome = advance_named(Bodies(*bodies), World(*world), StepParams(*params), StepInputs(*inputs), index,
+                            cached_pairs, cached_radius_m, time_s)
+    f = outcome.figures
+    return (f.status, f.contacts if f.contacts[0].shape[0] else None, f.ke_before_impact_j, f.ke_after_impact_j,
+            f.ke_after_projection_j, f.n_clusters, f.max_cluster, f.min_gap_m, f.n_redetections,
+            outcome.exited if outcome.exited.shape[0] else None, outcome.time_s)
 
 
 @nb.njit(cache=True, inline="always")
 def advance_named(bodies, world, params, inputs, index, cached_pairs, cached_radius_m, time_s):
     """:func:`advance` on the named bundles: inlined into :func:`advance` and into the compiled rollouts
-    (:func:`crowd_env.experiments.running.rollout.rollout_steps`), so both run the same operations."""
+    (:func:`crowd_env.experiments.running.rollout.rollout_steps`), so both run the same operations. Returns a
+    :class:`StepOutcome`."""
     n = index.shape[0]
     previous = np.empty((n, 2))
     for k in range(n):
@@ -552,21 +584,18 @@ def advance_named(bodies, world, params, inputs, index, cached_pairs, cached_rad
         previous[k, 1] = bodies.position_m[index[k], 1]
     if first_bad_input(inputs, bodies.tau_s, bodies.mass_kg):
         no_one = np.zeros(0, np.int64)
-        return (FUSED_INPUT, compact_contacts(index, no_one, no_one, no_one, np.zeros(0), np.zeros(0), np.zeros(0),
-                                              np.zeros(0, np.bool_)),
-                0.0, 0.0, 0.0, 0, 0, np.inf, 0, no_one, previous, time_s)
+        none = compact_contacts(index, no_one, no_one, no_one, np.zeros(0), np.zeros(0), np.zeros(0),
+                                np.zeros(0, np.bool_))
+        return StepOutcome(StepFigures(FUSED_INPUT, none, 0.0, 0.0, 0.0, 0, 0, np.inf, 0), no_one, previous, time_s)
     if bodies.links.shape[0]:
         links = active_links(bodies.position_m, bodies.heading_rad, bodies.active, index, bodies.links,
                              bodies.link_offsets_m, world.period_m)
     else:  # what active_links gives without links: empty views, no allocation
         none_2d = bodies.position_m[:0]
         links = Links(index[:0], index[:0], none_2d, none_2d, none_2d)
-    status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect = fused_step(
-        bodies, world, params, inputs, index, links, cached_pairs, cached_radius_m)
-    if status != FUSED_OK:
-        return (status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, np.zeros(0, np.int64),
-                previous, time_s)
+    figures = fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached_radius_m)
+    if figures.status != FUSED_OK:
+        return StepOutcome(figures, np.zeros(0, np.int64), previous, time_s)
     exited = leave_at_exits(bodies.position_m, bodies.active, index, previous, world.exit_destination,
                             world.exit_vertices, world.exit_ring_start, world.exit_ring_owner, world.exit_boxes)
-    return (status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, previous,
-            time_s + params.dt_s)
+    return StepOutcome(figures, exited, previous, time_s + params.dt_s)

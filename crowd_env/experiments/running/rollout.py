@@ -241,20 +241,21 @@ def rollout_steps(max_steps, time_s, step_count, bodies, world, params, agent, m
         index = active_rows(named_bodies.active)
         if index.shape[0] == 0:
             return ROLLOUT_EMPTY, done, time_s, n_redetect
-        decided, intents, theta_d, pairs, pair_radius = decide(agent, named_bodies, named_world, index, time_s)
-        if decided != AGENT_OK:
+        decision = decide(agent, named_bodies, named_world, index, time_s)
+        if decision.status != AGENT_OK:
             return ROLLOUT_PYTHON_STEP, done, time_s, n_redetect
-        inputs = StepInputs(intents, theta_d, True, no_force, False)
-        status, _, _, _, _, _, _, min_gap, rounds, exited, previous, t_next = advance_named(
-            named_bodies, named_world, named_params, inputs, index, pairs, pair_radius, time_s)
-        if status != FUSED_OK:
+        inputs = StepInputs(decision.intents_m_s, decision.desired_heading_rad, True, no_force, False)
+        outcome = advance_named(named_bodies, named_world, named_params, inputs, index, decision.pairs,
+                                decision.pair_radius_m, time_s)
+        step = outcome.figures
+        if step.status != FUSED_OK:
             return ROLLOUT_PYTHON_STEP, done, time_s, n_redetect
-        n_redetect += rounds
+        n_redetect += step.n_redetections
         t_prev = time_s
-        time_s = t_next
+        time_s = outcome.time_s
         step_count += 1
         done += 1
-        if measure_step(named_bodies, index, previous, exited.shape[0], t_prev, time_s, step_count, min_gap,
-                        named_params.dt_s, named_world.period_m, measures, stall):
+        if measure_step(named_bodies, index, outcome.previous_m, outcome.exited.shape[0], t_prev, time_s, step_count,
+                        step.min_gap_m, named_params.dt_s, named_world.period_m, measures, stall):
             return ROLLOUT_STALLED, done, time_s, n_redetect
     return ROLLOUT_LIMIT, done, time_s, n_redetect
