@@ -74,7 +74,9 @@ if len(sys.argv) > 2:
     from crowd_env.experiments.running.warmup import tuple_source
 
     def named_classes(t):
-        inner = getattr(t, "types", ()) or ((t.dtype,) if isinstance(t, types.BaseTuple) else ())
+        inner = getattr(t, "types", None)  # () for an empty named tuple (a group without fields)
+        if inner is None:
+            inner = (t.dtype,) if isinstance(t, types.BaseTuple) else ()
         own = [t.instance_class] if isinstance(t, (types.NamedTuple, types.NamedUniTuple)) else []
         return own + [c for x in inner for c in named_classes(x)]
 
