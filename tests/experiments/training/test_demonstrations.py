@@ -1,6 +1,6 @@
 """Demonstrations from recorded trajectories (crowd_env.experiments.training.demonstrations): the actions integrate
 back to the recorded positions, the observations are the environment's on the same state, the camera's edges are
-handled, the file format round-trips."""
+handled, the file format round-trips, and the command writes a dataset from any PedPy file and a scenario."""
 from __future__ import annotations
 
 import dataclasses
@@ -157,3 +157,24 @@ def test_gzipped_files_in_centimetres_read_as_the_shipped_recording(tmp_path):
         Trajectories.read_txt(tmp_path / "bad.txt.gz", default_frame_rate_per_s=16.0)
     with pytest.raises(TrajectoryFormatError, match="unit must be"):
         Trajectories.read_txt(tmp_path / "r.txt.gz", default_frame_rate_per_s=16.0, unit="mm")
+
+
+def test_the_command_turns_a_pedpy_file_and_a_scenario_into_a_dataset(recording, tmp_path, capsys):
+    from crowd_env.cli.imitate import main
+
+    cut = _cut(recording, recording.frame < 200)
+    path = tmp_path / "run.txt"
+    path.write_text("\n".join(f"{i} {f} {100 * x:.4f} {100 * y:.4f} 180" for i, f, x, y in
+                              zip(cut.id, cut.frame, cut.x_m, cut.y_m)) + "\n")
+    out = tmp_path / "demos.npz"
+    assert main(["demonstrations", str(path), "--frame-rate", "16", "--unit", "cm", "--scenario", "juelich_corridor",
+                 "--scenario-option", "entrance_width_m=0.5", "n_pedestrians=61", "--out", str(out)]) == 0
+    assert "decisions of" in capsys.readouterr().out
+    demos = load_demonstrations(out)
+    expected = demonstrations_from_trajectories(cut, uo_scenario(RUN))
+    np.testing.assert_allclose(demos.observation, expected.observation, atol=1e-5)
+    assert demos.meta["scenario_options"] == {"entrance_width_m": 0.5, "n_pedestrians": 61}
+    assert main(["demonstrations", str(path), "--frame-rate", "16", "--out", str(out)]) == 2
+    assert "needs --scenario" in capsys.readouterr().err
+    assert main(["demonstrations", "--out", str(out)]) == 2
+    assert "one of them" in capsys.readouterr().err
