@@ -132,3 +132,18 @@ def test_corridor_options_reach_every_corridor_run_and_bad_ones_are_refused():
     assert corridor and all(t["geometry"] == {"barrier_thickness_m": 0.1, "radius_m": 0.2} for t in corridor)
     with pytest.raises(ScenarioError, match="unknown option"):
         virtual_config(p.params(), navigation_clearance_m=0.23, corridor_geometry={"barrier_m": 0.1})
+
+
+def test_a_learned_policy_drives_every_run_and_an_unknown_one_is_refused(capsys):
+    from crowd_env.cli.virtual_experiments import main
+
+    p = get_preset("calibrated")
+    config = virtual_config(p.params(), navigation_clearance_m=0.23, policy="bottleneck_ppo")
+    tasks = virtual_tasks(config, QUICK_PLAN)
+    assert {t["experiment"] for t in tasks} == {"bottleneck", "corridor", "single_file"}
+    assert all(t["policy"] == {"name": "bottleneck_ppo", "learned_fraction": 1.0} for t in tasks)
+    assert config["policy"] == {"name": "bottleneck_ppo", "learned_fraction": 1.0}
+    assert virtual_config(p.params(), navigation_clearance_m=0.23, policy="calibrated") == _config()
+    assert not any("policy" in t for t in virtual_tasks(_config(), QUICK_PLAN))
+    assert main(["--quick", "--policy", "no_such_policy", "--out", "unused"]) == 2
+    assert "no_such_policy" in capsys.readouterr().err
