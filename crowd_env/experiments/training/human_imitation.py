@@ -23,7 +23,8 @@ after the last stage it finished (``resume=True``; a folder made with another co
 Each stage writes ``checkpoints/<stage>.pt`` (the network, the optimiser, the progress so far; read back with
 torch's weights-only loader) and ``policies/<stage>.npz`` (a :mod:`policy file <crowd_env.envs.policy_files>`,
 output clipped to the action box), then ``checkpoints/index.json`` names it, written last. The last stage's policy
-is also ``OUT/policy.npz``; ``progress.csv`` holds one row per epoch (the learning curves); ``summary.json`` the
+is also ``OUT/policy.npz``; ``progress.csv`` holds one row per epoch (the learning curves, drawn in
+``learning_curves.png``); ``summary.json`` the
 sizes, the wall and CPU times of each stage, and the open-loop speed error of every stage's policy and of the
 calibrated agent on the validation runs' recorded states (:func:`open_loop_errors`).
 """
@@ -39,6 +40,7 @@ from crowd_env.errors import TrainingError
 from crowd_env.files import copy_atomic, write_atomic, write_json_atomic
 
 from ...analysis.corridor_runs import recorded_uo_trajectories, uo_run, uo_scenario
+from ...analysis.figures import pyplot, save_figure
 from ...core.params import ModelParams
 from ...core.presets import get_preset
 from ...envs.background import FileObservationPolicy
@@ -52,7 +54,7 @@ from .recorded_rollouts import DEFAULT_DAD, calibrated_actions, dad_rollouts
 
 __all__ = ["TRAINING_RUNS", "VALIDATION_RUNS", "DEFAULT_HUMAN_TRAINING", "QUICK_HUMAN_TRAINING", "HUMAN_POLICY_NAME",
            "train_human_policy", "open_loop_errors", "human_training_config", "demonstrations_task",
-           "dad_task", "stage_names"]
+           "dad_task", "stage_names", "learning_curves_figure"]
 
 HUMAN_POLICY_NAME = "human_juelich"
 VALIDATION_RUNS = ("uo-100-180-180", "uo-180-180-095")
@@ -234,6 +236,7 @@ def train_human_policy(out, *, config: dict | None = None, backend=None, resume:
         timings[stage] = clock.lap()
         _save_stage(out, fitter, stage, done, timings, cfg)
     write_atomic(out / "progress.csv", _progress_csv(fitter.rows))
+    learning_curves_figure(fitter.rows, out / "learning_curves.png")
     copy_atomic(out / "policies" / f"{done[-1]}.npz", out / "policy.npz")
     summary = _summary(out, cfg, fitter, timings)
     write_json_atomic(out / "summary.json", summary)
@@ -294,6 +297,28 @@ def _progress_csv(rows: list) -> str:
     return ",".join(_PROGRESS_COLUMNS) + "\n" + "".join(
         ",".join(str(r[c]) if isinstance(r[c], (str, int)) else f"{r[c]:.6g}" for c in _PROGRESS_COLUMNS) + "\n"
         for r in rows)
+
+
+def learning_curves_figure(rows: list, path) -> Path:
+    """The learning curves of :data:`_PROGRESS_COLUMNS` rows: the training and validation mean squared errors and
+    the validation speed error against the epochs of all stages, each stage's first epoch marked."""
+    plt = pyplot()
+    fig, (ax, ax1) = plt.subplots(1, 2, figsize=(11, 4))
+    x = np.arange(1, len(rows) + 1)
+    ax.plot(x, [r["train_mse"] for r in rows], label="training runs (recordings and rollouts)")
+    ax.plot(x, [r["validation_mse"] for r in rows], label="validation runs (recordings)")
+    ax.set_yscale("log")
+    ax.set_ylabel("mean squared error of the action ((m/s)²)")
+    ax1.plot(x, [r["validation_speed_error_m_s"] for r in rows], color="C1")
+    ax1.set_ylabel("validation speed error (m/s, per decision)")
+    for a in (ax, ax1):
+        for k, r in enumerate(rows):
+            if r["epoch"] == 1:
+                a.axvline(k + 1, color="0.8", lw=0.8)
+                a.annotate(r["stage"], (k + 1, 1.0), xycoords=("data", "axes fraction"), fontsize=7, va="top")
+        a.set_xlabel("epoch (all stages)")
+    ax.legend(fontsize=7)
+    return Path(save_figure(fig, Path(path)))
 
 
 def open_loop_errors(out, cfg: dict, stages: list) -> dict:

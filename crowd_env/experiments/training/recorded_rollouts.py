@@ -25,6 +25,17 @@ farther than the observation's reach plus ``newcomer_speed_m_s`` × (t − t₀)
 since). Pedestrians the recording has lost (it vanished at the camera's edge, its simulated self walks on) get no
 label.
 
+**Newcomers from the spawn area** (``spawn_newcomers``): the recording never shows how people get through the
+entrance from the waiting crowd behind it (the UO camera starts 0.2 m past the entrance), yet that is what limits
+the flow of the five entrance runs, and what Seyfried's bottleneck is made of. With this option a rollout also
+places the people who appear within twice the horizon at a point within 1 m of the scenario's spawn area (its
+``spawn_area``: the waiting area) at the sites of that area nearest where they appear (at its density, the
+earliest nearest; :func:`~crowd_env.scenarios.placement.place_pedestrians`), standing, turned towards e_d; each of
+those who appear within the horizon is labelled, until the recording shows it, with the straight walk to its first
+recorded point that gets it there at its recorded time (at most ``newcomer_speed_m_s``): the one thing the
+recording says about it. The appearance points then count as the vanishing ones do in the edge rule (the people
+behind the entrance are simulated).
+
 :func:`calibrated_actions` gives the calibrated agent's intents (Kabalan et al. 2016, Eq. 14-16) on a recorded
 state, through a read-only view of it that answers what the agent asks a simulator (:class:`RecordedView`), with
 every desired speed the model's mean (1.34 m/s: the recording does not say anybody's).
@@ -44,13 +55,14 @@ from ...core.simulator import Simulator
 from ...core.state import CrowdState
 from ...envs.drivers import intents_and_headings, observing_driver
 from ...envs.observations import to_body_frame
-from ...walking.agent import SocialForceAgent
+from ...scenarios.placement import place_pedestrians
+from ...walking.agent import SocialForceAgent, desired_direction
 from .demonstrations import Demonstrations, observation_reach_m, policy_options, recorded_state
 
 __all__ = ["DEFAULT_DAD", "separated", "dad_rollouts", "RecordedView", "calibrated_actions"]
 
 DEFAULT_DAD = {"horizon_s": 3.0, "start_every_s": 2.0, "pull_time_s": 1.0, "max_pull_m_s": 1.0,
-               "newcomer_speed_m_s": 2.0, "intent_gain": 0.0}
+               "newcomer_speed_m_s": 2.0, "intent_gain": 0.0, "spawn_newcomers": False}
 
 
 def separated(position_m: np.ndarray, radius_m: float, walls: np.ndarray, *, area=None, iterations: int = 2000,
@@ -119,14 +131,17 @@ class _Recording:
         return self.last_actions
 
 
-def _label_mask(replay, rows, k: int, k0: int, pos, reach, edges: tuple, newcomer_speed_m_s: float) -> np.ndarray:
-    """Which decisions of file rows ``rows`` at ``k`` (started at ``k0``) get a label (module docstring)."""
+def _label_mask(replay, rows, k: int, k0: int, pos, reach, edges: tuple, newcomer_speed_m_s: float,
+                spawned: bool) -> np.ndarray:
+    """Which decisions of file rows ``rows`` at ``k`` (started at ``k0``) get the recording's label (module
+    docstring); with the newcomers ``spawned``, the appearance points count as the vanishing ones do."""
     mask = replay.present[k, rows] & replay.present[k + 1, rows]
     vanish, appear = edges
     if vanish is not None:
         mask &= vanish.query(pos)[0] >= reach
     if appear is not None:
-        mask &= appear.query(pos)[0] >= reach + newcomer_speed_m_s * (replay.time_s[k] - replay.time_s[k0])
+        allowance = 0.0 if spawned else newcomer_speed_m_s * (replay.time_s[k] - replay.time_s[k0])
+        mask &= appear.query(pos)[0] >= reach + allowance
     return mask
 
 
@@ -135,46 +150,95 @@ def dad_rollouts(replay, scenario, policy, *, params: ModelParams | None = None,
                  pull_time_s: float = DEFAULT_DAD["pull_time_s"], max_pull_m_s: float = DEFAULT_DAD["max_pull_m_s"],
                  newcomer_speed_m_s: float = DEFAULT_DAD["newcomer_speed_m_s"],
                  start_every_s: float = DEFAULT_DAD["start_every_s"],
-                 intent_gain: float = DEFAULT_DAD["intent_gain"]) -> Demonstrations:
+                 intent_gain: float = DEFAULT_DAD["intent_gain"],
+                 spawn_newcomers: bool = DEFAULT_DAD["spawn_newcomers"]) -> Demonstrations:
     """The labelled decisions of rollouts of the observation ``policy`` from the recorded decisions ``starts``
     (indices into ``replay.time_s``; default every ``start_every_s``) of ``replay`` in ``scenario`` (module
     docstring). ``options``: the policy's (default its ``env_overrides`` over the human policy's)."""
     params = ModelParams() if params is None else params
     options = policy_options({**(options or {}), **{k: v for k, v in policy.env_overrides.items()}})
-    if not (pull_time_s > 0 and max_pull_m_s >= 0 and horizon_s > 0 and newcomer_speed_m_s >= 0 and intent_gain >= 0):
+    if not (pull_time_s > 0 and max_pull_m_s >= 0 and horizon_s > 0 and newcomer_speed_m_s > 0 and intent_gain >= 0):
         raise TrainingError("dad_rollouts needs horizon_s > 0, pull_time_s > 0, max_pull_m_s >= 0, newcomer_speed_m_s "
-                            f">= 0 and intent_gain >= 0, got {horizon_s}, {pull_time_s}, {max_pull_m_s}, "
+                            f"> 0 and intent_gain >= 0, got {horizon_s}, {pull_time_s}, {max_pull_m_s}, "
                             f"{newcomer_speed_m_s}, {intent_gain}")
     if starts is None:
         starts = np.arange(0, replay.time_s.size - 1, max(1, int(round(start_every_s / replay.decision_dt_s))))
     horizon = max(1, int(round(horizon_s / replay.decision_dt_s)))
     pts, appears = replay.edge_points_m, replay.edge_appears
     edges = (cKDTree(pts[~appears]) if (~appears).any() else None, cKDTree(pts[appears]) if appears.any() else None)
+    spawned = bool(spawn_newcomers) and scenario.spawn_area is not None
     setting = (scenario, params, options, horizon, pull_time_s, max_pull_m_s, newcomer_speed_m_s, float(intent_gain),
-               edges)
+               edges, spawned)
     parts = [p for k0 in starts for p in _rollout(replay, policy, int(k0), setting)]
     if not parts:
         raise TrainingError("the rollouts reached no decision with a label")
     arrays = [np.concatenate(col) for col in zip(*parts)]
     meta = {"kind": "dad", "options": options, "decision_dt_s": replay.decision_dt_s, "horizon_s": float(horizon_s),
             "pull_time_s": float(pull_time_s), "max_pull_m_s": float(max_pull_m_s), "n_starts": int(len(starts)),
+            "intent_gain": float(intent_gain), "spawn_newcomers": spawned,
             "n_decisions": int(arrays[1].shape[0]), "n_seen": int(arrays[7].sum())}
     return Demonstrations(*arrays, meta=meta)
 
 
+def _start_crowd(replay, scenario, k0: int, horizon: int, spawned: bool, radius: float) -> tuple:
+    """``(file rows, positions, headings, velocities, arrival times, arrival points)`` of a rollout's crowd: those on
+    the floor at ``k0`` as recorded (arrival NaN) and, when ``spawned``, those who appear within twice the
+    horizon at a point within 1 m of the scenario's spawn area, standing at the sites of that area nearest their
+    first recorded point, the earliest nearest (module docstring)."""
+    rows = np.flatnonzero(replay.present[k0])
+    pos, head, vel = replay.position_m[k0, rows], replay.heading_rad[k0, rows], replay.velocity_m_s[k0, rows]
+    arrival, point = np.full(rows.size, np.nan), np.full((rows.size, 2), np.nan)
+    if not spawned:
+        return rows, pos, head, vel, arrival, point
+    stop = min(k0 + 2 * horizon, replay.time_s.size - 1)
+    later = replay.present[k0 + 1:stop + 1] & ~np.any(replay.present[:k0 + 1], axis=0)
+    new = np.flatnonzero(later.any(axis=0))
+    first = np.argmax(later[:, new], axis=0) + k0 + 1
+    where = replay.position_m[first, new]
+    near = shapely.distance(scenario.spawn_area, shapely.points(where)) <= 1.0
+    new, first, where = new[near], first[near], where[near]
+    if not new.size:
+        return rows, pos, head, vel, arrival, point
+    order = np.argsort(first, kind="stable")
+    new, first, where = new[order], first[order], where[order]
+    density = float(scenario.metadata.get("waiting_density_per_m2", 3.0))
+    sites = place_pedestrians(scenario.spawn_area, new.size, radius, np.random.default_rng(k0),
+                              density_per_m2=max(density, new.size / scenario.spawn_area.area),
+                              toward=where.mean(axis=0))
+    e_d = desired_direction(scenario.navigation(), sites, np.arange(new.size))
+    return (np.r_[rows, new], np.vstack([pos, sites]), np.r_[head, np.arctan2(e_d[:, 1], e_d[:, 0])],
+            np.vstack([vel, np.zeros((new.size, 2))]), np.r_[arrival, replay.time_s[first]], np.vstack([point, where]))
+
+
+def _targets(replay, f, k: int, k0: int, pos, arrival, point, setting: tuple) -> tuple:
+    """``(world-frame targets, spawned rows labelled)`` at decision ``k`` of file rows ``f`` at ``pos`` in a rollout
+    from ``k0``: the recorded action plus the pull (recorded rows), or the straight walk to the first recorded
+    point reaching it at the recorded time, at most ``newcomer_speed_m_s`` (newcomers not yet recorded, those
+    arriving within the horizon: the ones behind them stand where they would)."""
+    _, _, _, horizon, pull_time_s, max_pull, newcomer_speed, *_ = setting
+    dt = replay.decision_dt_s
+    rec = replay.present[k, f] & replay.present[k + 1, f]
+    with np.errstate(invalid="ignore"):
+        a_rec = (replay.position_m[k + 1, f] - replay.position_m[k, f]) / dt
+        pull = (replay.position_m[k, f] - pos) / pull_time_s
+    pull *= np.minimum(1.0, max_pull / np.maximum(np.hypot(pull[:, 0], pull[:, 1]), 1e-12))[:, None]
+    t = replay.time_s[k]
+    waiting = ~replay.present[k, f] & (arrival > t) & (arrival <= replay.time_s[k0] + horizon * dt)
+    walk = (point - pos) / np.maximum(arrival - t, dt)[:, None]
+    with np.errstate(invalid="ignore"):
+        walk *= np.minimum(1.0, newcomer_speed / np.maximum(np.hypot(walk[:, 0], walk[:, 1]), 1e-12))[:, None]
+    return np.where(rec[:, None], a_rec + pull, np.where(waiting[:, None], walk, 0.0)), waiting
+
+
 def _rollout(replay, policy, k0: int, setting: tuple) -> list:
     """The labelled decisions of one rollout from decision ``k0`` (:func:`dad_rollouts`), one part per decision."""
-    scenario, params, options, horizon, pull_time_s, max_pull, newcomer_speed, gain, edges = setting
-    egocentric = options["observation_frame"] == "egocentric"
-    rows = np.flatnonzero(replay.present[k0])
+    scenario, params, options, horizon, _, _, newcomer_speed, gain, edges, spawned = setting
+    radius = float(scenario.radius_m()[0]) if scenario.n_pedestrians else 0.23
+    rows, pos0, head0, vel0, arrival, point = _start_crowd(replay, scenario, k0, horizon, spawned, radius)
     if not rows.size:
         return []
-    radius = float(scenario.radius_m()[0]) if scenario.n_pedestrians else 0.23
-    walls = scenario.geometry.walls
-    state = CrowdState.create(separated(replay.position_m[k0, rows], radius, walls, area=scenario.geometry.walkable_area),
-                              radius_m=radius,
-                              heading_rad=replay.heading_rad[k0, rows], velocity_m_s=replay.velocity_m_s[k0, rows],
-                              desired_speed_m_s=1.34)
+    state = CrowdState.create(separated(pos0, radius, scenario.geometry.walls, area=scenario.geometry.walkable_area),
+                              radius_m=radius, heading_rad=head0, velocity_m_s=vel0, desired_speed_m_s=1.34)
     sim = Simulator(state, geometry=scenario.geometry, params=params)
     recording = _Recording(policy)
     navigation = scenario.navigation()
@@ -197,20 +261,16 @@ def _rollout(replay, policy, k0: int, setting: tuple) -> list:
             intents, heading = intents_and_headings(driver(sim), sim.state)
             sim.step(intents, desired_heading_rad=heading)
         f = rows[act]
-        mask = _label_mask(replay, f, k, k0, pos, reach, edges, newcomer_speed)
-        if not mask.any():
+        target, waiting = _targets(replay, f, k, k0, pos, arrival[act], point[act], setting)
+        m = _label_mask(replay, f, k, k0, pos, reach, edges, newcomer_speed, spawned) | waiting
+        if not m.any():
             continue
-        a_rec = (replay.position_m[k + 1, f] - replay.position_m[k, f]) / replay.decision_dt_s
-        pull = (replay.position_m[k, f] - pos) / pull_time_s
-        norm = np.hypot(pull[:, 0], pull[:, 1])
-        pull *= np.minimum(1.0, max_pull / np.maximum(norm, 1e-12))[:, None]
-        target = a_rec + pull
         if gain > 0.0:  # the intent that realises the target in this simulator (module docstring)
             target = gain * (target - (state.position_m[act] - pos) / replay.decision_dt_s)
-        label = to_body_frame(target, np.cos(theta), np.sin(theta)) if egocentric else target
+        label = to_body_frame(target, np.cos(theta), np.sin(theta)) if options["observation_frame"] == "egocentric" \
+            else target
         if gain > 0.0:
             label = recording.last_actions + label
-        m = mask
         parts.append((recording.last[m], label[m], replay.ids[f[m]], np.full(m.sum(), replay.time_s[k]), pos[m],
                       vel[m], theta[m], np.ones(m.sum(), bool), np.full(m.sum(), np.nan), reach[m]))
     return parts

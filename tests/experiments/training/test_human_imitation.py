@@ -85,6 +85,30 @@ def test_rollouts_label_each_decision_with_the_way_back_to_the_recording(replay)
     assert abs(lag_first) < 0.05 and lag_last < -0.5
 
 
+def test_newcomers_start_in_the_spawn_area_and_are_labelled_to_arrive_when_they_were_recorded(replay):
+    scenario, rep = replay
+    first = np.argmax(rep.present, axis=0)
+    k0 = int(np.sort(first[first > 30])[0]) - 12  # 1.2 s before somebody appears behind the entrance
+    demos = dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=2.0, newcomer_speed_m_s=50.0,
+                         spawn_newcomers=True)
+    col = {int(i): c for c, i in enumerate(rep.ids)}
+    newcomer = np.array([not rep.present[k0, col[int(p)]] for p in demos.pedestrian])
+    assert newcomer.any() and np.all(demos.position_m[newcomer, 1] > 8.3)  # in the waiting area, behind the barrier
+    world = to_world_frame(demos.action, np.cos(demos.heading_rad), np.sin(demos.heading_rad))
+    for r in np.flatnonzero(newcomer):
+        c = col[int(demos.pedestrian[r])]
+        k_app = int(first[c])
+        expected = (rep.position_m[k_app, c] - demos.position_m[r]) / (rep.time_s[k_app] - demos.time_s[r])
+        np.testing.assert_allclose(world[r], expected, atol=1e-9)
+    start = newcomer & np.isclose(demos.time_s, rep.time_s[k0])
+    arrivals = np.array([first[col[int(p)]] for p in demos.pedestrian[start]])
+    entrance = np.array([0.9, 8.3])  # the 0.5 m entrance's middle: the earliest stand nearest it
+    gaps = np.hypot(*(demos.position_m[start] - entrance).T)[np.argsort(arrivals, kind="stable")]
+    assert start.sum() >= 2 and np.all(np.diff(gaps) > -0.3)
+    plain = dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=1.0)
+    assert not np.any(plain.position_m[:, 1] > 8.3)  # without them nobody stands there
+
+
 def test_the_calibrated_agent_acts_on_a_recorded_crowd_as_on_a_simulator(replay):
     scenario, rep = replay
     k = int(np.argmax(rep.present.sum(axis=1) >= 8))
@@ -127,6 +151,7 @@ def test_the_quick_training_writes_a_policy_resumes_without_redoing_and_refuses_
         rows = list(csv.DictReader(fh))
     assert [(r["stage"], r["epoch"]) for r in rows] == [("bc", "1"), ("bc", "2"), ("dad_1", "1")]
     assert int(rows[-1]["samples"]) > int(rows[0]["samples"])  # the round's rollouts were added
+    assert (out / "learning_curves.png").stat().st_size > 10_000
     policy = FileObservationPolicy(out / "policy.npz")
     assert policy.env_overrides["observation_frame"] == "egocentric" and policy.file.output == "clip_box"
     assert policy.file.meta["training_runs"] == ["uo-050-180-180"]
