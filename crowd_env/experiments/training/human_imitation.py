@@ -16,9 +16,14 @@ after the last stage it finished (``resume=True``; a folder made with another co
 2. ``bc``: an MLP (:data:`DEFAULT_HUMAN_TRAINING` ``hidden``, tanh) fitted by mean squared error to the training
    runs' actions (Adam, minibatches, inputs scaled by the training data's mean and spread);
 3. ``dad_<r>`` for r = 1 … ``dad_rounds``: the policy of the previous stage drives the recorded crowds of the
-   training runs from recorded states (:func:`~.recorded_rollouts.dad_rollouts`, one task per run), its decisions
-   labelled with what brings each pedestrian back to its recording; the network is fitted further, for
-   ``dad_epochs``, on the recordings and every round's rollouts together (DAgger's aggregation).
+   training runs from recorded states, the waiting crowd behind the entrance included
+   (:func:`~.recorded_rollouts.dad_rollouts` with ``spawn_newcomers``, one task per run), its decisions labelled
+   with what brings each pedestrian back to its recording; the network is fitted further, for ``dad_epochs``, on
+   the recordings and every round's rollouts together (DAgger's aggregation).
+
+The defaults (:data:`DEFAULT_HUMAN_TRAINING`) are the ones chosen by closed-loop measurement on the validation runs
+(docs/validation/human_policy.md): no own velocity in the observation (a clone that sees it copies it and stalls),
+three rounds, the waiting crowd in the rollouts, the labels as velocities (``intent_gain`` 0).
 
 Each stage writes ``checkpoints/<stage>.pt`` (the network, the optimiser, the progress so far; read back with
 torch's weights-only loader) and ``policies/<stage>.npz`` (a :mod:`policy file <crowd_env.envs.policy_files>`,
@@ -62,10 +67,10 @@ TRAINING_RUNS = ("uo-050-180-180", "uo-060-180-180", "uo-070-180-180", "uo-145-1
                  "uo-180-180-120", "uo-180-180-180")
 DEFAULT_HUMAN_TRAINING = {"hidden": [128, 128], "bc_epochs": 20, "dad_rounds": 3, "dad_epochs": 8, "batch_size": 512,
                           "learning_rate": 1e-3, "smoothing_s": DEFAULT_SMOOTHING_S, "seed": 0,
-                          "dad": dict(DEFAULT_DAD), "policy": {"neighbor_radius_m": 3.0}}
+                          "dad": {**DEFAULT_DAD, "spawn_newcomers": True}, "policy": {"neighbor_radius_m": 3.0}}
 # The same code path in seconds: two short runs, a few epochs, one round from a few starts (the default tests).
 QUICK_HUMAN_TRAINING = {**DEFAULT_HUMAN_TRAINING, "hidden": [16, 16], "bc_epochs": 2, "dad_rounds": 1, "dad_epochs": 1,
-                        "dad": {**DEFAULT_DAD, "horizon_s": 1.0, "start_every_s": 20.0},
+                        "dad": {**DEFAULT_HUMAN_TRAINING["dad"], "horizon_s": 1.0, "start_every_s": 20.0},
                         "training_runs": ["uo-050-180-180"], "validation_runs": ["uo-060-180-180"]}
 
 
