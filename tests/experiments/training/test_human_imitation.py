@@ -85,7 +85,7 @@ def test_rollouts_label_each_decision_with_the_way_back_to_the_recording(replay)
     assert abs(lag_first) < 0.05 and lag_last < -0.5
 
 
-def test_newcomers_start_in_the_spawn_area_and_are_labelled_to_arrive_when_they_were_recorded(replay):
+def test_newcomers_start_in_the_spawn_area_and_walk_along_e_d_to_arrive_when_they_were_recorded(replay):
     scenario, rep = replay
     first = np.argmax(rep.present, axis=0)
     k0 = int(np.sort(first[first > 30])[0]) - 12  # 1.2 s before somebody appears behind the entrance
@@ -95,10 +95,13 @@ def test_newcomers_start_in_the_spawn_area_and_are_labelled_to_arrive_when_they_
     newcomer = np.array([not rep.present[k0, col[int(p)]] for p in demos.pedestrian])
     assert newcomer.any() and np.all(demos.position_m[newcomer, 1] > 8.3)  # in the waiting area, behind the barrier
     world = to_world_frame(demos.action, np.cos(demos.heading_rad), np.sin(demos.heading_rad))
+    navigation = scenario.navigation()
     for r in np.flatnonzero(newcomer):
         c = col[int(demos.pedestrian[r])]
         k_app = int(first[c])
-        expected = (rep.position_m[k_app, c] - demos.position_m[r]) / (rep.time_s[k_app] - demos.time_s[r])
+        e_d, here = navigation.sample(demos.position_m[r:r + 1])
+        _, there = navigation.sample(rep.position_m[k_app, c][None])
+        expected = e_d[0] * (here[0] - there[0]) / (rep.time_s[k_app] - demos.time_s[r])  # along e_d, on time
         np.testing.assert_allclose(world[r], expected, atol=1e-9)
     start = newcomer & np.isclose(demos.time_s, rep.time_s[k0])
     arrivals = np.array([first[col[int(p)]] for p in demos.pedestrian[start]])
