@@ -70,7 +70,8 @@ DEMONSTRATIONS_FORMAT = "crowd_env.demonstrations/1"
 DEFAULT_SMOOTHING_S = 0.5
 # The observation and action of a policy learned from recordings: egocentric (the recordings' corridor runs
 # towards −y, Seyfried's bottleneck along another axis), the heading turned towards e_d (the recordings hold
-# none), no travel time (it would tell where the recorded exit is), a decision every 0.1 s.
+# none), no travel time (it would tell where the recorded exit is), no own velocity (a clone that sees it copies
+# it and its crowd does not get going: docs/validation/human_policy.md), a decision every 0.1 s.
 HUMAN_POLICY_OPTIONS = {"observation_frame": "egocentric", "heading_target": "desired_direction",
                         "observation_components": ["desired_direction", "neighbors", "wall_rays"],
                         "n_neighbors": 8, "n_rays": 16, "neighbor_radius_m": 4.0, "ray_range_m": 5.0,
