@@ -41,7 +41,7 @@ from .trajectories import Trajectories, require_pedpy
 __all__ = ["SteadyStateFigures", "UORun", "juelich_uo_runs", "uo_run", "recorded_uo_trajectories", "uo_measurement_walkable_area",
            "uo_measurement_area", "steady_frames", "UORunMeasures", "measure_uo_run", "crossing_times_s",
            "STEADY_CROSSING_FRACTIONS", "UO_FRAME_RATE_PER_S", "UO_SPEED_FRAME_STEP", "DoorPassage", "door_passage",
-           "approach_profile"]
+           "approach_profile", "uo_scenario"]
 
 UO_FRAME_RATE_PER_S = 16.0  # the recordings' frame rate
 UO_SPEED_FRAME_STEP = 5  # individual speeds over ±5 frames (±0.3125 s), PedPy's notebook
@@ -99,6 +99,18 @@ def uo_run(name: str) -> UORun:
         if run.name == name:
             return run
     raise NotFoundError(f"no Jülich corridor run {name!r}; the runs are {[r.name for r in juelich_uo_runs()]}")
+
+
+def uo_scenario(name: str, **options):
+    """The ``juelich_corridor`` scenario of run ``name`` (its entrance, corridor and exit widths and N; seed 0 unless
+    ``options`` say otherwise; ``options``: the scenario's other options)."""
+    from ..scenarios import make_scenario
+
+    run = uo_run(name)
+    return make_scenario("juelich_corridor", **{"entrance_width_m": run.entrance_width_m,
+                                                "exit_width_m": run.exit_width_m,
+                                                "corridor_width_m": run.corridor_width_m,
+                                                "n_pedestrians": run.n_pedestrians, "seed": 0, **options})
 
 
 def recorded_uo_trajectories(name: str) -> Trajectories:

@@ -26,6 +26,7 @@ from __future__ import annotations
 from crowd_env.errors import InputError, MissingDependencyError, MissingFileError, NotFoundError, TrajectoryFormatError
 from crowd_env.files import write_atomic
 
+import gzip
 import io
 import json
 from dataclasses import dataclass
@@ -203,23 +204,28 @@ class Trajectories:
         return path
 
     @classmethod
-    def read_txt(cls, path, default_frame_rate_per_s: float | None = None) -> "Trajectories":
-        """Read a PedPy text trajectory (ours or PeTrack-style: id frame x y z [...]), without PedPy.
+    def read_txt(cls, path, default_frame_rate_per_s: float | None = None, unit: str | None = None) -> "Trajectories":
+        """Read a PedPy text trajectory (ours or PeTrack-style: id frame x y z [...]), without PedPy; a name
+        ending in ``.gz`` is read gzipped.
 
         The frame rate comes from the first header line containing 'framerate' (as in PedPy), else from
-        ``default_frame_rate_per_s``; coordinates are metres unless the header says 'x/cm' or 'in cm'.
+        ``default_frame_rate_per_s``; coordinates are metres unless the header says 'x/cm' or 'in cm', or
+        ``unit`` (``"m"`` or ``"cm"``) says otherwise (a file without a header: PeTrack's exports in cm).
         A sixth column is read as the heading (rad). Raises ``FileNotFoundError`` or
         :class:`TrajectoryFormatError` naming the problem.
         """
         path = Path(path)
+        if unit not in (None, "m", "cm"):
+            raise TrajectoryFormatError(f"unit must be 'm' or 'cm' (or None: from the header), got {unit!r}")
         if not path.exists():
             raise MissingFileError(f"trajectory file {path} does not exist")
         if not path.is_file():
             raise TrajectoryFormatError(f"trajectory path {path} is not a file")
         try:
-            text = path.read_text(encoding="utf-8-sig")
-        except UnicodeDecodeError:
-            raise TrajectoryFormatError(f"{path} is not a text trajectory file (not UTF-8 text)") from None
+            raw = path.read_bytes()
+            text = (gzip.decompress(raw) if path.name.endswith(".gz") else raw).decode("utf-8-sig")
+        except (UnicodeDecodeError, OSError, EOFError):
+            raise TrajectoryFormatError(f"{path} is not a text trajectory file (not UTF-8 text, or a broken .gz)") from None
         fps, centimetres = None, False
         for line in text.splitlines():
             if not line.startswith("#"):
@@ -257,7 +263,7 @@ class Trajectories:
             data = np.array([r[:ncol] for r in rows], dtype=np.float64)
         except ValueError as exc:
             raise TrajectoryFormatError(f"{path} is not a trajectory file: non-numeric data ({exc})") from None
-        scale = 0.01 if centimetres else 1.0
+        scale = 0.01 if (centimetres if unit is None else unit == "cm") else 1.0
         head = data[:, 5] if ncol == 6 else None
         return cls(data[:, 1], data[:, 0], data[:, 2] * scale, data[:, 3] * scale, head, fps)
 

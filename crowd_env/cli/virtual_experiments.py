@@ -14,6 +14,7 @@ Examples::
     crowd-virtual-experiments --quick --out out/virtual_quick                # two corridor runs, one door, one bin
     crowd-virtual-experiments --preset calibrated --seeds 5 --out out/virtual
     crowd-virtual-experiments --param social_range_m=0.1 --experiments corridor --out out/virtual_B0.1
+    crowd-virtual-experiments --policy human_juelich --seeds 5 --out out/virtual_human   # every pedestrian learned
 """
 from __future__ import annotations
 
@@ -48,6 +49,11 @@ def build_parser() -> argparse.ArgumentParser:
                     help="options of the juelich_corridor scenario for every corridor run (the set-up's undocumented "
                          "dimensions: barrier_thickness_m, end_wall_thickness_m, floor_width_m, outflow_width_m, "
                          "waiting_width_m, waiting_density_per_m2)")
+    ap.add_argument("--policy", default=None, metavar="POLICY",
+                    help="drive every pedestrian of every run by this learned policy: a shipped trained policy's name "
+                         "(e.g. human_juelich), a policy file (.npz) or an import path module:attribute of an "
+                         "observation policy (default: the preset's calibrated agent; the preset still sets the "
+                         "physics)")
     ap.add_argument("--experiments", nargs="+", choices=EXPERIMENTS, default=list(EXPERIMENTS),
                     help="which experiments (default: all three)")
     ap.add_argument("--corridor-runs", nargs="+", choices=CORRIDOR_RUN_NAMES, default=None, metavar="RUN",
@@ -86,10 +92,12 @@ def main(argv=None) -> int:
         config = virtual_config(params, navigation_clearance_m=preset.navigation_clearance_m, pedestrian=pedestrian,
                                 radius_m=preset.body_radius_m if args.radius is None else args.radius,
                                 corridor_geometry=key_values(args.corridor_option,
-                                                             "--corridor-option expects NAME=VALUE"))
+                                                             "--corridor-option expects NAME=VALUE"),
+                                policy=args.policy)
         if args.snapshot:
             return _snapshot(args, config, plan)
-        print(f"virtual experiments of {args.preset}{' with ' + ' '.join(args.param) if args.param else ''}: "
+        who = f"policy {args.policy} (physics: {args.preset})" if config.get("policy") else args.preset
+        print(f"virtual experiments of {who}{' with ' + ' '.join(args.param) if args.param else ''}: "
               f"{', '.join(plan.experiments)}; seeds {list(plan.seeds)}{' (quick plan)' if args.quick else ''}")
         with make_backend(args.backend, address=args.address, jobs=args.jobs) as backend:
             records = run_virtual_experiments(args.out, config, plan, backend)

@@ -126,6 +126,7 @@ def test_the_readme_has_two_set_up_commands_an_example_episode_and_reads_its_tab
     assert text.index("## Set-up") < text.index("## Example") < text.index("## What it reproduces")
     table = text.index("| target (criterion) |")
     for term in ("**J_s = N/(Δt b)**", "**capacity**", "**Speed and density inside**", "**density in front**",
-                 "**J(b) linear**", "**Lanes**", "**stalls**", "**smallest gap**", "**objective**", "**corridor**",
-                 "**single file**", "**`calibrated`**", "**`paper`**", "**`recalibrated`**", "**`vision`**"):
+                 "**J(b) linear**", "**Lanes**", "**stalls**", "**smallest gap**", "**corridor runs**", "**ρ / v**",
+                 "**J**", "**single file**", "**`calibrated`**", "**`joint`**", "**`paper`**", "**`recalibrated`**",
+                 "**`vision`**"):
         assert -1 < text.find(term) < table, term

@@ -28,7 +28,8 @@ from ...core.checks import check_integer
 from ...envs.crowd_v0 import DEFAULT_ACTION_MAX_M_S, CrowdParallelEnv, decisions_for_time
 from ...envs.policy_files import MLPPolicyFile, save_policy_file
 
-__all__ = ["collect_demonstrations", "train_behaviour_cloning", "DEFAULT_BC"]
+__all__ = ["collect_demonstrations", "train_behaviour_cloning", "DEFAULT_BC", "mlp_network", "fit_epoch",
+           "network_policy_file"]
 
 DEFAULT_BC = {"hidden": (128, 128), "epochs": 15, "batch_size": 512, "learning_rate": 1e-3, "every": 5,
               "validation_fraction": 0.1}
@@ -109,7 +110,7 @@ def train_behaviour_cloning(env_config: dict, out: str, *, teacher, seed: int = 
     mean = x.mean(0).astype(np.float64)  # the first demonstrations' scaling, kept through the DAgger rounds
     std = x.std(0).astype(np.float64)
     std[std < 1e-6] = 1.0  # constant inputs (padding) pass through unscaled
-    net = _mlp(x.shape[1], hidden, y.shape[1])
+    net = mlp_network(x.shape[1], hidden, y.shape[1])
     opt = torch.optim.Adam(net.parameters(), lr=learning_rate)
     gen = torch.Generator().manual_seed(seed)
 
@@ -134,7 +135,7 @@ def train_behaviour_cloning(env_config: dict, out: str, *, teacher, seed: int = 
         split = (torch.as_tensor(order[n_val:]), torch.as_tensor(order[:n_val]))
         t1 = time.perf_counter()
         for epoch in range(1, int(epochs) + 1):
-            train_mse, val_loss = _epoch(net, opt, gen, X, Y, split, int(batch_size))
+            train_mse, val_loss = fit_epoch(net, opt, gen, X, Y, split, int(batch_size))
             rows.append({"round": r, "epoch": epoch, "train_mse": train_mse, "validation_mse": val_loss,
                          "wall_s": train_s + time.perf_counter() - t1})
             progress(f"bc round {r} epoch {epoch:3d} | train mse {train_mse:.5f} | validation mse {val_loss:.5f}")
@@ -155,18 +156,25 @@ def train_behaviour_cloning(env_config: dict, out: str, *, teacher, seed: int = 
 
 def _save_clone(net, mean, std, cfg: dict, summary: dict, out: str) -> None:
     """``out/policy.npz`` (the clone as a policy file acting in the teacher's action box) and ``out/summary.json``."""
-    import torch
-
-    linears = [m for m in net if isinstance(m, torch.nn.Linear)]
-    space_max = float(cfg.get("action_max_m_s", DEFAULT_ACTION_MAX_M_S))
-    policy = MLPPolicyFile([m.weight.detach().numpy().T for m in linears], [m.bias.detach().numpy() for m in linears],
-                           "tanh", "linear", [-space_max] * 2, [space_max] * 2, mean, std, cfg,
-                           {k: summary[k] for k in ("algorithm", "teacher", "samples", "agent_steps", "seed")})
+    policy = network_policy_file(net, mean, std, cfg,
+                                 {k: summary[k] for k in ("algorithm", "teacher", "samples", "agent_steps", "seed")})
     save_policy_file(policy, os.path.join(out, "policy.npz"))
     write_json_atomic(os.path.join(out, "summary.json"), summary)
 
 
-def _mlp(d_in: int, hidden, d_out: int):
+def network_policy_file(net, mean, std, cfg: dict, meta: dict, output: str = "linear") -> MLPPolicyFile:
+    """The torch MLP ``net`` (:func:`mlp_network`) with the input scaling ``(obs − mean) / std`` as a policy file
+    acting with the environment options ``cfg`` in its action box (``action_max_m_s``), its output read as
+    ``output`` (:data:`~crowd_env.envs.policy_files.OUTPUTS`)."""
+    import torch
+
+    linears = [m for m in net if isinstance(m, torch.nn.Linear)]
+    space_max = float(cfg.get("action_max_m_s", DEFAULT_ACTION_MAX_M_S))
+    return MLPPolicyFile([m.weight.detach().numpy().T for m in linears], [m.bias.detach().numpy() for m in linears],
+                         "tanh", output, [-space_max] * 2, [space_max] * 2, mean, std, cfg, meta)
+
+
+def mlp_network(d_in: int, hidden, d_out: int):
     """A torch MLP: tanh hidden layers of the sizes ``hidden``, a linear output."""
     import torch
 
@@ -177,7 +185,7 @@ def _mlp(d_in: int, hidden, d_out: int):
     return torch.nn.Sequential(*layers, torch.nn.Linear(d, d_out))
 
 
-def _epoch(net, opt, gen, X, Y, split: tuple, batch_size: int) -> tuple:
+def fit_epoch(net, opt, gen, X, Y, split: tuple, batch_size: int) -> tuple:
     """One epoch of mean-squared-error minibatches over the training rows of ``split`` (train, validation
     indices), shuffled by ``gen``; (the epoch's mean training loss, the validation loss after it)."""
     import torch

@@ -12,7 +12,8 @@ Three experiments (:data:`EXPERIMENTS`), each in its own geometry, population an
 - ``single_file``: the single-file ring (Seyfried et al. 2005), a periodic strip 0.7 m wide at each bin's 1D
   density (:mod:`crowd_env.experiments.validation.fundamental_diagram`): mean speed against the bin's.
 
-:func:`virtual_tasks` makes the runs of a :class:`VirtualPlan` for one model (the same seeds in every experiment:
+:func:`virtual_tasks` makes the runs of a :class:`VirtualPlan` for one model, or for a learned policy driving every
+pedestrian (the configuration's ``policy``, :func:`virtual_config`) (the same seeds in every experiment:
 common random numbers between models); :func:`run_virtual_experiments` runs those not yet stored on the project's
 executor (a :class:`~crowd_env.experiments.running.store.RunStore` per output folder, keyed by task: a stopped run
 resumes); :func:`virtual_rows` puts each measured quantity beside the experiment with its tolerance, over the complete
@@ -36,6 +37,7 @@ from ...analysis.fd_reference import single_file
 from ...analysis.figures import pyplot, save_figure
 from ...walking.model import ModelParams
 from ..running.backends import execute
+from ..running.crowd_policy import policy_entry
 from ..running.store import RunStore
 from .bottleneck import GEOMETRY_OPTIONS, params_dict, run_one
 from .calibration.tasks import with_body
@@ -92,16 +94,22 @@ QUICK_PLAN = VirtualPlan(seeds=(0, 1), widths_m=(1.0,), sizes=(60,), corridor_ru
 
 
 def virtual_config(params: ModelParams, *, navigation_clearance_m: float, pedestrian: dict | None = None,
-                   radius_m: float | None = None, corridor_geometry: dict | None = None) -> dict:
+                   radius_m: float | None = None, corridor_geometry: dict | None = None, policy: str | None = None) -> dict:
     """The configuration of a folder of virtual experiments: the model, the navigation clearance of the bottleneck
     (the corridor uses the disk centres' field, as every other scenario), per-pedestrian overrides and the body's
     radius (None: Kabalan's Table 2, 0.23 m; else every scenario's, the bottleneck's clearance following it where
     it is the disk centres' field, the single file's strip scaled with it:
     :func:`~crowd_env.experiments.validation.calibration.tasks.with_body`); ``corridor_geometry``: options of the
     scenario ``juelich_corridor`` for every corridor run (its undocumented dimensions: barrier and end-wall
-    thickness, floor and outflow width, the waiting area), checked by building every run's scenario once."""
+    thickness, floor and outflow width, the waiting area), checked by building every run's scenario once.
+    ``policy``: who drives every pedestrian of every run (a shipped trained policy's name, a policy file, an import
+    path: :func:`~crowd_env.experiments.running.crowd_policy.policy_entry`, which checks that it loads); None or
+    ``"calibrated"``: the calibrated agent of ``params``."""
     config = {"kind": "virtual_experiments", "params": params_dict(params),
               "navigation_clearance_m": float(navigation_clearance_m), "pedestrian": dict(pedestrian or {})}
+    entry = policy_entry(policy) if policy is not None else None
+    if entry is not None:
+        config["policy"] = entry
     if radius_m is not None:
         config["radius_m"] = float(radius_m)
     if corridor_geometry:
@@ -139,6 +147,8 @@ def virtual_tasks(config: dict, plan: VirtualPlan) -> list:
         for t in fd_tasks(["single_file"], {"single_file": plan.single_file_densities}, plan.seeds, params,
                           radius_m=radius):
             tasks.append(dict(t, experiment="single_file", pedestrian=dict(pedestrian)))
+    if config.get("policy"):
+        tasks = [dict(t, policy=dict(config["policy"])) for t in tasks]
     return tasks
 
 

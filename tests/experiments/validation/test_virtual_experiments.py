@@ -153,3 +153,18 @@ def test_joint_passes_the_070_m_exit_and_keeps_what_it_was_calibrated_to_meet(tm
     assert all(int(r["complete"]) == 2 and int(r["stalled"]) == 0 for r in corridor)
     door = [r for r in table if r["experiment"] == "bottleneck" and r["quantity"].startswith("J_s")]
     assert len(door) == 1 and door[0]["within"] == "True", door
+
+
+def test_a_learned_policy_drives_every_run_and_an_unknown_one_is_refused(capsys):
+    from crowd_env.cli.virtual_experiments import main
+
+    p = get_preset("calibrated")
+    config = virtual_config(p.params(), navigation_clearance_m=0.23, policy="bottleneck_ppo")
+    tasks = virtual_tasks(config, QUICK_PLAN)
+    assert {t["experiment"] for t in tasks} == {"bottleneck", "corridor", "single_file"}
+    assert all(t["policy"] == {"name": "bottleneck_ppo", "learned_fraction": 1.0} for t in tasks)
+    assert config["policy"] == {"name": "bottleneck_ppo", "learned_fraction": 1.0}
+    assert virtual_config(p.params(), navigation_clearance_m=0.23, policy="calibrated") == _config()
+    assert not any("policy" in t for t in virtual_tasks(_config(), QUICK_PLAN))
+    assert main(["--quick", "--policy", "no_such_policy", "--out", "unused"]) == 2
+    assert "no_such_policy" in capsys.readouterr().err

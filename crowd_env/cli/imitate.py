@@ -1,0 +1,129 @@
+"""crowd-imitate: pedestrians learned from recorded people (crowd_env.experiments.training.human_imitation).
+
+demonstrations: a trajectory file in PedPy's text format (id frame x y [z], a '#framerate' header line or
+--frame-rate, metres or --unit cm; .gz read as such) replayed in a scenario of the registry into observation-action
+pairs, one per pedestrian and decision: the observation the environment would give it, the velocity over the next
+decision interval in the observation's frame (format: crowd_env.experiments.training.demonstrations). --uo-run NAME
+takes the shipped recording of a Jülich corridor run and its juelich_corridor scenario.
+
+train: behaviour cloning on the shipped Jülich corridor recordings (training runs: all but uo-100-180-180 and
+uo-180-180-095, which validate), then rounds of Data as Demonstrator in the simulator; resumable (--resume), one task
+per run on the executor; writes OUT/policy.npz (a policy file: crowd-evaluate --policies OUT/policy.npz,
+background_policy="OUT/policy.npz", crowd-virtual-experiments --policy OUT/policy.npz), progress.csv (the learning
+curves), summary.json (sizes, wall and CPU time per stage, the open-loop speed errors against the calibrated agent).
+
+Examples::
+
+    crowd-imitate demonstrations --uo-run uo-180-180-070 --out out/demos/uo-180-180-070.npz
+    crowd-imitate demonstrations my_run.txt --frame-rate 16 --unit cm --scenario juelich_corridor \\
+        --scenario-option entrance_width_m=1.0 exit_width_m=1.8 n_pedestrians=121 --out out/demos/mine.npz
+    crowd-imitate train --quick --out out/human_quick          # seconds: the same code path
+    crowd-imitate train --out out/human --backend process --jobs 2
+    crowd-imitate train --out out/human_bc --set dad_rounds=0    # behaviour cloning alone
+"""
+from __future__ import annotations
+
+import argparse
+import resource
+import sys
+import time
+from pathlib import Path
+
+from ..analysis.corridor_runs import recorded_uo_trajectories, uo_scenario
+from ..analysis.trajectories import Trajectories
+from ..errors import CrowdEnvError, OptionError
+from ..experiments.running.backends import make_backend
+from ..experiments.training.demonstrations import DEFAULT_SMOOTHING_S, demonstrations_from_trajectories
+from ..experiments.training.human_imitation import QUICK_HUMAN_TRAINING, train_human_policy
+from ..scenarios import make_scenario
+from .options import key_values
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="crowd-imitate", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="command", required=True, metavar="{demonstrations,train}")
+    de = sub.add_parser("demonstrations", help="a trajectory file and a scenario into observation-action pairs",
+                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    de.add_argument("file", nargs="?", type=Path, help="trajectory file (PedPy's text format; .gz allowed)")
+    de.add_argument("--uo-run", default=None, metavar="NAME",
+                    help="instead of a file: the shipped recording of this Jülich corridor run, in its scenario")
+    de.add_argument("--scenario", default=None, help="a registered scenario (crowd_env.scenarios.list_scenarios())")
+    de.add_argument("--scenario-option", nargs="+", default=[], metavar="KEY=VALUE", help="its options (JSON values)")
+    de.add_argument("--frame-rate", type=float, default=None, help="frames per second when the file's header has none")
+    de.add_argument("--unit", choices=["m", "cm"], default=None, help="the file's length unit (default: its header's, "
+                                                                     "else metres)")
+    de.add_argument("--smoothing", type=float, default=DEFAULT_SMOOTHING_S, metavar="S",
+                    help="centred moving average of the positions over S seconds (default %(default)s; 0: none)")
+    de.add_argument("--policy-option", nargs="+", default=[], metavar="KEY=VALUE",
+                    help="observation and decision options (n_neighbors, n_rays, neighbor_radius_m, ray_range_m, "
+                         "observation_frame, observation_components, frame_skip, action_max_m_s)")
+    de.add_argument("--out", required=True, type=Path, help="the dataset (.npz)")
+    tr = sub.add_parser("train", help="the human policy from the shipped recordings", description=__doc__,
+                        formatter_class=argparse.RawDescriptionHelpFormatter)
+    tr.add_argument("--out", required=True, type=Path, help="output folder (checkpoints, policies, progress)")
+    tr.add_argument("--quick", action="store_true", help="two short runs, tiny budgets: the code path in seconds")
+    tr.add_argument("--resume", action="store_true", help="continue the training in --out after its last stage")
+    tr.add_argument("--set", nargs="+", default=[], metavar="KEY=VALUE",
+                    help="training options (JSON values): hidden, bc_epochs, dad_rounds, dad_epochs, batch_size, "
+                         "learning_rate, smoothing_s, seed, dad (a dict), policy (a dict of observation options), "
+                         "training_runs, validation_runs")
+    tr.add_argument("--backend", choices=["ray", "process", "serial"], default="serial")
+    tr.add_argument("--jobs", type=int, default=None, help="processes of the pool / CPUs of local Ray")
+    return ap
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        if args.command == "demonstrations":
+            return _demonstrations(args)
+        return _train(args)
+    except CrowdEnvError as exc:
+        print(f"crowd-imitate: {exc}", file=sys.stderr)
+        return 2
+
+
+def _demonstrations(args) -> int:
+    options = key_values(args.policy_option, "--policy-option expects KEY=VALUE")
+    if (args.file is None) == (args.uo_run is None):
+        raise OptionError("give a trajectory file or --uo-run NAME (one of them)")
+    if args.uo_run:
+        trajectories = recorded_uo_trajectories(args.uo_run)
+        scenario, meta = uo_scenario(args.uo_run), {"source": f"shipped recording {args.uo_run}", "run": args.uo_run}
+    else:
+        if not args.scenario:
+            raise OptionError("a trajectory file needs --scenario (and its --scenario-option values)")
+        scenario_options = key_values(args.scenario_option, "--scenario-option expects KEY=VALUE")
+        trajectories = Trajectories.read_txt(args.file, default_frame_rate_per_s=args.frame_rate, unit=args.unit)
+        scenario = make_scenario(args.scenario, **scenario_options)
+        meta = {"source": str(args.file), "scenario": args.scenario, "scenario_options": scenario_options}
+    demos = demonstrations_from_trajectories(trajectories, scenario, options=options, smoothing_s=args.smoothing,
+                                             meta=meta)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    demos.save(args.out)
+    print(f"{len(demos)} decisions of {demos.meta['n_pedestrians']} pedestrians every {demos.meta['decision_dt_s']:g} s, "
+          f"{demos.meta['n_seen']} of them with every neighbour in view; observation size "
+          f"{demos.observation.shape[1]}; wrote {args.out}")
+    return 0
+
+
+def _train(args) -> int:
+    config = QUICK_HUMAN_TRAINING if args.quick else {}
+    config = {**config, **key_values(args.set, "--set expects KEY=VALUE")}
+    t0, c0 = time.perf_counter(), time.process_time()
+    with make_backend(args.backend, jobs=args.jobs) as backend:
+        summary = train_human_policy(args.out, config=config, backend=backend, resume=args.resume)
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu_s = time.process_time() - c0 + children.ru_utime + children.ru_stime
+    for run, row in summary["open_loop"].items():
+        stages = ", ".join(f"{s} {row[s]:.3f}" for s in summary["stages"])
+        print(f"open-loop speed error on {run} (m/s, per pedestrian and decision): calibrated {row['calibrated']:.3f}, "
+              f"{stages}")
+    print(f"this session: {time.perf_counter() - t0:.0f} s wall, {cpu_s:.0f} s CPU (this process and its workers); "
+          f"wrote {summary['policy']}, {args.out / 'progress.csv'}, {args.out / 'summary.json'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,170 @@
+"""The policy imitated from recorded people (crowd_env.experiments.training.human_imitation and .recorded_rollouts):
+disks moved apart as little as needed, rollouts from recorded states labelled to bring each pedestrian back to its
+recording, the calibrated agent on a recorded state, and the command's quick path: its files, a resume that redoes
+nothing, the refusals."""
+from __future__ import annotations
+
+import csv
+import json
+import time
+
+import numpy as np
+import pytest
+
+from crowd_env.analysis.corridor_runs import recorded_uo_trajectories, uo_scenario
+from crowd_env.core.params import ModelParams
+from crowd_env.core.segments import as_segments
+from crowd_env.core.state import first_overlap
+from crowd_env.envs.background import FileObservationPolicy
+from crowd_env.envs.observations import to_world_frame
+from crowd_env.errors import RunStoreError, TrainingError
+from crowd_env.experiments.training.demonstrations import replay_trajectories
+from crowd_env.experiments.training.human_imitation import human_training_config
+from crowd_env.experiments.training.recorded_rollouts import (RecordedView, calibrated_actions, dad_rollouts,
+                                                              separated)
+from crowd_env.walking.agent import SocialForceAgent
+
+RUN = "uo-050-180-180"
+
+
+def test_overlapping_disks_move_apart_by_half_their_overlap_each_and_off_the_walls():
+    pos = separated(np.array([[0.0, 0.0], [0.36, 0.0], [5.0, 5.0]]), 0.23, np.zeros((0, 4)))
+    np.testing.assert_allclose(pos[:, 1], [0.0, 0.0, 5.0])
+    np.testing.assert_allclose(pos[0, 0], -0.05, atol=1e-5)  # 0.1 m of overlap: 0.05 m each, along the centres
+    np.testing.assert_allclose(pos[1, 0], 0.41, atol=1e-5)
+    np.testing.assert_array_equal(pos[2], [5.0, 5.0])  # nobody else moves
+    wall = as_segments([(-1.0, 0.1, 1.0, 0.1)])
+    crowd = np.random.default_rng(0).uniform([-0.8, -1.0], [0.8, 0.0], size=(12, 2))
+    out = separated(crowd, 0.23, wall)
+    assert first_overlap(out, np.full(12, 0.23), 1e-9) is None
+    assert np.all(out[:, 1] <= 0.1 - 0.23 + 1e-9)  # below the wall at y = 0.1 by a radius at least
+
+
+@pytest.fixture(scope="module")
+def replay():
+    traj = recorded_uo_trajectories(RUN)
+    keep = traj.frame < 400
+    from crowd_env.analysis.trajectories import Trajectories
+
+    cut = Trajectories(traj.frame[keep], traj.id[keep], traj.x_m[keep], traj.y_m[keep], None, 16.0)
+    return uo_scenario(RUN), replay_trajectories(cut, uo_scenario(RUN))
+
+
+class _Still:
+    """An observation policy that stands everybody still (intent 0)."""
+
+    env_overrides = {"observation_frame": "egocentric", "heading_target": "desired_direction",
+                     "observation_components": ["desired_direction", "neighbors", "wall_rays"], "n_neighbors": 8,
+                     "n_rays": 16, "neighbor_radius_m": 4.0, "ray_range_m": 5.0, "frame_skip": 10,
+                     "action_max_m_s": 2.5}
+
+    def actions(self, obs):
+        return np.zeros((obs.shape[0], 2))
+
+
+def test_rollouts_label_each_decision_with_the_way_back_to_the_recording(replay):
+    scenario, rep = replay
+    k0 = int(np.argmax(rep.present.sum(axis=1) >= 8))
+    demos = dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=1.0, pull_time_s=1.0, max_pull_m_s=5.0)
+    world = to_world_frame(demos.action, np.cos(demos.heading_rad), np.sin(demos.heading_rad))
+    col = {int(i): c for c, i in enumerate(rep.ids)}
+    first = np.isclose(demos.time_s, rep.time_s[k0])
+    last = np.isclose(demos.time_s, demos.time_s.max())
+    assert first.any() and last.any() and demos.time_s.max() > rep.time_s[k0] + 0.5
+    for r in np.flatnonzero(first | last):
+        k = int(np.argmin(np.abs(rep.time_s - demos.time_s[r])))
+        c = col[int(demos.pedestrian[r])]
+        recorded = (rep.position_m[k + 1, c] - rep.position_m[k, c]) / 0.1
+        pull = rep.position_m[k, c] - demos.position_m[r]  # pull_time_s = 1 s
+        np.testing.assert_allclose(world[r], recorded + pull, atol=1e-9)
+    # the still crowd lags its walking recording: the pull grows over the rollout, forwards (towards −y)
+    lag_first = np.mean([rep.position_m[k0, col[int(p)], 1] - y
+                         for p, y in zip(demos.pedestrian[first], demos.position_m[first, 1])])
+    lag_last = np.mean([rep.position_m[int(np.argmin(np.abs(rep.time_s - t))), col[int(p)], 1] - y
+                        for p, y, t in zip(demos.pedestrian[last], demos.position_m[last, 1], demos.time_s[last])])
+    assert abs(lag_first) < 0.05 and lag_last < -0.5
+
+
+def test_newcomers_start_in_the_spawn_area_and_walk_along_e_d_to_arrive_when_they_were_recorded(replay):
+    scenario, rep = replay
+    first = np.argmax(rep.present, axis=0)
+    k0 = int(np.sort(first[first > 30])[0]) - 12  # 1.2 s before somebody appears behind the entrance
+    demos = dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=2.0, newcomer_speed_m_s=50.0,
+                         spawn_newcomers=True)
+    col = {int(i): c for c, i in enumerate(rep.ids)}
+    newcomer = np.array([not rep.present[k0, col[int(p)]] for p in demos.pedestrian])
+    assert newcomer.any() and np.all(demos.position_m[newcomer, 1] > 8.3)  # in the waiting area, behind the barrier
+    world = to_world_frame(demos.action, np.cos(demos.heading_rad), np.sin(demos.heading_rad))
+    navigation = scenario.navigation()
+    for r in np.flatnonzero(newcomer):
+        c = col[int(demos.pedestrian[r])]
+        k_app = int(first[c])
+        e_d, here = navigation.sample(demos.position_m[r:r + 1])
+        _, there = navigation.sample(rep.position_m[k_app, c][None])
+        expected = e_d[0] * (here[0] - there[0]) / (rep.time_s[k_app] - demos.time_s[r])  # along e_d, on time
+        np.testing.assert_allclose(world[r], expected, atol=1e-9)
+    start = newcomer & np.isclose(demos.time_s, rep.time_s[k0])
+    arrivals = np.array([first[col[int(p)]] for p in demos.pedestrian[start]])
+    entrance = np.array([0.9, 8.3])  # the 0.5 m entrance's middle: the earliest stand nearest it
+    gaps = np.hypot(*(demos.position_m[start] - entrance).T)[np.argsort(arrivals, kind="stable")]
+    assert start.sum() >= 2 and np.all(np.diff(gaps) > -0.3)
+    plain = dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=1.0)
+    assert not np.any(plain.position_m[:, 1] > 8.3)  # without them nobody stands there
+
+
+def test_the_calibrated_agent_acts_on_a_recorded_crowd_as_on_a_simulator(replay):
+    scenario, rep = replay
+    k = int(np.argmax(rep.present.sum(axis=1) >= 8))
+    rows = np.flatnonzero(rep.present[k])
+    params = ModelParams()
+    mine = calibrated_actions(rep, scenario, params, k, rows)
+    from crowd_env.core.state import CrowdState
+    from crowd_env.core.simulator import Simulator
+
+    state = CrowdState.create(rep.position_m[k, rows], heading_rad=rep.heading_rad[k, rows],
+                              velocity_m_s=rep.velocity_m_s[k, rows], desired_speed_m_s=1.34)
+    sim = Simulator(state, geometry=scenario.geometry, params=params)  # this crowd stands apart: a simulator takes it
+    theirs, _ = SocialForceAgent(scenario.navigation())(sim)
+    np.testing.assert_allclose(mine, theirs, rtol=1e-12, atol=1e-12)
+    assert isinstance(RecordedView(state, scenario.geometry.walls, params).neighbor_pairs(1.0), np.ndarray)
+
+
+def test_training_options_are_checked():
+    with pytest.raises(TrainingError, match="disjoint"):
+        human_training_config({"validation_runs": ["uo-050-180-180"], "training_runs": ["uo-050-180-180"]})
+    with pytest.raises(TrainingError, match="unknown training option"):
+        human_training_config({"epochs": 3})
+    with pytest.raises(TrainingError, match="dad_rounds must be an integer"):
+        human_training_config({"dad_rounds": -1})
+    assert human_training_config()["options"]["neighbor_radius_m"] == 3.0
+
+
+def test_the_quick_training_writes_a_policy_resumes_without_redoing_and_refuses_to_overwrite(tmp_path, capsys):
+    from crowd_env.cli.imitate import main
+
+    out = tmp_path / "human"
+    t0 = time.perf_counter()
+    assert main(["train", "--quick", "--out", str(out)]) == 0
+    assert time.perf_counter() - t0 < 60.0
+    printed = capsys.readouterr().out
+    assert "open-loop speed error on uo-060-180-180" in printed and "calibrated" in printed and "CPU" in printed
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["stages"] == ["bc", "dad_1"] and set(summary["timings"]) == {"demonstrations", "bc", "dad_1"}
+    with open(out / "progress.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [(r["stage"], r["epoch"]) for r in rows] == [("bc", "1"), ("bc", "2"), ("dad_1", "1")]
+    assert int(rows[-1]["samples"]) > int(rows[0]["samples"])  # the round's rollouts were added
+    assert (out / "learning_curves.png").stat().st_size > 10_000
+    policy = FileObservationPolicy(out / "policy.npz")
+    assert policy.env_overrides["observation_frame"] == "egocentric" and policy.file.output == "clip_box"
+    assert policy.file.meta["training_runs"] == ["uo-050-180-180"]
+    stamp = (out / "policies" / "bc.npz").stat().st_mtime_ns
+    assert main(["train", "--quick", "--out", str(out), "--resume"]) == 0
+    assert (out / "policies" / "bc.npz").stat().st_mtime_ns == stamp  # nothing redone
+    capsys.readouterr()
+    assert main(["train", "--quick", "--out", str(out)]) == 2
+    assert "pass resume=True (--resume)" in capsys.readouterr().err
+    with pytest.raises(RunStoreError, match="different configuration"):
+        from crowd_env.experiments.training.human_imitation import QUICK_HUMAN_TRAINING, train_human_policy
+
+        train_human_policy(out, config={**QUICK_HUMAN_TRAINING, "bc_epochs": 3}, resume=True)
