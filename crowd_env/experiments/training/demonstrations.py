@@ -54,13 +54,15 @@ from crowd_env.errors import TrainingError
 from crowd_env.files import write_npz_atomic
 
 from ...core.angles import direction_angles_rad
-from ...core.params import ModelParams, PedestrianDefaults
+from ...core.bundles import StepInputs, StepParams
+from ...core.params import PedestrianDefaults
 from ...core.state import CrowdState
 from ...core.step import smooth_update
 from ...envs.config import ENV_DEFAULTS, observation_policy_options
 from ...envs.background import OBSERVATION_POLICY_OPTIONS
 from ...envs.observations import ObservationBuilder, to_body_frame, to_world_frame
 from ...walking.agent import desired_direction
+from ...walking.model import ModelParams
 
 __all__ = ["DEMONSTRATIONS_FORMAT", "HUMAN_POLICY_OPTIONS", "DEFAULT_SMOOTHING_S", "policy_options", "Replay",
            "replay_trajectories", "Demonstrations", "demonstrations_from_replay", "demonstrations_from_trajectories",
@@ -257,6 +259,8 @@ def _replay_headings(grid, f0: int, fps: float, step_times, scenario, options: d
     present, pos = _at_times(grid, f0, fps, step_times)
     before = np.zeros(n, bool)
     dt = float(params.dt_s)
+    arrays = bodies.arrays()
+    step = StepParams(dt, 0.0, 0.0, 0.0, 0.0, bool(params.rotation), 0, 0, 0)  # smooth_update reads h and rotation
     for s in range(step_times.size):
         idx = np.flatnonzero(present[s])
         new = present[s] & ~before
@@ -269,9 +273,8 @@ def _replay_headings(grid, f0: int, fps: float, step_times, scenario, options: d
         theta[new] = target[new]
         omega[new] = 0.0
         out[s, new] = theta[new]
-        vel = smooth_update(zeros2, omega, theta, bodies.mass_kg, bodies.inertia_kg_m2, bodies.tau_s,
-                            bodies.heading_stiffness, bodies.heading_damping, zeros2, target, True, zeros2, False,
-                            idx, dt, bool(params.rotation))
+        vel = smooth_update(arrays._replace(velocity_m_s=zeros2, angular_velocity_rad_s=omega, heading_rad=theta),
+                            StepInputs(zeros2, target, True, zeros2, False), idx, step)
         omega[idx] = vel[:, 2]
         theta[idx] = np.pi - np.mod(np.pi - (theta[idx] + dt * vel[:, 2]), 2.0 * np.pi)  # wrap_angle_scalar's
     return out

@@ -46,10 +46,10 @@ from crowd_env.files import copy_atomic, write_atomic, write_json_atomic
 
 from ...analysis.corridor_runs import recorded_uo_trajectories, uo_run, uo_scenario
 from ...analysis.figures import pyplot, save_figure
-from ...core.params import ModelParams
-from ...core.presets import get_preset
 from ...envs.background import FileObservationPolicy
 from ...envs.policy_files import load_weights, save_policy_file
+from ...walking.model import ModelParams
+from ...walking.presets import get_preset
 from ..running.backends import SerialBackend, run_all
 from ..running.store import check_config
 from .demonstrations import (DEFAULT_SMOOTHING_S, demonstrations_from_replay, load_demonstrations, policy_options,

@@ -50,8 +50,8 @@ from scipy.spatial import cKDTree
 
 from crowd_env.errors import TrainingError
 
+from ...core.bundles import World, empty_exits
 from ...core.neighbors import grid_pairs
-from ...core.params import ModelParams
 from ...core.segments import endpoint_owners, wall_proximity
 from ...core.simulator import Simulator
 from ...core.state import CrowdState
@@ -59,6 +59,7 @@ from ...envs.drivers import intents_and_headings, observing_driver
 from ...envs.observations import to_body_frame
 from ...scenarios.placement import place_pedestrians
 from ...walking.agent import SocialForceAgent, desired_direction
+from ...walking.model import ModelParams
 from .demonstrations import Demonstrations, observation_reach_m, policy_options, recorded_state
 
 __all__ = ["DEFAULT_DAD", "separated", "dad_rollouts", "RecordedView", "calibrated_actions"]
@@ -297,6 +298,11 @@ class RecordedView:
         self.wall_owner = endpoint_owners(self.walls)
         self.time_s = float(time_s)
         self.active_index = np.flatnonzero(state.active)
+
+    def world_fields(self) -> tuple:
+        """The walls and no exits, as :meth:`Simulator.world_fields` gives them (a plain
+        :class:`~crowd_env.core.bundles.World`)."""
+        return tuple(World(self.walls, self.wall_owner, *empty_exits(), np.full(self.state.n, -1, np.int64), 0.0))
 
     def neighbor_pairs(self, radius_m: float) -> np.ndarray:
         """Pairs of rows into :attr:`active_index` within ``radius_m`` (as :meth:`Simulator.neighbor_pairs`)."""

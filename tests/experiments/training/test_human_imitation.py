@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from crowd_env.analysis.corridor_runs import recorded_uo_trajectories, uo_scenario
-from crowd_env.core.params import ModelParams
+from crowd_env.walking.model import ModelParams
 from crowd_env.core.segments import as_segments
 from crowd_env.core.state import first_overlap
 from crowd_env.envs.background import FileObservationPolicy
