@@ -79,8 +79,13 @@ class ModelParams:
             raise ParameterError(f"physics must be a PhysicsParams, got {type(physics).__name__}")
         if not isinstance(walking, WalkingParams):
             raise ParameterError(f"walking must be a WalkingParams, got {type(walking).__name__}")
+        extra = values.pop("extra", None)  # the earlier catch-all of unknown names: refused, each by its name
+        if extra:
+            raise ParameterError(f"unknown model parameter(s): {sorted(extra)}; known: {sorted(_WHERE)}")
         if values:
-            _unknown(values)
+            unknown = sorted(set(values) - set(_WHERE))
+            if unknown:  # as a constructor does: a TypeError naming the keyword
+                raise TypeError(f"ModelParams() got unexpected keyword argument(s) {unknown}; known: {sorted(_WHERE)}")
             physics_changes, groups = {}, {}
             for name, value in values.items():
                 group, field = _WHERE[name]
@@ -105,6 +110,7 @@ class ModelParams:
 
     def replace(self, **changes) -> "ModelParams":
         """A copy with some parameters changed, by their flat names (unknown names raise :class:`ParameterError`)."""
+        _unknown(changes)
         return ModelParams(self.physics, self.walking, **changes)
 
     def to_dict(self) -> dict:
