@@ -579,9 +579,10 @@ def advance_named(bodies, world, params, inputs, index, cached_pairs, cached_rad
     :class:`StepOutcome`."""
     n = index.shape[0]
     previous = np.empty((n, 2))
+    position = bodies.position_m
     for k in range(n):
-        previous[k, 0] = bodies.position_m[index[k], 0]
-        previous[k, 1] = bodies.position_m[index[k], 1]
+        previous[k, 0] = position[index[k], 0]
+        previous[k, 1] = position[index[k], 1]
     if first_bad_input(inputs, bodies.tau_s, bodies.mass_kg):
         no_one = np.zeros(0, np.int64)
         none = compact_contacts(index, no_one, no_one, no_one, np.zeros(0), np.zeros(0), np.zeros(0),

@@ -181,8 +181,9 @@ def baseline_intents(bodies, world, index, e_d, travel_time_s, pairs, walking, t
                                   world.walls, world.period_m, walking.vision, travel_time_s)
     else:
         speed = np.empty(n)
+        desired_speed = bodies.desired_speed_m_s
         for k in range(n):
-            speed[k] = bodies.desired_speed_m_s[index[k]]
+            speed[k] = desired_speed[index[k]]
         walk = e_d
     angles = direction_angles_rad(walk)
     for k in range(n):
@@ -222,8 +223,9 @@ def pair_radius_m(bodies, index, walking):
     if reach < 0.0:
         return -1.0
     r_max = 0.0
+    radius = bodies.radius_m
     for k in range(index.shape[0]):
-        r_max = max(r_max, bodies.radius_m[index[k]])
+        r_max = max(r_max, radius[index[k]])
     return 2.0 * r_max + reach
 
 

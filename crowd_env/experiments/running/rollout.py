@@ -212,15 +212,18 @@ def measure_step(bodies, index, previous, n_exited, t_prev_s, time_s, step_count
     if m.record_every > 0 and step_count % m.record_every == 0:
         f = counts[COUNT_FRAMES]
         m.frame_time_s[f] = step_count * dt_s
+        frame_position, frame_heading, frame_active, heading = m.frame_position, m.frame_heading, m.frame_active, \
+            bodies.heading_rad
         for i in range(active.shape[0]):
-            m.frame_position[f, i, 0] = position[i, 0]
-            m.frame_position[f, i, 1] = position[i, 1]
-            m.frame_heading[f, i] = bodies.heading_rad[i]
-            m.frame_active[f, i] = active[i]
+            frame_position[f, i, 0] = position[i, 0]
+            frame_position[f, i, 1] = position[i, 1]
+            frame_heading[f, i] = heading[i]
+            frame_active[f, i] = active[i]
         counts[COUNT_FRAMES] += 1
     remaining = np.empty_like(active)  # those left who have started to walk (a waiting crowd is no stall)
+    premovement_s = bodies.premovement_s
     for i in range(active.shape[0]):
-        remaining[i] = active[i] and not passed[i] and time_s >= bodies.premovement_s[i]
+        remaining[i] = active[i] and not passed[i] and time_s >= premovement_s[i]
     return stall_update(stall, dt_s, time_s, position, remaining, progressed)
 
 
