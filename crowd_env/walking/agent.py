@@ -13,7 +13,8 @@ default background policy and the experiments use it; ``baselines.social_force``
 The agent's parameters are :class:`WalkingParams`, a named tuple of small frozen groups, each checked beside the
 kernel that reads it: :class:`~crowd_env.walking.social_force.SocialForce` and
 :class:`~crowd_env.walking.social_force.WallForce` (Eq. 16), :class:`~crowd_env.walking.vision.Vision`,
-:class:`~crowd_env.walking.time_to_collision.TimeToCollision` and the agent's own :class:`Intent`. A model's
+:class:`~crowd_env.walking.time_to_collision.TimeToCollision`, the agent's own :class:`Intent` and
+:class:`~crowd_env.walking.give_way.GiveWay`. A model's
 ``<group>_<field>`` parameter (``social_strength_n``, ``vision_time_gap_s``, ...) is the field of its group
 (:class:`crowd_env.walking.model.ModelParams` pairs them with the core's physics). The kernels take the
 resolved bundle (:meth:`WalkingParams.resolved`, plain numbers) beside the core's :class:`~crowd_env.core.bundles.Bodies`
@@ -32,6 +33,7 @@ from ..core.angles import direction_angles_rad
 from ..core.bundles import Bodies, World
 from ..core.neighbors import grid_pairs
 from ..core.params import check_parameter
+from .give_way import GiveWay, give_way
 from .navigation import DestinationNavigation, NavigationField, sample_bilinear
 from .social_force import SocialForce, WallForce, social_repulsion, total_social_forces
 from .time_to_collision import TimeToCollision, total_ttc_accelerations
@@ -62,7 +64,7 @@ class Intent(NamedTuple):
 
 class WalkingParams(NamedTuple):
     """The calibrated agent's parameters, one frozen group each, defaults the paper's model (Kabalan's validation
-    point, no wall term of its own, vision and time to collision off). The model's parameter ``<group>_<field>``
+    point, no wall term of its own, vision, time to collision and giving way off). The model's parameter ``<group>_<field>``
     (``social_strength_n``, ``wall_social_range_m``, ``vision_rays``, ``ttc_horizon_s``, ...) is ``field`` of the
     group ``group`` (:class:`crowd_env.walking.model.ModelParams`)."""
 
@@ -71,6 +73,7 @@ class WalkingParams(NamedTuple):
     vision: Vision = Vision()
     ttc: TimeToCollision = TimeToCollision()
     intent: Intent = Intent()
+    give_way: GiveWay = GiveWay()
 
     def checked(self) -> "WalkingParams":
         """These parameters, once every group is checked beside its kernel (:class:`~crowd_env.errors.ParameterError`
@@ -83,7 +86,7 @@ class WalkingParams(NamedTuple):
         """The bundle the kernels take: plain numbers, the walls' A and B where None the pedestrians', vision's κ_0
         and right of way resolved (:meth:`Vision.resolved <crowd_env.walking.vision.Vision.resolved>`)."""
         return WalkingParams(self.social.resolved(), self.wall_social.resolved(self.social), self.vision.resolved(),
-                             self.ttc.resolved(), self.intent.resolved())
+                             self.ttc.resolved(), self.intent.resolved(), self.give_way.resolved())
 
 
 DEFAULT_WALKING = WalkingParams().resolved()
@@ -107,7 +110,7 @@ def plain_walking(walking: WalkingParams) -> tuple:
 def named_walking(plain):
     """:func:`plain_walking`'s tuples as the :class:`WalkingParams` they came from (in compiled code)."""
     return WalkingParams(SocialForce(*plain[0]), WallForce(*plain[1]), Vision(*plain[2]), TimeToCollision(*plain[3]),
-                         Intent(*plain[4]))
+                         Intent(*plain[4]), GiveWay(*plain[5]))
 
 
 class Intents(NamedTuple):
@@ -157,8 +160,10 @@ def baseline_intents(bodies, world, index, e_d, travel_time_s, pairs, walking, t
     The forces are :func:`~crowd_env.walking.social_force.total_social_forces` (``walking.social`` on). With
     vision (``walking.vision.time_gap_s`` > 0) the speed and direction of the driving term are
     :func:`~crowd_env.walking.vision.vision_walk`'s and θ_d is the walking direction's angle; with its right of way
-    ``travel_time_s`` (n,) are the walkers' travel times T (Eq. 11), else unused. With ``walking.ttc.strength_m2_s2``
-    > 0 the time-to-collision interaction of :mod:`crowd_env.walking.time_to_collision`. Pedestrians whose
+    or giving way ``travel_time_s`` (n,) are the walkers' travel times T (Eq. 11), else unused. With
+    ``walking.ttc.strength_m2_s2`` > 0 the time-to-collision interaction of
+    :mod:`crowd_env.walking.time_to_collision`; with ``walking.give_way.share`` > 0 the intent's push into a touched
+    walker ahead taken out (:mod:`crowd_env.walking.give_way`). Pedestrians whose
     premovement time has not come at ``time_s`` stand still (:func:`hold_waiting`).
     """
     position, radius, heading, velocity = bodies.position_m, bodies.radius_m, bodies.heading_rad, bodies.velocity_m_s
@@ -198,6 +203,8 @@ def baseline_intents(bodies, world, index, e_d, travel_time_s, pairs, walking, t
             i = index[k]
             intents[i, 0] += tau[i] * accel[k, 0]
             intents[i, 1] += tau[i] * accel[k, 1]
+    if walking.give_way.share > 0.0:  # the part pushing into a touched walker ahead taken out
+        give_way(intents, position, radius, index, travel_time_s, pairs, world.period_m, walking.give_way)
     hold_waiting(intents, theta_d, heading, bodies.premovement_s, time_s, index)
     return Intents(intents, theta_d)
 
@@ -205,13 +212,16 @@ def baseline_intents(bodies, world, index, e_d, travel_time_s, pairs, walking, t
 @nb.njit(cache=True)
 def pair_reach_m(desired_speed, index, walking):
     """How far beyond 2 r_max the agent under ``walking`` needs its neighbour pairs: the social cut-off, vision's
-    horizon (:func:`~crowd_env.walking.vision.vision_reach_m`), the time-to-collision range, the largest of them; −1
+    horizon (:func:`~crowd_env.walking.vision.vision_reach_m`), the time-to-collision range, the give-way gap, the
+    largest of them; −1
     when it needs none."""
     reach = walking.social.cutoff_m if walking.social.forces else -1.0
     if walking.vision.time_gap_s > 0.0:
         reach = max(reach, vision_reach_m(desired_speed, index, walking.vision))
     if walking.ttc.strength_m2_s2 > 0.0:
         reach = max(reach, walking.ttc.range_m)
+    if walking.give_way.share > 0.0:
+        reach = max(reach, walking.give_way.gap_m)
     return reach
 
 
@@ -445,7 +455,7 @@ class SocialForceAgent:
         walking, plain = self._walking(sim.params)
         e_d = self.desired_direction(sim, idx)
         times = np.asarray(travel_time(self.navigation, st.position_m, idx), np.float64) \
-            if walking.vision.right_of_way else _NO_TIMES
+            if walking.vision.right_of_way or walking.give_way.share > 0.0 else _NO_TIMES
         bodies = st.array_fields()
         radius = python_pair_radius_m(bodies, idx, plain)
         pairs = sim.neighbor_pairs(radius) if radius >= 0.0 else _NO_PAIRS

@@ -75,6 +75,9 @@ FREE_PARAMETERS = {
     # the time-to-collision interaction (crowd_env.walking.time_to_collision; defaults: the paper's fit)
     "ttc_strength_m2_s2": FreeParameter("ttc_strength_m2_s2", "model", False, (0.0, 10.0), 1.5, 0.5),
     "ttc_horizon_s": FreeParameter("ttc_horizon_s", "model", True, (0.3, 10.0), 3.0, 0.3),
+    # giving way at contact (crowd_env.walking.give_way; defaults: the whole push taken out within 5 cm)
+    "give_way_share": FreeParameter("give_way_share", "model", False, (0.0, 1.0), 1.0, 0.3),
+    "give_way_gap_m": FreeParameter("give_way_gap_m", "model", False, (0.0, 0.5), 0.05, 0.05),
     # the body: every pedestrian's radius (Kabalan's Table 2: 0.23 m), in every scenario of the point's runs
     # (tasks.with_body; the navigation's clearance follows it where it is the disk centres' field)
     "radius": FreeParameter("radius_m", "body", False, (0.12, 0.26), 0.23, 0.02),
