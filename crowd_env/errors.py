@@ -47,6 +47,11 @@ class ParameterError(CrowdEnvError, ValueError):
     """Invalid or unknown model parameter (``ModelParams``, ``PedestrianDefaults``, presets)."""
 
 
+class UnknownParameterError(ParameterError, TypeError):
+    """A model parameter name that does not exist (``ModelParams(dt=...)``, ``.replace``, ``from_dict``, ``--param``):
+    a :class:`ParameterError` and, as Python's constructors raise for an unexpected keyword, a ``TypeError``."""
+
+
 class StateError(CrowdEnvError, ValueError):
     """Invalid crowd state: shapes, non-positive mass/radius/τ, overlapping pedestrians."""
 

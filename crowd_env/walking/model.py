@@ -21,7 +21,7 @@ import dataclasses
 import operator
 from dataclasses import dataclass, field
 
-from crowd_env.errors import ParameterError
+from crowd_env.errors import ParameterError, UnknownParameterError
 
 from ..core.params import PhysicsParams
 from .agent import WalkingParams
@@ -48,7 +48,7 @@ def model_parameter_names() -> tuple:
 def _unknown(names, what: str = "model parameter(s)") -> None:
     unknown = sorted(set(names) - set(_WHERE))
     if unknown:
-        raise ParameterError(f"unknown {what}: {unknown}; known: {sorted(_WHERE)}")
+        raise UnknownParameterError(f"unknown {what}: {unknown}; known: {sorted(_WHERE)}")
 
 
 @dataclass(frozen=True, init=False, repr=False)
@@ -81,11 +81,9 @@ class ModelParams:
             raise ParameterError(f"walking must be a WalkingParams, got {type(walking).__name__}")
         extra = values.pop("extra", None)  # the earlier catch-all of unknown names: refused, each by its name
         if extra:
-            raise ParameterError(f"unknown model parameter(s): {sorted(extra)}; known: {sorted(_WHERE)}")
+            raise UnknownParameterError(f"unknown model parameter(s): {sorted(extra)}; known: {sorted(_WHERE)}")
         if values:
-            unknown = sorted(set(values) - set(_WHERE))
-            if unknown:  # as a constructor does: a TypeError naming the keyword
-                raise TypeError(f"ModelParams() got unexpected keyword argument(s) {unknown}; known: {sorted(_WHERE)}")
+            _unknown(values)
             physics_changes, groups = {}, {}
             for name, value in values.items():
                 group, field = _WHERE[name]
