@@ -94,7 +94,7 @@ class StepOutcome(NamedTuple):
     time_s: float
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def smooth_update(bodies, inputs, index, params):
     """Stage 1, the smooth dynamics (Eq. 3, 14, 15) of the pedestrians ``index`` of ``bodies`` given ``inputs``
     (:class:`~crowd_env.core.bundles.StepInputs`), with h and the heading dynamics on or off of ``params``: compact
@@ -348,7 +348,7 @@ def impact_stage(vel, mass, inertia, contacts, links, params):
     return ke0, p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def finish_step(bodies, world, params, index, vel, contacts, percussions, p_projection):
     """Stage 6 (before the exit test): :func:`commit_step` of the final compact velocities ``vel``, then the
     smallest gap after the step among the candidates ``contacts`` (pairs not among them cannot have closed) and the

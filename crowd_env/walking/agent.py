@@ -149,7 +149,7 @@ def hold_waiting(intents, theta_d, heading, premovement_s, time_s, index):
     return waiting
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def baseline_intents(bodies, world, index, e_d, travel_time_s, pairs, walking, time_s):
     """u_int = ‖u_d‖ e_d + (τ/m) Σ f_social (Eq. 14, 16) and θ_d = angle of e_d, in one compiled call (with
     vision: u_int = v e(α*) + (τ/m) Σ f_social and θ_d = α*; with the time-to-collision interaction, + τ Σ f_ttc/m):
@@ -225,7 +225,7 @@ def pair_reach_m(desired_speed, index, walking):
     return reach
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def pair_radius_m(bodies, index, walking):
     """The centre distance within which the agent needs the pairs of the pedestrians ``index``: 2 r_max +
     :func:`pair_reach_m`; −1 when it needs none."""

@@ -7,11 +7,12 @@ what the rollout compiles: regenerate it then.
 """
 from numba.core.types import Array, NamedTuple, NamedUniTuple, Tuple, UniTuple, boolean, float64, int64
 
+from crowd_env.core.angles import wrap_angle_scalar
 from crowd_env.core.bundles import Bodies, Candidates, Links, StepInputs, StepParams, World
 from crowd_env.core.contacts import active_links, contact_candidates
 from crowd_env.core.solvers.dense_projection import project_gaps
-from crowd_env.core.step import (active_rows, compact_bodies, compact_contacts, detection_reach, finish_step,
-    first_bad_input, grown_margins, impact_stage, leave_at_exits, redetection_round, smooth_update)
+from crowd_env.core.step import (active_rows, candidate_gaps_min, commit_step, compact_bodies, compact_contacts,
+    detection_reach, first_bad_input, grown_margins, impact_stage, leave_at_exits, redetection_round)
 from crowd_env.experiments.running.rollout import Measures, StallRule, measure_step
 from crowd_env.walking.agent import CompiledNavigation, Intent, WalkingParams, agent_step
 from crowd_env.walking.give_way import GiveWay
@@ -20,7 +21,7 @@ from crowd_env.walking.time_to_collision import TimeToCollision
 from crowd_env.walking.vision import Vision
 
 PARTS = (
-    (  # 21.9 s of compilation, measured
+    (  # 22.9 s of compilation, measured
         (impact_stage, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
             NamedTuple((Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
             Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C')),
@@ -39,29 +40,22 @@ PARTS = (
             Array(boolean, 2, 'C'), Array(int64, 1, 'C'), Array(float64, 1, 'C')), Measures),
             NamedTuple((Array(float64, 3, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), int64, int64,
             float64, float64), StallRule)),)),
-        (finish_step, ((NamedTuple((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 2, 'C'),
-            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
-            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
-            Array(boolean, 1, 'C'), Array(int64, 2, 'C'), Array(float64, 2, 'C'), Array(float64, 1, 'C')), Bodies),
-            NamedTuple((Array(float64, 2, 'C', readonly=True), Array(int64, 3, 'C'), Array(float64, 2, 'C'),
-            Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 2, 'C'), Array(int64, 1, 'C'), float64),
-            World), NamedTuple((float64, float64, float64, float64, float64, boolean, int64, int64, int64),
-            StepParams), Array(int64, 1, 'C'), Array(float64, 2, 'C'), NamedTuple((Array(int64, 1, 'C'),
-            Array(int64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
-            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C')), Candidates),
-            Tuple((Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(boolean, 1, 'C'))), Array(float64, 1,
-            'C')),)),
         (leave_at_exits, ((Array(float64, 2, 'C'), Array(boolean, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 2,
             'C'), Array(int64, 1, 'C'), Array(float64, 2, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
             Array(float64, 2, 'C')),)),
-        (first_bad_input, ((NamedTuple((Array(float64, 2, 'C'), Array(float64, 1, 'C'), boolean, Array(float64, 2,
-            'C'), boolean), StepInputs), Array(float64, 1, 'C'), Array(float64, 1, 'C')),)),
+        (contact_candidates, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(int64,
+            1, 'C'), Array(int64, 2, 'C'), Array(float64, 2, 'C', readonly=True), Array(int64, 3, 'C'), float64,
+            float64, float64),)),
         (compact_contacts, ((Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
             Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(boolean, 1, 'C')),)),
+        (detection_reach, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), float64,
+            float64),)),
+        (candidate_gaps_min, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), Array(float64,
+            2, 'C', readonly=True), Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'), float64),)),
+        (grown_margins, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), float64, float64),)),
         (compact_bodies, ((Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C')),)),
-        (active_rows, ((Array(boolean, 1, 'C'),),)),
     ),
-    (  # 21.9 s of compilation, measured
+    (  # 22.9 s of compilation, measured
         (redetection_round, ((NamedTuple((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 2, 'C'),
             Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
             Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
@@ -88,20 +82,13 @@ PARTS = (
             WalkingParams), float64),)),
         (project_gaps, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
             Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), float64, float64, int64),)),
-        (contact_candidates, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(int64,
-            1, 'C'), Array(int64, 2, 'C'), Array(float64, 2, 'C', readonly=True), Array(int64, 3, 'C'), float64,
-            float64, float64),)),
         (active_links, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(boolean, 1, 'C'), Array(int64, 1,
             'C'), Array(int64, 2, 'C'), Array(float64, 2, 'C'), float64),)),
-        (smooth_update, ((NamedTuple((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 2, 'C'),
-            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
-            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
-            Array(boolean, 1, 'C'), Array(int64, 2, 'C'), Array(float64, 2, 'C'), Array(float64, 1, 'C')), Bodies),
-            NamedTuple((Array(float64, 2, 'C'), Array(float64, 1, 'C'), boolean, Array(float64, 2, 'C'), boolean),
-            StepInputs), Array(int64, 1, 'C'), NamedTuple((float64, float64, float64, float64, float64, boolean,
-            int64, int64, int64), StepParams)),)),
-        (grown_margins, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), float64, float64),)),
-        (detection_reach, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), float64,
-            float64),)),
+        (first_bad_input, ((NamedTuple((Array(float64, 2, 'C'), Array(float64, 1, 'C'), boolean, Array(float64, 2,
+            'C'), boolean), StepInputs), Array(float64, 1, 'C'), Array(float64, 1, 'C')),)),
+        (commit_step, ((Array(float64, 2, 'C'), Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 1,
+            'C'), Array(int64, 1, 'C'), Array(float64, 2, 'C'), float64, boolean, float64),)),
+        (active_rows, ((Array(boolean, 1, 'C'),),)),
+        (wrap_angle_scalar, ((float64,),)),
     ),
 )
