@@ -297,11 +297,21 @@ class Simulator:
             self._pairs_radius = radius_m
         return self._pairs
 
-    def _cached_pairs(self):
-        """(pairs, radius) already built this step, or an empty list with radius −1."""
+    def built_pairs(self):
+        """``(pairs, radius_m)``: the pairs :meth:`neighbor_pairs` built this step and their radius, or an empty list
+        with radius −1."""
         if self._pairs_key == self.step_count and self._pairs is not None:
             return self._pairs, float(self._pairs_radius)
         return _NO_PAIRS, -1.0
+
+    def keep_pairs(self, pairs: np.ndarray, radius_m: float) -> None:
+        """Keep ``pairs`` built by compiled code this step as :meth:`neighbor_pairs` would build them
+        (:func:`~crowd_env.core.neighbors.grid_pairs` of the active rows within ``radius_m``, which must exceed
+        :meth:`built_pairs`' radius): :meth:`neighbor_pairs` and the step reuse them."""
+        if self._pairs_key == self.step_count and radius_m <= self._pairs_radius:
+            raise InputError(f"keep_pairs: pairs within {radius_m} m are already covered by those within "
+                             f"{self._pairs_radius} m this step")
+        self._pairs_key, self._pairs, self._pairs_radius = self.step_count, pairs, radius_m
 
     def wall_proximity(self, margin_m: float):
         """Wall neighbours of the active pedestrians within ``margin_m`` of their surface
@@ -397,7 +407,7 @@ class Simulator:
         idx = self.active_index
         t0 = time.perf_counter()
         status, contacts, ke0, ke1, ke2, n_clusters, max_cluster, min_gap, n_redetect, exited, time_s = advance(
-            self.state.array_fields(), self.world_fields(), self._step_fields(), inputs, idx, *self._cached_pairs(),
+            self.state.array_fields(), self.world_fields(), self._step_fields(), inputs, idx, *self.built_pairs(),
             self.time_s)
         if status != FUSED_OK:
             return None

@@ -314,22 +314,47 @@ def sample_directions(position, index, navigation):
     return e_d, times, ok
 
 
+@nb.njit(cache=True, inline="always")
+def decide_with(bodies, world, index, e_d, travel_time_s, built_pairs, built_radius_m, walking, time_s):
+    """The decision of :class:`SocialForceAgent` once e_d and T are known: the neighbour pairs within
+    :func:`pair_radius_m` (``built_pairs``, the pairs within ``built_radius_m`` already built this step, when they
+    reach that far: a superset, as ``Simulator.neighbor_pairs`` reuses them; else built by the same
+    :func:`~crowd_env.core.neighbors.grid_pairs`), then :func:`baseline_intents`. Returns an ``AGENT_OK``
+    :class:`Decision` whose ``pairs`` lie within its ``pair_radius_m`` (−1: none needed). The one body of
+    :func:`agent_step` and of the Python agent's call (:func:`python_decide`)."""
+    radius = pair_radius_m(bodies, index, walking)
+    if radius < 0.0:
+        pairs = np.zeros((0, 2), np.int64)
+    elif radius > built_radius_m:
+        pairs = grid_pairs(bodies.position_m, index, radius, world.period_m)
+    else:
+        pairs = built_pairs
+        radius = built_radius_m
+    chosen = baseline_intents(bodies, world, index, e_d, travel_time_s, pairs, walking, time_s)
+    return Decision(AGENT_OK, chosen.intents_m_s, chosen.desired_heading_rad, pairs, radius)
+
+
+@nb.njit(cache=True)
+def python_decide(bodies, world, index, e_d, travel_time_s, built_pairs, built_radius_m, walking, time_s):
+    """:func:`decide_with` called from Python (one compiled call per decision), the bundles as plain tuples
+    (:meth:`CrowdState.array_fields <crowd_env.core.state.CrowdState.array_fields>`, ``tuple(Simulator.world)``,
+    :func:`plain_walking`). Returns the :class:`Decision`'s last four fields as a plain tuple."""
+    d = decide_with(Bodies(*bodies), World(*world), index, e_d, travel_time_s, built_pairs, built_radius_m,
+                    named_walking(walking), time_s)
+    return d.intents_m_s, d.desired_heading_rad, d.pairs, d.pair_radius_m
+
+
 @nb.njit(cache=True)
 def agent_step(bodies, world, index, navigation, walking, time_s):
     """One decision of :class:`SocialForceAgent` in compiled code, exactly as its ``__call__``: e_d from the
-    :class:`CompiledNavigation` ``navigation`` (:func:`sample_directions`), the neighbour pairs within
-    :func:`pair_radius_m` (the ones ``Simulator.neighbor_pairs`` would build, which the step may reuse) and
-    :func:`baseline_intents` under the resolved :class:`WalkingParams` ``walking``. Returns a :class:`Decision`."""
-    position = bodies.position_m
-    no_pairs = np.zeros((0, 2), np.int64)
-    e_d, times, ok = sample_directions(position, index, navigation)
+    :class:`CompiledNavigation` ``navigation`` (:func:`sample_directions`), then :func:`decide_with` with no pairs
+    built yet (those it builds, the ones ``Simulator.neighbor_pairs`` would build, the step may reuse) under the
+    resolved :class:`WalkingParams` ``walking``. Returns a :class:`Decision`."""
+    e_d, times, ok = sample_directions(bodies.position_m, index, navigation)
     if not ok:
-        return Decision(AGENT_BAD_DIRECTION, np.zeros((position.shape[0], 2)), bodies.heading_rad.copy(), no_pairs,
-                        -1.0)
-    radius = pair_radius_m(bodies, index, walking)
-    pairs = grid_pairs(position, index, radius, world.period_m) if radius >= 0.0 else no_pairs
-    chosen = baseline_intents(bodies, world, index, e_d, times, pairs, walking, time_s)
-    return Decision(AGENT_OK, chosen.intents_m_s, chosen.desired_heading_rad, pairs, radius)
+        return Decision(AGENT_BAD_DIRECTION, np.zeros((bodies.position_m.shape[0], 2)), bodies.heading_rad.copy(),
+                        np.zeros((0, 2), np.int64), -1.0)
+    return decide_with(bodies, world, index, e_d, times, np.zeros((0, 2), np.int64), -1.0, walking, time_s)
 
 
 class CompiledAgent(NamedTuple):
@@ -351,21 +376,6 @@ def decide(agent, bodies, world, index, time_s):
     """:func:`agent_step` of the :class:`CompiledAgent` ``agent`` for the pedestrians ``index`` of ``bodies`` in
     ``world`` (:mod:`crowd_env.core.bundles`) at ``time_s``: a :class:`Decision`."""
     return agent_step(bodies, world, index, agent.navigation, agent.walking, time_s)
-
-
-@nb.njit(cache=True)
-def python_pair_radius_m(bodies, index, walking):
-    """:func:`pair_radius_m` called from Python, the bundles as plain tuples (:meth:`CrowdState.array_fields
-    <crowd_env.core.state.CrowdState.array_fields>`, :func:`plain_walking`)."""
-    return pair_radius_m(Bodies(*bodies), index, named_walking(walking))
-
-
-@nb.njit(cache=True)
-def python_intents(bodies, world, index, e_d, travel_time_s, pairs, walking, time_s):
-    """:func:`baseline_intents` called from Python, the bundles as plain tuples (:meth:`CrowdState.array_fields
-    <crowd_env.core.state.CrowdState.array_fields>`, ``tuple(Simulator.world)``, :func:`plain_walking`)."""
-    return baseline_intents(Bodies(*bodies), World(*world), index, e_d, travel_time_s, pairs, named_walking(walking),
-                            time_s)
 
 
 def travel_time(navigation, position_m: np.ndarray, index: np.ndarray) -> np.ndarray:
@@ -456,10 +466,12 @@ class SocialForceAgent:
         e_d = self.desired_direction(sim, idx)
         times = np.asarray(travel_time(self.navigation, st.position_m, idx), np.float64) \
             if walking.vision.right_of_way or walking.give_way.share > 0.0 else _NO_TIMES
-        bodies = st.array_fields()
-        radius = python_pair_radius_m(bodies, idx, plain)
-        pairs = sim.neighbor_pairs(radius) if radius >= 0.0 else _NO_PAIRS
-        return python_intents(bodies, sim.world_fields(), idx, e_d, times, pairs, plain, float(sim.time_s))
+        built_pairs, built_radius_m = sim.built_pairs()
+        intents, theta_d, pairs, radius = python_decide(st.array_fields(), sim.world_fields(), idx, e_d, times,
+                                                        built_pairs, built_radius_m, plain, float(sim.time_s))
+        if radius > built_radius_m:
+            sim.keep_pairs(pairs, radius)
+        return intents, theta_d
 
 
 _NO_TIMES = np.zeros(0)

@@ -308,6 +308,13 @@ class RecordedView:
         """Pairs of rows into :attr:`active_index` within ``radius_m`` (as :meth:`Simulator.neighbor_pairs`)."""
         return grid_pairs(self.state.position_m, self.active_index, float(radius_m), 0.0)
 
+    def built_pairs(self) -> tuple:
+        """None built ahead (as :meth:`Simulator.built_pairs` before any): an empty list, radius −1."""
+        return np.zeros((0, 2), np.int64), -1.0
+
+    def keep_pairs(self, pairs: np.ndarray, radius_m: float) -> None:
+        """Nothing to keep: a view is read once (:meth:`Simulator.keep_pairs`)."""
+
 
 def calibrated_actions(replay, scenario, params: ModelParams, k: int, rows: np.ndarray) -> np.ndarray:
     """The calibrated agent's intents (len(rows), 2), world frame, of the file rows ``rows`` on the recorded
