@@ -41,7 +41,7 @@ from .trajectories import Trajectories, require_pedpy
 __all__ = ["SteadyStateFigures", "UORun", "juelich_uo_runs", "uo_run", "recorded_uo_trajectories", "uo_measurement_walkable_area",
            "uo_measurement_area", "steady_frames", "UORunMeasures", "measure_uo_run", "crossing_times_s",
            "STEADY_CROSSING_FRACTIONS", "UO_FRAME_RATE_PER_S", "UO_SPEED_FRAME_STEP", "DoorPassage", "door_passage",
-           "approach_profile", "uo_scenario"]
+           "approach_profile", "NeighbourSpacing", "neighbour_spacing", "uo_scenario"]
 
 UO_FRAME_RATE_PER_S = 16.0  # the recordings' frame rate
 UO_SPEED_FRAME_STEP = 5  # individual speeds over ±5 frames (±0.3125 s), PedPy's notebook
@@ -99,7 +99,6 @@ def uo_run(name: str) -> UORun:
         if run.name == name:
             return run
     raise NotFoundError(f"no Jülich corridor run {name!r}; the runs are {[r.name for r in juelich_uo_runs()]}")
-
 
 def uo_scenario(name: str, **options):
     """The ``juelich_corridor`` scenario of run ``name`` (its entrance, corridor and exit widths and N; seed 0 unless
@@ -274,13 +273,10 @@ def approach_profile(trajectories: Trajectories, *, corridor_width_m: float, win
     thins and speeds up into its exit. Returns ``(band centres (m), density, speed)``."""
     f0, f1 = window_frames
     fps = trajectories.frame_rate_per_s
-    order = np.lexsort((trajectories.frame, trajectories.id))
-    ids, frame = trajectories.id[order], trajectories.frame[order]
-    x, y = trajectories.x_m[order], trajectories.y_m[order]
+    ids, frame, x, y = _by_walker(trajectories)
     s = UO_SPEED_FRAME_STEP
-    speed = np.full(x.size, np.nan)
-    ok = np.flatnonzero((ids[2 * s:] == ids[:-2 * s]) & (frame[2 * s:] - frame[:-2 * s] == 2 * s)) + s
-    speed[ok] = np.hypot(x[ok + s] - x[ok - s], y[ok + s] - y[ok - s]) * fps / (2 * s)
+    dx, dy = _displacements(ids, frame, x, y)
+    speed = np.hypot(dx, dy) * fps / (2 * s)
     edges = np.asarray(edges_y_m, dtype=np.float64)
     in_window = (frame >= f0) & (frame <= f1) & (x >= 0.0) & (x <= corridor_width_m)
     n_frames = f1 - f0 + 1
@@ -292,3 +288,91 @@ def approach_profile(trajectories: Trajectories, *, corridor_width_m: float, win
         v = v[np.isfinite(v)]
         mean_speed.append(float(v.mean()) if v.size else float("nan"))
     return 0.5 * (edges[:-1] + edges[1:]), np.array(density), np.array(mean_speed)
+
+
+def _by_walker(trajectories: Trajectories) -> tuple:
+    """``(id, frame, x, y)`` of ``trajectories`` sorted by walker, then frame."""
+    order = np.lexsort((trajectories.frame, trajectories.id))
+    return trajectories.id[order], trajectories.frame[order], trajectories.x_m[order], trajectories.y_m[order]
+
+
+def _displacements(ids, frame, x, y) -> tuple:
+    """Each row's displacement (dx, dy) from 5 frames before to 5 frames after (``UO_SPEED_FRAME_STEP``: PedPy's
+    notebook's ±5), rows sorted by walker then frame (:func:`_by_walker`); NaN where the walker is not seen at both."""
+    s = UO_SPEED_FRAME_STEP
+    dx, dy = np.full(x.size, np.nan), np.full(x.size, np.nan)
+    ok = np.flatnonzero((ids[2 * s:] == ids[:-2 * s]) & (frame[2 * s:] - frame[:-2 * s] == 2 * s)) + s
+    dx[ok] = x[ok + s] - x[ok - s]
+    dy[ok] = y[ok + s] - y[ok - s]
+    return dx, dy
+
+
+@dataclass(frozen=True)
+class NeighbourSpacing:
+    """How close walkers come to each other, by bearing (:func:`neighbour_spacing`): per bearing bin (edges
+    ``bearing_edges_deg``, 0° = straight ahead or behind along the walker's velocity, 90° = beside it), the
+    ``quantiles`` of the centre distance to every other walker within the search radius (``distance_m``, bins ×
+    quantiles, m; NaN for an empty bin), the number of pairs in each bin (``n_pairs``) and the share of them closer
+    than ``closer_than_m`` (``share_closer``)."""
+
+    bearing_edges_deg: np.ndarray
+    quantiles: tuple
+    distance_m: np.ndarray
+    n_pairs: np.ndarray
+    closer_than_m: float
+    share_closer: np.ndarray
+
+
+def neighbour_spacing(trajectories: Trajectories, *, area: Polygon, window_frames: tuple, max_distance_m: float = 1.0,
+                      min_speed_m_s: float = 0.1, bearing_edges_deg=(0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0),
+                      quantiles=(0.01, 0.05, 0.5), closer_than_m: float = 0.46) -> NeighbourSpacing:
+    """The centre distances from each walker in ``area`` on the frames of ``window_frames`` (first, last) who moves at
+    least ``min_speed_m_s`` (speed over ±5 frames, as :func:`measure_uo_run`'s) to every other walker of the same
+    frame within ``max_distance_m``, binned by the bearing of the other from the walker's velocity folded into
+    [0°, 90°] (0°: ahead or behind, 90°: beside): what the bodies let people do, front to back against side by side.
+    The same function measures a recording and a model run (for a disk model no distance is below 2 r)."""
+    edges = np.asarray(bearing_edges_deg, dtype=np.float64)
+    q = tuple(float(v) for v in quantiles)
+    if edges.ndim != 1 or edges.size < 2 or np.any(np.diff(edges) <= 0) or edges[0] < 0.0 or edges[-1] > 90.0:
+        raise ExperimentError(f"bearing_edges_deg must increase within [0, 90], got {bearing_edges_deg!r}")
+    if not q or any(not 0.0 <= v <= 1.0 for v in q):
+        raise ExperimentError(f"quantiles must lie in [0, 1], got {quantiles!r}")
+    if not (max_distance_m > 0.0 and min_speed_m_s >= 0.0 and closer_than_m > 0.0):
+        raise ExperimentError(f"neighbour_spacing needs max_distance_m > 0, min_speed_m_s >= 0 and closer_than_m > 0, "
+                              f"got {max_distance_m}, {min_speed_m_s}, {closer_than_m}")
+    f0, f1 = (int(f) for f in window_frames)
+    if f1 < f0:
+        raise ExperimentError(f"window_frames must be (first, last) with first <= last, got {window_frames!r}")
+    fps = trajectories.frame_rate_per_s
+    ids, frame, x, y = _by_walker(trajectories)
+    dx, dy = _displacements(ids, frame, x, y)
+    vx, vy = dx * fps / (2 * UO_SPEED_FRAME_STEP), dy * fps / (2 * UO_SPEED_FRAME_STEP)
+    in_window = (frame >= f0) & (frame <= f1)
+    moving = in_window & (np.hypot(vx, vy) >= min_speed_m_s) & shapely.contains_xy(area, x, y)
+    distances, bearings = [], []
+    rows = np.flatnonzero(in_window)
+    rows = rows[np.argsort(frame[rows], kind="stable")]
+    for part in np.split(rows, np.flatnonzero(np.diff(frame[rows])) + 1):
+        walkers = part[moving[part]]
+        if not walkers.size or part.size < 2:
+            continue
+        ex, ey = x[part][None, :] - x[walkers][:, None], y[part][None, :] - y[walkers][:, None]
+        d = np.hypot(ex, ey)
+        near = (d <= max_distance_m) & (walkers[:, None] != part[None, :])
+        a, b = np.nonzero(near)
+        along = np.abs(ex[a, b] * vx[walkers[a]] + ey[a, b] * vy[walkers[a]]) / (d[a, b] * np.hypot(vx[walkers[a]],
+                                                                                                   vy[walkers[a]]))
+        distances.append(d[a, b])
+        bearings.append(np.degrees(np.arccos(np.clip(along, 0.0, 1.0))))
+    d = np.concatenate(distances) if distances else np.zeros(0)
+    phi = np.concatenate(bearings) if bearings else np.zeros(0)
+    n_bins = edges.size - 1
+    table, counts, share = np.full((n_bins, len(q)), np.nan), np.zeros(n_bins, np.int64), np.full(n_bins, np.nan)
+    for k in range(n_bins):
+        last = k == n_bins - 1
+        m = (phi >= edges[k]) & ((phi <= edges[k + 1]) if last else (phi < edges[k + 1]))
+        counts[k] = int(np.count_nonzero(m))
+        if counts[k]:
+            table[k] = np.quantile(d[m], q)
+            share[k] = float(np.mean(d[m] < closer_than_m))
+    return NeighbourSpacing(edges, q, table, counts, float(closer_than_m), share)

@@ -137,3 +137,36 @@ def test_door_passage_and_approach_profile_of_a_known_stream():
     np.testing.assert_allclose(density, 1.25 / 0.9, rtol=0.03)
     np.testing.assert_allclose(speed, 0.8, rtol=1e-9)
     assert centres[0] == -3.75 and centres[-1] == -0.25
+
+
+def test_neighbour_spacing_of_a_lattice_by_bearing():
+    """Three files 0.35 m apart, rows 0.6 m apart, walking towards −y at 0.8 m/s: within 1 m a walker has the next row
+    ahead and behind at 0.6 m (bearing 0°), the files beside at 0.35 and 0.70 m (90°) and the diagonals at
+    0.695 m (30.3°) and 0.922 m (49.4°); beside, 4 of the 6 pairs of a row are closer than 0.46 m. Walkers slower
+    than the threshold are not counted."""
+    from crowd_env.analysis.corridor_runs import neighbour_spacing, uo_measurement_area
+
+    traj = _lattice(columns_x_m=(0.5, 0.85, 1.2), row_spacing_m=0.6, speed_m_s=0.8, frames=64)
+    sp = neighbour_spacing(traj, area=uo_measurement_area(1.8), window_frames=(20, 40), quantiles=(0.01, 0.5, 1.0))
+    np.testing.assert_allclose(sp.distance_m[0], 0.6, atol=1e-9)  # 0-15°: the rows ahead and behind
+    assert np.isnan(sp.distance_m[1]).all() and sp.n_pairs[1] == 0  # 15-30°: nobody
+    np.testing.assert_allclose(sp.distance_m[2], np.hypot(0.35, 0.6), atol=1e-9)
+    np.testing.assert_allclose(sp.distance_m[3], np.hypot(0.7, 0.6), atol=1e-9)
+    assert sp.n_pairs[4] == 0
+    np.testing.assert_allclose(sp.distance_m[5], [0.35, 0.35, 0.70], atol=1e-9)  # beside: 0.35 (4 of 6), 0.70
+    assert sp.share_closer[5] == pytest.approx(4 / 6) and sp.share_closer[0] == 0.0
+    assert 4 * sp.n_pairs[5] == 3 * sp.n_pairs[2]  # per row: 6 pairs beside, 8 on the 30° diagonals
+    slow = neighbour_spacing(_lattice(columns_x_m=(0.5, 0.85, 1.2), row_spacing_m=0.6, speed_m_s=0.05, frames=64),
+                             area=uo_measurement_area(1.8), window_frames=(20, 40))
+    assert slow.n_pairs.sum() == 0 and np.isnan(slow.distance_m).all()
+
+
+@pytest.mark.parametrize("bad", [{"bearing_edges_deg": (0.0, 100.0)}, {"bearing_edges_deg": (30.0, 10.0)},
+                                 {"quantiles": (0.5, 1.5)}, {"max_distance_m": 0.0}, {"window_frames": (40, 20)}])
+def test_neighbour_spacing_refuses_bad_input(bad):
+    from crowd_env.analysis.corridor_runs import neighbour_spacing, uo_measurement_area
+    from crowd_env.errors import ExperimentError
+
+    traj = _lattice(columns_x_m=(0.5,), row_spacing_m=0.6, speed_m_s=0.8, frames=20)
+    with pytest.raises(ExperimentError):
+        neighbour_spacing(traj, **{"area": uo_measurement_area(1.8), "window_frames": (5, 15), **bad})

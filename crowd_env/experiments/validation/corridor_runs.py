@@ -24,7 +24,8 @@ import numpy as np
 from crowd_env.errors import InputError
 
 from ...analysis.corridor_runs import (UO_FRAME_RATE_PER_S, approach_profile, door_passage, juelich_uo_runs,
-                                      measure_uo_run, recorded_uo_trajectories, uo_run)
+                                      measure_uo_run, neighbour_spacing, recorded_uo_trajectories,
+                                      uo_measurement_area, uo_run)
 from ...scenarios.juelich_corridor import UO_CORRIDOR_END_Y_M
 from ...core.params import PedestrianDefaults
 from ...walking.model import ModelParams
@@ -94,17 +95,23 @@ def run_corridor_one(task: dict) -> dict:
 
 def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: float, window_frames: tuple) -> dict:
     """How a run passes its exit and approaches it over its steady state, as JSON-able record fields: ``exit_*``
-    (:func:`~crowd_env.analysis.corridor_runs.door_passage` at y = −4 m across the exit) and ``approach_*``
-    (:func:`~crowd_env.analysis.corridor_runs.approach_profile`: density and speed in 0.5 m bands before it). The
-    same function measures the recordings (:func:`recorded_passage_figures`)."""
+    (:func:`~crowd_env.analysis.corridor_runs.door_passage` at y = −4 m across the exit), ``approach_*``
+    (:func:`~crowd_env.analysis.corridor_runs.approach_profile`: density and speed in 0.5 m bands before it) and
+    ``spacing_*`` (:func:`~crowd_env.analysis.corridor_runs.neighbour_spacing` in the measurement area: how close
+    walkers come to each other ahead and beside, its bearing edges, the 1 %, 5 % and 50 % quantiles of the distance
+    per bin and the share closer than 0.46 m, two radii of Kabalan's body). The same function measures the
+    recordings (:func:`recorded_passage_figures`)."""
     half = 0.5 * exit_width_m
     centre = 0.5 * corridor_width_m
     door = door_passage(trajectories, y_m=UO_CORRIDOR_END_Y_M, x_range_m=(centre - half, centre + half),
                         window_frames=window_frames)
     y, density, speed = approach_profile(trajectories, corridor_width_m=corridor_width_m, window_frames=window_frames)
+    spacing = neighbour_spacing(trajectories, area=uo_measurement_area(corridor_width_m), window_frames=window_frames)
     return {"exit_headway_median_s": door.headway_median_s, "exit_speed_median_m_s": door.speed_median_m_s,
             "exit_lateral_sd_m": door.lateral_sd_m, "approach_y_m": y.tolist(), "approach_density_per_m2": density.tolist(),
-            "approach_speed_m_s": speed.tolist()}
+            "approach_speed_m_s": speed.tolist(), "spacing_bearing_edges_deg": spacing.bearing_edges_deg.tolist(),
+            "spacing_q01_m": spacing.distance_m[:, 0].tolist(), "spacing_q05_m": spacing.distance_m[:, 1].tolist(),
+            "spacing_median_m": spacing.distance_m[:, 2].tolist(), "spacing_share_closer": spacing.share_closer.tolist()}
 
 
 def recorded_passage_figures(name: str) -> dict:

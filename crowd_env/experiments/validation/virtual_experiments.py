@@ -48,7 +48,8 @@ from crowd_env.files import write_atomic, write_csv_atomic
 __all__ = ["EXPERIMENTS", "VirtualPlan", "QUICK_PLAN", "virtual_config", "virtual_tasks", "run_virtual_task",
            "run_virtual_experiments", "virtual_rows", "ROW_COLUMNS", "format_rows", "write_virtual_outputs",
            "virtual_figure", "snapshot_figure", "BOTTLENECK_TOLERANCE", "SINGLE_FILE_TOLERANCE_M_S",
-           "PASSAGE_QUANTITIES", "passage_rows", "format_passage_rows", "approach_figure"]
+           "PASSAGE_QUANTITIES", "passage_rows", "format_passage_rows", "approach_figure", "spacing_rows",
+           "format_spacing_rows", "spacing_figure"]
 
 EXPERIMENTS = ("bottleneck", "corridor", "single_file")
 BOTTLENECK_TOLERANCE = 0.05  # J_s of N = 60 within ±5 % of Seyfried's
@@ -471,10 +472,79 @@ def format_passage_rows(rows: list) -> str:
     return "\n".join(lines)
 
 
+def _spaced_runs(records: list) -> list:
+    """The complete corridor records carrying the spacing figures, by run name."""
+    runs = {}
+    for r in records:
+        if r.get("experiment") == "corridor" and r["complete"] and "spacing_q05_m" in r:
+            runs.setdefault(r["run"], []).append(r)
+    return sorted(runs.items())
+
+
+def spacing_rows(records: list) -> list:
+    """How close walkers come to each other ahead or behind (the first bearing bin, 0-15°) and beside (the last,
+    75-90°) in the measurement area of each corridor run, the model's seed mean beside the recording measured by the
+    same function (:func:`~crowd_env.experiments.validation.corridor_runs.passage_figures`, ``spacing_*``): the 5 %
+    quantile of the distance and the share of pairs closer than 0.46 m."""
+    from .corridor_runs import recorded_passage_figures
+
+    rows = []
+    for name, rs in _spaced_runs(records):
+        recorded = recorded_passage_figures(name)
+        edges = recorded["spacing_bearing_edges_deg"]
+        for k, where in ((0, "ahead or behind"), (len(edges) - 2, "beside")):
+            label = f"{where} ({edges[k]:g}-{edges[k + 1]:g}°)"
+            for key, quantity in (("spacing_q05_m", "distance, 5 % quantile (m)"),
+                                  ("spacing_share_closer", "share closer than 0.46 m")):
+                mean, sd = _stats([r[key][k] for r in rs])
+                rows.append({"run": name, "bearing": label, "quantity": quantity, "model": mean, "model_sd": sd,
+                             "recorded": recorded[key][k], "runs": len(rs)})
+    return rows
+
+
+def format_spacing_rows(rows: list) -> str:
+    """The rows of :func:`spacing_rows` as a Markdown table."""
+    lines = ["| run | bearing | quantity | model | recorded |", "|---|---|---|---|---|"]
+    lines += [f"| {r['run']} | {r['bearing']} | {r['quantity']} | {_cell(r['model'], r['model_sd'])} | "
+              f"{_cell(r['recorded'])} |" for r in rows]
+    return "\n".join(lines)
+
+
+def spacing_figure(records: list, path) -> Path | None:
+    """The 5 % quantile of the distance between walkers against the bearing, per corridor run, the recording beside
+    the model's seed mean, with two radii of Kabalan's body (0.46 m) drawn (None without such runs)."""
+    from .corridor_runs import recorded_passage_figures
+
+    runs = _spaced_runs(records)
+    if not runs:
+        return None
+    plt = pyplot()
+    cols = min(3, len(runs))
+    rows_n = -(-len(runs) // cols)
+    fig, axes = plt.subplots(rows_n, cols, figsize=(4.0 * cols, 3.2 * rows_n), squeeze=False)
+    for ax in axes.ravel()[len(runs):]:
+        ax.set_visible(False)
+    for ax, (name, rs) in zip(axes.ravel(), runs):
+        recorded = recorded_passage_figures(name)
+        edges = np.asarray(recorded["spacing_bearing_edges_deg"])
+        centres = 0.5 * (edges[:-1] + edges[1:])
+        ax.plot(centres, recorded["spacing_q05_m"], "o-", mfc="white", color="k", label="recorded")
+        model = np.nanmean(np.array([r["spacing_q05_m"] for r in rs], dtype=np.float64), axis=0)
+        ax.plot(centres, model, "o-", color="C3", label=f"model ({len(rs)} runs)")
+        ax.axhline(0.46, color="0.5", ls="--", lw=1)
+        ax.set_title(name, fontsize=9)
+        ax.set_xlabel("bearing from the velocity (°): 0 ahead/behind, 90 beside")
+        ax.set_ylabel("distance, 5 % quantile (m)")
+        ax.set_ylim(0.2, 0.9)
+        ax.legend(fontsize=7)
+    return save_figure(fig, Path(path))
+
+
 def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True) -> list:
     """``OUT/virtual_experiments.csv`` (the rows), ``.md`` (the table in Markdown) and, with ``figure``,
     ``.png``; with runs of the narrowed exits also ``OUT/door_passage.md`` (:func:`passage_rows`) and, with
-    ``figure``, ``OUT/approach.png`` (:func:`approach_figure`); returns the paths."""
+    ``figure``, ``OUT/approach.png`` (:func:`approach_figure`); with corridor runs ``OUT/spacing.md``
+    (:func:`spacing_rows`) and, with ``figure``, ``OUT/spacing.png`` (:func:`spacing_figure`); returns the paths."""
     out = Path(out)
     paths = [out / "virtual_experiments.csv", out / "virtual_experiments.md"]
     write_csv_atomic(paths[0], ROW_COLUMNS, rows)
@@ -487,6 +557,12 @@ def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True
         write_atomic(paths[-1], format_passage_rows(passages) + "\n")
         if figure:
             paths.append(approach_figure(records, out / "approach.png"))
+    spacing = spacing_rows(records)
+    if spacing:
+        paths.append(out / "spacing.md")
+        write_atomic(paths[-1], format_spacing_rows(spacing) + "\n")
+        if figure:
+            paths.append(spacing_figure(records, out / "spacing.png"))
     return paths
 
 

@@ -4,6 +4,7 @@ the command's table and files."""
 from __future__ import annotations
 
 import csv
+import json
 import math
 
 import numpy as np
@@ -153,6 +154,14 @@ def test_joint_passes_the_070_m_exit_and_keeps_what_it_was_calibrated_to_meet(tm
     assert all(int(r["complete"]) == 2 and int(r["stalled"]) == 0 for r in corridor)
     door = [r for r in table if r["experiment"] == "bottleneck" and r["quantity"].startswith("J_s")]
     assert len(door) == 1 and door[0]["within"] == "True", door
+    # How close walkers come (spacing.md): never closer than the disks' two radii (no overlap), where the recorded
+    # people walk beside each other closer than that (docs/validation/virtual_experiments.md, "The body").
+    records = [json.loads(p.read_text())["record"] for p in (tmp_path / "runs").glob("*.json")]
+    spaced = [r for r in records if r.get("experiment") == "corridor"]
+    assert len(spaced) == 4 and all(np.nanmin(r["spacing_q01_m"]) >= 2 * 0.214 - 1e-3 for r in spaced)
+    rows = (tmp_path / "spacing.md").read_text().splitlines()
+    beside = [r.split("|") for r in rows if "beside" in r and "5 % quantile" in r]
+    assert len(beside) == 2 and all(float(cells[5]) < 2 * 0.214 for cells in beside)  # recorded, beside
 
 
 def test_a_learned_policy_drives_every_run_and_an_unknown_one_is_refused(capsys):
