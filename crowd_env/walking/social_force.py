@@ -9,6 +9,12 @@ between i's desired direction e_d,i (Eq. 13) and the direction from i to j: a ne
 counts fully, one straight behind with weight λ (λ = 1 is isotropic). The force on j uses j's own
 weight, so Newton's third law holds only for λ = 1. Forces act at the centre (no torque).
 
+A candidate beyond the paper (off by default): with ``lateral_range_scale`` s < 1 the range depends on the
+bearing as well, B(φ) = B √(cos²φ + s² sin²φ): B for a neighbour ahead or behind, s B for one beside (an
+ellipse of ranges along e_d, in the spirit of the elliptical specification of Johansson, Helbing & Shukla
+2007). The recordings of the Jülich corridor runs show people coming closer beside each other than ahead
+(:func:`crowd_env.analysis.corridor_runs.neighbour_spacing`); one range B holds them apart alike in both.
+
 Walls: the paper defines Eq. 16 between pedestrians only (its walls act through the Frémond collisions
 alone); the wall term here is Helbing, Farkas & Vicsek's (2000), with R = r_i, d the distance to the
 wall's closest point, n the wall's normal into the pedestrian, and its own strength and range
@@ -42,13 +48,15 @@ _TINY_M = 1e-12  # centre distances below this have no defined direction: the pa
 class SocialForce(NamedTuple):
     """Eq. 16 between pedestrians (the model's ``social_<field>`` parameters): ``forces`` on or off, A
     ``strength_n``, B ``range_m``, λ ``anisotropy`` (1 = isotropic; Eq. 16 states 0 < λ < 1), pairs interacting while
-    their surface gap is below ``cutoff_m`` (walls too). Defaults: Kabalan's validation point (Section 4.1.3)."""
+    their surface gap is below ``cutoff_m`` (walls too), and s ``lateral_range_scale`` (0 < s ≤ 1; 1, the default, is
+    Eq. 16: the range does not depend on the bearing). Defaults: Kabalan's validation point (Section 4.1.3)."""
 
     forces: bool = True
     strength_n: float = 790.0
     range_m: float = 0.08
     anisotropy: float = 1.0
     cutoff_m: float = 1.0
+    lateral_range_scale: float = 1.0  # s: the range beside a walker is s B (module docstring); 1: Eq. 16's
 
     def checked(self) -> "SocialForce":
         """This group, once its values are checked (:class:`~crowd_env.errors.ParameterError` naming the model
@@ -60,12 +68,15 @@ class SocialForce(NamedTuple):
                 or not 0.0 <= self.anisotropy <= 1.0:
             raise ParameterError(f"social_anisotropy (lambda) must lie in [0, 1], got {self.anisotropy!r}")
         check_parameter("social_cutoff_m", self.cutoff_m, positive=True)
+        check_parameter("social_lateral_range_scale", self.lateral_range_scale, positive=True)
+        if self.lateral_range_scale > 1.0:
+            raise ParameterError(f"social_lateral_range_scale (s) must lie in (0, 1], got {self.lateral_range_scale!r}")
         return self
 
     def resolved(self) -> "SocialForce":
         """Plain numbers for the kernels (one numba type whatever was given)."""
         return SocialForce(bool(self.forces), float(self.strength_n), float(self.range_m), float(self.anisotropy),
-                           float(self.cutoff_m))
+                           float(self.cutoff_m), float(self.lateral_range_scale))
 
 
 class WallForce(NamedTuple):
@@ -92,11 +103,8 @@ class WallForce(NamedTuple):
 
 
 @nb.njit(cache=True, inline="always")
-def _anisotropy_weight(ex, ey, ux, uy, anisotropy):
-    """w = λ + (1 - λ)(1 + cos φ)/2 (Eq. 16), φ between desired direction e and unit vector u.
-
-    A zero desired direction gives cos φ = 0 (weight (1 + λ)/2).
-    """
+def _cos_bearing(ex, ey, ux, uy):
+    """cos φ, φ between the desired direction e and the unit vector u; 0 for a zero desired direction."""
     norm = np.sqrt(ex * ex + ey * ey)
     cos_phi = 0.0
     if norm > 0.0:
@@ -105,17 +113,34 @@ def _anisotropy_weight(ex, ey, ux, uy, anisotropy):
             cos_phi = 1.0
         elif cos_phi < -1.0:
             cos_phi = -1.0
-    return anisotropy + (1.0 - anisotropy) * 0.5 * (1.0 + cos_phi)
+    return cos_phi
+
+
+@nb.njit(cache=True, inline="always")
+def _anisotropy_weight(ex, ey, ux, uy, anisotropy):
+    """w = λ + (1 - λ)(1 + cos φ)/2 (Eq. 16), φ between desired direction e and unit vector u.
+
+    A zero desired direction gives cos φ = 0 (weight (1 + λ)/2).
+    """
+    return anisotropy + (1.0 - anisotropy) * 0.5 * (1.0 + _cos_bearing(ex, ey, ux, uy))
+
+
+@nb.njit(cache=True, inline="always")
+def _bearing_range_m(ex, ey, ux, uy, range_m, lateral_scale):
+    """B(φ) = B √(cos²φ + s² sin²φ): B ahead and behind, s B beside (φ between the desired direction e and u)."""
+    c = _cos_bearing(ex, ey, ux, uy)
+    return range_m * np.sqrt(c * c + lateral_scale * lateral_scale * (1.0 - c * c))
 
 
 @nb.njit(cache=True)
 def social_forces(position, radius, desired_direction, pairs, strength_n, range_m, anisotropy, cutoff_m, out,
-                  period_m=0.0):
+                  period_m=0.0, lateral_range_scale=1.0):
     """Accumulate pedestrian-pedestrian repulsion (Eq. 16) into ``out`` (N, 2), in newtons.
 
     ``pairs`` (P, 2) int: unordered index pairs (i, j); each contributes f_ij to i and f_ji to j.
     Pairs with surface gap d_ij - R_ij > ``cutoff_m`` or coincident centres are skipped. ``period_m`` L > 0:
-    x is periodic (nearest images).
+    x is periodic (nearest images). ``lateral_range_scale`` s < 1: each walker sees the other with the range
+    B(φ) = B √(cos²φ + s² sin²φ) (module docstring).
     """
     for p in range(pairs.shape[0]):
         i = pairs[p, 0]
@@ -128,14 +153,20 @@ def social_forces(position, radius, desired_direction, pairs, strength_n, range_
             continue
         nx = dx / d  # n_ji: unit vector from j to i
         ny = dy / d
-        mag = strength_n * np.exp(-gap / range_m)
         # i sees j in direction -n_ji; j sees i in direction +n_ji.
         wi = _anisotropy_weight(desired_direction[i, 0], desired_direction[i, 1], -nx, -ny, anisotropy)
         wj = _anisotropy_weight(desired_direction[j, 0], desired_direction[j, 1], nx, ny, anisotropy)
-        out[i, 0] += mag * wi * nx
-        out[i, 1] += mag * wi * ny
-        out[j, 0] -= mag * wj * nx
-        out[j, 1] -= mag * wj * ny
+        if lateral_range_scale == 1.0:  # Eq. 16: one range, one magnitude for both
+            mag_i = mag_j = strength_n * np.exp(-gap / range_m)
+        else:
+            mag_i = strength_n * np.exp(-gap / _bearing_range_m(desired_direction[i, 0], desired_direction[i, 1], -nx,
+                                                                -ny, range_m, lateral_range_scale))
+            mag_j = strength_n * np.exp(-gap / _bearing_range_m(desired_direction[j, 0], desired_direction[j, 1], nx,
+                                                                ny, range_m, lateral_range_scale))
+        out[i, 0] += mag_i * wi * nx
+        out[i, 1] += mag_i * wi * ny
+        out[j, 0] -= mag_j * wj * nx
+        out[j, 1] -= mag_j * wj * ny
     return out
 
 
@@ -183,7 +214,7 @@ def total_social_forces(position, radius, desired_direction, pairs, index, segme
     (:meth:`WallForce.resolved`), accumulated into ``out``; also called from other compiled code. ``period_m``:
     the periodicity along x of the pedestrians' displacements (0: none)."""
     social_forces(position, radius, desired_direction, pairs, social.strength_n, social.range_m, social.anisotropy,
-                  social.cutoff_m, out, period_m)
+                  social.cutoff_m, out, period_m, social.lateral_range_scale)
     return wall_forces_within(position, radius, desired_direction, index, segments, owner, wall.strength_n,
                               wall.range_m, social.anisotropy, social.cutoff_m, out)
 
@@ -225,7 +256,8 @@ def social_repulsion(position, radius, desired_direction, pairs, segments, owner
 
 
 def social_forces_dense_reference(position, radius, desired_direction, segments, strength_n, range_m, anisotropy,
-                                  cutoff_m, wall_strength_n=None, wall_range_m=None, corner_tol_m=1e-9):
+                                  cutoff_m, wall_strength_n=None, wall_range_m=None, corner_tol_m=1e-9,
+                                  lateral_range_scale=1.0):
     """Slow dense reference of Eq. 16 for tests: all N² pairs and all walls, plain loops.
 
     Independent of the kernels' pair lists; walls follow the convention of
@@ -240,11 +272,19 @@ def social_forces_dense_reference(position, radius, desired_direction, segments,
     lam = anisotropy
     force = np.zeros((n, 2))
 
-    def weight(i, u):
+    def cos_bearing(i, u):
         e = desired_direction[i]
         ne = np.linalg.norm(e)
-        cos_phi = 0.0 if ne == 0 else float(np.clip(e @ u / ne, -1.0, 1.0))
-        return lam + (1.0 - lam) * (1.0 + cos_phi) / 2.0
+        return 0.0 if ne == 0 else float(np.clip(e @ u / ne, -1.0, 1.0))
+
+    def weight(i, u):
+        return lam + (1.0 - lam) * (1.0 + cos_bearing(i, u)) / 2.0
+
+    def pair_range(i, u):
+        if lateral_range_scale == 1.0:
+            return range_m
+        c = cos_bearing(i, u)
+        return range_m * np.sqrt(c ** 2 + lateral_range_scale ** 2 * (1.0 - c ** 2))
 
     for i in range(n):
         for j in range(n):
@@ -255,7 +295,8 @@ def social_forces_dense_reference(position, radius, desired_direction, segments,
             if d < _TINY_M or d - radius[i] - radius[j] > cutoff_m:
                 continue
             n_ji = diff / d
-            force[i] += strength_n * np.exp((radius[i] + radius[j] - d) / range_m) * weight(i, -n_ji) * n_ji
+            force[i] += strength_n * np.exp((radius[i] + radius[j] - d) / pair_range(i, -n_ji)) * weight(i, -n_ji) \
+                * n_ji
         for k in range(segments.shape[0]):
             cx, cy, t = closest_point_on_segment(position[i, 0], position[i, 1], *segments[k])
             c = np.array([cx, cy])

@@ -167,3 +167,37 @@ def test_wall_repulsion_index_subset_and_empty_inputs():
     with pytest.raises(ValueError, match="outside"):
         social_repulsion(pos, np.full(2, 0.23), np.zeros((2, 2)), [[0, 2]], as_segments([]),
                          endpoint_owners(as_segments([])), *_groups(ModelParams()))
+
+
+def test_lateral_range_scale_shortens_the_range_beside_only():
+    """B(φ) = B √(cos²φ + s² sin²φ): a neighbour straight ahead feels B, one straight beside s B, one at 60° the
+    ellipse's range between them; s = 1 is Eq. 16 to the bit."""
+    s, lam = 0.4, 0.3
+    out = lambda pos, desired, scale: social_forces(np.asarray(pos, float), np.array([0.23, 0.23]),
+                                                     np.asarray(desired, float), np.array([[0, 1]], np.int64),
+                                                     A_N, B_M, lam, 1.0, np.zeros((2, 2)), 0.0, scale)
+    gap = 0.6 - 0.46
+    beside = out([[0.0, 0.0], [0.6, 0.0]], [[0.0, 1.0], [0.0, 1.0]], s)  # each sees the other at 90°
+    w = lam + (1 - lam) * 0.5
+    np.testing.assert_allclose(beside, [[-A_N * math.exp(-gap / (s * B_M)) * w, 0.0],
+                                        [A_N * math.exp(-gap / (s * B_M)) * w, 0.0]], rtol=1e-13)
+    ahead = out([[0.0, 0.0], [0.0, 0.6]], [[0.0, 1.0], [0.0, 1.0]], s)  # j ahead of i, i behind j: B for both
+    np.testing.assert_array_equal(ahead, out([[0.0, 0.0], [0.0, 0.6]], [[0.0, 1.0], [0.0, 1.0]], 1.0))
+    phi = math.pi / 3
+    oblique = out([[0.0, 0.0], [0.6 * math.sin(phi), 0.6 * math.cos(phi)]], [[0.0, 1.0], [0.0, 1.0]], s)
+    b_i = B_M * math.sqrt(math.cos(phi) ** 2 + s ** 2 * math.sin(phi) ** 2)
+    w_i = lam + (1 - lam) * (1 + math.cos(phi)) / 2
+    assert np.hypot(*oblique[0]) == pytest.approx(A_N * math.exp(-gap / b_i) * w_i, rel=1e-13)
+    rng = np.random.default_rng(4)
+    pos = rng.uniform(0, 3, (12, 2))
+    radius = np.full(12, 0.2)
+    desired = rng.normal(size=(12, 2))
+    desired /= np.linalg.norm(desired, axis=1)[:, None]
+    pairs = np.array(sorted(cKDTree(pos).query_pairs(1.4)), np.int64)
+    got = social_forces(pos, radius, desired, pairs, A_N, B_M, lam, 1.0, np.zeros((12, 2)), 0.0, s)
+    ref = social_forces_dense_reference(pos, radius, desired, np.zeros((0, 4)), A_N, B_M, lam, 1.0,
+                                        lateral_range_scale=s)
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
+    with pytest.raises(ValueError, match="social_lateral_range_scale"):
+        ModelParams(social_lateral_range_scale=1.5)
+    assert ModelParams(social_lateral_range_scale=0.5).walking.social.lateral_range_scale == 0.5

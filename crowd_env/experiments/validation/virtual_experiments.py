@@ -533,9 +533,9 @@ def spacing_figure(records: list, path) -> Path | None:
         ax.plot(centres, model, "o-", color="C3", label=f"model ({len(rs)} runs)")
         ax.axhline(0.46, color="0.5", ls="--", lw=1)
         ax.set_title(name, fontsize=9)
-        ax.set_xlabel("bearing from the velocity (°): 0 ahead/behind, 90 beside")
-        ax.set_ylabel("distance, 5 % quantile (m)")
-        ax.set_ylim(0.2, 0.9)
+        ax.set_xlabel("bearing (°): 0 ahead or behind, 90 beside", fontsize=8)
+        ax.set_ylabel("distance, 5 % quantile (m)", fontsize=8)
+        ax.set_ylim(0.2, 1.0)
         ax.legend(fontsize=7)
     return save_figure(fig, Path(path))
 
