@@ -551,18 +551,15 @@ def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True
     write_atomic(paths[1], format_rows(rows, markdown=True) + "\n")
     if figure:
         paths.append(virtual_figure(records, out / "virtual_experiments.png"))
-    passages = passage_rows(records)
-    if passages:
-        paths.append(out / "door_passage.md")
-        write_atomic(paths[-1], format_passage_rows(passages) + "\n")
-        if figure:
-            paths.append(approach_figure(records, out / "approach.png"))
-    spacing = spacing_rows(records)
-    if spacing:
-        paths.append(out / "spacing.md")
-        write_atomic(paths[-1], format_spacing_rows(spacing) + "\n")
-        if figure:
-            paths.append(spacing_figure(records, out / "spacing.png"))
+    for table, make_rows, format_table, plot, picture in (
+            ("door_passage.md", passage_rows, format_passage_rows, approach_figure, "approach.png"),
+            ("spacing.md", spacing_rows, format_spacing_rows, spacing_figure, "spacing.png")):
+        found = make_rows(records)
+        if found:
+            paths.append(out / table)
+            write_atomic(paths[-1], format_table(found) + "\n")
+            if figure:
+                paths.append(plot(records, out / picture))
     return paths
 
 
