@@ -413,8 +413,9 @@ class SocialForceAgent:
     decision). The walking parameters (the social force, vision, ...) are the simulator's
     (:func:`walking_bundle` of ``sim.params``: a :class:`~crowd_env.walking.model.ModelParams`' own, the paper's
     for the core's physics alone). A call decides as :func:`agent_step` does, with the same
-    :func:`pair_radius_m` and :func:`baseline_intents`: e_d from the navigation object, the pairs from
-    ``sim.neighbor_pairs`` (which the step then reuses).
+    :func:`pair_radius_m` and :func:`baseline_intents` (:func:`decide_with`, one compiled call): e_d from the
+    navigation object, the pairs those the simulator built earlier in the step when they reach far enough
+    (``sim.built_pairs()``), else built in that call and kept for the step (``sim.keep_pairs``).
     """
 
     def __init__(self, navigation):
@@ -475,4 +476,3 @@ class SocialForceAgent:
 
 
 _NO_TIMES = np.zeros(0)
-_NO_PAIRS = np.zeros((0, 2), np.int64)
