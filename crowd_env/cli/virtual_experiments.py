@@ -5,7 +5,9 @@ Seyfried's bottleneck at its widths and group sizes, the nine Jülich corridor r
 (Voronoi density and speed in y in [−2, 0], exit flow), the single-file ring at its bins: one table row per case and
 quantity with the experiment's value, the tolerance and whether the model's mean over the complete runs lies within
 it; runs that stalled or stayed incomplete are counted, never averaged in. Writes ``OUT/virtual_experiments.csv``,
-``.md`` and ``.png`` (the density-speed plane, each run's model and experiment points joined). Runs are stored under
+``.md`` and ``.png`` (the density-speed plane, each run's model and experiment points joined), and beside the
+recordings measured alike: with corridor runs ``OUT/spacing.md`` and ``.png`` (how close walkers come ahead and
+beside), with narrowed exits ``OUT/door_passage.md`` and ``OUT/approach.png``. Runs are stored under
 ``OUT/runs/``: a stopped command resumes. The corridor runs are measured with PedPy (``pip install
 'crowd_env[analysis]'``).
 
