@@ -14,6 +14,7 @@ from crowd_env.experiments.validation.calibration.errors import CalibrationError
 from crowd_env.experiments.validation.calibration.objective import (FAILED_POINT_OBJECTIVE, corridor_runs_term,
                                                                     target_error, virtual_error)
 from crowd_env.experiments.validation.calibration.optimize import PointEvaluator
+from crowd_env.walking import ModelParams
 from crowd_env.experiments.validation.calibration.tasks import base_config, make_virtual_tasks
 from crowd_env.experiments.validation.fundamental_diagram import SINGLE_FILE_WIDTH_M
 from tests.experiments.validation.test_objective import WIDTHS, _fd_records, _records
@@ -123,6 +124,11 @@ def test_the_evaluator_scores_a_point_on_stand_in_runs_and_keeps_the_radius_to_t
     with pytest.raises(CalibrationError, match="radius is calibrated with --objective virtual"):
         targets.tasks({"radius": 0.2})
     assert np.isfinite(entry["epsilon_total"])
+    # A walking-model parameter freed by its name reaches every run's parameters (here the range beside a walker).
+    tasks = ev.tasks({"A": 300.0, "social_lateral_range_scale": 0.4})
+    with_params = [t for t in tasks if "params" in t]
+    assert len(with_params) == len(tasks) and all(
+        ModelParams.from_dict(t["params"]).walking.social.lateral_range_scale == 0.4 for t in with_params)
 
 
 def test_the_corridor_table_has_a_row_per_run_and_judges_each_on_every_tolerance():

@@ -62,6 +62,8 @@ FREE_PARAMETERS = {
     "A": FreeParameter("social_strength_n", "model", True, (1.0, 5000.0), 790.0, 0.4),
     "B": FreeParameter("social_range_m", "model", True, (0.005, 0.5), 0.08, 0.3),
     "lambda": FreeParameter("social_anisotropy", "model", False, (0.0, 1.0), 1.0, 0.2),
+    # the range beside a walker, s B (crowd_env.walking.social_force; 1: Eq. 16's one range)
+    "social_lateral_range_scale": FreeParameter("social_lateral_range_scale", "model", False, (0.05, 1.0), 0.5, 0.1),
     "tau": FreeParameter("tau_s", "pedestrian", True, (0.05, 3.0), 0.5, 0.2),
     "speed_mean": FreeParameter("desired_speed_mean_m_s", "pedestrian", True, (0.3, 3.0), 1.34, 0.1),
     "speed_std": FreeParameter("desired_speed_std_m_s", "pedestrian", True, (0.01, 1.0), 0.26, 0.3),
