@@ -234,9 +234,7 @@ def door_passage(trajectories: Trajectories, *, y_m: float, x_range_m: tuple, wi
     frame): time headways between successive passages, each walker's speed over ±5 frames around its crossing and
     the x where it crossed (as the data README's table of the narrowed exits measures the recordings)."""
     fps = trajectories.frame_rate_per_s
-    order = np.lexsort((trajectories.frame, trajectories.id))
-    ids, frame = trajectories.id[order], trajectories.frame[order]
-    x, y = trajectories.x_m[order], trajectories.y_m[order]
+    ids, frame, x, y = _by_walker(trajectories)
     step = (ids[1:] == ids[:-1]) & (frame[1:] == frame[:-1] + 1) & (y[:-1] > y_m) & (y[1:] <= y_m)
     k = np.flatnonzero(step)
     alpha = (y[k] - y_m) / (y[k] - y[k + 1])
@@ -347,10 +345,10 @@ def neighbour_spacing(trajectories: Trajectories, *, area: Polygon, window_frame
     ids, frame, x, y = _by_walker(trajectories)
     dx, dy = _displacements(ids, frame, x, y)
     vx, vy = dx * fps / (2 * UO_SPEED_FRAME_STEP), dy * fps / (2 * UO_SPEED_FRAME_STEP)
-    in_window = (frame >= f0) & (frame <= f1)
-    moving = in_window & (np.hypot(vx, vy) >= min_speed_m_s) & shapely.contains_xy(area, x, y)
+    rows = np.flatnonzero((frame >= f0) & (frame <= f1))
+    moving = np.zeros(x.size, np.bool_)  # the walkers measured: in the window, moving, inside the area
+    moving[rows] = (np.hypot(vx[rows], vy[rows]) >= min_speed_m_s) & shapely.contains_xy(area, x[rows], y[rows])
     distances, bearings = [], []
-    rows = np.flatnonzero(in_window)
     rows = rows[np.argsort(frame[rows], kind="stable")]
     for part in np.split(rows, np.flatnonzero(np.diff(frame[rows])) + 1):
         walkers = part[moving[part]]

@@ -213,8 +213,7 @@ def baseline_intents(bodies, world, index, e_d, travel_time_s, pairs, walking, t
 def pair_reach_m(desired_speed, index, walking):
     """How far beyond 2 r_max the agent under ``walking`` needs its neighbour pairs: the social cut-off, vision's
     horizon (:func:`~crowd_env.walking.vision.vision_reach_m`), the time-to-collision range, the give-way gap, the
-    largest of them; −1
-    when it needs none."""
+    largest of them; −1 when it needs none."""
     reach = walking.social.cutoff_m if walking.social.forces else -1.0
     if walking.vision.time_gap_s > 0.0:
         reach = max(reach, vision_reach_m(desired_speed, index, walking.vision))

@@ -410,15 +410,20 @@ PASSAGE_QUANTITIES = (("exit_headway_median_s", "time between passages, median (
                       ("exit_lateral_sd_m", "spread of the crossing point, sd (m)"))
 
 
-def _narrowed_exit_runs(records: list) -> list:
-    """The corridor records of runs whose exit is narrower than the corridor (a door seen by the camera), complete
-    and carrying the passage figures, by run name."""
+def _corridor_runs_with(records: list, key: str, *, narrowed_exit: bool = False) -> list:
+    """The complete corridor records carrying the figure ``key``, by run name; with ``narrowed_exit`` only the runs
+    whose exit is narrower than the corridor (a door seen by the camera)."""
     runs = {}
     for r in records:
-        if r.get("experiment") == "corridor" and r["complete"] and "exit_headway_median_s" in r \
-                and r["width_m"] < 1.8 - 1e-9:
+        if r.get("experiment") == "corridor" and r["complete"] and key in r \
+                and (not narrowed_exit or r["width_m"] < 1.8 - 1e-9):
             runs.setdefault(r["run"], []).append(r)
     return sorted(runs.items())
+
+
+def _narrowed_exit_runs(records: list) -> list:
+    """The complete corridor records of the runs with a narrowed exit that carry the passage figures, by run name."""
+    return _corridor_runs_with(records, "exit_headway_median_s", narrowed_exit=True)
 
 
 def passage_rows(records: list) -> list:
@@ -472,15 +477,6 @@ def format_passage_rows(rows: list) -> str:
     return "\n".join(lines)
 
 
-def _spaced_runs(records: list) -> list:
-    """The complete corridor records carrying the spacing figures, by run name."""
-    runs = {}
-    for r in records:
-        if r.get("experiment") == "corridor" and r["complete"] and "spacing_q05_m" in r:
-            runs.setdefault(r["run"], []).append(r)
-    return sorted(runs.items())
-
-
 def spacing_rows(records: list) -> list:
     """How close walkers come to each other ahead or behind (the first bearing bin, 0-15°) and beside (the last,
     75-90°) in the measurement area of each corridor run, the model's seed mean beside the recording measured by the
@@ -489,7 +485,7 @@ def spacing_rows(records: list) -> list:
     from .corridor_runs import recorded_passage_figures
 
     rows = []
-    for name, rs in _spaced_runs(records):
+    for name, rs in _corridor_runs_with(records, "spacing_q05_m"):
         recorded = recorded_passage_figures(name)
         edges = recorded["spacing_bearing_edges_deg"]
         for k, where in ((0, "ahead or behind"), (len(edges) - 2, "beside")):
@@ -515,7 +511,7 @@ def spacing_figure(records: list, path) -> Path | None:
     the model's seed mean, with two radii of Kabalan's body (0.46 m) drawn (None without such runs)."""
     from .corridor_runs import recorded_passage_figures
 
-    runs = _spaced_runs(records)
+    runs = _corridor_runs_with(records, "spacing_q05_m")
     if not runs:
         return None
     plt = pyplot()
