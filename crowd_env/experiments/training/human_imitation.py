@@ -67,7 +67,8 @@ TRAINING_RUNS = ("uo-050-180-180", "uo-060-180-180", "uo-070-180-180", "uo-145-1
                  "uo-180-180-120", "uo-180-180-180")
 DEFAULT_HUMAN_TRAINING = {"hidden": [128, 128], "bc_epochs": 20, "dad_rounds": 3, "dad_epochs": 8, "batch_size": 512,
                           "learning_rate": 1e-3, "smoothing_s": DEFAULT_SMOOTHING_S, "seed": 0,
-                          "dad": {**DEFAULT_DAD, "spawn_newcomers": True}, "policy": {"neighbor_radius_m": 3.0}}
+                          "dad": {**DEFAULT_DAD, "spawn_newcomers": True}, "policy": {"neighbor_radius_m": 3.0},
+                          "radius_m": None}
 # The same code path in seconds: two short runs, a few epochs, one round from a few starts (the default tests).
 QUICK_HUMAN_TRAINING = {**DEFAULT_HUMAN_TRAINING, "hidden": [16, 16], "bc_epochs": 2, "dad_rounds": 1, "dad_epochs": 1,
                         "dad": {**DEFAULT_HUMAN_TRAINING["dad"], "horizon_s": 1.0, "start_every_s": 20.0},
@@ -91,10 +92,17 @@ def human_training_config(config: dict | None = None, *, preset: str = "calibrat
     for key in ("bc_epochs", "dad_epochs", "batch_size", "dad_rounds"):
         if int(cfg[key]) != cfg[key] or cfg[key] < (0 if key == "dad_rounds" else 1):
             raise TrainingError(f"{key} must be an integer >= {0 if key == 'dad_rounds' else 1}, got {cfg[key]!r}")
-    cfg["dad"] = {**DEFAULT_DAD, **cfg["dad"]}
+    if not isinstance(cfg["dad"], dict) or set(cfg["dad"]) - set(DEFAULT_DAD):
+        raise TrainingError(f"dad must be a dict of the rollouts' options {sorted(DEFAULT_DAD)}, got {cfg['dad']!r}")
+    cfg["dad"] = {**DEFAULT_HUMAN_TRAINING["dad"], **cfg["dad"]}  # a partial dict changes only what it names
     cfg["options"] = policy_options(cfg["policy"])
     params = get_preset(preset).params()
     cfg["params"] = {f: getattr(params, f) for f in ("dt_s", "rotation")}
+    if cfg["radius_m"] is None:  # the body of the preset's physics
+        cfg["radius_m"] = get_preset(preset).radius_m
+    if not (isinstance(cfg["radius_m"], (int, float)) and 0.0 < cfg["radius_m"] < 0.5):
+        raise TrainingError(f"radius_m must be a body radius in m in (0, 0.5), got {cfg['radius_m']!r}")
+    cfg["radius_m"] = float(cfg["radius_m"])
     cfg["preset"] = preset
     cfg["kind"] = "human_imitation"
     return cfg
@@ -106,7 +114,7 @@ def stage_names(cfg: dict) -> list:
 
 
 def _replay(name: str, cfg: dict):
-    scenario = uo_scenario(name)
+    scenario = uo_scenario(name, radius_m=cfg.get("radius_m", 0.23))
     params = ModelParams(**cfg["params"])
     return scenario, replay_trajectories(recorded_uo_trajectories(name), scenario, options=cfg["options"],
                                          params=params, smoothing_s=cfg["smoothing_s"])

@@ -137,6 +137,30 @@ def test_training_options_are_checked():
     with pytest.raises(TrainingError, match="dad_rounds must be an integer"):
         human_training_config({"dad_rounds": -1})
     assert human_training_config()["options"]["neighbor_radius_m"] == 3.0
+    with pytest.raises(TrainingError, match="dad must be a dict of the rollouts' options"):
+        human_training_config({"dad": {"horizon": 8.0}})
+    with pytest.raises(TrainingError, match="radius_m must be a body radius"):
+        human_training_config({"radius_m": 0.0})
+
+
+def test_a_partial_rollout_option_changes_only_what_it_names():
+    cfg = human_training_config({"dad": {"horizon_s": 8.0}})
+    assert cfg["dad"]["horizon_s"] == 8.0
+    assert cfg["dad"]["spawn_newcomers"] is True  # the human policy's default, not the rollouts' bare one
+    assert {k: v for k, v in cfg["dad"].items() if k != "horizon_s"} == \
+        {k: v for k, v in human_training_config()["dad"].items() if k != "horizon_s"}
+
+
+def test_the_training_body_is_the_presets_unless_given():
+    from crowd_env.experiments.training.human_imitation import _replay
+    from crowd_env.walking.presets import get_preset
+
+    assert human_training_config()["radius_m"] == 0.23  # calibrated: Kabalan's Table 2
+    joint = human_training_config(preset="joint")["radius_m"]
+    assert joint == get_preset("joint").radius_m != 0.23
+    cfg = human_training_config({"radius_m": 0.2, "training_runs": [RUN], "validation_runs": ["uo-060-180-180"]})
+    scenario, replay = _replay(RUN, cfg)
+    np.testing.assert_array_equal(scenario.radius_m(), 0.2)  # the replay's, the rollouts' and the spawned crowd's
 
 
 def test_the_quick_training_writes_a_policy_resumes_without_redoing_and_refuses_to_overwrite(tmp_path, capsys):
