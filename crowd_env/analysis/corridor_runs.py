@@ -25,6 +25,7 @@ PedPy is an optional dependency (``pip install 'crowd_env[analysis]'``); :func:`
 from __future__ import annotations
 
 import gzip
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
@@ -41,7 +42,8 @@ from .trajectories import Trajectories, require_pedpy
 __all__ = ["SteadyStateFigures", "UORun", "juelich_uo_runs", "uo_run", "recorded_uo_trajectories", "uo_measurement_walkable_area",
            "uo_measurement_area", "steady_frames", "UORunMeasures", "measure_uo_run", "crossing_times_s",
            "STEADY_CROSSING_FRACTIONS", "UO_FRAME_RATE_PER_S", "UO_SPEED_FRAME_STEP", "DoorPassage", "door_passage",
-           "approach_profile", "NeighbourSpacing", "neighbour_spacing", "uo_scenario"]
+           "approach_profile", "NeighbourSpacing", "neighbour_spacing", "uo_scenario", "passage_lapses",
+           "lapse_summary", "LapseSummary"]
 
 UO_FRAME_RATE_PER_S = 16.0  # the recordings' frame rate
 UO_SPEED_FRAME_STEP = 5  # individual speeds over ±5 frames (±0.3125 s), PedPy's notebook
@@ -150,14 +152,65 @@ def steady_frames(y0_crossing_times_s, *, frame_rate_per_s: float, fractions=STE
     across y = 0 to that of the ``fractions[1]`` part (ranks rounded to the nearest). Raises :class:`InputError`
     with fewer than two passages."""
     times = np.sort(np.asarray(y0_crossing_times_s, dtype=np.float64))
+    k0, k1 = _steady_ranks(times.size, fractions, "a steady state needs at least two passages of y = 0")
+    return int(np.ceil(times[k0] * frame_rate_per_s - 1e-9)), int(np.ceil(times[k1] * frame_rate_per_s - 1e-9))
+
+
+def passage_lapses(trajectories: Trajectories, *, y_m: float, x_range_m: tuple,
+                   fractions=STEADY_CROSSING_FRACTIONS) -> np.ndarray:
+    """The time lapses (s) between successive first passages of the line y = ``y_m`` (x in ``x_range_m``, towards
+    −y), from the passage of the ``fractions[0]`` part of those who cross it to that of the ``fractions[1]`` part
+    (ranks as :func:`steady_frames` rounds them): the line's own steady state, the same rule for a recording and a
+    model run. A flow through an opening that clogs for a while shows as lapses far longer than the typical one:
+    the distribution of these lapses is how clogging is measured at bottlenecks (Zuriguel et al. 2014, "Clogging
+    transition of many-particle systems flowing through bottlenecks", Sci. Rep. 4:7324). Raises
+    :class:`InputError` with fewer than two passages."""
+    if not x_range_m[0] < x_range_m[1]:
+        raise InputError(f"x_range_m must be (low, high) with low < high, got {x_range_m!r}")
+    times = crossing_times_s(trajectories, y_m=float(y_m), x_range_m=x_range_m)
+    k0, k1 = _steady_ranks(times.size, fractions, f"lapses between passages need at least two passages of y = {y_m:g} m")
+    return np.diff(times[k0:k1 + 1])
+
+
+def _steady_ranks(n: int, fractions, too_few: str) -> tuple:
+    """The ranks (first, last) of the passages of the ``fractions`` parts among ``n`` sorted passages (rounded to the
+    nearest, at least one apart); :class:`InputError` for fractions outside 0 <= lo < hi <= 1 or n < 2 (``too_few``
+    says what needed them)."""
     lo, hi = (float(f) for f in fractions)
     if not 0.0 <= lo < hi <= 1.0:
         raise InputError(f"fractions must satisfy 0 <= lo < hi <= 1, got {fractions!r}")
-    if times.size < 2:
-        raise InputError(f"a steady state needs at least two passages of y = 0, got {times.size}")
-    k0 = int(round(lo * (times.size - 1)))
-    k1 = max(int(round(hi * (times.size - 1))), k0 + 1)
-    return int(np.ceil(times[k0] * frame_rate_per_s - 1e-9)), int(np.ceil(times[k1] * frame_rate_per_s - 1e-9))
+    if n < 2:
+        raise InputError(f"{too_few}, got {n}")
+    k0 = int(round(lo * (n - 1)))
+    return k0, max(int(round(hi * (n - 1))), k0 + 1)
+
+
+@dataclass(frozen=True)
+class LapseSummary:
+    """:func:`lapse_summary` of the lapses between passages: their median and mean (s; the mean is the inverse of
+    the flow), the 95 % quantile and the longest (s), and the share of the time spent in lapses longer than
+    ``long_s`` (the opening blocked for that long)."""
+
+    median_s: float
+    mean_s: float
+    q95_s: float
+    longest_s: float
+    share_of_time_in_long: float
+    long_s: float
+
+
+def lapse_summary(lapses_s, *, long_s: float = 2.0) -> LapseSummary:
+    """The figures of :class:`LapseSummary` of ``lapses_s`` (non-negative, at least one); ``long_s`` > 0: what counts
+    as a long lapse (default 2 s, longer than any lapse of the recordings' narrow openings)."""
+    lapses = np.asarray(lapses_s, dtype=np.float64).ravel()
+    if lapses.size == 0 or not np.all(np.isfinite(lapses)) or np.any(lapses < 0.0):
+        raise InputError(f"lapses_s must be finite non-negative times, at least one, got {lapses_s!r}")
+    if not (math.isfinite(long_s) and long_s > 0.0):
+        raise InputError(f"long_s must be a positive time in s, got {long_s!r}")
+    total = float(lapses.sum())
+    long_time = float(lapses[lapses > long_s].sum())
+    return LapseSummary(float(np.median(lapses)), float(lapses.mean()), float(np.quantile(lapses, 0.95)),
+                        float(lapses.max()), long_time / total if total > 0.0 else 0.0, float(long_s))
 
 
 @dataclass(frozen=True)

@@ -7,8 +7,9 @@ quantity with the experiment's value, the tolerance and whether the model's mean
 it; runs that stalled or stayed incomplete are counted, never averaged in. Writes ``OUT/virtual_experiments.csv``,
 ``.md`` and ``.png`` (the density-speed plane, each run's model and experiment points joined), and beside the
 recordings measured alike: with corridor runs ``OUT/spacing.md`` and ``.png`` (how close walkers come ahead and
-beside), with narrowed exits ``OUT/door_passage.md`` and ``OUT/approach.png``. Runs are stored under
-``OUT/runs/``: a stopped command resumes. The corridor runs are measured with PedPy (``pip install
+beside) and ``OUT/passage_lapses.md`` and ``.png`` (the time lapses between passages of each run's narrower
+opening: how long it stays blocked), with narrowed exits ``OUT/door_passage.md`` and ``OUT/approach.png``. Runs are
+stored under ``OUT/runs/``: a stopped command resumes. The corridor runs are measured with PedPy (``pip install
 'crowd_env[analysis]'``).
 
 Examples::

@@ -36,11 +36,12 @@ from .registry import register_scenario
 from .scenario import Measurement, Scenario, ScenarioError
 
 __all__ = ["juelich_corridor", "juelich_corridor_geometry", "UO_CORRIDOR_START_Y_M", "UO_CORRIDOR_END_Y_M",
-           "UO_BARRIER_Y_M", "UO_VIEW_Y_M", "UO_MEASUREMENT_Y_M"]
+           "UO_BARRIER_Y_M", "UO_VIEW_Y_M", "UO_MEASUREMENT_Y_M", "UO_ENTRANCE_LINE_Y_M"]
 
 UO_CORRIDOR_START_Y_M = 4.0  # the corridor's start (recordings' frame)
 UO_CORRIDOR_END_Y_M = -4.0  # the end wall's upstream face, where the exit line lies
 UO_BARRIER_Y_M = 8.0  # the entrance barrier's downstream face: 4 m of floor before the corridor
+UO_ENTRANCE_LINE_Y_M = 7.6  # a line 0.4 m past the barrier: the camera sees everybody cross it (they appear at 7.8 m)
 UO_MEASUREMENT_Y_M = (-2.0, 0.0)  # the measurement area along y (PedPy's notebook for these runs)
 UO_VIEW_Y_M = (-6.5, 8.0)  # y range of the camera view as PedPy's notebook bounds its walkable area
 MIN_WAITING_DEPTH_M = 1.0  # the waiting area of a few walkers (N < 15 at 3 /m²): they stand in its front rows

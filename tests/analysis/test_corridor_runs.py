@@ -170,3 +170,65 @@ def test_neighbour_spacing_refuses_bad_input(bad):
     traj = _lattice(columns_x_m=(0.5,), row_spacing_m=0.6, speed_m_s=0.8, frames=20)
     with pytest.raises(ExperimentError):
         neighbour_spacing(traj, **{"area": uo_measurement_area(1.8), "window_frames": (5, 15), **bad})
+
+
+def _stream(start_times_s, *, speed_m_s=1.0, x_m=0.9, fps=UO_FRAME_RATE_PER_S):
+    """One walker per start time, at x = ``x_m`` (a number or one per walker), walking towards −y at ``speed_m_s``
+    from y = 9 m, where it stands at its start time: each crosses y = 8 − d at start + (1 + d) / speed."""
+    frame, ids, x, y = [], [], [], []
+    xs = np.broadcast_to(np.asarray(x_m, dtype=np.float64), (len(start_times_s),))
+    for pid, start in enumerate(start_times_s):
+        for f in range(int(np.ceil(start * fps)), int((start + 12.0 / speed_m_s) * fps)):
+            frame.append(f)
+            ids.append(pid)
+            x.append(xs[pid])
+            y.append(9.0 - speed_m_s * (f / fps - start))
+    return Trajectories(np.array(frame), np.array(ids), np.array(x), np.array(y), None, fps)
+
+
+def test_passage_lapses_are_the_gaps_between_successive_passages_over_the_lines_steady_state():
+    from crowd_env.analysis.corridor_runs import lapse_summary, passage_lapses
+
+    starts = np.cumsum([0.0, 0.5, 0.7, 3.0, 0.4, 0.6, 0.5, 0.8, 0.5, 0.6, 0.9])  # 11 walkers, one blocked 3 s
+    traj = _stream(starts, x_m=[0.9, 0.9, 0.9, 0.9, 0.9, 0.9, 3.0, 0.9, 0.9, 0.9, 0.9])
+    every = passage_lapses(traj, y_m=7.6, x_range_m=(-5.0, 5.0), fractions=(0.0, 1.0))
+    np.testing.assert_allclose(every, np.diff(starts), atol=1e-9)  # the same speed for all: lapses of the starts
+    # the line's own steady state: the 15 % to the 90 % passage of the 11 (ranks round(1.5) = 2 to round(9.0) = 9)
+    np.testing.assert_allclose(passage_lapses(traj, y_m=7.6, x_range_m=(-5.0, 5.0)), np.diff(starts)[2:9], atol=1e-9)
+    # only the passages within the line's x range: walker 6 passed beside it, its two lapses become one
+    narrow = passage_lapses(traj, y_m=7.6, x_range_m=(0.5, 1.3), fractions=(0.0, 1.0))
+    np.testing.assert_allclose(narrow, np.diff(np.delete(starts, 6)), atol=1e-9)
+    s = lapse_summary(every)
+    lapses = np.diff(starts)
+    assert s.median_s == pytest.approx(np.median(lapses)) and s.mean_s == pytest.approx(lapses.mean())
+    assert s.longest_s == pytest.approx(3.0) and s.q95_s == pytest.approx(np.quantile(lapses, 0.95))
+    assert s.share_of_time_in_long == pytest.approx(3.0 / lapses.sum())  # the one lapse over 2 s
+    assert lapse_summary(every, long_s=0.65).share_of_time_in_long == pytest.approx((0.7 + 3.0 + 0.8 + 0.9)
+                                                                                    / lapses.sum())
+    with pytest.raises(InputError, match="at least two passages"):
+        passage_lapses(traj, y_m=20.0, x_range_m=(-5.0, 5.0))
+    with pytest.raises(InputError, match="x_range_m"):
+        passage_lapses(traj, y_m=7.6, x_range_m=(1.0, 1.0))
+    with pytest.raises(InputError, match="fractions"):
+        passage_lapses(traj, y_m=7.6, x_range_m=(-5.0, 5.0), fractions=(0.5, 0.2))
+    for bad in ([], [0.5, -0.1], [np.nan]):
+        with pytest.raises(InputError, match="lapses_s must be"):
+            lapse_summary(bad)
+    with pytest.raises(InputError, match="long_s"):
+        lapse_summary(every, long_s=0.0)
+
+
+def test_no_narrowed_opening_of_the_recordings_is_blocked_for_two_seconds():
+    """The recordings' lapses at the opening that limits each run (the entrance line 0.4 m past the barrier, or the
+    narrowed exit): never 2 s or longer, the figure the docs compare the model's tail with."""
+    from crowd_env.analysis.corridor_runs import lapse_summary
+    from crowd_env.experiments.validation.corridor_runs import recorded_passage_figures
+
+    for run in juelich_uo_runs():
+        key = "exit_lapses_s" if run.exit_width_m < run.entrance_width_m else "entrance_lapses_s"
+        lapses = recorded_passage_figures(run.name)[key]
+        assert 40 <= len(lapses) < run.n_pedestrians  # the 15-90 % passages of everybody seen crossing
+        s = lapse_summary(lapses)
+        assert s.longest_s < 2.0 and s.share_of_time_in_long == 0.0, (run.name, s)
+        if key == "exit_lapses_s":  # the mean lapse is the inverse of the exit flow (over another window: 3 %)
+            assert 1.0 / s.mean_s == pytest.approx(run.flow_exit_per_s, rel=0.03), (run.name, 1.0 / s.mean_s)

@@ -24,9 +24,9 @@ import numpy as np
 from crowd_env.errors import InputError
 
 from ...analysis.corridor_runs import (UO_FRAME_RATE_PER_S, approach_profile, door_passage, juelich_uo_runs,
-                                      measure_uo_run, neighbour_spacing, recorded_uo_trajectories,
+                                      measure_uo_run, neighbour_spacing, passage_lapses, recorded_uo_trajectories,
                                       uo_measurement_area, uo_run)
-from ...scenarios.juelich_corridor import UO_CORRIDOR_END_Y_M
+from ...scenarios.juelich_corridor import UO_CORRIDOR_END_Y_M, UO_ENTRANCE_LINE_Y_M
 from ...core.params import PedestrianDefaults
 from ...walking.model import ModelParams
 from ...scenarios import make_scenario
@@ -40,6 +40,7 @@ __all__ = ["CORRIDOR_RUN_NAMES", "CORRIDOR_TOLERANCES", "corridor_tasks", "run_c
 CORRIDOR_RUN_NAMES = tuple(r.name for r in juelich_uo_runs())
 # The issue's targets for each run: speed within ±0.10 m/s, density within ±15 %, exit flow within ±10 %.
 CORRIDOR_TOLERANCES = {"speed_m_s": 0.10, "density_relative": 0.15, "flow_exit_relative": 0.10}
+_FLOOR_HALF_WIDTH_M = 5.0  # the entrance line spans any floor before the corridor (the scenario's is 5 m wide)
 _MEASURED = ("density_per_m2", "density_sd_per_m2", "speed_m_s", "speed_sd_m_s", "flow_y0_per_s", "flow_exit_per_s",
              "steady_from_frame", "steady_to_frame")
 
@@ -99,8 +100,11 @@ def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: floa
     (:func:`~crowd_env.analysis.corridor_runs.approach_profile`: density and speed in 0.5 m bands before it) and
     ``spacing_*`` (:func:`~crowd_env.analysis.corridor_runs.neighbour_spacing` in the measurement area: how close
     walkers come to each other ahead and beside, its bearing edges, the 1 %, 5 % and 50 % quantiles of the distance
-    per bin and the share closer than 0.46 m, two radii of Kabalan's body). The same function measures the
-    recordings (:func:`recorded_passage_figures`)."""
+    per bin and the share closer than 0.46 m, two radii of Kabalan's body), ``entrance_lapses_s`` and
+    ``exit_lapses_s`` (:func:`~crowd_env.analysis.corridor_runs.passage_lapses`: the time lapses between successive
+    passages of y = 7.6 m, 0.4 m past the entrance, where the camera sees everybody who came through, and of the
+    exit line, each over its own steady state). The same function measures the recordings
+    (:func:`recorded_passage_figures`)."""
     half = 0.5 * exit_width_m
     centre = 0.5 * corridor_width_m
     door = door_passage(trajectories, y_m=UO_CORRIDOR_END_Y_M, x_range_m=(centre - half, centre + half),
@@ -111,7 +115,12 @@ def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: floa
             "exit_lateral_sd_m": door.lateral_sd_m, "approach_y_m": y.tolist(), "approach_density_per_m2": density.tolist(),
             "approach_speed_m_s": speed.tolist(), "spacing_bearing_edges_deg": spacing.bearing_edges_deg.tolist(),
             "spacing_q01_m": spacing.distance_m[:, 0].tolist(), "spacing_q05_m": spacing.distance_m[:, 1].tolist(),
-            "spacing_median_m": spacing.distance_m[:, 2].tolist(), "spacing_share_closer": spacing.share_closer.tolist()}
+            "spacing_median_m": spacing.distance_m[:, 2].tolist(), "spacing_share_closer": spacing.share_closer.tolist(),
+            "entrance_lapses_s": passage_lapses(trajectories, y_m=UO_ENTRANCE_LINE_Y_M,
+                                                x_range_m=(centre - _FLOOR_HALF_WIDTH_M, centre + _FLOOR_HALF_WIDTH_M)
+                                                ).tolist(),
+            "exit_lapses_s": passage_lapses(trajectories, y_m=UO_CORRIDOR_END_Y_M,
+                                            x_range_m=(centre - half, centre + half)).tolist()}
 
 
 def recorded_passage_figures(name: str) -> dict:

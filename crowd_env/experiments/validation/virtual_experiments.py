@@ -32,7 +32,7 @@ from crowd_env.errors import InputError, SweepError
 
 from ...analysis.experiment import (INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RANGE_M_S,
                                     SPECIFIC_FLOW_RANGE_N20_N40_PER_M_S, seyfried_2009)
-from ...analysis.corridor_runs import uo_run
+from ...analysis.corridor_runs import lapse_summary, uo_run
 from ...analysis.fd_reference import single_file
 from ...analysis.figures import pyplot, save_figure
 from ...walking.model import ModelParams
@@ -49,7 +49,8 @@ __all__ = ["EXPERIMENTS", "VirtualPlan", "QUICK_PLAN", "virtual_config", "virtua
            "run_virtual_experiments", "virtual_rows", "ROW_COLUMNS", "format_rows", "write_virtual_outputs",
            "virtual_figure", "snapshot_figure", "BOTTLENECK_TOLERANCE", "SINGLE_FILE_TOLERANCE_M_S",
            "PASSAGE_QUANTITIES", "passage_rows", "format_passage_rows", "approach_figure", "spacing_rows",
-           "format_spacing_rows", "spacing_figure"]
+           "format_spacing_rows", "spacing_figure", "LAPSE_QUANTITIES", "lapse_rows", "format_lapse_rows",
+           "lapse_figure"]
 
 EXPERIMENTS = ("bottleneck", "corridor", "single_file")
 BOTTLENECK_TOLERANCE = 0.05  # J_s of N = 60 within ±5 % of Seyfried's
@@ -506,6 +507,17 @@ def format_spacing_rows(rows: list) -> str:
     return "\n".join(lines)
 
 
+def _run_grid(n: int) -> tuple:
+    """``(figure, the first n axes)``: one panel per corridor run, three to a row, the unused ones hidden."""
+    plt = pyplot()
+    cols = min(3, n)
+    rows_n = -(-n // cols)
+    fig, axes = plt.subplots(rows_n, cols, figsize=(4.0 * cols, 3.2 * rows_n), squeeze=False)
+    for ax in axes.ravel()[n:]:
+        ax.set_visible(False)
+    return fig, axes.ravel()[:n]
+
+
 def spacing_figure(records: list, path) -> Path | None:
     """The 5 % quantile of the distance between walkers against the bearing, per corridor run, the recording beside
     the model's seed mean, with two radii of Kabalan's body (0.46 m) drawn (None without such runs)."""
@@ -514,13 +526,8 @@ def spacing_figure(records: list, path) -> Path | None:
     runs = _corridor_runs_with(records, "spacing_q05_m")
     if not runs:
         return None
-    plt = pyplot()
-    cols = min(3, len(runs))
-    rows_n = -(-len(runs) // cols)
-    fig, axes = plt.subplots(rows_n, cols, figsize=(4.0 * cols, 3.2 * rows_n), squeeze=False)
-    for ax in axes.ravel()[len(runs):]:
-        ax.set_visible(False)
-    for ax, (name, rs) in zip(axes.ravel(), runs):
+    fig, axes = _run_grid(len(runs))
+    for ax, (name, rs) in zip(axes, runs):
         recorded = recorded_passage_figures(name)
         edges = np.asarray(recorded["spacing_bearing_edges_deg"])
         centres = 0.5 * (edges[:-1] + edges[1:])
@@ -536,11 +543,82 @@ def spacing_figure(records: list, path) -> Path | None:
     return save_figure(fig, Path(path))
 
 
+LAPSE_QUANTITIES = (("median_s", "lapse, median (s)"), ("mean_s", "lapse, mean (s): 1 / flow"),
+                    ("q95_s", "lapse, 95 % quantile (s)"), ("longest_s", "longest lapse (s)"),
+                    ("share_of_time_in_long", "share of the time in lapses > 2 s"))
+
+
+def _limiting_opening(name: str) -> tuple:
+    """``(label, record key)`` of the narrower opening of run ``name`` (the entrance when both are as wide): the one
+    whose passages set its flow."""
+    run = uo_run(name)
+    if run.exit_width_m < run.entrance_width_m:
+        return f"exit {run.exit_width_m:g} m", "exit_lapses_s"
+    return f"entrance {run.entrance_width_m:g} m", "entrance_lapses_s"
+
+
+def lapse_rows(records: list) -> list:
+    """How each corridor run passes its narrower opening, beside how people did: the time lapses between successive
+    passages (:func:`~crowd_env.analysis.corridor_runs.passage_lapses`, measured alike on the recordings by
+    :func:`~crowd_env.experiments.validation.corridor_runs.passage_figures`) summarised by
+    :func:`~crowd_env.analysis.corridor_runs.lapse_summary` per run, the model's mean ± sd over its complete runs
+    (``runs``: complete of all, the stalled ones counted in ``stalled``; a stalled run's last lapse never ends)."""
+    from .corridor_runs import recorded_passage_figures
+
+    rows = []
+    for name, rs in _corridor_runs_with(records, "entrance_lapses_s"):
+        opening, key = _limiting_opening(name)
+        recorded = lapse_summary(recorded_passage_figures(name)[key])
+        summaries = [lapse_summary(r[key]) for r in rs]
+        every = [r for r in records if r.get("experiment") == "corridor" and r["run"] == name]
+        for field, label in LAPSE_QUANTITIES:
+            mean, sd = _stats([getattr(x, field) for x in summaries])
+            rows.append({"run": name, "opening": opening, "quantity": label, "model": mean, "model_sd": sd,
+                         "recorded": getattr(recorded, field), "runs": f"{len(rs)}/{len(every)}",
+                         "stalled": sum(bool(r.get("stalled")) for r in every)})
+    return rows
+
+
+def format_lapse_rows(rows: list) -> str:
+    """The rows of :func:`lapse_rows` as a Markdown table."""
+    lines = ["| run | opening | quantity | model | recorded | complete runs (stalled) |", "|---|---|---|---|---|---|"]
+    lines += [f"| {r['run']} | {r['opening']} | {r['quantity']} | {_cell(r['model'], r['model_sd'])} | "
+              f"{_cell(r['recorded'])} | {r['runs']} ({r['stalled']}) |" for r in rows]
+    return "\n".join(lines)
+
+
+def lapse_figure(records: list, path) -> Path | None:
+    """The survival function of the lapses between passages of each run's narrower opening, P(lapse ≥ t) on a log
+    scale: the recording beside the model's lapses pooled over its complete runs (None without such runs). A tail
+    that reaches far beyond the recording's is an opening that clogs for a while."""
+    from .corridor_runs import recorded_passage_figures
+
+    runs = _corridor_runs_with(records, "entrance_lapses_s")
+    if not runs:
+        return None
+    fig, axes = _run_grid(len(runs))
+    for ax, (name, rs) in zip(axes, runs):
+        opening, key = _limiting_opening(name)
+        for lapses, color, label in ((recorded_passage_figures(name)[key], "k", "recorded"),
+                                     (np.concatenate([r[key] for r in rs]), "C3", f"model ({len(rs)} runs)")):
+            t = np.sort(np.asarray(lapses, dtype=np.float64))
+            ax.step(t, 1.0 - np.arange(t.size) / t.size, where="post", color=color, label=label)
+        ax.axvline(2.0, color="0.5", ls="--", lw=1)
+        ax.set_yscale("log")
+        ax.set_title(f"{name}: {opening}", fontsize=9)
+        ax.set_xlabel("lapse between passages t (s)", fontsize=8)
+        ax.set_ylabel("P(lapse ≥ t)", fontsize=8)
+        ax.legend(fontsize=7)
+    return save_figure(fig, Path(path))
+
+
 def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True) -> list:
     """``OUT/virtual_experiments.csv`` (the rows), ``.md`` (the table in Markdown) and, with ``figure``,
     ``.png``; with runs of the narrowed exits also ``OUT/door_passage.md`` (:func:`passage_rows`) and, with
     ``figure``, ``OUT/approach.png`` (:func:`approach_figure`); with corridor runs ``OUT/spacing.md``
-    (:func:`spacing_rows`) and, with ``figure``, ``OUT/spacing.png`` (:func:`spacing_figure`); returns the paths."""
+    (:func:`spacing_rows`) and, with ``figure``, ``OUT/spacing.png`` (:func:`spacing_figure`), and
+    ``OUT/passage_lapses.md`` (:func:`lapse_rows`) and, with ``figure``, ``OUT/passage_lapses.png``
+    (:func:`lapse_figure`); returns the paths."""
     out = Path(out)
     paths = [out / "virtual_experiments.csv", out / "virtual_experiments.md"]
     write_csv_atomic(paths[0], ROW_COLUMNS, rows)
@@ -549,7 +627,8 @@ def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True
         paths.append(virtual_figure(records, out / "virtual_experiments.png"))
     for table, make_rows, format_table, plot, picture in (
             ("door_passage.md", passage_rows, format_passage_rows, approach_figure, "approach.png"),
-            ("spacing.md", spacing_rows, format_spacing_rows, spacing_figure, "spacing.png")):
+            ("spacing.md", spacing_rows, format_spacing_rows, spacing_figure, "spacing.png"),
+            ("passage_lapses.md", lapse_rows, format_lapse_rows, lapse_figure, "passage_lapses.png")):
         found = make_rows(records)
         if found:
             paths.append(out / table)

@@ -124,6 +124,32 @@ def test_passage_rows_set_the_model_beside_the_recording_measured_alike():
     assert format_passage_rows(rows).count("uo-180-180-070") == 3
 
 
+def test_lapse_rows_take_each_runs_narrower_opening_beside_the_recording(tmp_path):
+    from crowd_env.analysis.corridor_runs import lapse_summary
+    from crowd_env.experiments.validation.corridor_runs import recorded_passage_figures
+    from crowd_env.experiments.validation.virtual_experiments import format_lapse_rows, lapse_figure, lapse_rows
+
+    blocked = [0.8, 0.7, 3.0, 0.9, 0.8]  # one arch of 3 s at the 0.5 m entrance
+    records = [dict(_corridor_record("uo-050-180-180", s, 0.4, 1.3, 1.0), width_m=1.8, entrance_lapses_s=blocked,
+                    exit_lapses_s=[9.0, 9.0]) for s in (0, 1)]
+    records.append(dict(_corridor_record("uo-050-180-180", 2, 0.4, 1.3, 1.0, complete=False, stalled=True),
+                        width_m=1.8))  # stalled: no lapses, counted
+    records.append(dict(_corridor_record("uo-180-180-095", 0, 2.4, 0.4, 1.7), width_m=0.95,
+                        entrance_lapses_s=[9.0, 9.0], exit_lapses_s=[0.5, 0.6, 0.7]))
+    rows = lapse_rows(records)
+    assert [r["run"] for r in rows] == ["uo-050-180-180"] * 5 + ["uo-180-180-095"] * 5
+    assert rows[0]["opening"] == "entrance 0.5 m" and rows[5]["opening"] == "exit 0.95 m"  # the narrower one
+    by = {(r["run"], r["quantity"]): r for r in rows}
+    long = by[("uo-050-180-180", "share of the time in lapses > 2 s")]
+    assert long["model"] == pytest.approx(3.0 / sum(blocked)) and long["runs"] == "2/3" and long["stalled"] == 1
+    assert by[("uo-180-180-095", "lapse, median (s)")]["model"] == pytest.approx(0.6)  # the exit's, not the 9 s
+    recorded = lapse_summary(recorded_passage_figures("uo-050-180-180")["entrance_lapses_s"])
+    assert by[("uo-050-180-180", "longest lapse (s)")]["recorded"] == recorded.longest_s < 2.0
+    assert format_lapse_rows(rows).count("uo-050-180-180") == 5
+    assert lapse_figure(records, tmp_path / "lapses.png").stat().st_size > 0
+    assert lapse_rows([records[2]]) == [] and lapse_figure([records[2]], tmp_path / "none.png") is None
+
+
 def test_corridor_options_reach_every_corridor_run_and_bad_ones_are_refused():
     from crowd_env.errors import ScenarioError
 
@@ -162,6 +188,9 @@ def test_joint_passes_the_070_m_exit_and_keeps_what_it_was_calibrated_to_meet(tm
     rows = (tmp_path / "spacing.md").read_text().splitlines()
     beside = [r.split("|") for r in rows if "beside" in r and "5 % quantile" in r]
     assert len(beside) == 2 and all(float(cells[5]) < 2 * 0.214 for cells in beside)  # recorded, beside
+    # How the narrower opening is passed (passage_lapses.md): the 0.70 m exit never blocked for 2 s
+    assert all(max(r["exit_lapses_s"]) < 2.0 for r in spaced if r["run"] == "uo-180-180-070")
+    assert (tmp_path / "passage_lapses.md").read_text().count("uo-180-180-070 | exit 0.7 m") == 5
 
 
 def test_a_learned_policy_drives_every_run_and_an_unknown_one_is_refused(capsys):
