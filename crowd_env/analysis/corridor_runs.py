@@ -188,14 +188,16 @@ def _steady_ranks(n: int, fractions, too_few: str) -> tuple:
 @dataclass(frozen=True)
 class LapseSummary:
     """:func:`lapse_summary` of the lapses between passages: their median and mean (s; the mean is the inverse of
-    the flow), the 95 % quantile and the longest (s), and the share of the time spent in lapses longer than
-    ``long_s`` (the opening blocked for that long)."""
+    the flow), the 95 % quantile and the longest (s), the share of the time spent in lapses longer than ``long_s``
+    (the opening blocked for that long) and the flow (1/s) the other lapses alone would carry (the passages as
+    they are, the long blockages taken out)."""
 
     median_s: float
     mean_s: float
     q95_s: float
     longest_s: float
     share_of_time_in_long: float
+    flow_without_long_per_s: float
     long_s: float
 
 
@@ -208,9 +210,10 @@ def lapse_summary(lapses_s, *, long_s: float = 2.0) -> LapseSummary:
     if not (math.isfinite(long_s) and long_s > 0.0):
         raise InputError(f"long_s must be a positive time in s, got {long_s!r}")
     total = float(lapses.sum())
-    long_time = float(lapses[lapses > long_s].sum())
+    short = lapses[lapses <= long_s]
     return LapseSummary(float(np.median(lapses)), float(lapses.mean()), float(np.quantile(lapses, 0.95)),
-                        float(lapses.max()), long_time / total if total > 0.0 else 0.0, float(long_s))
+                        float(lapses.max()), 1.0 - float(short.sum()) / total if total > 0.0 else 0.0,
+                        short.size / float(short.sum()) if short.sum() > 0.0 else math.nan, float(long_s))
 
 
 @dataclass(frozen=True)

@@ -203,6 +203,7 @@ def test_passage_lapses_are_the_gaps_between_successive_passages_over_the_lines_
     assert s.median_s == pytest.approx(np.median(lapses)) and s.mean_s == pytest.approx(lapses.mean())
     assert s.longest_s == pytest.approx(3.0) and s.q95_s == pytest.approx(np.quantile(lapses, 0.95))
     assert s.share_of_time_in_long == pytest.approx(3.0 / lapses.sum())  # the one lapse over 2 s
+    assert s.flow_without_long_per_s == pytest.approx(9 / (lapses.sum() - 3.0))  # the nine others
     assert lapse_summary(every, long_s=0.65).share_of_time_in_long == pytest.approx((0.7 + 3.0 + 0.8 + 0.9)
                                                                                     / lapses.sum())
     with pytest.raises(InputError, match="at least two passages"):

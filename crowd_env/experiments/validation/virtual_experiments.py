@@ -545,7 +545,8 @@ def spacing_figure(records: list, path) -> Path | None:
 
 LAPSE_QUANTITIES = (("median_s", "lapse, median (s)"), ("mean_s", "lapse, mean (s): 1 / flow"),
                     ("q95_s", "lapse, 95 % quantile (s)"), ("longest_s", "longest lapse (s)"),
-                    ("share_of_time_in_long", "share of the time in lapses > 2 s"))
+                    ("share_of_time_in_long", "share of the time in lapses > 2 s"),
+                    ("flow_without_long_per_s", "flow without the lapses > 2 s (1/s)"))
 
 
 def _limiting_opening(name: str) -> tuple:
@@ -557,6 +558,18 @@ def _limiting_opening(name: str) -> tuple:
     return f"entrance {run.entrance_width_m:g} m", "entrance_lapses_s"
 
 
+def _lapse_runs(records: list) -> list:
+    """``(run name, its complete records carrying the lapses, all its records)`` for every corridor run of
+    ``records`` that has either: a run whose every seed stalled is listed with no complete record."""
+    lapsed = dict(_corridor_runs_with(records, "entrance_lapses_s"))
+    runs = {}
+    for r in records:
+        if r.get("experiment") == "corridor":
+            runs.setdefault(r["run"], []).append(r)
+    return [(name, lapsed.get(name, []), every) for name, every in sorted(runs.items())
+            if name in lapsed or not any(r["complete"] for r in every)]
+
+
 def lapse_rows(records: list) -> list:
     """How each corridor run passes its narrower opening, beside how people did: the time lapses between successive
     passages (:func:`~crowd_env.analysis.corridor_runs.passage_lapses`, measured alike on the recordings by
@@ -566,11 +579,10 @@ def lapse_rows(records: list) -> list:
     from .corridor_runs import recorded_passage_figures
 
     rows = []
-    for name, rs in _corridor_runs_with(records, "entrance_lapses_s"):
+    for name, rs, every in _lapse_runs(records):
         opening, key = _limiting_opening(name)
         recorded = lapse_summary(recorded_passage_figures(name)[key])
         summaries = [lapse_summary(r[key]) for r in rs]
-        every = [r for r in records if r.get("experiment") == "corridor" and r["run"] == name]
         for field, label in LAPSE_QUANTITIES:
             mean, sd = _stats([getattr(x, field) for x in summaries])
             rows.append({"run": name, "opening": opening, "quantity": label, "model": mean, "model_sd": sd,
@@ -589,18 +601,26 @@ def format_lapse_rows(rows: list) -> str:
 
 def lapse_figure(records: list, path) -> Path | None:
     """The survival function of the lapses between passages of each run's narrower opening, P(lapse ≥ t) on a log
-    scale: the recording beside the model's lapses pooled over its complete runs (None without such runs). A tail
-    that reaches far beyond the recording's is an opening that clogs for a while."""
+    scale: the recording beside the model's lapses pooled over its complete runs (a run whose every seed stalled
+    says so; None without corridor runs). A tail that reaches far beyond the recording's is an opening that clogs
+    for a while."""
     from .corridor_runs import recorded_passage_figures
 
-    runs = _corridor_runs_with(records, "entrance_lapses_s")
+    runs = _lapse_runs(records)
     if not runs:
         return None
     fig, axes = _run_grid(len(runs))
-    for ax, (name, rs) in zip(axes, runs):
+    for ax, (name, rs, every) in zip(axes, runs):
         opening, key = _limiting_opening(name)
-        for lapses, color, label in ((recorded_passage_figures(name)[key], "k", "recorded"),
-                                     (np.concatenate([r[key] for r in rs]), "C3", f"model ({len(rs)} runs)")):
+        curves = [(recorded_passage_figures(name)[key], "k", "recorded")]
+        stalled = sum(bool(r.get("stalled")) for r in every)
+        if rs:
+            curves.append((np.concatenate([r[key] for r in rs]), "C3", f"model ({len(rs)} runs"
+                           + (f"; {stalled} stalled)" if stalled else ")")))
+        else:
+            ax.text(0.5, 0.5, f"model: {stalled} of {len(every)} runs stalled", transform=ax.transAxes,
+                    ha="center", color="C3", fontsize=8)
+        for lapses, color, label in curves:
             t = np.sort(np.asarray(lapses, dtype=np.float64))
             ax.step(t, 1.0 - np.arange(t.size) / t.size, where="post", color=color, label=label)
         ax.axvline(2.0, color="0.5", ls="--", lw=1)

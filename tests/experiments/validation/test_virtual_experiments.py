@@ -137,17 +137,22 @@ def test_lapse_rows_take_each_runs_narrower_opening_beside_the_recording(tmp_pat
     records.append(dict(_corridor_record("uo-180-180-095", 0, 2.4, 0.4, 1.7), width_m=0.95,
                         entrance_lapses_s=[9.0, 9.0], exit_lapses_s=[0.5, 0.6, 0.7]))
     rows = lapse_rows(records)
-    assert [r["run"] for r in rows] == ["uo-050-180-180"] * 5 + ["uo-180-180-095"] * 5
-    assert rows[0]["opening"] == "entrance 0.5 m" and rows[5]["opening"] == "exit 0.95 m"  # the narrower one
+    assert [r["run"] for r in rows] == ["uo-050-180-180"] * 6 + ["uo-180-180-095"] * 6
+    assert rows[0]["opening"] == "entrance 0.5 m" and rows[6]["opening"] == "exit 0.95 m"  # the narrower one
     by = {(r["run"], r["quantity"]): r for r in rows}
     long = by[("uo-050-180-180", "share of the time in lapses > 2 s")]
     assert long["model"] == pytest.approx(3.0 / sum(blocked)) and long["runs"] == "2/3" and long["stalled"] == 1
+    assert by[("uo-050-180-180", "flow without the lapses > 2 s (1/s)")]["model"] == pytest.approx(4 / 3.2)
     assert by[("uo-180-180-095", "lapse, median (s)")]["model"] == pytest.approx(0.6)  # the exit's, not the 9 s
     recorded = lapse_summary(recorded_passage_figures("uo-050-180-180")["entrance_lapses_s"])
     assert by[("uo-050-180-180", "longest lapse (s)")]["recorded"] == recorded.longest_s < 2.0
-    assert format_lapse_rows(rows).count("uo-050-180-180") == 5
+    assert format_lapse_rows(rows).count("uo-050-180-180") == 6
     assert lapse_figure(records, tmp_path / "lapses.png").stat().st_size > 0
-    assert lapse_rows([records[2]]) == [] and lapse_figure([records[2]], tmp_path / "none.png") is None
+    wedged = lapse_rows([records[2]])  # every seed stalled: listed, no figure of the model's
+    assert len(wedged) == 6 and all(math.isnan(r["model"]) and r["runs"] == "0/1" and r["stalled"] == 1
+                                    for r in wedged)
+    assert lapse_figure([records[2]], tmp_path / "wedged.png").stat().st_size > 0
+    assert lapse_rows([]) == [] and lapse_figure([], tmp_path / "none.png") is None
 
 
 def test_corridor_options_reach_every_corridor_run_and_bad_ones_are_refused():
@@ -190,7 +195,7 @@ def test_joint_passes_the_070_m_exit_and_keeps_what_it_was_calibrated_to_meet(tm
     assert len(beside) == 2 and all(float(cells[5]) < 2 * 0.214 for cells in beside)  # recorded, beside
     # How the narrower opening is passed (passage_lapses.md): the 0.70 m exit never blocked for 2 s
     assert all(max(r["exit_lapses_s"]) < 2.0 for r in spaced if r["run"] == "uo-180-180-070")
-    assert (tmp_path / "passage_lapses.md").read_text().count("uo-180-180-070 | exit 0.7 m") == 5
+    assert (tmp_path / "passage_lapses.md").read_text().count("uo-180-180-070 | exit 0.7 m") == 6
 
 
 def test_a_learned_policy_drives_every_run_and_an_unknown_one_is_refused(capsys):
