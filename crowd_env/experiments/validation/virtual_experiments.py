@@ -470,12 +470,20 @@ def approach_figure(records: list, path) -> Path | None:
     return save_figure(fig, Path(path))
 
 
+def _beside_recording(rows: list, leading: tuple, trailing: dict | None = None) -> str:
+    """A Markdown table of rows that set the model beside a recording: the ``leading`` fields, the model's mean ±
+    sd, the recorded value, then the ``trailing`` columns (title: a function of the row)."""
+    trailing = trailing or {}
+    head = [*leading, "model", "recorded", *trailing]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join([*(str(r[k]) for k in leading), _cell(r["model"], r["model_sd"]), _cell(r["recorded"]),
+                                 *(cell(r) for cell in trailing.values())]) + " |" for r in rows]
+    return "\n".join(lines)
+
+
 def format_passage_rows(rows: list) -> str:
     """The rows of :func:`passage_rows` as a Markdown table."""
-    lines = ["| run | quantity | model | recorded |", "|---|---|---|---|"]
-    lines += [f"| {r['run']} | {r['quantity']} | {_cell(r['model'], r['model_sd'])} | {_cell(r['recorded'])} |"
-              for r in rows]
-    return "\n".join(lines)
+    return _beside_recording(rows, ("run", "quantity"))
 
 
 def spacing_rows(records: list) -> list:
@@ -501,10 +509,7 @@ def spacing_rows(records: list) -> list:
 
 def format_spacing_rows(rows: list) -> str:
     """The rows of :func:`spacing_rows` as a Markdown table."""
-    lines = ["| run | bearing | quantity | model | recorded |", "|---|---|---|---|---|"]
-    lines += [f"| {r['run']} | {r['bearing']} | {r['quantity']} | {_cell(r['model'], r['model_sd'])} | "
-              f"{_cell(r['recorded'])} |" for r in rows]
-    return "\n".join(lines)
+    return _beside_recording(rows, ("run", "bearing", "quantity"))
 
 
 def _run_grid(n: int) -> tuple:
@@ -593,10 +598,8 @@ def lapse_rows(records: list) -> list:
 
 def format_lapse_rows(rows: list) -> str:
     """The rows of :func:`lapse_rows` as a Markdown table."""
-    lines = ["| run | opening | quantity | model | recorded | complete runs (stalled) |", "|---|---|---|---|---|---|"]
-    lines += [f"| {r['run']} | {r['opening']} | {r['quantity']} | {_cell(r['model'], r['model_sd'])} | "
-              f"{_cell(r['recorded'])} | {r['runs']} ({r['stalled']}) |" for r in rows]
-    return "\n".join(lines)
+    return _beside_recording(rows, ("run", "opening", "quantity"),
+                             {"complete runs (stalled)": lambda r: f"{r['runs']} ({r['stalled']})"})
 
 
 def lapse_figure(records: list, path) -> Path | None:
