@@ -96,19 +96,21 @@ def run_corridor_one(task: dict) -> dict:
 
 def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: float, window_frames: tuple) -> dict:
     """How a run passes its exit and approaches it over its steady state, as JSON-able record fields: ``exit_*``
-    (:func:`~crowd_env.analysis.corridor_runs.door_passage` at y = −4 m across the exit), ``approach_*``
+    (:func:`~crowd_env.analysis.corridor_runs.door_passage` at y = −4 m across the exit) and ``entrance_*`` (the same
+    at y = 7.6 m, 0.4 m past the entrance, where the camera sees everybody who came through), ``approach_*``
     (:func:`~crowd_env.analysis.corridor_runs.approach_profile`: density and speed in 0.5 m bands before it) and
     ``spacing_*`` (:func:`~crowd_env.analysis.corridor_runs.neighbour_spacing` in the measurement area: how close
     walkers come to each other ahead and beside, its bearing edges, the 1 %, 5 % and 50 % quantiles of the distance
     per bin and the share closer than 0.46 m, two radii of Kabalan's body), ``entrance_lapses_s`` and
     ``exit_lapses_s`` (:func:`~crowd_env.analysis.corridor_runs.passage_lapses`: the time lapses between successive
-    passages of y = 7.6 m, 0.4 m past the entrance, where the camera sees everybody who came through, and of the
-    exit line, each over its own steady state). The same function measures the recordings
+    passages of the entrance line and of the exit line, each over its own steady state). The same function measures the recordings
     (:func:`recorded_passage_figures`)."""
     half = 0.5 * exit_width_m
     centre = 0.5 * corridor_width_m
     door = door_passage(trajectories, y_m=UO_CORRIDOR_END_Y_M, x_range_m=(centre - half, centre + half),
                         window_frames=window_frames)
+    floor = (centre - _FLOOR_HALF_WIDTH_M, centre + _FLOOR_HALF_WIDTH_M)
+    entrance = door_passage(trajectories, y_m=UO_ENTRANCE_LINE_Y_M, x_range_m=floor, window_frames=window_frames)
     y, density, speed = approach_profile(trajectories, corridor_width_m=corridor_width_m, window_frames=window_frames)
     spacing = neighbour_spacing(trajectories, area=uo_measurement_area(corridor_width_m), window_frames=window_frames)
     return {"exit_headway_median_s": door.headway_median_s, "exit_speed_median_m_s": door.speed_median_m_s,
@@ -116,9 +118,9 @@ def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: floa
             "approach_speed_m_s": speed.tolist(), "spacing_bearing_edges_deg": spacing.bearing_edges_deg.tolist(),
             "spacing_q01_m": spacing.distance_m[:, 0].tolist(), "spacing_q05_m": spacing.distance_m[:, 1].tolist(),
             "spacing_median_m": spacing.distance_m[:, 2].tolist(), "spacing_share_closer": spacing.share_closer.tolist(),
-            "entrance_lapses_s": passage_lapses(trajectories, y_m=UO_ENTRANCE_LINE_Y_M,
-                                                x_range_m=(centre - _FLOOR_HALF_WIDTH_M, centre + _FLOOR_HALF_WIDTH_M)
-                                                ).tolist(),
+            "entrance_headway_median_s": entrance.headway_median_s, "entrance_speed_median_m_s": entrance.speed_median_m_s,
+            "entrance_lateral_sd_m": entrance.lateral_sd_m,
+            "entrance_lapses_s": passage_lapses(trajectories, y_m=UO_ENTRANCE_LINE_Y_M, x_range_m=floor).tolist(),
             "exit_lapses_s": passage_lapses(trajectories, y_m=UO_CORRIDOR_END_Y_M,
                                             x_range_m=(centre - half, centre + half)).tolist()}
 

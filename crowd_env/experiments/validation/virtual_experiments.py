@@ -406,9 +406,9 @@ def virtual_figure(records: list, path) -> Path:
     return save_figure(fig, Path(path))
 
 
-PASSAGE_QUANTITIES = (("exit_headway_median_s", "time between passages, median (s)"),
-                      ("exit_speed_median_m_s", "speed at the opening, median (m/s)"),
-                      ("exit_lateral_sd_m", "spread of the crossing point, sd (m)"))
+PASSAGE_QUANTITIES = (("headway_median_s", "time between passages, median (s)"),
+                      ("speed_median_m_s", "speed at the opening, median (m/s)"),
+                      ("lateral_sd_m", "spread of the crossing point, sd (m)"))
 
 
 def _corridor_runs_with(records: list, key: str, *, narrowed_exit: bool = False) -> list:
@@ -428,18 +428,24 @@ def _narrowed_exit_runs(records: list) -> list:
 
 
 def passage_rows(records: list) -> list:
-    """How the model passes the narrowed exits beside how people did (the recordings measured by the same function,
+    """How the model passes each run's narrowed opening (a narrowed exit at its line, a narrowed entrance at the
+    line 0.4 m past it) beside how people did (the recordings measured by the same function,
     :func:`~crowd_env.experiments.validation.corridor_runs.passage_figures`): one row per run and quantity of
-    :data:`PASSAGE_QUANTITIES`, the model's seed mean and the recording's value."""
+    :data:`PASSAGE_QUANTITIES`, the model's seed mean and the recording's value; the open 1.8 / 1.8 m run has none."""
     from .corridor_runs import recorded_passage_figures
 
     rows = []
-    for name, rs in _narrowed_exit_runs(records):
+    for name, rs in _corridor_runs_with(records, "entrance_headway_median_s"):
+        run = uo_run(name)
+        if min(run.entrance_width_m, run.exit_width_m) >= run.corridor_width_m:
+            continue
+        opening, prefix = _limiting_opening(name)
         recorded = recorded_passage_figures(name)
-        for key, label in PASSAGE_QUANTITIES:
+        for suffix, label in PASSAGE_QUANTITIES:
+            key = f"{prefix}_{suffix}"
             mean, sd = _stats([r[key] for r in rs])
-            rows.append({"run": name, "quantity": label, "model": mean, "model_sd": sd, "recorded": recorded[key],
-                         "runs": len(rs)})
+            rows.append({"run": name, "opening": opening, "quantity": label, "model": mean, "model_sd": sd,
+                         "recorded": recorded[key], "runs": len(rs)})
     return rows
 
 
@@ -483,7 +489,7 @@ def _beside_recording(rows: list, leading: tuple, trailing: dict | None = None) 
 
 def format_passage_rows(rows: list) -> str:
     """The rows of :func:`passage_rows` as a Markdown table."""
-    return _beside_recording(rows, ("run", "quantity"))
+    return _beside_recording(rows, ("run", "opening", "quantity"))
 
 
 def spacing_rows(records: list) -> list:
@@ -555,12 +561,12 @@ LAPSE_QUANTITIES = (("median_s", "lapse, median (s)"), ("mean_s", "lapse, mean (
 
 
 def _limiting_opening(name: str) -> tuple:
-    """``(label, record key)`` of the narrower opening of run ``name`` (the entrance when both are as wide): the one
-    whose passages set its flow."""
+    """``(label, prefix of its record fields)`` of the narrower opening of run ``name`` (the entrance when both are
+    as wide): the one whose passages set its flow."""
     run = uo_run(name)
     if run.exit_width_m < run.entrance_width_m:
-        return f"exit {run.exit_width_m:g} m", "exit_lapses_s"
-    return f"entrance {run.entrance_width_m:g} m", "entrance_lapses_s"
+        return f"exit {run.exit_width_m:g} m", "exit"
+    return f"entrance {run.entrance_width_m:g} m", "entrance"
 
 
 def _lapse_runs(records: list) -> list:
@@ -585,7 +591,8 @@ def lapse_rows(records: list) -> list:
 
     rows = []
     for name, rs, every in _lapse_runs(records):
-        opening, key = _limiting_opening(name)
+        opening, prefix = _limiting_opening(name)
+        key = f"{prefix}_lapses_s"
         recorded = lapse_summary(recorded_passage_figures(name)[key])
         summaries = [lapse_summary(r[key]) for r in rs]
         for field, label in LAPSE_QUANTITIES:
@@ -614,7 +621,8 @@ def lapse_figure(records: list, path) -> Path | None:
         return None
     fig, axes = _run_grid(len(runs))
     for ax, (name, rs, every) in zip(axes, runs):
-        opening, key = _limiting_opening(name)
+        opening, prefix = _limiting_opening(name)
+        key = f"{prefix}_lapses_s"
         curves = [(recorded_passage_figures(name)[key], "k", "recorded")]
         stalled = sum(bool(r.get("stalled")) for r in every)
         if rs:
@@ -637,8 +645,8 @@ def lapse_figure(records: list, path) -> Path | None:
 
 def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True) -> list:
     """``OUT/virtual_experiments.csv`` (the rows), ``.md`` (the table in Markdown) and, with ``figure``,
-    ``.png``; with runs of the narrowed exits also ``OUT/door_passage.md`` (:func:`passage_rows`) and, with
-    ``figure``, ``OUT/approach.png`` (:func:`approach_figure`); with corridor runs ``OUT/spacing.md``
+    ``.png``; with runs of a narrowed opening also ``OUT/door_passage.md`` (:func:`passage_rows`) and, with
+    ``figure`` and a narrowed exit, ``OUT/approach.png`` (:func:`approach_figure`); with corridor runs ``OUT/spacing.md``
     (:func:`spacing_rows`) and, with ``figure``, ``OUT/spacing.png`` (:func:`spacing_figure`), and
     ``OUT/passage_lapses.md`` (:func:`lapse_rows`) and, with ``figure``, ``OUT/passage_lapses.png``
     (:func:`lapse_figure`); returns the paths."""
@@ -656,8 +664,9 @@ def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True
         if found:
             paths.append(out / table)
             write_atomic(paths[-1], format_table(found) + "\n")
-            if figure:
-                paths.append(plot(records, out / picture))
+            drawn = plot(records, out / picture) if figure else None
+            if drawn is not None:  # approach.png needs a narrowed exit; door_passage.md a narrowed opening
+                paths.append(drawn)
     return paths
 
 

@@ -110,18 +110,28 @@ def test_passage_rows_set_the_model_beside_the_recording_measured_alike():
     assert recorded["exit_headway_median_s"] == pytest.approx(0.61, abs=0.01)  # the data README's table: 0.61 s
     assert recorded["exit_speed_median_m_s"] == pytest.approx(0.68, abs=0.01)
     assert recorded["exit_lateral_sd_m"] == pytest.approx(0.16, abs=0.01)
+    keys = [f"{where}_{k}" for where in ("exit", "entrance") for k in ("headway_median_s", "speed_median_m_s",
+                                                                      "lateral_sd_m")]
     records = [dict(_corridor_record("uo-180-180-070", s, 3.0, 0.3, 1.6), width_m=0.7,
-                    **{k: recorded[k] * (1 + 0.1 * s) for k in ("exit_headway_median_s", "exit_speed_median_m_s",
-                                                              "exit_lateral_sd_m")}) for s in (0, 1)]
+                    **{k: recorded[k] * (1 + 0.1 * s) for k in keys}) for s in (0, 1)]
     records.append(dict(_corridor_record("uo-180-180-070", 2, 3.0, 0.3, 1.6, complete=False, stalled=True),
                         width_m=0.7))  # no figures: left out
-    records.append(dict(_corridor_record("uo-100-180-180", 0, 1.0, 1.2, 2.4), width_m=1.8,
-                        exit_headway_median_s=0.4, exit_speed_median_m_s=1.2, exit_lateral_sd_m=0.5))  # no door
+    entrance = recorded_passage_figures("uo-050-180-180")
+    assert entrance["entrance_speed_median_m_s"] == pytest.approx(1.45, abs=0.01)  # a file at free speed
+    assert entrance["entrance_headway_median_s"] == pytest.approx(0.77, abs=0.01)
+    records.append(dict(_corridor_record("uo-050-180-180", 0, 0.3, 1.3, 0.6), width_m=1.8,
+                        **{k: entrance[k] * 2.0 for k in keys}))  # the narrowed entrance: its line, not the exit's
+    records.append(dict(_corridor_record("uo-180-180-180", 0, 1.0, 1.2, 2.4), width_m=1.8,
+                        **dict.fromkeys(keys, 0.5)))  # no narrowed opening
     rows = passage_rows(records)
-    assert [r["run"] for r in rows] == ["uo-180-180-070"] * 3 and all(r["runs"] == 2 for r in rows)
-    assert rows[0]["model"] == pytest.approx(recorded["exit_headway_median_s"] * 1.05)
-    assert rows[0]["recorded"] == recorded["exit_headway_median_s"]
-    assert format_passage_rows(rows).count("uo-180-180-070") == 3
+    assert [r["run"] for r in rows] == ["uo-050-180-180"] * 3 + ["uo-180-180-070"] * 3
+    assert [r["opening"] for r in rows] == ["entrance 0.5 m"] * 3 + ["exit 0.7 m"] * 3
+    assert [r["runs"] for r in rows] == [1] * 3 + [2] * 3
+    assert rows[0]["model"] == pytest.approx(entrance["entrance_headway_median_s"] * 2.0)
+    assert rows[0]["recorded"] == entrance["entrance_headway_median_s"]
+    assert rows[3]["model"] == pytest.approx(recorded["exit_headway_median_s"] * 1.05)
+    assert rows[3]["recorded"] == recorded["exit_headway_median_s"]
+    assert format_passage_rows(rows).count("uo-180-180-070 | exit 0.7 m") == 3
 
 
 def test_lapse_rows_take_each_runs_narrower_opening_beside_the_recording(tmp_path):
