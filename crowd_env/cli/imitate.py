@@ -12,6 +12,13 @@ per run on the executor; writes OUT/policy.npz (a policy file: crowd-evaluate --
 background_policy="OUT/policy.npz", crowd-virtual-experiments --policy OUT/policy.npz), progress.csv (the learning
 curves), summary.json (sizes, wall and CPU time per stage, the open-loop speed errors against the calibrated agent).
 
+select: trained policies (files or training folders) scored closed loop on the validation runs (each drives every
+pedestrian of uo-100-180-180 and uo-180-180-095 as they were run, crowd-virtual-experiments' runs and measurement),
+ranked as docs/validation/human_policy.md ranks its candidates: a candidate with a stalled run after every one
+without, then by the mean miss of density, speed and exit flow in units of their tolerances. Writes
+OUT/selection.md and OUT/policy.npz (a copy of the best); the runs are stored under OUT/runs/ (resumable). The
+training's result depends on its seed: train several (--set seed=K) and keep the one this prefers.
+
 Examples::
 
     crowd-imitate demonstrations --uo-run uo-180-180-070 --out out/demos/uo-180-180-070.npz
@@ -20,11 +27,13 @@ Examples::
     crowd-imitate train --quick --out out/human_quick          # seconds: the same code path
     crowd-imitate train --out out/human --backend process --jobs 2
     crowd-imitate train --out out/human_bc --set dad_rounds=0    # behaviour cloning alone
+    crowd-imitate select out/human_s0 out/human_s1 out/human_s2 --out out/human_best --backend process --jobs 2
 """
 from __future__ import annotations
 
 import argparse
 import resource
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -34,15 +43,19 @@ from ..analysis.trajectories import Trajectories
 from ..errors import CrowdEnvError, OptionError
 from ..experiments.running.backends import make_backend
 from ..experiments.training.demonstrations import DEFAULT_SMOOTHING_S, demonstrations_from_trajectories
-from ..experiments.training.human_imitation import QUICK_HUMAN_TRAINING, train_human_policy
+from ..experiments.training.human_imitation import QUICK_HUMAN_TRAINING, VALIDATION_RUNS, train_human_policy
+from ..experiments.validation.virtual_experiments import (VirtualPlan, corridor_miss, run_virtual_experiments,
+                                                          virtual_config)
+from ..files import write_atomic
 from ..scenarios import make_scenario
+from ..walking.presets import DEFAULT_PRESET, get_preset
 from .options import key_values
 
 
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="crowd-imitate", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = ap.add_subparsers(dest="command", required=True, metavar="{demonstrations,train}")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="{demonstrations,train,select}")
     de = sub.add_parser("demonstrations", help="a trajectory file and a scenario into observation-action pairs",
                         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     de.add_argument("file", nargs="?", type=Path, help="trajectory file (PedPy's text format; .gz allowed)")
@@ -72,6 +85,17 @@ def build_parser() -> argparse.ArgumentParser:
                          "validation_runs")
     tr.add_argument("--backend", choices=["ray", "process", "serial"], default="serial")
     tr.add_argument("--jobs", type=int, default=None, help="processes of the pool / CPUs of local Ray")
+    se = sub.add_parser("select", help="trained policies scored closed loop on the validation runs; the best kept",
+                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    se.add_argument("policies", nargs="+", type=Path, help="policy files (.npz) or training folders (their policy.npz)")
+    se.add_argument("--out", required=True, type=Path, help="output folder (selection.md, policy.npz, runs/)")
+    se.add_argument("--runs", nargs="+", default=list(VALIDATION_RUNS), metavar="RUN",
+                    help=f"the corridor runs that score them (default the validation runs: {' '.join(VALIDATION_RUNS)})")
+    se.add_argument("--seeds", type=int, default=2, help="seeds 0..S-1 of each run (default 2, as the docs' table)")
+    se.add_argument("--radius", type=float, default=None, metavar="R",
+                    help="every pedestrian's radius in m (default the calibrated preset's body, as the training's)")
+    se.add_argument("--backend", choices=["ray", "process", "serial"], default="serial")
+    se.add_argument("--jobs", type=int, default=None, help="processes of the pool / CPUs of local Ray")
     return ap
 
 
@@ -80,6 +104,8 @@ def main(argv=None) -> int:
     try:
         if args.command == "demonstrations":
             return _demonstrations(args)
+        if args.command == "select":
+            return _select(args)
         return _train(args)
     except CrowdEnvError as exc:
         print(f"crowd-imitate: {exc}", file=sys.stderr)
@@ -125,6 +151,53 @@ def _train(args) -> int:
     print(f"this session: {time.perf_counter() - t0:.0f} s wall, {cpu_s:.0f} s CPU (this process and its workers); "
           f"wrote {summary['policy']}, {args.out / 'progress.csv'}, {args.out / 'summary.json'}")
     return 0
+
+
+def _select(args) -> int:
+    files = [p / "policy.npz" if p.is_dir() else p for p in args.policies]
+    missing = [str(f) for f in files if not f.is_file()]
+    if missing:
+        raise OptionError(f"no policy file at {', '.join(missing)} (give policy files or training folders)")
+    if args.seeds < 1:
+        raise OptionError(f"--seeds must be at least 1, got {args.seeds}")
+    preset = get_preset(DEFAULT_PRESET)  # the physics the human policy trains in
+    plan = VirtualPlan(experiments=("corridor",), corridor_runs=tuple(args.runs), seeds=tuple(range(args.seeds)))
+    scores = []
+    with make_backend(args.backend, jobs=args.jobs) as backend:
+        for k, path in enumerate(files):
+            config = virtual_config(preset.params(), navigation_clearance_m=preset.navigation_clearance_m,
+                                    radius_m=args.radius, policy=str(path.resolve()))
+            records = run_virtual_experiments(args.out / "runs" / f"candidate_{k}", config, plan, backend,
+                                              desc=f"candidate {k}")
+            scores.append(corridor_miss(records))
+    best = min(range(len(files)), key=lambda k: (scores[k]["failed"] > 0, scores[k]["miss"], k))
+    table = _selection_table(files, scores, best)
+    print(table)
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_atomic(args.out / "selection.md", table + "\n")
+    shutil.copyfile(files[best], args.out / "policy.npz")
+    print(f"kept candidate {best} ({files[best]}); wrote {args.out / 'selection.md'}, {args.out / 'policy.npz'}")
+    return 0
+
+
+def _two(x: float) -> str:
+    return f"{x:.2f}" if x == x and abs(x) != float("inf") else "–"
+
+
+def _selection_table(files: list, scores: list, best: int) -> str:
+    """The candidates as a Markdown table: each run's density / speed / exit flow (seed means of the complete runs,
+    the experiment's in the header), the miss, the stalled or incomplete runs; the kept one in bold."""
+    runs = scores[0]["runs"]
+    head = ["candidate", *(f"{r['run']} ρ / v / J (exp. {r['density_exp']:.2f} / {r['speed_exp']:.2f} / "
+                           f"{r['flow_exit_exp']:.2f})" for r in runs), "miss", "stalled or incomplete"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for k, (path, score) in enumerate(zip(files, scores)):
+        cells = [f"{k}: {path}", *(" / ".join(_two(r[q]) for q in ("density_per_m2", "speed_m_s", "flow_exit_per_s"))
+                                   for r in score["runs"]), _two(score["miss"]), str(score["failed"])]
+        if k == best:
+            cells = [f"**{c}**" for c in cells]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":

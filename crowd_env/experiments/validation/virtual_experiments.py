@@ -50,7 +50,7 @@ __all__ = ["EXPERIMENTS", "VirtualPlan", "QUICK_PLAN", "virtual_config", "virtua
            "virtual_figure", "snapshot_figure", "BOTTLENECK_TOLERANCE", "SINGLE_FILE_TOLERANCE_M_S",
            "PASSAGE_QUANTITIES", "passage_rows", "format_passage_rows", "approach_figure", "spacing_rows",
            "format_spacing_rows", "spacing_figure", "LAPSE_QUANTITIES", "lapse_rows", "format_lapse_rows",
-           "lapse_figure"]
+           "lapse_figure", "corridor_miss"]
 
 EXPERIMENTS = ("bottleneck", "corridor", "single_file")
 BOTTLENECK_TOLERANCE = 0.05  # J_s of N = 60 within ±5 % of Seyfried's
@@ -284,6 +284,22 @@ def virtual_rows(records: list) -> list:
     if by_kind["single_file"]:
         rows += _single_file_rows(by_kind["single_file"])
     return rows
+
+
+def corridor_miss(records: list) -> dict:
+    """How far the corridor runs of ``records`` are from their experiments, as the human policy's candidates are
+    ranked (docs/validation/human_policy.md): ``miss``, the mean over the runs and their density, speed and exit flow
+    of the miss in units of the tolerance (:func:`~crowd_env.experiments.validation.corridor_runs.summarise_corridor`,
+    seed means of the complete runs; a run with no complete seed counts no quantity); ``failed``, the runs that
+    stalled or stayed incomplete (a candidate with any ranks after every candidate without); ``runs``, the
+    summary's rows. Raises :class:`InputError` without corridor records."""
+    rows = summarise_corridor(records)
+    if not rows:
+        raise InputError("no corridor runs among the records: nothing to score")
+    misses = [row[k] for row in rows for k in ("density_miss", "speed_miss", "flow_exit_miss")
+              if np.isfinite(row[k])]
+    failed = sum(row["stalled"] + row["incomplete"] for row in rows)
+    return {"miss": float(np.mean(misses)) if misses else math.inf, "failed": int(failed), "runs": rows}
 
 
 def _cell(value, sd=math.nan) -> str:

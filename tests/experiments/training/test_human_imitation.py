@@ -7,6 +7,7 @@ from __future__ import annotations
 import csv
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,7 +18,7 @@ from crowd_env.core.segments import as_segments
 from crowd_env.core.state import first_overlap
 from crowd_env.envs.background import FileObservationPolicy
 from crowd_env.envs.observations import to_world_frame
-from crowd_env.errors import RunStoreError, TrainingError
+from crowd_env.errors import InputError, RunStoreError, TrainingError
 from crowd_env.experiments.training.demonstrations import replay_trajectories
 from crowd_env.experiments.training.human_imitation import human_training_config
 from crowd_env.experiments.training.recorded_rollouts import (RecordedView, calibrated_actions, dad_rollouts,
@@ -192,3 +193,48 @@ def test_the_quick_training_writes_a_policy_resumes_without_redoing_and_refuses_
         from crowd_env.experiments.training.human_imitation import QUICK_HUMAN_TRAINING, train_human_policy
 
         train_human_policy(out, config={**QUICK_HUMAN_TRAINING, "bc_epochs": 3}, resume=True)
+
+
+def test_corridor_miss_is_the_mean_miss_in_tolerance_units_and_counts_stalls():
+    from crowd_env.analysis.corridor_runs import uo_run
+    from crowd_env.experiments.validation.virtual_experiments import corridor_miss
+
+    run = uo_run("uo-180-180-095")
+
+    def record(seed, rho, v, flow, complete=True):
+        return {"experiment": "corridor", "run": run.name, "seed": seed, "complete": complete, "stalled": not complete,
+                "density_per_m2": rho, "speed_m_s": v, "flow_exit_per_s": flow, "flow_y0_per_s": flow,
+                "min_gap_m": 0.0}
+
+    exact = corridor_miss([record(0, run.density_per_m2, run.speed_m_s, run.flow_exit_per_s)])
+    assert exact["miss"] == pytest.approx(0.0, abs=1e-12) and exact["failed"] == 0
+    # +30 % density (2 tolerances), +0.05 m/s (0.5), −10 % flow (1): the mean, 3.5 / 3
+    off = corridor_miss([record(0, 1.3 * run.density_per_m2, run.speed_m_s + 0.05, 0.9 * run.flow_exit_per_s),
+                         record(1, 0.0, 0.0, 0.0, complete=False)])
+    assert off["miss"] == pytest.approx(3.5 / 3) and off["failed"] == 1
+    with pytest.raises(InputError, match="no corridor runs"):
+        corridor_miss([])
+
+
+def test_select_scores_policies_closed_loop_and_keeps_the_best(tmp_path, capsys):
+    """Two shipped policies on one validation run (seed 0): the learned-from-people one passes the 0.95 m exit, the
+    bottleneck's behaviour clone stalls there and ranks last; the best is copied, the runs stored (a second call runs
+    nothing again); a missing file is refused."""
+    from crowd_env.cli.imitate import main
+
+    trained = Path(__file__).resolve().parents[3] / "baselines" / "trained"
+    argv = ["select", str(trained / "bottleneck_bc.npz"), str(trained / "human_juelich.npz"), "--runs",
+            "uo-180-180-095", "--seeds", "1", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "kept candidate 1" in out
+    assert (tmp_path / "policy.npz").read_bytes() == (trained / "human_juelich.npz").read_bytes()
+    rows = (tmp_path / "selection.md").read_text().splitlines()
+    assert rows[2].endswith("| 1 |") and rows[3].startswith("| **1:")  # bottleneck_bc: its run stalled
+    assert sorted(p.name for p in (tmp_path / "runs").iterdir()) == ["candidate_0", "candidate_1"]
+    stored = {p: p.stat().st_mtime_ns for p in (tmp_path / "runs").rglob("*.json")}
+    assert main(argv) == 0  # resumed from the store: nothing run again, the same choice
+    assert {p: p.stat().st_mtime_ns for p in (tmp_path / "runs").rglob("*.json")} == stored
+    assert "kept candidate 1" in capsys.readouterr().out
+    assert main(["select", str(tmp_path / "nowhere.npz"), "--out", str(tmp_path / "x")]) == 2
+    assert "no policy file at" in capsys.readouterr().err
