@@ -274,7 +274,8 @@ def measure_uo_run(trajectories: Trajectories, *, corridor_width_m: float = 1.8,
 class DoorPassage:
     """How walkers pass a line across an opening over a window (:func:`door_passage`): the median and mean time
     between successive passages, the median speed at the line, the spread of where they cross it (10 % to 90 %
-    of x, and its standard deviation) and how many passed."""
+    of x, and its standard deviation), how many passed, and the share of them that crossed farther than
+    ``off_axis_m`` from the middle of the line's x range (NaN when not asked)."""
 
     headway_median_s: float
     headway_mean_s: float
@@ -283,12 +284,18 @@ class DoorPassage:
     lateral_p90_m: float
     lateral_sd_m: float
     n_passages: int
+    share_off_axis: float = float("nan")
 
 
-def door_passage(trajectories: Trajectories, *, y_m: float, x_range_m: tuple, window_frames: tuple) -> DoorPassage:
+def door_passage(trajectories: Trajectories, *, y_m: float, x_range_m: tuple, window_frames: tuple,
+                 off_axis_m: float | None = None) -> DoorPassage:
     """The passages of the line y = ``y_m`` (x in ``x_range_m``, towards −y) within ``window_frames`` (first, last
     frame): time headways between successive passages, each walker's speed over ±5 frames around its crossing and
-    the x where it crossed (as the data README's table of the narrowed exits measures the recordings)."""
+    the x where it crossed (as the data README's table of the narrowed exits measures the recordings); with
+    ``off_axis_m`` (≥ 0) also the share of the passages farther than that from the middle of ``x_range_m`` (for an
+    opening of width b on that axis and disks of radius r, b/2 − r: where no disk's centre can pass)."""
+    if off_axis_m is not None and not (math.isfinite(off_axis_m) and off_axis_m >= 0.0):
+        raise InputError(f"off_axis_m must be a distance >= 0 in m, got {off_axis_m!r}")
     fps = trajectories.frame_rate_per_s
     ids, frame, x, y = _by_walker(trajectories)
     step = (ids[1:] == ids[:-1]) & (frame[1:] == frame[:-1] + 1) & (y[:-1] > y_m) & (y[1:] <= y_m)
@@ -317,7 +324,9 @@ def door_passage(trajectories: Trajectories, *, y_m: float, x_range_m: tuple, wi
                        float(headways.mean()) if headways.size else nan,
                        float(np.median(speeds)) if speeds else nan,
                        float(np.quantile(xc, 0.1)) if xc.size else nan, float(np.quantile(xc, 0.9)) if xc.size else nan,
-                       float(xc.std()) if xc.size else nan, int(tc.size))
+                       float(xc.std()) if xc.size else nan, int(tc.size),
+                       float(np.mean(np.abs(xc - 0.5 * (x_range_m[0] + x_range_m[1])) > off_axis_m))
+                       if off_axis_m is not None and xc.size else nan)
 
 
 def approach_profile(trajectories: Trajectories, *, corridor_width_m: float, window_frames: tuple,

@@ -130,6 +130,12 @@ def test_door_passage_and_approach_profile_of_a_known_stream():
     assert d.n_passages == 24 + 1  # crossings at 8.0, 8.5, ..., 20.0 s: 13 at x = 1.0 m, 12 at 0.8 m
     assert d.lateral_sd_m == pytest.approx(np.std([1.0] * 13 + [0.8] * 12), rel=1e-9)
     assert (d.lateral_p10_m, d.lateral_p90_m) == (0.8, 1.0)
+    assert np.isnan(d.share_off_axis)  # not asked
+    for off, share in ((0.05, 1.0), (0.15, 0.0)):  # every walker 0.1 m off the middle of (0.55, 1.25)
+        assert door_passage(traj, y_m=-4.0, x_range_m=(0.55, 1.25), window_frames=(int(fps * 8), int(fps * 20)),
+                            off_axis_m=off).share_off_axis == share
+    with pytest.raises(InputError, match="off_axis_m"):
+        door_passage(traj, y_m=-4.0, x_range_m=(0.55, 1.25), window_frames=(0, 10), off_axis_m=-0.1)
     narrow = door_passage(traj, y_m=-4.0, x_range_m=(0.9, 1.25), window_frames=(int(fps * 8), int(fps * 20)))
     assert narrow.headway_median_s == pytest.approx(1.0, abs=1e-9)  # only the walkers at x = 1.0 m
     centres, density, speed = approach_profile(traj, corridor_width_m=1.8, window_frames=(int(fps * 10), int(fps * 18)))

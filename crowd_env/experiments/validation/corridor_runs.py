@@ -41,6 +41,7 @@ CORRIDOR_RUN_NAMES = tuple(r.name for r in juelich_uo_runs())
 # The issue's targets for each run: speed within ±0.10 m/s, density within ±15 %, exit flow within ±10 %.
 CORRIDOR_TOLERANCES = {"speed_m_s": 0.10, "density_relative": 0.15, "flow_exit_relative": 0.10}
 _FLOOR_HALF_WIDTH_M = 5.0  # the entrance line spans any floor before the corridor (the scenario's is 5 m wide)
+_KABALAN_RADIUS_M = PedestrianDefaults().radius_m  # Table 2's body: passages off the axis its centre can take
 _MEASURED = ("density_per_m2", "density_sd_per_m2", "speed_m_s", "speed_sd_m_s", "flow_y0_per_s", "flow_exit_per_s",
              "steady_from_frame", "steady_to_frame")
 
@@ -89,15 +90,19 @@ def run_corridor_one(task: dict) -> dict:
         m = measure_uo_run(traj, corridor_width_m=task["corridor_width_m"], exit_width_m=task["exit_width_m"])
         measured = {k: getattr(m, k) for k in _MEASURED}
         record.update(passage_figures(traj, corridor_width_m=task["corridor_width_m"], exit_width_m=task["exit_width_m"],
+                                      entrance_width_m=task["entrance_width_m"],
                                       window_frames=(m.steady_from_frame, m.steady_to_frame)))
     record.update(measured)
     return record
 
 
-def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: float, window_frames: tuple) -> dict:
+def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: float, window_frames: tuple,
+                    entrance_width_m: float) -> dict:
     """How a run passes its exit and approaches it over its steady state, as JSON-able record fields: ``exit_*``
     (:func:`~crowd_env.analysis.corridor_runs.door_passage` at y = −4 m across the exit) and ``entrance_*`` (the same
-    at y = 7.6 m, 0.4 m past the entrance, where the camera sees everybody who came through), ``approach_*``
+    at y = 7.6 m, 0.4 m past the entrance, where the camera sees everybody who came through), each with the share of
+    the passages farther off the opening's axis than the centre of a disk of Kabalan's 0.23 m can pass it
+    (``*_share_off_axis``), ``approach_*``
     (:func:`~crowd_env.analysis.corridor_runs.approach_profile`: density and speed in 0.5 m bands before it) and
     ``spacing_*`` (:func:`~crowd_env.analysis.corridor_runs.neighbour_spacing` in the measurement area: how close
     walkers come to each other ahead and beside, its bearing edges, the 1 %, 5 % and 50 % quantiles of the distance
@@ -108,18 +113,19 @@ def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: floa
     half = 0.5 * exit_width_m
     centre = 0.5 * corridor_width_m
     door = door_passage(trajectories, y_m=UO_CORRIDOR_END_Y_M, x_range_m=(centre - half, centre + half),
-                        window_frames=window_frames)
+                        window_frames=window_frames, off_axis_m=max(half - _KABALAN_RADIUS_M, 0.0))
     floor = (centre - _FLOOR_HALF_WIDTH_M, centre + _FLOOR_HALF_WIDTH_M)
-    entrance = door_passage(trajectories, y_m=UO_ENTRANCE_LINE_Y_M, x_range_m=floor, window_frames=window_frames)
+    entrance = door_passage(trajectories, y_m=UO_ENTRANCE_LINE_Y_M, x_range_m=floor, window_frames=window_frames,
+                            off_axis_m=max(0.5 * entrance_width_m - _KABALAN_RADIUS_M, 0.0))
     y, density, speed = approach_profile(trajectories, corridor_width_m=corridor_width_m, window_frames=window_frames)
     spacing = neighbour_spacing(trajectories, area=uo_measurement_area(corridor_width_m), window_frames=window_frames)
     return {"exit_headway_median_s": door.headway_median_s, "exit_speed_median_m_s": door.speed_median_m_s,
-            "exit_lateral_sd_m": door.lateral_sd_m, "approach_y_m": y.tolist(), "approach_density_per_m2": density.tolist(),
+            "exit_lateral_sd_m": door.lateral_sd_m, "exit_share_off_axis": door.share_off_axis, "approach_y_m": y.tolist(), "approach_density_per_m2": density.tolist(),
             "approach_speed_m_s": speed.tolist(), "spacing_bearing_edges_deg": spacing.bearing_edges_deg.tolist(),
             "spacing_q01_m": spacing.distance_m[:, 0].tolist(), "spacing_q05_m": spacing.distance_m[:, 1].tolist(),
             "spacing_median_m": spacing.distance_m[:, 2].tolist(), "spacing_share_closer": spacing.share_closer.tolist(),
             "entrance_headway_median_s": entrance.headway_median_s, "entrance_speed_median_m_s": entrance.speed_median_m_s,
-            "entrance_lateral_sd_m": entrance.lateral_sd_m,
+            "entrance_lateral_sd_m": entrance.lateral_sd_m, "entrance_share_off_axis": entrance.share_off_axis,
             "entrance_lapses_s": passage_lapses(trajectories, y_m=UO_ENTRANCE_LINE_Y_M, x_range_m=floor).tolist(),
             "exit_lapses_s": passage_lapses(trajectories, y_m=UO_CORRIDOR_END_Y_M,
                                             x_range_m=(centre - half, centre + half)).tolist()}
@@ -129,6 +135,7 @@ def recorded_passage_figures(name: str) -> dict:
     """:func:`passage_figures` of the recording of run ``name`` over its hand-chosen steady state."""
     run = uo_run(name)
     return passage_figures(recorded_uo_trajectories(name), corridor_width_m=run.corridor_width_m,
+                           entrance_width_m=run.entrance_width_m,
                            exit_width_m=run.exit_width_m, window_frames=(run.steady_from_frame, run.steady_to_frame))
 
 

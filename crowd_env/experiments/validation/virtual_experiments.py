@@ -424,7 +424,8 @@ def virtual_figure(records: list, path) -> Path:
 
 PASSAGE_QUANTITIES = (("headway_median_s", "time between passages, median (s)"),
                       ("speed_median_m_s", "speed at the opening, median (m/s)"),
-                      ("lateral_sd_m", "spread of the crossing point, sd (m)"))
+                      ("lateral_sd_m", "spread of the crossing point, sd (m)"),
+                      ("share_off_axis", "share crossing farther off the axis than a 0.46 m disk's centre can"))
 
 
 def _corridor_runs_with(records: list, key: str, *, narrowed_exit: bool = False) -> list:

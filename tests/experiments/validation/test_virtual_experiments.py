@@ -111,7 +111,7 @@ def test_passage_rows_set_the_model_beside_the_recording_measured_alike():
     assert recorded["exit_speed_median_m_s"] == pytest.approx(0.68, abs=0.01)
     assert recorded["exit_lateral_sd_m"] == pytest.approx(0.16, abs=0.01)
     keys = [f"{where}_{k}" for where in ("exit", "entrance") for k in ("headway_median_s", "speed_median_m_s",
-                                                                      "lateral_sd_m")]
+                                                                      "lateral_sd_m", "share_off_axis")]
     records = [dict(_corridor_record("uo-180-180-070", s, 3.0, 0.3, 1.6), width_m=0.7,
                     **{k: recorded[k] * (1 + 0.1 * s) for k in keys}) for s in (0, 1)]
     records.append(dict(_corridor_record("uo-180-180-070", 2, 3.0, 0.3, 1.6, complete=False, stalled=True),
@@ -124,14 +124,16 @@ def test_passage_rows_set_the_model_beside_the_recording_measured_alike():
     records.append(dict(_corridor_record("uo-180-180-180", 0, 1.0, 1.2, 2.4), width_m=1.8,
                         **dict.fromkeys(keys, 0.5)))  # no narrowed opening
     rows = passage_rows(records)
-    assert [r["run"] for r in rows] == ["uo-050-180-180"] * 3 + ["uo-180-180-070"] * 3
-    assert [r["opening"] for r in rows] == ["entrance 0.5 m"] * 3 + ["exit 0.7 m"] * 3
-    assert [r["runs"] for r in rows] == [1] * 3 + [2] * 3
+    assert [r["run"] for r in rows] == ["uo-050-180-180"] * 4 + ["uo-180-180-070"] * 4
+    assert [r["opening"] for r in rows] == ["entrance 0.5 m"] * 4 + ["exit 0.7 m"] * 4
+    assert [r["runs"] for r in rows] == [1] * 4 + [2] * 4
     assert rows[0]["model"] == pytest.approx(entrance["entrance_headway_median_s"] * 2.0)
     assert rows[0]["recorded"] == entrance["entrance_headway_median_s"]
-    assert rows[3]["model"] == pytest.approx(recorded["exit_headway_median_s"] * 1.05)
-    assert rows[3]["recorded"] == recorded["exit_headway_median_s"]
-    assert format_passage_rows(rows).count("uo-180-180-070 | exit 0.7 m") == 3
+    assert rows[4]["model"] == pytest.approx(recorded["exit_headway_median_s"] * 1.05)
+    assert rows[4]["recorded"] == recorded["exit_headway_median_s"]
+    assert format_passage_rows(rows).count("uo-180-180-070 | exit 0.7 m") == 4
+    # people's heads cross the 0.70 m door farther off its axis than a 0.46 m disk's centre can (0.12 m), most of them
+    assert recorded["exit_share_off_axis"] == pytest.approx(0.63, abs=0.05)
 
 
 def test_lapse_rows_take_each_runs_narrower_opening_beside_the_recording(tmp_path):
