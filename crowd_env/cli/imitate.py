@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import argparse
 import resource
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -46,7 +45,7 @@ from ..experiments.training.demonstrations import DEFAULT_SMOOTHING_S, demonstra
 from ..experiments.training.human_imitation import QUICK_HUMAN_TRAINING, VALIDATION_RUNS, train_human_policy
 from ..experiments.validation.virtual_experiments import (VirtualPlan, corridor_miss, run_virtual_experiments,
                                                           virtual_config)
-from ..files import write_atomic
+from ..files import copy_atomic, write_atomic
 from ..scenarios import make_scenario
 from ..walking.presets import DEFAULT_PRESET, get_preset
 from .options import key_values
@@ -175,7 +174,7 @@ def _select(args) -> int:
     print(table)
     args.out.mkdir(parents=True, exist_ok=True)
     write_atomic(args.out / "selection.md", table + "\n")
-    shutil.copyfile(files[best], args.out / "policy.npz")
+    copy_atomic(files[best], args.out / "policy.npz")
     print(f"kept candidate {best} ({files[best]}); wrote {args.out / 'selection.md'}, {args.out / 'policy.npz'}")
     return 0
 
