@@ -102,6 +102,7 @@ def uo_run(name: str) -> UORun:
             return run
     raise NotFoundError(f"no Jülich corridor run {name!r}; the runs are {[r.name for r in juelich_uo_runs()]}")
 
+
 def uo_scenario(name: str, **options):
     """The ``juelich_corridor`` scenario of run ``name`` (its entrance, corridor and exit widths and N; seed 0 unless
     ``options`` say otherwise; ``options``: the scenario's other options)."""

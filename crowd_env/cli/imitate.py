@@ -43,8 +43,8 @@ from ..errors import CrowdEnvError, OptionError
 from ..experiments.running.backends import make_backend
 from ..experiments.training.demonstrations import DEFAULT_SMOOTHING_S, demonstrations_from_trajectories
 from ..experiments.training.human_imitation import QUICK_HUMAN_TRAINING, VALIDATION_RUNS, train_human_policy
-from ..experiments.validation.virtual_experiments import (VirtualPlan, corridor_miss, run_virtual_experiments,
-                                                          virtual_config)
+from ..experiments.validation.virtual_experiments import (VirtualPlan, corridor_miss, format_selection,
+                                                          run_virtual_experiments, virtual_config)
 from ..files import copy_atomic, write_atomic
 from ..scenarios import make_scenario
 from ..walking.presets import DEFAULT_PRESET, get_preset
@@ -170,33 +170,13 @@ def _select(args) -> int:
                                               desc=f"candidate {k}")
             scores.append(corridor_miss(records))
     best = min(range(len(files)), key=lambda k: (scores[k]["failed"] > 0, scores[k]["miss"], k))
-    table = _selection_table(files, scores, best)
+    table = format_selection(files, scores, best)
     print(table)
     args.out.mkdir(parents=True, exist_ok=True)
     write_atomic(args.out / "selection.md", table + "\n")
     copy_atomic(files[best], args.out / "policy.npz")
     print(f"kept candidate {best} ({files[best]}); wrote {args.out / 'selection.md'}, {args.out / 'policy.npz'}")
     return 0
-
-
-def _two(x: float) -> str:
-    return f"{x:.2f}" if x == x and abs(x) != float("inf") else "–"
-
-
-def _selection_table(files: list, scores: list, best: int) -> str:
-    """The candidates as a Markdown table: each run's density / speed / exit flow (seed means of the complete runs,
-    the experiment's in the header), the miss, the stalled or incomplete runs; the kept one in bold."""
-    runs = scores[0]["runs"]
-    head = ["candidate", *(f"{r['run']} ρ / v / J (exp. {r['density_exp']:.2f} / {r['speed_exp']:.2f} / "
-                           f"{r['flow_exit_exp']:.2f})" for r in runs), "miss", "stalled or incomplete"]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for k, (path, score) in enumerate(zip(files, scores)):
-        cells = [f"{k}: {path}", *(" / ".join(_two(r[q]) for q in ("density_per_m2", "speed_m_s", "flow_exit_per_s"))
-                                   for r in score["runs"]), _two(score["miss"]), str(score["failed"])]
-        if k == best:
-            cells = [f"**{c}**" for c in cells]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
 
 
 if __name__ == "__main__":

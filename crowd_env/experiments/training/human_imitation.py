@@ -96,10 +96,11 @@ def human_training_config(config: dict | None = None, *, preset: str = "calibrat
         raise TrainingError(f"dad must be a dict of the rollouts' options {sorted(DEFAULT_DAD)}, got {cfg['dad']!r}")
     cfg["dad"] = {**DEFAULT_HUMAN_TRAINING["dad"], **cfg["dad"]}  # a partial dict changes only what it names
     cfg["options"] = policy_options(cfg["policy"])
-    params = get_preset(preset).params()
+    physics = get_preset(preset)
+    params = physics.params()
     cfg["params"] = {f: getattr(params, f) for f in ("dt_s", "rotation")}
     if cfg["radius_m"] is None:  # the body of the preset's physics
-        cfg["radius_m"] = get_preset(preset).radius_m
+        cfg["radius_m"] = physics.radius_m
     if not (isinstance(cfg["radius_m"], (int, float)) and 0.0 < cfg["radius_m"] < 0.5):
         raise TrainingError(f"radius_m must be a body radius in m in (0, 0.5), got {cfg['radius_m']!r}")
     cfg["radius_m"] = float(cfg["radius_m"])
@@ -114,7 +115,8 @@ def stage_names(cfg: dict) -> list:
 
 
 def _replay(name: str, cfg: dict):
-    scenario = uo_scenario(name, radius_m=cfg.get("radius_m", 0.23))
+    body = {"radius_m": cfg["radius_m"]} if "radius_m" in cfg else {}  # a configuration stored before the option
+    scenario = uo_scenario(name, **body)
     params = ModelParams(**cfg["params"])
     return scenario, replay_trajectories(recorded_uo_trajectories(name), scenario, options=cfg["options"],
                                          params=params, smoothing_s=cfg["smoothing_s"])

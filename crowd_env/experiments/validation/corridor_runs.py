@@ -102,33 +102,32 @@ def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: floa
     (:func:`~crowd_env.analysis.corridor_runs.door_passage` at y = −4 m across the exit) and ``entrance_*`` (the same
     at y = 7.6 m, 0.4 m past the entrance, where the camera sees everybody who came through), each with the share of
     the passages farther off the opening's axis than the centre of a disk of Kabalan's 0.23 m can pass it
-    (``*_share_off_axis``), ``approach_*``
-    (:func:`~crowd_env.analysis.corridor_runs.approach_profile`: density and speed in 0.5 m bands before it) and
-    ``spacing_*`` (:func:`~crowd_env.analysis.corridor_runs.neighbour_spacing` in the measurement area: how close
-    walkers come to each other ahead and beside, its bearing edges, the 1 %, 5 % and 50 % quantiles of the distance
-    per bin and the share closer than 0.46 m, two radii of Kabalan's body), ``entrance_lapses_s`` and
-    ``exit_lapses_s`` (:func:`~crowd_env.analysis.corridor_runs.passage_lapses`: the time lapses between successive
-    passages of the entrance line and of the exit line, each over its own steady state). The same function measures the recordings
-    (:func:`recorded_passage_figures`)."""
+    (``*_share_off_axis``); ``approach_*`` (:func:`~crowd_env.analysis.corridor_runs.approach_profile`: density and
+    speed in 0.5 m bands before the exit); ``spacing_*`` (:func:`~crowd_env.analysis.corridor_runs.neighbour_spacing`
+    in the measurement area: how close walkers come to each other ahead and beside, its bearing edges, the 1 %, 5 %
+    and 50 % quantiles of the distance per bin and the share closer than 0.46 m, two radii of Kabalan's body);
+    ``entrance_lapses_s`` and ``exit_lapses_s`` (:func:`~crowd_env.analysis.corridor_runs.passage_lapses`: the time
+    lapses between successive passages of the entrance line and of the exit line, each over its own steady state).
+    The same function measures the recordings (:func:`recorded_passage_figures`)."""
     half = 0.5 * exit_width_m
     centre = 0.5 * corridor_width_m
-    door = door_passage(trajectories, y_m=UO_CORRIDOR_END_Y_M, x_range_m=(centre - half, centre + half),
-                        window_frames=window_frames, off_axis_m=max(half - _KABALAN_RADIUS_M, 0.0))
+    door = (centre - half, centre + half)
     floor = (centre - _FLOOR_HALF_WIDTH_M, centre + _FLOOR_HALF_WIDTH_M)
+    exit_ = door_passage(trajectories, y_m=UO_CORRIDOR_END_Y_M, x_range_m=door, window_frames=window_frames,
+                         off_axis_m=max(half - _KABALAN_RADIUS_M, 0.0))
     entrance = door_passage(trajectories, y_m=UO_ENTRANCE_LINE_Y_M, x_range_m=floor, window_frames=window_frames,
                             off_axis_m=max(0.5 * entrance_width_m - _KABALAN_RADIUS_M, 0.0))
     y, density, speed = approach_profile(trajectories, corridor_width_m=corridor_width_m, window_frames=window_frames)
     spacing = neighbour_spacing(trajectories, area=uo_measurement_area(corridor_width_m), window_frames=window_frames)
-    return {"exit_headway_median_s": door.headway_median_s, "exit_speed_median_m_s": door.speed_median_m_s,
-            "exit_lateral_sd_m": door.lateral_sd_m, "exit_share_off_axis": door.share_off_axis, "approach_y_m": y.tolist(), "approach_density_per_m2": density.tolist(),
+    figures = {f"{where}_{field}": getattr(passage, field)
+               for where, passage in (("exit", exit_), ("entrance", entrance))
+               for field in ("headway_median_s", "speed_median_m_s", "lateral_sd_m", "share_off_axis")}
+    return {**figures, "approach_y_m": y.tolist(), "approach_density_per_m2": density.tolist(),
             "approach_speed_m_s": speed.tolist(), "spacing_bearing_edges_deg": spacing.bearing_edges_deg.tolist(),
             "spacing_q01_m": spacing.distance_m[:, 0].tolist(), "spacing_q05_m": spacing.distance_m[:, 1].tolist(),
             "spacing_median_m": spacing.distance_m[:, 2].tolist(), "spacing_share_closer": spacing.share_closer.tolist(),
-            "entrance_headway_median_s": entrance.headway_median_s, "entrance_speed_median_m_s": entrance.speed_median_m_s,
-            "entrance_lateral_sd_m": entrance.lateral_sd_m, "entrance_share_off_axis": entrance.share_off_axis,
             "entrance_lapses_s": passage_lapses(trajectories, y_m=UO_ENTRANCE_LINE_Y_M, x_range_m=floor).tolist(),
-            "exit_lapses_s": passage_lapses(trajectories, y_m=UO_CORRIDOR_END_Y_M,
-                                            x_range_m=(centre - half, centre + half)).tolist()}
+            "exit_lapses_s": passage_lapses(trajectories, y_m=UO_CORRIDOR_END_Y_M, x_range_m=door).tolist()}
 
 
 def recorded_passage_figures(name: str) -> dict:

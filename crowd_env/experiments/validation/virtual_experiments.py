@@ -50,7 +50,7 @@ __all__ = ["EXPERIMENTS", "VirtualPlan", "QUICK_PLAN", "virtual_config", "virtua
            "virtual_figure", "snapshot_figure", "BOTTLENECK_TOLERANCE", "SINGLE_FILE_TOLERANCE_M_S",
            "PASSAGE_QUANTITIES", "passage_rows", "format_passage_rows", "approach_figure", "spacing_rows",
            "format_spacing_rows", "spacing_figure", "LAPSE_QUANTITIES", "lapse_rows", "format_lapse_rows",
-           "lapse_figure", "corridor_miss"]
+           "lapse_figure", "corridor_miss", "format_selection"]
 
 EXPERIMENTS = ("bottleneck", "corridor", "single_file")
 BOTTLENECK_TOLERANCE = 0.05  # J_s of N = 60 within ±5 % of Seyfried's
@@ -300,6 +300,20 @@ def corridor_miss(records: list) -> dict:
               if np.isfinite(row[k])]
     failed = sum(row["stalled"] + row["incomplete"] for row in rows)
     return {"miss": float(np.mean(misses)) if misses else math.inf, "failed": int(failed), "runs": rows}
+
+
+def format_selection(names: list, scores: list, best: int) -> str:
+    """Candidates scored by :func:`corridor_miss` as a Markdown table: each run's density / speed / exit flow (seed
+    means of the complete runs, the experiment's in the header), the miss, the stalled or incomplete runs; the
+    candidate ``best`` in bold."""
+    head = ["candidate", *(f"{r['run']} ρ / v / J (exp. {r['density_exp']:.2f} / {r['speed_exp']:.2f} / "
+                           f"{r['flow_exit_exp']:.2f})" for r in scores[0]["runs"]), "miss", "stalled or incomplete"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for k, (name, score) in enumerate(zip(names, scores)):
+        cells = [f"{k}: {name}", *(" / ".join(_cell(r[q]) for q in ("density_per_m2", "speed_m_s", "flow_exit_per_s"))
+                                   for r in score["runs"]), _cell(score["miss"]), str(score["failed"])]
+        lines.append("| " + " | ".join(f"**{c}**" if k == best else c for c in cells) + " |")
+    return "\n".join(lines)
 
 
 def _cell(value, sd=math.nan) -> str:
