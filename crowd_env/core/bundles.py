@@ -69,8 +69,9 @@ class World(NamedTuple):
 
 class StepParams(NamedTuple):
     """The numbers of a step: h, the contact tolerance ε, the dissipations K_n, K_tg, K_v of the Frémond
-    impact (Eq. 4-8), heading dynamics on or off, and the dense solvers' limits of the
-    :class:`~crowd_env.core.solvers.cascade.SolverCascade` (rows −1: every cluster to the cascade)."""
+    impact (Eq. 4-8), heading dynamics on or off, the dense solvers' limits of the
+    :class:`~crowd_env.core.solvers.cascade.SolverCascade` (rows −1: every cluster to the cascade) and the bodies'
+    depth (:mod:`crowd_env.core.body`; 0: the paper's disks)."""
 
     dt_s: float
     contact_tolerance_m: float
@@ -81,6 +82,7 @@ class StepParams(NamedTuple):
     max_dense_rows: int
     max_dense_bodies: int
     max_dense_projection_rows: int
+    body_depth_m: float
 
 
 class StepInputs(NamedTuple):
@@ -98,8 +100,10 @@ class StepInputs(NamedTuple):
 class Candidates(NamedTuple):
     """Contact candidates of a step, one entry per contact (pedestrian pairs, then walls): ``a``/``b`` rows into the
     step's active index (b = −1 for a wall), ``gap`` (m), ``nx``/``ny`` (the unit normal from b to a),
-    ``rho_a``/``rho_b`` (the contact point's distances from the centres; ρ = r against a wall), ``wall`` (segment id
-    or −1). The fields are :data:`crowd_env.core.contacts.CONTACT_FIELDS`."""
+    ``rho_a``/``rho_b`` (the contact point's distances from the two circles' centres; ρ = r against a wall), ``wall``
+    (segment id or −1), ``sub`` (which circles of the two bodies touch, :mod:`crowd_env.core.body`; 0 for disks) and
+    ``arm_a``/``arm_b`` (the circles' centres from the bodies' centres, (C, 2); zero for disks). The fields are
+    :data:`crowd_env.core.contacts.CONTACT_FIELDS`."""
 
     a: np.ndarray  # (C,) int64
     b: np.ndarray  # (C,) int64
@@ -109,6 +113,9 @@ class Candidates(NamedTuple):
     rho_a: np.ndarray  # (C,)
     rho_b: np.ndarray  # (C,)
     wall: np.ndarray  # (C,) int64
+    sub: np.ndarray  # (C,) int64
+    arm_a: np.ndarray  # (C, 2)
+    arm_b: np.ndarray  # (C, 2)
 
 
 class Links(NamedTuple):

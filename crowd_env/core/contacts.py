@@ -23,6 +23,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from .body import body_circles, circle_count
 from .bundles import Candidates, Links
 from .periodic import minimum_image_dx
 from .segments import wall_rows
@@ -38,25 +39,31 @@ def pair_candidates(position, radius, speed, pairs, index, eps_m, dt_s, margin_o
     ``(a, b, gap, nx, ny, d)`` with a, b rows into ``index``; also writes each pedestrian's own
     margin ε + 2h‖u_i‖ into ``margin_out`` (used for walls). ``period_m``: nearest images along x.
     """
-    a_out, b_out, geo, m = _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin_out, period_m)
+    circles = body_circles(position, np.zeros(position.shape[0]), radius, index, 0.0)
+    a_out, b_out, _, geo, m = _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin_out, period_m,
+                                         circles, 1)
     return a_out[:m], b_out[:m], geo[:m, 0].copy(), geo[:m, 1].copy(), geo[:m, 2].copy(), geo[:m, 3].copy()
 
 
 @nb.njit(cache=True)
-def _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin_out, period_m):
-    """:func:`pair_candidates` in buffers: ``(a, b, geo, m)``, the first m rows holding the candidates (geo:
-    gap, nx, ny, d)."""
+def _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin_out, period_m, circles, k):
+    """:func:`pair_candidates` in buffers, between the ``k`` circles of each body (``circles``: centres, radii and
+    arms of :func:`~crowd_env.core.body.body_circles`): ``(a, b, sub, geo, m)``, the first m rows holding the
+    candidates (``sub`` = s_a k + s_b, the two circles; geo: gap, nx, ny, d between the circles' centres, the two
+    arms)."""
+    centre, crad, carm = circles
     n = index.shape[0]
-    for k in range(n):
-        margin_out[k] = eps_m + 2.0 * dt_s * speed[k]
+    for q in range(n):
+        margin_out[q] = eps_m + 2.0 * dt_s * speed[q]
     p = pairs.shape[0]
-    a_out = np.empty(p, np.int64)
-    b_out = np.empty(p, np.int64)
-    geo = np.empty((p, 4))
+    a_out = np.empty(p * k * k, np.int64)
+    b_out = np.empty(p * k * k, np.int64)
+    sub = np.empty(p * k * k, np.int64)
+    geo = np.empty((p * k * k, 8))
     m = 0
-    for k in range(p):
-        a = pairs[k, 0]
-        b = pairs[k, 1]
+    for q in range(p):
+        a = pairs[q, 0]
+        b = pairs[q, 1]
         i = index[a]
         j = index[b]
         dx = minimum_image_dx(position[i, 0] - position[j, 0], period_m)
@@ -64,46 +71,71 @@ def _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin_out, p
         d2 = dx * dx + dy * dy
         limit = margin_out[a] + margin_out[b] - eps_m
         # a pair beyond the limit by more than 1e-9 m (far above the rounding of the test below) is left before the
-        # root: the superset of pairs a caller passes (e.g. all within the social forces' reach) is mostly such
+        # root: the superset of pairs a caller passes (e.g. all within the social forces' reach) is mostly such.
+        # Every circle of a body lies within its disk of radius r (crowd_env.core.body), so the test holds for them.
         reach = abs(limit + radius[i] + radius[j]) + 1e-9
         if d2 > reach * reach:
             continue
-        d = np.sqrt(d2)
-        gap = d - radius[i] - radius[j]
-        if gap > limit:
-            continue
-        a_out[m] = a
-        b_out[m] = b
-        geo[m, 0] = gap
-        if d > 1e-12:
-            geo[m, 1] = dx / d
-            geo[m, 2] = dy / d
-        else:  # coincident centres (only reachable from corrupted input): any unit normal
-            geo[m, 1] = 1.0
-            geo[m, 2] = 0.0
-        geo[m, 3] = d
-        m += 1
-    return a_out, b_out, geo, m
+        for sa in range(k):
+            ca = a * k + sa
+            for sb in range(k):
+                cb = b * k + sb
+                if k > 1:
+                    dx = minimum_image_dx(centre[ca, 0] - centre[cb, 0], period_m)
+                    dy = centre[ca, 1] - centre[cb, 1]
+                    d2 = dx * dx + dy * dy
+                d = np.sqrt(d2)
+                gap = d - crad[ca] - crad[cb]
+                if gap > limit:
+                    continue
+                a_out[m] = a
+                b_out[m] = b
+                sub[m] = sa * k + sb
+                geo[m, 0] = gap
+                if d > 1e-12:
+                    geo[m, 1] = dx / d
+                    geo[m, 2] = dy / d
+                else:  # coincident centres (only reachable from corrupted input): any unit normal
+                    geo[m, 1] = 1.0
+                    geo[m, 2] = 0.0
+                geo[m, 3] = d
+                geo[m, 4] = carm[ca, 0]
+                geo[m, 5] = carm[ca, 1]
+                geo[m, 6] = carm[cb, 0]
+                geo[m, 7] = carm[cb, 1]
+                m += 1
+    return a_out, b_out, sub, geo, m
 
 
-CONTACT_FIELDS = Candidates._fields  # ("a", "b", "gap", "nx", "ny", "rho_a", "rho_b", "wall")
+CONTACT_FIELDS = Candidates._fields  # ("a", "b", "gap", "nx", "ny", "rho_a", "rho_b", "wall", "sub", "arm_a", "arm_b")
 
 
 @nb.njit(cache=True)
-def contact_candidates(position, radius, speed, index, pairs, walls, wall_owner, eps_m, dt_s, period_m=0.0):
-    """Candidate contacts (pedestrian pairs, then walls) among the pedestrians ``index``.
+def contact_candidates(position, heading, radius, depth_m, speed, index, pairs, walls, wall_owner, eps_m, dt_s,
+                       period_m=0.0):
+    """Candidate contacts (pedestrian pairs, then walls) among the pedestrians ``index``, between their bodies'
+    circles (:mod:`crowd_env.core.body`: the disk itself when the body depth ``depth_m`` is 0).
 
-    ``speed`` (n,) compact ‖u‖; ``pairs`` rows into ``index`` (any superset of the pairs within
-    2 r_max + margins); ``period_m``: nearest images along x (module docstring). Returns the arrays of :data:`CONTACT_FIELDS`, one entry per contact: ``a``/``b``
-    rows into ``index`` (b = -1 for a wall), ``gap`` (m), ``nx``/``ny`` (unit normal from b to a),
-    ``rho_a``/``rho_b`` (distances of the contact point from the centres, ρ_i = d r_i/(r_i + r_j),
-    ρ = r against a wall), ``wall`` (segment id or -1): a :class:`~crowd_env.core.bundles.Candidates`.
+    ``speed`` (n,) compact speeds of the margins (:func:`~crowd_env.core.step.speeds`); ``pairs`` rows into
+    ``index`` (any superset of the pairs within 2 r_max + margins); ``period_m``: nearest images along x (module
+    docstring). Returns the arrays of :data:`CONTACT_FIELDS`, one entry per contact: ``a``/``b`` rows into
+    ``index`` (b = -1 for a wall), ``gap`` (m), ``nx``/``ny`` (unit normal from b to a), ``rho_a``/``rho_b``
+    (distances of the contact point from the two circles' centres, ρ_i = d r_i/(r_i + r_j), ρ = r against a wall),
+    ``wall`` (segment id or -1), ``sub`` (the circles: s_a K + s_b, s_a against a wall), ``arm_a``/``arm_b`` (C, 2)
+    (the circles' centres from the bodies' centres; zero for disks): a
+    :class:`~crowd_env.core.bundles.Candidates`.
     """
     n = index.shape[0]
+    k = circle_count(depth_m)
+    circles = body_circles(position, heading, radius, index, depth_m)
     margin = np.empty(n)
-    a, b, geo, npair = _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin, period_m)
+    a, b, sub, geo, npair = _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin, period_m, circles,
+                                       k)
     if walls.shape[0]:  # read from the two buffers directly (pair_candidates and wall_proximity copy them out)
-        wa, wseg, wout, nwall = wall_rows(position, radius, index, walls, wall_owner, margin)
+        circle_margin = np.empty(n * k)
+        for c in range(n * k):
+            circle_margin[c] = margin[c // k]
+        wa, wseg, wout, nwall = wall_rows(circles[0], circles[1], np.arange(n * k), walls, wall_owner, circle_margin)
     else:
         wa = wseg = np.zeros(0, np.int64)
         wout = np.zeros((0, 5))
@@ -117,41 +149,86 @@ def contact_candidates(position, radius, speed, index, pairs, walls, wall_owner,
     c_rho_a = np.empty(m)
     c_rho_b = np.empty(m)
     c_wall = np.empty(m, np.int64)
-    for k in range(npair):
-        ra = radius[index[a[k]]]
-        rb = radius[index[b[k]]]
-        c_a[k] = a[k]
-        c_b[k] = b[k]
-        c_gap[k] = geo[k, 0]
-        c_nx[k] = geo[k, 1]
-        c_ny[k] = geo[k, 2]
-        c_rho_a[k] = geo[k, 3] * ra / (ra + rb)
-        c_rho_b[k] = geo[k, 3] - c_rho_a[k]
-        c_wall[k] = -1
-    for k in range(nwall):
-        c = npair + k
-        c_a[c] = wa[k]
+    c_sub = np.empty(m, np.int64)
+    c_arm_a = np.zeros((m, 2))
+    c_arm_b = np.zeros((m, 2))
+    crad, carm = circles[1], circles[2]
+    for q in range(npair):
+        ra = crad[a[q] * k + sub[q] // k]
+        rb = crad[b[q] * k + sub[q] % k]
+        c_a[q] = a[q]
+        c_b[q] = b[q]
+        c_gap[q] = geo[q, 0]
+        c_nx[q] = geo[q, 1]
+        c_ny[q] = geo[q, 2]
+        c_rho_a[q] = geo[q, 3] * ra / (ra + rb)
+        c_rho_b[q] = geo[q, 3] - c_rho_a[q]
+        c_wall[q] = -1
+        c_sub[q] = sub[q]
+        c_arm_a[q, 0] = geo[q, 4]
+        c_arm_a[q, 1] = geo[q, 5]
+        c_arm_b[q, 0] = geo[q, 6]
+        c_arm_b[q, 1] = geo[q, 7]
+    for q in range(nwall):
+        c = npair + q
+        c_a[c] = wa[q] // k
         c_b[c] = -1
-        c_gap[c] = wout[k, 0]
-        c_nx[c] = wout[k, 1]
-        c_ny[c] = wout[k, 2]
-        c_rho_a[c] = radius[index[wa[k]]]
+        c_gap[c] = wout[q, 0]
+        c_nx[c] = wout[q, 1]
+        c_ny[c] = wout[q, 2]
+        c_rho_a[c] = crad[wa[q]]
         c_rho_b[c] = 0.0
-        c_wall[c] = wseg[k]
-    return Candidates(c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall)
+        c_wall[c] = wseg[q]
+        c_sub[c] = wa[q] % k
+        c_arm_a[c, 0] = carm[wa[q], 0]
+        c_arm_a[c, 1] = carm[wa[q], 1]
+    return Candidates(c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall, c_sub, c_arm_a, c_arm_b)
 
 
-def detect_contacts(position, radius, velocity, index, pairs, walls, wall_owner, eps_m, dt_s, period_m=0.0):
-    """:func:`contact_candidates` as a dict keyed by :data:`CONTACT_FIELDS`, from full (N, 2) velocities.
+@nb.njit(cache=True, inline="always")
+def turning_rate(vel, contacts, c):
+    """The part of contact ``c``'s normal velocity that the bodies' turning makes, ω_a (a_a × n) − ω_b (a_b × n)
+    with a the circles' arms (m/s; 0 for disks): the θ columns of its normal row of B (:func:`build_rows`) times the
+    angular velocities of the compact (n, 3) ``vel``."""
+    nx = contacts.nx[c]
+    ny = contacts.ny[c]
+    arm_a = contacts.arm_a
+    rate = vel[contacts.a[c], 2] * (arm_a[c, 0] * ny - arm_a[c, 1] * nx)
+    b = contacts.b[c]
+    if b >= 0:
+        arm_b = contacts.arm_b
+        rate -= vel[b, 2] * (arm_b[c, 0] * ny - arm_b[c, 1] * nx)
+    return rate
 
-    ``pairs`` are rows into ``index`` (e.g. from :func:`~crowd_env.core.neighbors.grid_pairs`).
+
+@nb.njit(cache=True)
+def turning_gaps(contacts, vel, dt_s, depth_m):
+    """The gaps the gap projection must keep from closing when the projection moves the bodies but not their
+    headings: gap + h × :func:`turning_rate` at the compact velocities ``vel`` (whose ω the projection leaves
+    alone), so that g + h (n·(u_a − u_b) + turning) ≥ 0. For disks (``depth_m`` = 0) the candidates' own gaps."""
+    if depth_m <= 0.0:
+        return contacts.gap
+    out = np.empty(contacts.gap.shape[0])
+    for c in range(out.shape[0]):
+        out[c] = contacts.gap[c] + dt_s * turning_rate(vel, contacts, c)
+    return out
+
+
+def detect_contacts(position, radius, velocity, index, pairs, walls, wall_owner, eps_m, dt_s, period_m=0.0, *,
+                    heading=None, depth_m=0.0):
+    """:func:`contact_candidates` as a dict keyed by :data:`CONTACT_FIELDS`, from full (N, 2) velocities (margins
+    from ‖u‖ alone: the bodies do not turn).
+
+    ``pairs`` are rows into ``index`` (e.g. from :func:`~crowd_env.core.neighbors.grid_pairs`); ``heading`` (N,)
+    (default 0) and ``depth_m`` the bodies' shape (:mod:`crowd_env.core.body`).
     """
     index = np.ascontiguousarray(index, dtype=np.int64)
     v = np.asarray(velocity, dtype=np.float64)[index]
     speed = np.sqrt(v[:, 0] ** 2 + v[:, 1] ** 2)
     pairs = np.ascontiguousarray(pairs, dtype=np.int64).reshape(-1, 2)
-    arrays = contact_candidates(position, radius, speed, index, pairs, walls, wall_owner, float(eps_m), float(dt_s),
-                                float(period_m))
+    heading = np.zeros(len(position)) if heading is None else np.ascontiguousarray(heading, dtype=np.float64)
+    arrays = contact_candidates(position, heading, radius, float(depth_m), speed, index, pairs, walls, wall_owner,
+                                float(eps_m), float(dt_s), float(period_m))
     return dict(zip(CONTACT_FIELDS, arrays))
 
 
@@ -215,10 +292,13 @@ def build_rows(contact_ids, contacts, link_ids, links, local, k_n, k_tg, k_v, ro
 
     Normal rows come first (one per contact, in the order of ``contact_ids``), then tangent rows
     (only when K_tg > 0), then link rows (only when K_v > 0). Without rotation the θ coefficients
-    are zero, so the impact cannot spin anyone.
+    are zero, so the impact cannot spin anyone. The contact point lies at l = a − ρ n from a body's centre (a: its
+    circle's arm, zero for the paper's disk; ρ n from b's circle for b): the θ coefficients are l × n in the normal
+    row (zero for a disk, whose contact normal passes through its centre) and l × t in the tangent row.
     """
     c_a, c_b, c_nx, c_ny, c_rho_a, c_rho_b = contacts.a, contacts.b, contacts.nx, contacts.ny, contacts.rho_a, \
         contacts.rho_b
+    arm_a, arm_b = contacts.arm_a, contacts.arm_b
     l_a, l_b, dvec, gi, gj = links
     nc = contact_ids.shape[0]
     nl = link_ids.shape[0] if k_v > 0.0 else 0
@@ -245,6 +325,12 @@ def build_rows(contact_ids, contacts, link_ids, links, local, k_n, k_tg, k_v, ro
         coef_b[r, 1] = -ny
         row_k[r] = k_n
         row_kind[r] = NORMAL
+        turn_a = arm_a[c, 0] != 0.0 or arm_a[c, 1] != 0.0  # a shoulder circle: its contact has a lever arm
+        turn_b = b >= 0 and (arm_b[c, 0] != 0.0 or arm_b[c, 1] != 0.0)
+        if turn_a:
+            coef_a[r, 2] = (arm_a[c, 0] * ny - arm_a[c, 1] * nx) * rot
+        if turn_b:
+            coef_b[r, 2] = -(arm_b[c, 0] * ny - arm_b[c, 1] * nx) * rot
         if nt:
             t = nc + r
             tx = -ny
@@ -257,6 +343,10 @@ def build_rows(contact_ids, contacts, link_ids, links, local, k_n, k_tg, k_v, ro
             coef_b[t, 0] = -tx
             coef_b[t, 1] = -ty
             coef_b[t, 2] = -c_rho_b[c] * rot
+            if turn_a:
+                coef_a[t, 2] = (arm_a[c, 0] * ty - arm_a[c, 1] * tx - c_rho_a[c]) * rot
+            if turn_b:
+                coef_b[t, 2] = -(arm_b[c, 0] * ty - arm_b[c, 1] * tx + c_rho_b[c]) * rot
             row_k[t] = k_tg
             row_kind[t] = TANGENT
     for q in range(nl):

@@ -29,7 +29,9 @@ class PhysicsParams:
     ``dt_s`` the step h; ``normal_dissipation_kg`` K_n, ``tangential_dissipation_kg`` K_tg,
     ``link_dissipation_kg_per_m2`` K_v (Eq. 7-8); ``contact_tolerance_m``: a pair "touches" when its gap is below this
     (the projection leaves O(h² v² / R) residue); ``rotation`` False freezes the headings (Section 4.1.1, "without
-    rotation"); ``solver``: ``"dual"`` (the compiled cascade) or ``"cvxpy"`` (the reference formulation). The walking
+    rotation"); ``solver``: ``"dual"`` (the compiled cascade) or ``"cvxpy"`` (the reference formulation);
+    ``body_depth_m`` the body's depth from chest to back, 0 for the paper's disk (:mod:`crowd_env.core.body`: three
+    circles across the shoulders, an addition; below 2 r, checked by the simulator). The walking
     model's parameters (the social force, vision, ...) are not the core's: they live beside their kernels in
     :mod:`crowd_env.walking` and a preset pairs them with these (:class:`crowd_env.walking.model.ModelParams`).
     """
@@ -41,11 +43,12 @@ class PhysicsParams:
     contact_tolerance_m: float = 1.0e-3
     rotation: bool = True
     solver: str = "dual"
+    body_depth_m: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("dt_s", "normal_dissipation_kg", "contact_tolerance_m"):
             check_parameter(name, getattr(self, name), positive=True)
-        for name in ("tangential_dissipation_kg", "link_dissipation_kg_per_m2"):
+        for name in ("tangential_dissipation_kg", "link_dissipation_kg_per_m2", "body_depth_m"):
             check_parameter(name, getattr(self, name), minimum=0.0)
         check_flag("rotation", self.rotation)
         if self.solver not in SOLVERS:

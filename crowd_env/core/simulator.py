@@ -31,7 +31,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .contacts import active_links, contact_candidates
+from .body import body_circles, body_gaps, check_body_depth, circle_count
+from .contacts import active_links, contact_candidates, turning_gaps
 from .neighbors import grid_pairs
 from .params import DEFAULT_INTERACTION_REACH_M, ParameterError, PhysicsParams
 from .checks import check_number
@@ -115,6 +116,7 @@ class Simulator:
         self.destination = self._check_destination(destination, state.n)
         self._exit_destination = np.full(state.n, -1, np.int64) if self.destination is None else self.destination
         state.validate()
+        check_body_depth(self.physics.body_depth_m, state.radius_m)
         self.period_m = self._check_period(period_m, state)
         self._check_walls(state)
         check_time_step(state, self.physics)  # refuses an unstable dt_s, warns above the safe step (timestep.py)
@@ -247,7 +249,7 @@ class Simulator:
             max_rows, max_bodies = c.impact_limits()
             fields = (float(p.dt_s), float(p.contact_tolerance_m), float(p.normal_dissipation_kg),
                       float(p.tangential_dissipation_kg), float(p.link_dissipation_kg_per_m2), bool(p.rotation),
-                      int(max_rows), int(max_bodies), int(c.max_dense_projection_rows))
+                      int(max_rows), int(max_bodies), int(c.max_dense_projection_rows), float(p.body_depth_m))
             kept = self._step_kept = (p, key, fields)
         return kept[2]
 
@@ -438,13 +440,13 @@ class Simulator:
         t1 = time.perf_counter()
         timings["smooth"] = t1 - t0
         # 2. neighbors
-        speed_star, r_max, reach = detection_reach(vel, st.radius_m, idx, eps_m, h)
+        speed_star, r_max, reach = detection_reach(vel, st.radius_m, idx, eps_m, h, p.body_depth_m)
         pairs = self.neighbor_pairs(reach)
         t2 = time.perf_counter()
         timings["neighbors"] = t2 - t1
         # 3. contacts
-        candidates = contact_candidates(st.position_m, st.radius_m, speed_star, idx, pairs, self.walls,
-                                        self._wall_owner, eps_m, h, self.period_m)
+        candidates = contact_candidates(st.position_m, st.heading_rad, st.radius_m, p.body_depth_m, speed_star, idx,
+                                        pairs, self.walls, self._wall_owner, eps_m, h, self.period_m)
         links = self._active_links(idx)
         mass, inertia = compact_bodies(st.mass_kg, st.inertia_kg_m2, idx)
         t3 = time.perf_counter()
@@ -484,7 +486,8 @@ class Simulator:
         lam_p = _EMPTY_1D
         projected = once = False
         for _ in range(MAX_REDETECT + 1):
-            grown = grown_margins(vel, det_speed, params.contact_tolerance_m, params.dt_s)
+            grown = grown_margins(vel, det_speed, params.contact_tolerance_m, params.dt_s, bodies.radius_m, idx,
+                                  params.body_depth_m)
             if grown.shape[0]:
                 det_speed, candidates, percussions, lam_p, added, projected = redetection_round(
                     bodies, idx, world, params, vel, v_impact, det_speed, grown, candidates, percussions, lam_p,
@@ -493,6 +496,7 @@ class Simulator:
             if projected:
                 break
             con = candidates._asdict()  # a projection again: a new candidate bound (lam_p extended)
+            con["gap"] = turning_gaps(candidates, vel, params.dt_s, params.body_depth_m)
             lam_p = self.cascade.project(vel, mass, con, params.dt_s, self.step_count,
                                          functools.partial(self._candidate_keys, idx, con), lam_p if once else None)
             projected = once = True
@@ -533,7 +537,7 @@ class Simulator:
         """:func:`~crowd_env.core.solvers.graph.contact_keys` of the candidates ``con`` (rows into ``idx``):
         the same key for the same contact in every step, as the cascade's warm starts need."""
         return contact_keys(idx[con["a"]], np.where(con["b"] >= 0, idx[np.maximum(con["b"], 0)], -1), con["wall"],
-                            self.state.n, self.walls.shape[0])
+                            con["sub"], self.state.n, self.walls.shape[0], circle_count(self.physics.body_depth_m) ** 2)
 
     def _active_links(self, idx):
         """Hand links between active pedestrians, rows into ``idx``, with their shoulder geometry
@@ -544,17 +548,25 @@ class Simulator:
         return active_links(st.position_m, st.heading_rad, st.active, idx, st.links, st.link_offsets_m, self.period_m)
 
     def min_gap_m(self) -> float:
-        """Smallest gap between two active pedestrians or a pedestrian and a wall (negative = overlap)."""
+        """Smallest gap between two active pedestrians' bodies or a body and a wall (negative = overlap), between
+        the bodies' circles (:mod:`crowd_env.core.body`; the disks' d − r_i − r_j for the paper's disks)."""
         idx = self.active_index
         st = self.state
+        depth_m = self.physics.body_depth_m
         best = float("inf")
         if idx.shape[0] >= 2:
             pairs = self.neighbor_pairs(2.0 * float(st.radius_m[idx].max()) + 0.05)
             if pairs.shape[0]:
-                d = pair_distances(st.position_m, idx[pairs], self.period_m)
-                best = float(np.min(d - st.radius_m[idx[pairs[:, 0]]] - st.radius_m[idx[pairs[:, 1]]]))
+                if depth_m > 0.0:
+                    best = float(np.min(body_gaps(st.position_m, st.heading_rad, st.radius_m, depth_m, idx[pairs],
+                                                  self.period_m)))
+                else:
+                    d = pair_distances(st.position_m, idx[pairs], self.period_m)
+                    best = float(np.min(d - st.radius_m[idx[pairs[:, 0]]] - st.radius_m[idx[pairs[:, 1]]]))
         if self.walls.shape[0] and idx.shape[0]:
-            _, _, gap, *_ = self.wall_proximity(0.05)
+            centre, rad, _ = body_circles(st.position_m, st.heading_rad, st.radius_m, idx, depth_m)
+            _, _, gap, *_ = wall_proximity(centre, rad, np.arange(rad.shape[0]), self.walls, self._wall_owner,
+                                           np.full(rad.shape[0], 0.05))
             if gap.shape[0]:
                 best = min(best, float(gap.min()))
         return best

@@ -47,8 +47,9 @@ import numba as nb
 import numpy as np
 
 from .angles import wrap_angle_scalar
+from .body import arm_m, circle, circle_count
 from .bundles import Bodies, Candidates, Links, StepInputs, StepParams, World
-from .contacts import active_links, contact_candidates
+from .contacts import active_links, contact_candidates, turning_gaps
 from .neighbors import grid_pairs, grid_pairs_around
 from .periodic import minimum_image_dx, wrap_x
 from .polygons import path_meets_polygon
@@ -163,43 +164,55 @@ def kinetic_energy(vel, mass, inertia):
 
 
 @nb.njit(cache=True)
-def speeds(vel):
-    """‖u‖ of compact (n, 3) velocities."""
+def speeds(vel, radius, index, depth_m):
+    """How fast a point of each body's circles can move, from compact (n, 3) velocities: ‖u‖, plus |ω| times the
+    shoulder circles' arm (:func:`~crowd_env.core.body.arm_m`) for bodies of depth ``depth_m`` > 0. The contact
+    margins are built from these."""
     out = np.empty(vel.shape[0])
     for k in range(vel.shape[0]):
         out[k] = np.sqrt(vel[k, 0] ** 2 + vel[k, 1] ** 2)
+    if depth_m > 0.0:
+        for k in range(vel.shape[0]):
+            out[k] += abs(vel[k, 2]) * arm_m(radius[index[k]], depth_m)
     return out
 
 
 @nb.njit(cache=True)
-def grown_margins(vel, detection_speed, eps_m, dt_s):
-    """Rows whose speed exceeds 2 s + ε/(2h), s being the speed the margins were built from: a pair
+def grown_margins(vel, detection_speed, eps_m, dt_s, radius, index, depth_m):
+    """Rows whose :func:`speeds` exceed 2 s + ε/(2h), s being the speed the margins were built from: a pair
     left out of the candidates could then close within the step (stage 5)."""
     out = np.empty(vel.shape[0], np.int64)
+    now = speeds(vel, radius, index, depth_m)
     m = 0
     for k in range(vel.shape[0]):
-        if np.sqrt(vel[k, 0] ** 2 + vel[k, 1] ** 2) > 2.0 * detection_speed[k] + 0.5 * eps_m / dt_s:
+        if now[k] > 2.0 * detection_speed[k] + 0.5 * eps_m / dt_s:
             out[m] = k
             m += 1
     return out[:m]
 
 
 @nb.njit(cache=True)
-def candidate_gaps_min(position, radius, index, walls, c_a, c_b, c_wall, period_m=0.0):
-    """Smallest current gap (m) over candidate contacts (inf when there is none; pairs at their nearest
-    image along x with ``period_m``)."""
+def candidate_gaps_min(position, heading, radius, depth_m, index, walls, contacts, period_m=0.0):
+    """Smallest current gap (m) over the candidate contacts ``contacts`` (between the circles each names, at the
+    bodies' current positions and headings; inf when there is none; pairs at their nearest image along x with
+    ``period_m``)."""
+    c_a, c_b, c_wall, c_sub = contacts.a, contacts.b, contacts.wall, contacts.sub
+    k = circle_count(depth_m)
     best = np.inf
     for c in range(c_a.shape[0]):
         i = index[c_a[c]]
         if c_b[c] >= 0:
             j = index[c_b[c]]
-            g = np.sqrt(minimum_image_dx(position[i, 0] - position[j, 0], period_m) ** 2
-                        + (position[i, 1] - position[j, 1]) ** 2) - radius[i] - radius[j]
+            oax, oay, ra = circle(heading[i], radius[i], depth_m, c_sub[c] // k)
+            obx, oby, rb = circle(heading[j], radius[j], depth_m, c_sub[c] % k)
+            g = np.sqrt(minimum_image_dx(position[i, 0] + oax - position[j, 0] - obx, period_m) ** 2
+                        + (position[i, 1] + oay - position[j, 1] - oby) ** 2) - ra - rb
         else:
             s = c_wall[c]
-            qx, qy, _ = closest_point_on_segment(position[i, 0], position[i, 1], walls[s, 0], walls[s, 1],
+            ox, oy, ra = circle(heading[i], radius[i], depth_m, c_sub[c])
+            qx, qy, _ = closest_point_on_segment(position[i, 0] + ox, position[i, 1] + oy, walls[s, 0], walls[s, 1],
                                                  walls[s, 2], walls[s, 3])
-            g = np.sqrt((position[i, 0] - qx) ** 2 + (position[i, 1] - qy) ** 2) - radius[i]
+            g = np.sqrt((position[i, 0] + ox - qx) ** 2 + (position[i, 1] + oy - qy) ** 2) - ra
         best = min(best, g)
     return best
 
@@ -303,11 +316,11 @@ def compact_contacts(index, c_a, c_b, c_wall, p_normal, p_tangent, p_projection,
 
 
 @nb.njit(cache=True)
-def detection_reach(vel, radius, index, eps_m, dt_s):
-    """Stage 2: the speeds ‖u*‖ of the compact velocities ``vel`` (the detection margins are built from
-    them), the largest radius r_max of the pedestrians ``index``, and the reach
+def detection_reach(vel, radius, index, eps_m, dt_s, depth_m):
+    """Stage 2: the :func:`speeds` of the compact velocities ``vel`` (the detection margins are built from
+    them; ‖u*‖ for disks), the largest radius r_max of the pedestrians ``index``, and the reach
     2 r_max + ε + 4 h max|u*| within which a pair can be a candidate: ``(speed, r_max, reach)``."""
-    speed = speeds(vel)
+    speed = speeds(vel, radius, index, depth_m)
     vmax = 0.0
     r_max = 0.0
     for k in range(index.shape[0]):
@@ -357,8 +370,8 @@ def finish_step(bodies, world, params, index, vel, contacts, percussions, p_proj
     position, period_m = bodies.position_m, world.period_m
     commit_step(position, bodies.velocity_m_s, bodies.angular_velocity_rad_s, bodies.heading_rad, index, vel,
                 params.dt_s, params.rotation, period_m)
-    min_gap = candidate_gaps_min(position, bodies.radius_m, index, world.walls, contacts.a, contacts.b, contacts.wall,
-                                 period_m)
+    min_gap = candidate_gaps_min(position, bodies.heading_rad, bodies.radius_m, params.body_depth_m, index, world.walls,
+                                 contacts, period_m)
     p_normal, p_tangent, in_impact = percussions
     return min_gap, compact_contacts(index, contacts.a, contacts.b, contacts.wall, p_normal, p_tangent, p_projection,
                                      in_impact)
@@ -372,8 +385,8 @@ def redetect_candidates(bodies, index, world, params, speed, grown, contacts):
     step): candidates are built among them and their neighbours within :func:`redetection_reach`."""
     position, radius = bodies.position_m, bodies.radius_m
     walls, wall_owner, period_m = world.walls, world.wall_owner, world.period_m
-    eps_m, dt_s = params.contact_tolerance_m, params.dt_s
-    c_a, c_b, c_wall = contacts.a, contacts.b, contacts.wall
+    eps_m, dt_s, depth_m = params.contact_tolerance_m, params.dt_s, params.body_depth_m
+    c_a, c_b, c_wall, c_sub = contacts.a, contacts.b, contacts.wall, contacts.sub
     n = index.shape[0]
     r_max = 0.0
     for k in range(n):
@@ -399,20 +412,23 @@ def redetect_candidates(bodies, index, world, params, speed, grown, contacts):
     for p in range(pairs.shape[0]):
         sub_pairs[p, 0] = row_in_sub[pairs[p, 0]]
         sub_pairs[p, 1] = row_in_sub[pairs[p, 1]]
-    a, b, gap, nx, ny, rho_a, rho_b, wall = contact_candidates(position, radius, speed[sub], index[sub], sub_pairs,
-                                                               walls, wall_owner, eps_m, dt_s, period_m)
+    found = contact_candidates(position, bodies.heading_rad, radius, depth_m, speed[sub], index[sub], sub_pairs,
+                               walls, wall_owner, eps_m, dt_s, period_m)
+    a, b, wall, circles = found.a, found.b, found.wall, found.sub
     for c in range(a.shape[0]):
         a[c] = sub[a[c]]
         if b[c] >= 0:
             b[c] = sub[b[c]]
     near = np.flatnonzero(row_in_sub[c_a] >= 0)  # a known candidate matching a new one has its row a in sub
-    known = np.sort(contact_keys(c_a[near], c_b[near], c_wall[near], n, walls.shape[0]))
-    keys = contact_keys(a, b, wall, n, walls.shape[0])
+    kk = circle_count(depth_m) ** 2
+    known = np.sort(contact_keys(c_a[near], c_b[near], c_wall[near], c_sub[near], n, walls.shape[0], kk))
+    keys = contact_keys(a, b, wall, circles, n, walls.shape[0], kk)
     at = np.searchsorted(known, keys)
     new = np.empty(a.shape[0], np.bool_)
     for c in range(a.shape[0]):
         new[c] = not (at[c] < known.shape[0] and known[at[c]] == keys[c])
-    return Candidates(a[new], b[new], gap[new], nx[new], ny[new], rho_a[new], rho_b[new], wall[new])
+    return Candidates(a[new], b[new], found.gap[new], found.nx[new], found.ny[new], found.rho_a[new], found.rho_b[new],
+                      wall[new], circles[new], found.arm_a[new], found.arm_b[new])
 
 
 @nb.njit(cache=True)
@@ -433,22 +449,24 @@ def redetection_round(bodies, index, world, params, vel, v_impact, det_speed, gr
     Returns ``(det_speed, candidates, percussions, lam_p, added, projected)``: ``added`` whether candidates were
     added (one re-detection), ``projected`` whether ``lam_p`` still holds for ``vel``."""
     dt_s = params.dt_s
-    det_speed = np.maximum(det_speed, speeds(vel))
-    c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall = candidates
+    det_speed = np.maximum(det_speed, speeds(vel, bodies.radius_m, index, params.body_depth_m))
     new = redetect_candidates(bodies, index, world, params, det_speed, grown, candidates)
-    extra = new[0].shape[0]
+    extra = new.a.shape[0]
     if not extra:
         return det_speed, candidates, percussions, lam_p, False, projected
-    candidates = Candidates(np.concatenate((c_a, new[0])), np.concatenate((c_b, new[1])),
-                            np.concatenate((c_gap, new[2])), np.concatenate((c_nx, new[3])),
-                            np.concatenate((c_ny, new[4])), np.concatenate((c_rho_a, new[5])),
-                            np.concatenate((c_rho_b, new[6])), np.concatenate((c_wall, new[7])))
+    candidates = Candidates(np.concatenate((candidates.a, new.a)), np.concatenate((candidates.b, new.b)),
+                            np.concatenate((candidates.gap, new.gap)), np.concatenate((candidates.nx, new.nx)),
+                            np.concatenate((candidates.ny, new.ny)), np.concatenate((candidates.rho_a, new.rho_a)),
+                            np.concatenate((candidates.rho_b, new.rho_b)), np.concatenate((candidates.wall, new.wall)),
+                            np.concatenate((candidates.sub, new.sub)), np.concatenate((candidates.arm_a, new.arm_a)),
+                            np.concatenate((candidates.arm_b, new.arm_b)))
     p_n, p_t, in_impact = percussions
     percussions = (np.concatenate((p_n, np.zeros(extra))), np.concatenate((p_t, np.zeros(extra))),
                    np.concatenate((in_impact, np.zeros(extra, np.bool_))))
     if projected:
         lam_p = np.concatenate((lam_p, np.zeros(extra)))
-        if gap_residuals(vel, new[2] / dt_s, new[0], new[1], new[3], new[4]).min() < 0.0:  # a new one binds
+        gap = turning_gaps(new, vel, dt_s, params.body_depth_m)
+        if gap_residuals(vel, gap / dt_s, new.a, new.b, new.nx, new.ny).min() < 0.0:  # a new one binds
             vel[:, :2] = v_impact
             projected = False
     return det_speed, candidates, percussions, lam_p, True, projected
@@ -470,10 +488,11 @@ def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached
     walls, wall_owner, period_m = world.walls, world.wall_owner, world.period_m
     dt_s, eps_m = params.dt_s, params.contact_tolerance_m
     vel = smooth_update(bodies, inputs, index, params)
-    speed_star, r_max, reach = detection_reach(vel, radius, index, eps_m, dt_s)
+    depth_m = params.body_depth_m
+    speed_star, r_max, reach = detection_reach(vel, radius, index, eps_m, dt_s, depth_m)
     pairs = cached_pairs if reach <= cached_radius_m else grid_pairs(position, index, reach, period_m)
-    candidates = contact_candidates(position, radius, speed_star, index, pairs, walls, wall_owner, eps_m, dt_s,
-                                    period_m)
+    candidates = contact_candidates(position, bodies.heading_rad, radius, depth_m, speed_star, index, pairs, walls,
+                                    wall_owner, eps_m, dt_s, period_m)
     mass, inertia = compact_bodies(bodies.mass_kg, bodies.inertia_kg_m2, index)
     ke0, p_n, p_t, in_impact, root, unsolved, n_clusters, max_cluster = impact_stage(vel, mass, inertia, candidates,
                                                                                      links, params)
@@ -490,7 +509,7 @@ def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached
     projected = False
     n_redetect = 0
     for _ in range(MAX_REDETECT + 1):
-        grown = grown_margins(vel, det_speed, eps_m, dt_s)
+        grown = grown_margins(vel, det_speed, eps_m, dt_s, radius, index, depth_m)
         if grown.shape[0]:
             det_speed, candidates, percussions, lam_p, added, projected = redetection_round(
                 bodies, index, world, params, vel, v_impact, det_speed, grown, candidates, percussions, lam_p,
@@ -498,8 +517,9 @@ def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached
             n_redetect += added
         if projected:
             break
-        lam_p, _, st = project_gaps(vel, mass, candidates.a, candidates.b, candidates.gap, candidates.nx,
-                                    candidates.ny, dt_s, PROJECTION_TOL_M_S, params.max_dense_projection_rows)
+        lam_p, _, st = project_gaps(vel, mass, candidates.a, candidates.b, turning_gaps(candidates, vel, dt_s, depth_m),
+                                    candidates.nx, candidates.ny, dt_s, PROJECTION_TOL_M_S,
+                                    params.max_dense_projection_rows)
         if st != STATUS_OK:
             return StepFigures(FUSED_PROJECTION, none, ke0, ke1, 0.0, 0, 0, np.inf, 0)
         projected = True

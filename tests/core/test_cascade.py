@@ -29,7 +29,7 @@ def _chain(n, gap_m=1e-3, speed_m_s=1.0):
 
 
 def _keys(vel, con):
-    return contact_keys(con["a"], con["b"], con["wall"], vel.shape[0], 1)
+    return contact_keys(con["a"], con["b"], con["wall"], np.zeros_like(con["a"]), vel.shape[0], 1)
 
 
 def _dense(vel, mass, con):

@@ -33,7 +33,7 @@ def _jam_cascade(**kwargs):
 def _project(cascade, v, mass, con, step=0, lam_warm=None):
     """The cascade's projection of step ``step`` on the candidates ``con``, keyed as the Simulator keys
     them (the rows of ``v`` are the pedestrians; four wall segments number the jam's wall contacts)."""
-    keys = contact_keys(con["a"], con["b"], con["wall"], v.shape[0], 4)
+    keys = contact_keys(con["a"], con["b"], con["wall"], np.zeros_like(con["a"]), v.shape[0], 4)
     return cascade.project(v, mass, con, H, step, keys, lam_warm)
 
 

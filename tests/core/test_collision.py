@@ -184,7 +184,8 @@ def _three_disks(u):
     v_minus = np.array([u[0], 0, 0, u[1], 0, 0, u[2], 0, 0], dtype=float)
     # contact (0, 1): normal from 1 to 0 is −x; contact (1, 2): normal from 2 to 1 is −x
     con = dict(a=np.array([0, 1]), b=np.array([1, 2]), gap=np.zeros(2), nx=np.array([-1.0, -1.0]),
-               ny=np.zeros(2), rho_a=np.ones(2), rho_b=np.ones(2))
+               ny=np.zeros(2), rho_a=np.ones(2), rho_b=np.ones(2), sub=np.zeros(2, np.int64), arm_a=np.zeros((2, 2)),
+               arm_b=np.zeros((2, 2)))
     return mass_diag, v_minus, con
 
 
@@ -206,7 +207,7 @@ def test_three_disk_energy_regression():
     z = np.zeros(0, np.int64)
     e = np.zeros((0, 2))
     contacts = Candidates(*(con.get(k, np.full(2, -1)) for k in CONTACT_FIELDS))  # no wall: -1
-    params = StepParams(0.01, 1e-3, 1e8, 0.0, 0.0, True, 400, MAX_DENSE_BODIES, 0)
+    params = StepParams(0.01, 1e-3, 1e8, 0.0, 0.0, True, 400, MAX_DENSE_BODIES, 0, 0.0)
     p_n, p_t, in_impact, *_ = resolve_impacts(vel, np.ones(3), np.full(3, 0.5), contacts, Links(z, z, e, e, e), params,
                                               1e-9)
     assert in_impact.tolist() == [True, False]

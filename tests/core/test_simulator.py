@@ -10,6 +10,7 @@ import pytest
 from crowd_env.experiments.validation.collision import simulate_oblique_rotation
 from crowd_env.core import CrowdState, ParameterError, Simulator, StateError
 from crowd_env.walking import ModelParams
+from crowd_env.core.params import PhysicsParams
 from crowd_env.core.segments import GeometryError
 from crowd_env.core.solvers import closed_form
 
@@ -373,14 +374,15 @@ def test_bad_simulator_construction():
 
 
 # ---------------------------------------------------------------- the fused step
-def _bottleneck_sims(steps, **cascade_kw):
+def _bottleneck_sims(steps, depth_m=0.0, **cascade_kw):
     from baselines.social_force import SocialForceAgent
     from crowd_env.scenarios import make_scenario
 
     sc = make_scenario("seyfried_bottleneck", width_m=0.8, n_pedestrians=60, seed=4)
     agent = SocialForceAgent(sc.navigation())
-    sims = [Simulator(sc.make_state(rng=np.random.default_rng(4)), geometry=sc.geometry, profile=profile)
-            for profile in (False, True)]
+    physics = PhysicsParams(body_depth_m=depth_m)  # 0: the paper's disks; else three circles (crowd_env.core.body)
+    sims = [Simulator(sc.make_state(rng=np.random.default_rng(4)), geometry=sc.geometry, profile=profile,
+                      params=physics) for profile in (False, True)]
     for sim in sims:
         for k, v in cascade_kw.items():  # solver limits
             setattr(sim.cascade, k, v)
@@ -392,14 +394,16 @@ def _bottleneck_sims(steps, **cascade_kw):
         yield sims, results
 
 
+@pytest.mark.parametrize("depth_m", [0.0, 0.28])
 @pytest.mark.parametrize("limits", [None, (6, 4, 8)])
-def test_fused_and_staged_steps_agree_bitwise(limits):
+def test_fused_and_staged_steps_agree_bitwise(limits, depth_m):
     """The fused compiled step and the staged step call the same kernels: identical trajectories, step
     results and re-detection rounds, bit for bit, in a jammed bottleneck (with small solver limits, the
-    fused step hands the large clusters to the staged path mid-run)."""
+    fused step hands the large clusters to the staged path mid-run), with the paper's disks and with bodies of
+    three circles."""
     kw = {} if limits is None else dict(zip(("max_dense_rows", "max_dense_bodies", "max_dense_projection_rows"),
                                             limits))
-    for (fused, staged), (ra, rb) in _bottleneck_sims(600, **kw):
+    for (fused, staged), (ra, rb) in _bottleneck_sims(600, depth_m, **kw):
         for name in ("position_m", "velocity_m_s", "heading_rad", "angular_velocity_rad_s", "active"):
             assert np.array_equal(getattr(fused.state, name), getattr(staged.state, name)), name
         for name in ("contact_i", "contact_j", "contact_wall", "percussion_normal", "percussion_tangent", "exited"):
@@ -416,11 +420,12 @@ def test_fused_and_staged_steps_agree_bitwise(limits):
     assert fused.min_gap_m() >= -1e-9
 
 
-def test_step_min_gap_matches_the_independent_check():
+@pytest.mark.parametrize("depth_m", [0.0, 0.28])
+def test_step_min_gap_matches_the_independent_check(depth_m):
     """StepResult.min_gap_m (over contact candidates) equals Simulator.min_gap_m (all pairs and walls
-    within 5 cm) whenever some gap is below the detection tolerance."""
+    within 5 cm) whenever some gap is below the detection tolerance (disks, and bodies of three circles)."""
     checked = 0
-    for (fused, _), (ra, _) in _bottleneck_sims(400):
+    for (fused, _), (ra, _) in _bottleneck_sims(400, depth_m):
         independent = fused.min_gap_m()
         if independent < fused.params.contact_tolerance_m:
             assert ra.min_gap_m == pytest.approx(independent, abs=1e-12)

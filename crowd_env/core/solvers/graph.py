@@ -203,14 +203,16 @@ def normal_rows_sparse(n, c_a, c_b, c_nx, c_ny):
 
 
 @nb.njit(cache=True)
-def contact_keys(a, b, wall, n, n_walls):
+def contact_keys(a, b, wall, sub, n, n_walls, n_sub=1):
     """One int64 per contact, equal for the same pair (a < b, pedestrian numbers below ``n``) or the
-    same pedestrian and wall segment (b < 0, segment ``wall`` of ``n_walls``) wherever it stands in a
-    candidate list: matches contacts across lists (re-detection, the previous step's projection).
-    A candidate list holds each pair and each pedestrian-segment contact once, so its keys are unique
-    (``tests/core/test_simulator.py`` checks it). ``a``, ``b``, ``wall``: int64 arrays."""
+    same pedestrian and wall segment (b < 0, segment ``wall`` of ``n_walls``) and the same circles of the bodies
+    (``sub`` below ``n_sub``: K² for bodies of K circles, :mod:`crowd_env.core.body`; 1 for disks) wherever it
+    stands in a candidate list: matches contacts across lists (re-detection, the previous step's projection).
+    A candidate list holds each pair of circles and each circle-segment contact once, so its keys are unique
+    (``tests/core/test_simulator.py`` checks it). ``a``, ``b``, ``wall``, ``sub``: int64 arrays."""
     out = np.empty(a.shape[0], np.int64)
     stride = max(1, n_walls)
     for k in range(a.shape[0]):
-        out[k] = a[k] * n + b[k] if b[k] >= 0 else n * n + a[k] * stride + wall[k]
+        body = a[k] * n + b[k] if b[k] >= 0 else n * n + a[k] * stride + wall[k]
+        out[k] = body * n_sub + sub[k] if n_sub > 1 else body
     return out

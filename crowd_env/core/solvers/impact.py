@@ -22,7 +22,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from ..contacts import NORMAL, build_rows
+from ..contacts import NORMAL, build_rows, turning_rate
 from .graph import find_root, group_by, normal_velocity, order_dofs, union
 from .linalg import SAME_ROUNDING_FASTMATH, dot_range, profile_cholesky, sub_scaled
 from .pivoting import lcp_bpp
@@ -211,6 +211,7 @@ def resolve_impacts(vel, mass, inertia, contacts, links, params, vtol):
     l_a, l_b = links.a, links.b
     k_n, k_tg, k_v = params.normal_dissipation_kg, params.tangential_dissipation_kg, params.link_dissipation_kg_per_m2
     eps_m, rotation = params.contact_tolerance_m, params.rotation
+    turning = params.body_depth_m > 0.0 and rotation
     max_dense_rows, max_dense_bodies = params.max_dense_rows, params.max_dense_bodies
     n = vel.shape[0]
     nc = c_a.shape[0]
@@ -223,6 +224,8 @@ def resolve_impacts(vel, mass, inertia, contacts, links, params, vtol):
     any_imp = False
     for c in range(nc):
         vn[c] = normal_velocity(vel, c_a[c], c_b[c], c_nx[c], c_ny[c])
+        if turning:  # bodies of three circles: a shoulder closes on the other body as the body turns
+            vn[c] += turning_rate(vel, contacts, c)
         if c_gap[c] <= eps_m and vn[c] <= vtol:
             in_impact[c] = True
             any_imp = True

@@ -260,7 +260,7 @@ def _replay_headings(grid, f0: int, fps: float, step_times, scenario, options: d
     before = np.zeros(n, bool)
     dt = float(params.dt_s)
     arrays = bodies.arrays()
-    step = StepParams(dt, 0.0, 0.0, 0.0, 0.0, bool(params.rotation), 0, 0, 0)  # smooth_update reads h and rotation
+    step = StepParams(dt, 0.0, 0.0, 0.0, 0.0, bool(params.rotation), 0, 0, 0, 0.0)  # smooth_update reads h, rotation
     for s in range(step_times.size):
         idx = np.flatnonzero(present[s])
         new = present[s] & ~before
