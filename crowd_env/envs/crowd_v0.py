@@ -720,7 +720,7 @@ class CrowdParallelEnv(ParallelEnv):
             from .rendering import CrowdRenderer
 
             self._renderer = CrowdRenderer(self._scenario.geometry, self._controlled_mask, self.render_mode,
-                                           fps=self.metadata["render_fps"])
+                                           fps=self.metadata["render_fps"], body_depth_m=self._sim.physics.body_depth_m)
         return self._renderer.draw(self._sim.state, self._sim.time_s, len(self.agents), contacts=self._percussions.peek())
 
     def close(self):

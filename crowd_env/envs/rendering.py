@@ -28,6 +28,7 @@ import warnings
 import numpy as np
 
 from ..errors import InputError
+from ..core.body import body_circles
 from ..core.checks import check_integer, check_number
 from ..core.periodic import minimum_image_dx
 
@@ -137,13 +138,17 @@ class CrowdRenderer:
     ``controlled_mask`` (N,) marks the learned pedestrians. ``pixel_multiple`` > 1 makes the image's width
     and height multiples of it (16 for H.264 video, which would otherwise be rescaled); the default keeps
     the figure size of ``width_in`` × ``dpi`` pixels wide. ``percussion_scale_kg_m_s``: the percussion at
-    which contact lines reach their widest and darkest.
+    which contact lines reach their widest and darkest. ``body_depth_m``: the bodies' depth
+    (:mod:`crowd_env.core.body`; each body is drawn as its three circles), 0 for the paper's disks.
     """
 
     def __init__(self, geometry, controlled_mask: np.ndarray, mode: str, *, width_in: float = 8.0, dpi: int = 80,
-                 fps: float = 10.0, pixel_multiple: int = 1, percussion_scale_kg_m_s: float = 20.0):
+                 fps: float = 10.0, pixel_multiple: int = 1, percussion_scale_kg_m_s: float = 20.0,
+                 body_depth_m: float = 0.0):
         check_integer("pixel_multiple", pixel_multiple, error=InputError, minimum=1)
         check_number("percussion_scale_kg_m_s", percussion_scale_kg_m_s, error=InputError, positive=True)
+        self.body_depth_m = check_number("body_depth_m", body_depth_m, error=InputError, minimum=0.0)
+        self._circles = 1 if self.body_depth_m == 0.0 else 3
         self.geometry = geometry
         self.controlled = np.asarray(controlled_mask, dtype=bool)
         self.mode = mode
@@ -205,6 +210,8 @@ class CrowdRenderer:
         self._colors = np.zeros((n, 4))
         self._colors[:, :3] = np.where(self.controlled[:, None], CONTROLLED_COLOR, BACKGROUND_COLOR)
         self._colors[:, 3] = 1.0
+        self._colors = np.repeat(self._colors, self._circles, axis=0)  # each body's circles in a row
+        n = n * self._circles
         self.disks = EllipseCollection(np.ones(n), np.ones(n), np.zeros(n), units="xy", offsets=np.zeros((n, 2)),
                                        offset_transform=ax.transData, facecolors=self._colors,
                                        edgecolors="k", linewidths=0.5, zorder=2)
@@ -241,15 +248,20 @@ class CrowdRenderer:
             raise InputError(f"the renderer draws {n} pedestrians: position_m must be ({n}, 2), radius_m, "
                              f"heading_rad and active ({n},); got {pos.shape}, {r.shape}, {heading.shape}, "
                              f"{active.shape}")
-        d = 2.0 * r
-        self.disks.set_offsets(pos)
+        if self._circles == 1:
+            centre, d = pos, 2.0 * r
+        else:  # NaN headings (recordings) draw no shoulders
+            centre, rc, _ = body_circles(pos, heading, r, np.arange(n, dtype=np.int64), self.body_depth_m)
+            d = 2.0 * rc
+        shown = np.repeat(active, self._circles)
+        self.disks.set_offsets(centre)
         self.disks.set_widths(d)
         self.disks.set_heights(d)
         colors = self._colors.copy()
-        colors[~active, 3] = 0.0
+        colors[~shown, 3] = 0.0
         self.disks.set_facecolors(colors)
-        edge = np.zeros((n, 4))
-        edge[:, 3] = active
+        edge = np.zeros((shown.shape[0], 4))
+        edge[:, 3] = shown
         self.disks.set_edgecolors(edge)
         tip = pos + r[:, None] * np.column_stack([np.cos(heading), np.sin(heading)])
         seg = np.stack([pos, tip], axis=1)[active & np.isfinite(heading)]

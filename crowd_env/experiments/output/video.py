@@ -253,7 +253,8 @@ class RolloutVideo:
         self._controlled = env.controlled_mask
         self._renderer = CrowdRenderer(env.geometry, self._controlled, "rgb_array", width_in=self.width_in,
                                        dpi=self.dpi, pixel_multiple=16,
-                                       percussion_scale_kg_m_s=self.percussion_scale_kg_m_s)
+                                       percussion_scale_kg_m_s=self.percussion_scale_kg_m_s,
+                                       body_depth_m=env.sim.physics.body_depth_m)
         self._writer = VideoWriter(self.path, fps, self.quality)
         self._contacts = ContactPercussions()
         env.substep_hooks.append(self._contacts)

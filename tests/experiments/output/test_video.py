@@ -129,6 +129,31 @@ def test_percussion_lines_are_drawn_between_touching_pedestrians_and_to_walls():
         assert r > g + 40 and r > bl + 40  # reddish: the percussion colour map
 
 
+def test_bodies_of_three_circles_are_drawn_as_their_circles():
+    """With a body depth (crowd_env.core.body) each pedestrian is drawn as its three circles: a point 0.2 m out along
+    the shoulders is body, a point ahead of the chest inside the paper's disk (0.19 m from the centre) is floor,
+    where the disk of depth 0 covers it."""
+    geom = make_scenario("corridor", length_m=10.0, width_m=4.0, n_per_direction=1).geometry
+    x0, y0, _, _ = geom.bounds
+    pos = np.array([[x0 + 2.0, y0 + 2.0]])
+    heading = np.array([0.4])
+    e = np.array([np.cos(0.4), np.sin(0.4)])
+    side = np.array([-e[1], e[0]])
+    points = [pos[0] + 0.2 * side, pos[0] + 0.18 * e + 0.06 * side]
+    colours = {}
+    for depth in (0.0, 0.25):
+        renderer = CrowdRenderer(geom, np.array([True]), "rgb_array", pixel_multiple=16, body_depth_m=depth)
+        frame = renderer.draw_frame(pos, 0.23, heading, np.ones(1, bool)).astype(int)
+        colours[depth] = [frame[row, col] for col, row in np.round(renderer.pixel_of(points)).astype(int)]
+        renderer.close()
+    body = _rgb(CONTROLLED_COLOR)
+    assert np.abs(colours[0.0][0] - body).max() <= 12 and np.abs(colours[0.0][1] - body).max() <= 12
+    assert np.abs(colours[0.25][0] - body).max() <= 12  # a shoulder
+    assert np.abs(colours[0.25][1] - body).max() > 40  # floor before the chest
+    with pytest.raises(InputError, match="body_depth_m"):
+        CrowdRenderer(geom, np.array([True]), "rgb_array", body_depth_m=-0.1)
+
+
 def test_trajectory_file_of_the_exporter_becomes_a_video(tmp_path):
     from crowd_env.experiments.running.recording import record_run
     from crowd_env.walking.agent import SocialForceAgent
