@@ -14,7 +14,7 @@ The agent's parameters are :class:`WalkingParams`, a named tuple of small frozen
 kernel that reads it: :class:`~crowd_env.walking.social_force.SocialForce` and
 :class:`~crowd_env.walking.social_force.WallForce` (Eq. 16), :class:`~crowd_env.walking.vision.Vision`,
 :class:`~crowd_env.walking.time_to_collision.TimeToCollision`, the agent's own :class:`Intent` and
-:class:`~crowd_env.walking.give_way.GiveWay`. A model's
+:class:`~crowd_env.walking.give_way.GiveWay` and :class:`~crowd_env.walking.shoulder_turn.ShoulderTurn`. A model's
 ``<group>_<field>`` parameter (``social_strength_n``, ``vision_time_gap_s``, ...) is the field of its group
 (:class:`crowd_env.walking.model.ModelParams` pairs them with the core's physics). The kernels take the
 resolved bundle (:meth:`WalkingParams.resolved`, plain numbers) beside the core's :class:`~crowd_env.core.bundles.Bodies`
@@ -34,6 +34,7 @@ from ..core.bundles import Bodies, World
 from ..core.neighbors import grid_pairs
 from ..core.params import check_parameter
 from .give_way import GiveWay, give_way
+from .shoulder_turn import ShoulderTurn, shoulder_turn, shoulder_turn_reach_m
 from .navigation import DestinationNavigation, NavigationField, sample_bilinear
 from .social_force import SocialForce, WallForce, social_repulsion, total_social_forces
 from .time_to_collision import TimeToCollision, total_ttc_accelerations
@@ -64,7 +65,7 @@ class Intent(NamedTuple):
 
 class WalkingParams(NamedTuple):
     """The calibrated agent's parameters, one frozen group each, defaults the paper's model (Kabalan's validation
-    point, no wall term of its own, vision, time to collision and giving way off). The model's parameter ``<group>_<field>``
+    point, no wall term of its own, vision, time to collision, giving way and turning the shoulders off). The model's parameter ``<group>_<field>``
     (``social_strength_n``, ``wall_social_range_m``, ``vision_rays``, ``ttc_horizon_s``, ...) is ``field`` of the
     group ``group`` (:class:`crowd_env.walking.model.ModelParams`)."""
 
@@ -74,6 +75,7 @@ class WalkingParams(NamedTuple):
     ttc: TimeToCollision = TimeToCollision()
     intent: Intent = Intent()
     give_way: GiveWay = GiveWay()
+    shoulder_turn: ShoulderTurn = ShoulderTurn()
 
     def checked(self) -> "WalkingParams":
         """These parameters, once every group is checked beside its kernel (:class:`~crowd_env.errors.ParameterError`
@@ -86,7 +88,8 @@ class WalkingParams(NamedTuple):
         """The bundle the kernels take: plain numbers, the walls' A and B where None the pedestrians', vision's κ_0
         and right of way resolved (:meth:`Vision.resolved <crowd_env.walking.vision.Vision.resolved>`)."""
         return WalkingParams(self.social.resolved(), self.wall_social.resolved(self.social), self.vision.resolved(),
-                             self.ttc.resolved(), self.intent.resolved(), self.give_way.resolved())
+                             self.ttc.resolved(), self.intent.resolved(), self.give_way.resolved(),
+                             self.shoulder_turn.resolved())
 
 
 DEFAULT_WALKING = WalkingParams().resolved()
@@ -110,7 +113,7 @@ def plain_walking(walking: WalkingParams) -> tuple:
 def named_walking(plain):
     """:func:`plain_walking`'s tuples as the :class:`WalkingParams` they came from (in compiled code)."""
     return WalkingParams(SocialForce(*plain[0]), WallForce(*plain[1]), Vision(*plain[2]), TimeToCollision(*plain[3]),
-                         Intent(*plain[4]), GiveWay(*plain[5]))
+                         Intent(*plain[4]), GiveWay(*plain[5]), ShoulderTurn(*plain[6]))
 
 
 class Intents(NamedTuple):
@@ -163,7 +166,8 @@ def baseline_intents(bodies, world, index, e_d, travel_time_s, pairs, walking, t
     or giving way ``travel_time_s`` (n,) are the walkers' travel times T (Eq. 11), else unused. With
     ``walking.ttc.strength_m2_s2`` > 0 the time-to-collision interaction of
     :mod:`crowd_env.walking.time_to_collision`; with ``walking.give_way.share`` > 0 the intent's push into a touched
-    walker ahead taken out (:mod:`crowd_env.walking.give_way`). Pedestrians whose
+    walker ahead taken out (:mod:`crowd_env.walking.give_way`); with ``walking.shoulder_turn.critical_ratio`` > 0
+    θ_d turned at a narrow aperture (:mod:`crowd_env.walking.shoulder_turn`). Pedestrians whose
     premovement time has not come at ``time_s`` stand still (:func:`hold_waiting`).
     """
     position, radius, heading, velocity = bodies.position_m, bodies.radius_m, bodies.heading_rad, bodies.velocity_m_s
@@ -197,6 +201,9 @@ def baseline_intents(bodies, world, index, e_d, travel_time_s, pairs, walking, t
         intents[i, 0] = speed[k] * walk[k, 0] + scale * force[k, 0]
         intents[i, 1] = speed[k] * walk[k, 1] + scale * force[k, 1]
         theta_d[i] = angles[k]
+    if walking.shoulder_turn.critical_ratio > 0.0:  # the shoulders turned at a narrow aperture ahead
+        shoulder_turn(theta_d, heading, position, radius, index, walk, pairs, world.walls, world.period_m,
+                      walking.shoulder_turn)
     if walking.ttc.strength_m2_s2 > 0.0 and n:  # + τ_i Σ f_ttc / m_i
         accel = total_ttc_accelerations(position, velocity, radius, index, pairs, world.period_m, walking.ttc)
         for k in range(n):
@@ -229,12 +236,14 @@ def pair_radius_m(bodies, index, walking):
     """The centre distance within which the agent needs the pairs of the pedestrians ``index``: 2 r_max +
     :func:`pair_reach_m`; −1 when it needs none."""
     reach = pair_reach_m(bodies.desired_speed_m_s, index, walking)
-    if reach < 0.0:
-        return -1.0
     r_max = 0.0
     radius = bodies.radius_m
     for k in range(index.shape[0]):
         r_max = max(r_max, radius[index[k]])
+    if walking.shoulder_turn.critical_ratio > 0.0:  # its reach follows the body (shoulder_turn_reach_m)
+        reach = max(reach, shoulder_turn_reach_m(r_max, walking.shoulder_turn))
+    if reach < 0.0:
+        return -1.0
     return 2.0 * r_max + reach
 
 
