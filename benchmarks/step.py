@@ -12,9 +12,12 @@ social force (the core alone). Three loads:
 
 Each run warms up (not timed, which also compiles the kernels) and then times ``--steps`` steps,
 printing ms per step, agent-steps per second, the per-phase split from StepResult.timings_s and the
-largest cluster, and t(N_max)/t(N_prev) between consecutive sizes.
+largest cluster, and t(N_max)/t(N_prev) between consecutive sizes. With ``--body-depth D`` every case runs twice,
+with the paper's disks and with bodies of three circles of depth D (crowd_env.core.body), and prints the ratio of
+their times measured in the same run.
 
     python benchmarks/step.py [100 1000 10000] [--modes standing random pushing] [--steps 20] [--warmup 50]
+    python benchmarks/step.py 100 1000 --body-depth 0.25
 """
 from __future__ import annotations
 
@@ -57,9 +60,9 @@ def intents_for(mode, state, L, rng):
     raise ValueError(f"unknown mode {mode!r}")
 
 
-def run(n, mode, steps, warmup, seed=0):
+def run(n, mode, steps, warmup, seed=0, body_depth_m=0.0):
     state, walls, L = dense_room(n, seed)
-    sim = Simulator(state, walls=walls, params=ModelParams(social_forces=False))
+    sim = Simulator(state, walls=walls, params=ModelParams(social_forces=False, body_depth_m=body_depth_m))
     intents = intents_for(mode, state, L, np.random.default_rng(seed + 1))
     for _ in range(warmup):
         sim.step(intents())
@@ -87,18 +90,25 @@ def main(argv=None):
     ap.add_argument("--steps", type=int, default=20)
     ap.add_argument("--warmup", type=int, default=50)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--body-depth", type=float, default=0.0,
+                    help="also run bodies of three circles of this depth (m) and print their time over the disks'")
     args = ap.parse_args(argv)
     print(f"{'mode':>9} {'N':>6} | {'ms/step':>8} {'agent-steps/s':>13} | "
           + " ".join(f"{k:>10}" for k in PHASES) + " | contacts max_cluster  min_gap_m  sparse/fallback")
     results = {}
     for mode in args.modes:
         for n in args.sizes:
-            r = run(n, mode, args.steps, args.warmup, args.seed)
-            results[(mode, n)] = r
-            print(f"{mode:>9} {n:6d} | {r['ms']:8.2f} {r['agent_steps_per_s']:13,.0f} | "
-                  + " ".join(f"{r['phases'][k]:10.3f}" for k in PHASES)
-                  + f" | {r['contacts']:8.0f} {r['max_cluster']:11d} {r['min_gap']:10.2e}  {r['sparse']}/{r['fallback']}",
-                  flush=True)
+            for depth in ((0.0, args.body_depth) if args.body_depth > 0 else (0.0,)):
+                r = run(n, mode, args.steps, args.warmup, args.seed, depth)
+                if depth == 0.0:
+                    results[(mode, n)] = r
+                label = mode if depth == 0.0 else f"D={depth:g}"
+                print(f"{label:>9} {n:6d} | {r['ms']:8.2f} {r['agent_steps_per_s']:13,.0f} | "
+                      + " ".join(f"{r['phases'][k]:10.3f}" for k in PHASES)
+                      + f" | {r['contacts']:8.0f} {r['max_cluster']:11d} {r['min_gap']:10.2e}  {r['sparse']}/"
+                      f"{r['fallback']}", flush=True)
+                if depth > 0.0:
+                    print(f"{mode:>9} {n:6d}   three circles / disks: {r['ms'] / results[(mode, n)]['ms']:.2f}")
         sizes = sorted(args.sizes)
         for a, b in zip(sizes, sizes[1:]):
             ra, rb = results[(mode, a)], results[(mode, b)]
