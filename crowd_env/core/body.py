@@ -51,7 +51,7 @@ def circle(heading_rad, radius_m, depth_m, s):
 @nb.njit(cache=True, inline="always")
 def arm_m(radius_m, depth_m):
     """The distance of the shoulder circles' centres from the body's centre, r − D/2 (0 for the disk): a body
-    turning at ω moves a circle's centre by at most |ω| (r − D/2) per second."""
+    turning at ω moves a circle's centre by at most abs(ω) (r − D/2) per second."""
     return 0.0 if depth_m <= 0.0 else radius_m - 0.5 * depth_m
 
 

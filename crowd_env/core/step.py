@@ -165,7 +165,7 @@ def kinetic_energy(vel, mass, inertia):
 
 @nb.njit(cache=True)
 def speeds(vel, radius, index, depth_m):
-    """How fast a point of each body's circles can move, from compact (n, 3) velocities: ‖u‖, plus |ω| times the
+    """How fast a point of each body's circles can move, from compact (n, 3) velocities: ‖u‖, plus abs(ω) times the
     shoulder circles' arm (:func:`~crowd_env.core.body.arm_m`) for bodies of depth ``depth_m`` > 0. The contact
     margins are built from these."""
     out = np.empty(vel.shape[0])

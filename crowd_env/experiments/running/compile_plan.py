@@ -7,7 +7,6 @@ what the rollout compiles: regenerate it then.
 """
 from numba.core.types import Array, NamedTuple, NamedUniTuple, Tuple, UniTuple, boolean, float64, int64
 
-from crowd_env.core.angles import wrap_angle_scalar
 from crowd_env.core.bundles import Bodies, Candidates, Links, StepInputs, StepParams, World
 from crowd_env.core.contacts import active_links, contact_candidates
 from crowd_env.core.solvers.dense_projection import project_gaps
@@ -16,18 +15,22 @@ from crowd_env.core.step import (active_rows, candidate_gaps_min, commit_step, c
 from crowd_env.experiments.running.rollout import Measures, StallRule, measure_step
 from crowd_env.walking.agent import CompiledNavigation, Intent, WalkingParams, agent_step
 from crowd_env.walking.give_way import GiveWay
+from crowd_env.walking.shoulder_turn import ShoulderTurn
 from crowd_env.walking.social_force import SocialForce, WallForce
 from crowd_env.walking.time_to_collision import TimeToCollision
 from crowd_env.walking.vision import Vision
 
 PARTS = (
-    (  # 22.5 s of compilation, measured
+    (  # 26.4 s of compilation, measured
         (impact_stage, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
             NamedTuple((Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
-            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C')),
-            Candidates), NamedTuple((Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 2, 'C'),
-            Array(float64, 2, 'C'), Array(float64, 2, 'C')), Links), NamedTuple((float64, float64, float64, float64,
-            float64, boolean, int64, int64, int64), StepParams)),)),
+            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'),
+            Array(int64, 1, 'C'), Array(float64, 2, 'C'), Array(float64, 2, 'C')), Candidates),
+            NamedTuple((Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 2, 'C'), Array(float64, 2, 'C'),
+            Array(float64, 2, 'C')), Links), NamedTuple((float64, float64, float64, float64, float64, boolean,
+            int64, int64, int64, float64), StepParams)),)),
+        (project_gaps, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
+            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), float64, float64, int64),)),
         (measure_step, ((NamedTuple((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 2, 'C'),
             Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
             Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
@@ -40,22 +43,21 @@ PARTS = (
             Array(boolean, 2, 'C'), Array(int64, 1, 'C'), Array(float64, 1, 'C')), Measures),
             NamedTuple((Array(float64, 3, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), int64, int64,
             float64, float64), StallRule)),)),
-        (contact_candidates, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(int64,
-            1, 'C'), Array(int64, 2, 'C'), Array(float64, 2, 'C', readonly=True), Array(int64, 3, 'C'), float64,
-            float64, float64),)),
+        (active_links, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(boolean, 1, 'C'), Array(int64, 1,
+            'C'), Array(int64, 2, 'C'), Array(float64, 2, 'C'), float64),)),
         (leave_at_exits, ((Array(float64, 2, 'C'), Array(boolean, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 2,
             'C'), Array(int64, 1, 'C'), Array(float64, 2, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
             Array(float64, 2, 'C')),)),
-        (compact_contacts, ((Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
-            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(boolean, 1, 'C')),)),
-        (detection_reach, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), float64,
+        (candidate_gaps_min, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), float64,
+            Array(int64, 1, 'C'), Array(float64, 2, 'C', readonly=True), NamedTuple((Array(int64, 1, 'C'),
+            Array(int64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
+            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
+            Array(float64, 2, 'C'), Array(float64, 2, 'C')), Candidates), float64),)),
+        (detection_reach, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), float64, float64,
             float64),)),
-        (candidate_gaps_min, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), Array(float64,
-            2, 'C', readonly=True), Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'), float64),)),
         (compact_bodies, ((Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C')),)),
-        (active_rows, ((Array(boolean, 1, 'C'),),)),
     ),
-    (  # 22.4 s of compilation, measured
+    (  # 26.5 s of compilation, measured
         (redetection_round, ((NamedTuple((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 2, 'C'),
             Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
             Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
@@ -63,11 +65,12 @@ PARTS = (
             Array(int64, 1, 'C'), NamedTuple((Array(float64, 2, 'C', readonly=True), Array(int64, 3, 'C'),
             Array(float64, 2, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 2, 'C'), Array(int64,
             1, 'C'), float64), World), NamedTuple((float64, float64, float64, float64, float64, boolean, int64,
-            int64, int64), StepParams), Array(float64, 2, 'C'), Array(float64, 2, 'C'), Array(float64, 1, 'C'),
-            Array(int64, 1, 'C'), NamedTuple((Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 1, 'C'),
-            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
-            Array(int64, 1, 'C')), Candidates), Tuple((Array(float64, 1, 'C'), Array(float64, 1, 'C'),
-            Array(boolean, 1, 'C'))), Array(float64, 1, 'C'), boolean),)),
+            int64, int64, float64), StepParams), Array(float64, 2, 'C'), Array(float64, 2, 'C'), Array(float64, 1,
+            'C'), Array(int64, 1, 'C'), NamedTuple((Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 1,
+            'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
+            Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(float64, 2, 'C'), Array(float64, 2, 'C')),
+            Candidates), Tuple((Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(boolean, 1, 'C'))),
+            Array(float64, 1, 'C'), boolean),)),
         (agent_step, ((NamedTuple((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 2, 'C'),
             Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
             Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'),
@@ -78,17 +81,19 @@ PARTS = (
             Array(float64, 4, 'C'), Array(int64, 1, 'C')), CompiledNavigation), NamedTuple((NamedTuple((boolean,
             float64, float64, float64, float64, float64), SocialForce), NamedUniTuple(float64, 2, WallForce),
             NamedTuple((float64, float64, float64, int64, float64, float64, float64, float64, boolean), Vision),
-            NamedUniTuple(float64, 4, TimeToCollision), NamedTuple((), Intent), NamedUniTuple(float64, 2, GiveWay)),
-            WalkingParams), float64),)),
-        (project_gaps, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
-            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), float64, float64, int64),)),
-        (active_links, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(boolean, 1, 'C'), Array(int64, 1,
-            'C'), Array(int64, 2, 'C'), Array(float64, 2, 'C'), float64),)),
+            NamedUniTuple(float64, 4, TimeToCollision), NamedTuple((), Intent), NamedUniTuple(float64, 2, GiveWay),
+            NamedUniTuple(float64, 2, ShoulderTurn)), WalkingParams), float64),)),
+        (contact_candidates, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), float64,
+            Array(float64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 2, 'C'), Array(float64, 2, 'C',
+            readonly=True), Array(int64, 3, 'C'), float64, float64, float64),)),
         (first_bad_input, ((NamedTuple((Array(float64, 2, 'C'), Array(float64, 1, 'C'), boolean, Array(float64, 2,
             'C'), boolean), StepInputs), Array(float64, 1, 'C'), Array(float64, 1, 'C')),)),
+        (grown_margins, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), float64, float64, Array(float64, 1, 'C'),
+            Array(int64, 1, 'C'), float64),)),
+        (compact_contacts, ((Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'), Array(int64, 1, 'C'),
+            Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(float64, 1, 'C'), Array(boolean, 1, 'C')),)),
         (commit_step, ((Array(float64, 2, 'C'), Array(float64, 2, 'C'), Array(float64, 1, 'C'), Array(float64, 1,
             'C'), Array(int64, 1, 'C'), Array(float64, 2, 'C'), float64, boolean, float64),)),
-        (grown_margins, ((Array(float64, 2, 'C'), Array(float64, 1, 'C'), float64, float64),)),
-        (wrap_angle_scalar, ((float64,),)),
+        (active_rows, ((Array(boolean, 1, 'C'),),)),
     ),
 )
