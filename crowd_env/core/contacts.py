@@ -39,7 +39,7 @@ def pair_candidates(position, radius, speed, pairs, index, eps_m, dt_s, margin_o
     ``(a, b, gap, nx, ny, d)`` with a, b rows into ``index``; also writes each pedestrian's own
     margin ε + 2h‖u_i‖ into ``margin_out`` (used for walls). ``period_m``: nearest images along x.
     """
-    circles = body_circles(position, np.zeros(position.shape[0]), radius, index, 0.0)
+    circles = (position[:0], radius[:0], np.zeros((0, 2)))  # the disks themselves (unread)
     a_out, b_out, _, geo, m = _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin_out, period_m,
                                          circles, 1)
     return a_out[:m], b_out[:m], geo[:m, 0].copy(), geo[:m, 1].copy(), geo[:m, 2].copy(), geo[:m, 3].copy()
@@ -48,9 +48,9 @@ def pair_candidates(position, radius, speed, pairs, index, eps_m, dt_s, margin_o
 @nb.njit(cache=True)
 def _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin_out, period_m, circles, k):
     """:func:`pair_candidates` in buffers, between the ``k`` circles of each body (``circles``: centres, radii and
-    arms of :func:`~crowd_env.core.body.body_circles`): ``(a, b, sub, geo, m)``, the first m rows holding the
-    candidates (``sub`` = s_a k + s_b, the two circles; geo: gap, nx, ny, d between the circles' centres, the two
-    arms)."""
+    arms of :func:`~crowd_env.core.body.body_circles`; unread when k = 1, the disks themselves): ``(a, b, sub, geo,
+    m)``, the first m rows holding the candidates (``sub`` = s_a k + s_b, the two circles; geo: gap, nx, ny, d between
+    the circles' centres, the two arms)."""
     centre, crad, carm = circles
     n = index.shape[0]
     for q in range(n):
@@ -59,7 +59,7 @@ def _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin_out, p
     a_out = np.empty(p * k * k, np.int64)
     b_out = np.empty(p * k * k, np.int64)
     sub = np.empty(p * k * k, np.int64)
-    geo = np.empty((p * k * k, 8))
+    geo = np.empty((p * k * k, 8 if k > 1 else 4))  # the arms only for circles
     m = 0
     for q in range(p):
         a = pairs[q, 0]
@@ -84,8 +84,10 @@ def _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin_out, p
                     dx = minimum_image_dx(centre[ca, 0] - centre[cb, 0], period_m)
                     dy = centre[ca, 1] - centre[cb, 1]
                     d2 = dx * dx + dy * dy
+                    gap = np.sqrt(d2) - crad[ca] - crad[cb]
+                else:
+                    gap = np.sqrt(d2) - radius[i] - radius[j]
                 d = np.sqrt(d2)
-                gap = d - crad[ca] - crad[cb]
                 if gap > limit:
                     continue
                 a_out[m] = a
@@ -99,10 +101,11 @@ def _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin_out, p
                     geo[m, 1] = 1.0
                     geo[m, 2] = 0.0
                 geo[m, 3] = d
-                geo[m, 4] = carm[ca, 0]
-                geo[m, 5] = carm[ca, 1]
-                geo[m, 6] = carm[cb, 0]
-                geo[m, 7] = carm[cb, 1]
+                if k > 1:
+                    geo[m, 4] = carm[ca, 0]
+                    geo[m, 5] = carm[ca, 1]
+                    geo[m, 6] = carm[cb, 0]
+                    geo[m, 7] = carm[cb, 1]
                 m += 1
     return a_out, b_out, sub, geo, m
 
@@ -127,15 +130,20 @@ def contact_candidates(position, heading, radius, depth_m, speed, index, pairs, 
     """
     n = index.shape[0]
     k = circle_count(depth_m)
-    circles = body_circles(position, heading, radius, index, depth_m)
+    if k > 1:
+        circles = body_circles(position, heading, radius, index, depth_m)
+    else:  # the disks themselves: nothing to copy (the kernels read position and radius)
+        circles = (position[:0], radius[:0], np.zeros((0, 2)))
     margin = np.empty(n)
     a, b, sub, geo, npair = _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin, period_m, circles,
                                        k)
-    if walls.shape[0]:  # read from the two buffers directly (pair_candidates and wall_proximity copy them out)
+    if walls.shape[0] and k > 1:  # each circle against the walls, with its body's margin
         circle_margin = np.empty(n * k)
         for c in range(n * k):
             circle_margin[c] = margin[c // k]
         wa, wseg, wout, nwall = wall_rows(circles[0], circles[1], np.arange(n * k), walls, wall_owner, circle_margin)
+    elif walls.shape[0]:  # read from the two buffers directly (pair_candidates and wall_proximity copy them out)
+        wa, wseg, wout, nwall = wall_rows(position, radius, index, walls, wall_owner, margin)
     else:
         wa = wseg = np.zeros(0, np.int64)
         wout = np.zeros((0, 5))
@@ -154,8 +162,12 @@ def contact_candidates(position, heading, radius, depth_m, speed, index, pairs, 
     c_arm_b = np.zeros((m, 2))
     crad, carm = circles[1], circles[2]
     for q in range(npair):
-        ra = crad[a[q] * k + sub[q] // k]
-        rb = crad[b[q] * k + sub[q] % k]
+        if k > 1:
+            ra = crad[a[q] * k + sub[q] // k]
+            rb = crad[b[q] * k + sub[q] % k]
+        else:
+            ra = radius[index[a[q]]]
+            rb = radius[index[b[q]]]
         c_a[q] = a[q]
         c_b[q] = b[q]
         c_gap[q] = geo[q, 0]
@@ -165,10 +177,11 @@ def contact_candidates(position, heading, radius, depth_m, speed, index, pairs, 
         c_rho_b[q] = geo[q, 3] - c_rho_a[q]
         c_wall[q] = -1
         c_sub[q] = sub[q]
-        c_arm_a[q, 0] = geo[q, 4]
-        c_arm_a[q, 1] = geo[q, 5]
-        c_arm_b[q, 0] = geo[q, 6]
-        c_arm_b[q, 1] = geo[q, 7]
+        if k > 1:
+            c_arm_a[q, 0] = geo[q, 4]
+            c_arm_a[q, 1] = geo[q, 5]
+            c_arm_b[q, 0] = geo[q, 6]
+            c_arm_b[q, 1] = geo[q, 7]
     for q in range(nwall):
         c = npair + q
         c_a[c] = wa[q] // k
@@ -176,12 +189,15 @@ def contact_candidates(position, heading, radius, depth_m, speed, index, pairs, 
         c_gap[c] = wout[q, 0]
         c_nx[c] = wout[q, 1]
         c_ny[c] = wout[q, 2]
-        c_rho_a[c] = crad[wa[q]]
         c_rho_b[c] = 0.0
         c_wall[c] = wseg[q]
         c_sub[c] = wa[q] % k
-        c_arm_a[c, 0] = carm[wa[q], 0]
-        c_arm_a[c, 1] = carm[wa[q], 1]
+        if k > 1:
+            c_rho_a[c] = crad[wa[q]]
+            c_arm_a[c, 0] = carm[wa[q], 0]
+            c_arm_a[c, 1] = carm[wa[q], 1]
+        else:
+            c_rho_a[c] = radius[index[wa[q]]]
     return Candidates(c_a, c_b, c_gap, c_nx, c_ny, c_rho_a, c_rho_b, c_wall, c_sub, c_arm_a, c_arm_b)
 
 

@@ -182,10 +182,12 @@ def grown_margins(vel, detection_speed, eps_m, dt_s, radius, index, depth_m):
     """Rows whose :func:`speeds` exceed 2 s + ε/(2h), s being the speed the margins were built from: a pair
     left out of the candidates could then close within the step (stage 5)."""
     out = np.empty(vel.shape[0], np.int64)
-    now = speeds(vel, radius, index, depth_m)
     m = 0
     for k in range(vel.shape[0]):
-        if now[k] > 2.0 * detection_speed[k] + 0.5 * eps_m / dt_s:
+        now = np.sqrt(vel[k, 0] ** 2 + vel[k, 1] ** 2)
+        if depth_m > 0.0:  # as speeds() adds it
+            now += abs(vel[k, 2]) * arm_m(radius[index[k]], depth_m)
+        if now > 2.0 * detection_speed[k] + 0.5 * eps_m / dt_s:
             out[m] = k
             m += 1
     return out[:m]

@@ -33,6 +33,15 @@ unless told otherwise; ``ModelParams()`` itself stays the paper's literal parame
   range keeps queues apart and a slimmer body passes the 0.70 m exit the default wedges in; the single file is
   not met (weights 0: no point of this family meets it). Not the default (docs/validation/virtual_experiments.md
   says what it meets and misses).
+- ``shoulders``: bodies of three circles 0.46 m across and 0.25 m deep (``body_depth_m``, a median man's chest
+  depth; :mod:`crowd_env.core.body`) that turn their shoulders at an aperture narrower than 1.3 shoulder widths
+  (``shoulder_turn_critical_ratio``, Warren & Whang's ratio; :mod:`crowd_env.walking.shoulder_turn`), Kabalan's
+  radius; only the social force calibrated, on every shipped experiment as run at once (``crowd-calibrate
+  optimize --objective virtual --preset calibrated --param body_depth_m=0.25 --param
+  shoulder_turn_critical_ratio=1.3 --free A B lambda --weight single_file=0 headway_fit=0``): A = 264.4 N,
+  B = 0.0957 m, λ = 0.0755, configuration-space field, no wall social force. Passes the 0.70 m exit without a
+  clog and the narrow doors off their axis as people do; the narrow entrances, the queues' density, the wide runs
+  and the single file are not met. Not the default (docs/validation/virtual_experiments.md).
 """
 from __future__ import annotations
 
@@ -93,6 +102,12 @@ PRESETS = {
                               "wall_social_strength_n": 0.0}, 0.214,
                     "Seyfried 2009 and the nine Jülich corridor runs as run, at once (--objective virtual); "
                     "a calibrated body, r = 0.214 m; single file unmet", radius_m=0.214),
+    "shoulders": Preset("shoulders", {"social_strength_n": 264.4, "social_range_m": 0.0957, "social_anisotropy": 0.0755,
+                                      "wall_social_strength_n": 0.0, "body_depth_m": 0.25,
+                                      "shoulder_turn_critical_ratio": 1.3}, _RADIUS_M,
+                        "bodies of three circles 0.25 m deep that turn their shoulders at narrow apertures "
+                        "(Warren & Whang's 1.3); the social force calibrated on every shipped experiment as run at "
+                        "once (--objective virtual); single file unmet"),
 }
 DEFAULT_PRESET = "calibrated"
 

@@ -181,7 +181,7 @@ def test_presets_set_the_base_configuration_and_flags_override(tmp_path):
         assert config["params"]["social_strength_n"] == a and config["params"]["social_range_m"] == b
         assert config["params"]["wall_social_strength_n"] == wall
         assert config["geometry"]["navigation_clearance_m"] == clearance
-    assert set(PRESETS) == {"calibrated", "joint", "paper", "recalibrated", "vision"}
+    assert set(PRESETS) == {"calibrated", "joint", "paper", "recalibrated", "shoulders", "vision"}
     with pytest.raises(SystemExit):
         build_parser().parse_args(["--preset", "nonsense"])
     # the optional wall slowdown enters the configuration only when given (older run folders stay valid)
