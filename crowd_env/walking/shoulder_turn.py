@@ -11,7 +11,8 @@ disk turning changes nothing but the heading.
 The rule: the aperture A is the narrowest free width across the walking direction e over the stretch the body is in
 or about to enter, from its centre x to the point x + (r + L) e just ahead of it (L ``lookahead_m``): on each line
 across e through x + s e, 0 ≤ s ≤ r + L, the distance from the line's centre to the nearest wall (a ray cast) or
-neighbour's disk on the left of e plus the same on the right, the smallest over the lines. When A < ρ S (ρ ``critical_ratio``, S = 2 r the shoulder width) the walker turns
+neighbour's disk on the left of e plus the same on the right, the smallest over the lines (a line whose centre a
+neighbour covers is left out: someone straight ahead is followed, not passed). When A < ρ S (ρ ``critical_ratio``, S = 2 r the shoulder width) the walker turns
 its shoulders by
 
     φ = arccos(A / (ρ S)),
@@ -77,12 +78,14 @@ def apertures_m(position, radius, index, walk, pairs, walls, period_m, lookahead
     """The aperture A (m; module docstring) of each pedestrian of ``index`` walking along the unit directions ``walk``
     (n, 2): the narrowest free width across its path over the stretch it is in or about to enter, the lines across e
     through x + s e for s from 0 to r + L (every :data:`LINE_STEP_M` at most), to the walls ``walls`` (S, 4) and the
-    disks of its neighbours ``pairs`` (rows into ``index``); at most 2 :data:`FAR_M`; 0 when a neighbour's disk covers
-    a line's centre. Also ``(left, right)``, the two sides at that narrowest line."""
+    disks of its neighbours ``pairs`` (rows into ``index``); at most 2 :data:`FAR_M`. A line whose centre a
+    neighbour's disk covers is no aperture (someone straight ahead is followed, not passed: no turn for it) and is
+    left out. Also ``(left, right)``, the two sides at that narrowest line."""
     n = index.shape[0]
     aperture = np.full(n, 2.0 * FAR_M)
     best_left = np.full(n, FAR_M)
     best_right = np.full(n, FAR_M)
+    blocked = np.zeros(n, np.bool_)
     n_lines = 1
     for k in range(n):
         n_lines = max(n_lines, int(np.ceil((radius[index[k]] + lookahead_m) / LINE_STEP_M)) + 1)
@@ -101,6 +104,7 @@ def apertures_m(position, radius, index, walk, pairs, walls, period_m, lookahead
         side = ray_distances(q, angles, walls, FAR_M)
         left = side[:, 0].copy()
         right = side[:, 1].copy()
+        blocked[:] = False
         for p in range(pairs.shape[0]):
             for w in range(2):
                 a = pairs[p, w]
@@ -113,15 +117,14 @@ def apertures_m(position, radius, index, walk, pairs, walls, period_m, lookahead
                     continue  # j's disk does not reach this line
                 across = -dx * walk[a, 1] + dy * walk[a, 0]  # + on the left of e
                 half = np.sqrt(rj * rj - along * along)
-                if abs(across) < half:  # j's disk covers the line's centre: the path is blocked there
-                    left[a] = 0.0
-                    right[a] = 0.0
+                if abs(across) < half:  # j's disk covers the line's centre: no gap to pass there, one to follow
+                    blocked[a] = True
                 elif across > 0.0:
                     left[a] = min(left[a], across - half)
                 else:
                     right[a] = min(right[a], -across - half)
         for k in range(n):
-            if left[k] + right[k] < aperture[k]:
+            if not blocked[k] and left[k] + right[k] < aperture[k]:
                 aperture[k] = left[k] + right[k]
                 best_left[k] = left[k]
                 best_right[k] = right[k]

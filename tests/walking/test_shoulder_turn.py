@@ -39,8 +39,14 @@ def test_aperture_between_walls_and_a_neighbour():
     assert left[0] == pytest.approx(0.3 - math.sqrt(R ** 2 - 0.1 ** 2), abs=1e-12)
     a, left, _ = _aperture([(0.0, 0.0), (ahead + R + 0.01, 0.3)], walk)
     assert a[0] == pytest.approx(0.8, abs=1e-12)
-    a, _, _ = _aperture([(0.0, 0.0), (ahead + 0.1, 0.05)], walk)  # a disk across the path: blocked
-    assert a[0] == 0.0
+    # a disk across the path (covering the lines' centres from s = r + L − 0.13 on) is followed, not passed: the
+    # lines it covers are left out, the others see the walls
+    a, _, _ = _aperture([(0.0, 0.0), (ahead + 0.1, 0.05)], walk)
+    assert a[0] == pytest.approx(0.8, abs=1e-12)
+    # ... and beside it a narrow gap to a wall still counts: the neighbour 0.3 m left, a wall 0.2 m right
+    walls = np.array([[-5.0, -0.2, 5.0, -0.2], [-5.0, 2.0, 5.0, 2.0]])
+    a, left, right = _aperture([(0.0, 0.0), (ahead, 0.3)], walk, walls=walls)
+    assert left[0] == pytest.approx(0.07, abs=1e-12) and right[0] == pytest.approx(0.2, abs=1e-12)
 
 
 def test_aperture_equals_a_sampled_one():
@@ -63,8 +69,7 @@ def test_aperture_equals_a_sampled_one():
             for s in np.linspace(0.0, R + 0.3, n_lines):
                 q = pos[k] + s * walk[k]
                 if any(np.hypot(*(q - pos[j])) < R for j in range(n) if j != k):
-                    want = 0.0  # a disk covers the line's centre
-                    continue
+                    continue  # a disk covers the line's centre: no aperture, left out
                 width = 0.0
                 for sign in (1.0, -1.0):
                     pts = q + sign * t[:, None] * perp
@@ -80,6 +85,7 @@ def test_aperture_equals_a_sampled_one():
                         blocked |= (np.sign(side) != np.sign(prev)) & (along >= 0) & (along <= 1)
                     width += t[np.argmax(blocked)] if blocked.any() else 5.0
                 want = min(want, width)
+            want = min(want, 10.0)  # every line covered: no aperture at all (the kernel's 2 FAR_M)
             assert got[k] == pytest.approx(want, abs=1.5e-3), (trial, k)
 
 

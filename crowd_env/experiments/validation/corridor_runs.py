@@ -173,8 +173,8 @@ def summarise_corridor(records: list) -> list:
 
 
 def corridor_snapshot(task: dict, *, at_s: float, every_s: float = 0.25) -> dict:
-    """A corridor run of the task format followed step by step: the crowd at ``at_s`` (positions, radii, velocities,
-    the agent's intents, who is left), and every ``every_s`` the passages of the exit so far, the mean speed ‖u‖ of
+    """A corridor run of the task format followed step by step: the crowd at ``at_s`` (positions, radii, headings and
+    the body depth, velocities, the agent's intents, who is left), and every ``every_s`` the passages of the exit so far, the mean speed ‖u‖ of
     those left and their mean net displacement over the stall rule's window (from their positions
     :data:`~crowd_env.experiments.running.runner.STALL_WINDOW_S` earlier): a crowd that shakes in place keeps a
     speed while its net displacement falls to nothing. The run stops at ``at_s`` (or at its end)."""
@@ -204,7 +204,8 @@ def corridor_snapshot(task: dict, *, at_s: float, every_s: float = 0.25) -> dict
         if not snap and sim.time_s >= at_s - 1e-9:
             intents, _ = policy(sim)
             snap.update(position_m=st.position_m.copy(), radius_m=st.radius_m.copy(), velocity_m_s=st.velocity_m_s.copy(),
-                        intent_m_s=intents.copy(), active=st.active.copy(), time_s=sim.time_s)
+                        intent_m_s=intents.copy(), active=st.active.copy(), time_s=sim.time_s,
+                        heading_rad=st.heading_rad.copy(), body_depth_m=sim.physics.body_depth_m)
 
     result = run_scenario(scenario, policy, params, max_time_s=min(task["max_time_s"], at_s + 1e-6), line="exit",
                           density_areas=(), lane_area=None, progress=capture, compiled=False, stall_window_s=None)

@@ -35,6 +35,7 @@ from ...analysis.experiment import (INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RA
 from ...analysis.corridor_runs import lapse_summary, uo_run
 from ...analysis.fd_reference import single_file
 from ...analysis.figures import pyplot, save_figure
+from ...core.body import body_circles
 from ...walking.model import ModelParams
 from ..running.backends import execute
 from ..running.crowd_policy import policy_entry
@@ -703,7 +704,7 @@ def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True
 
 def snapshot_figure(study: dict, path, *, window_y_m: tuple = (-5.0, 0.0)) -> Path:
     """A corridor run followed step by step (:func:`~.corridor_runs.corridor_snapshot`): left, the crowd in
-    ``window_y_m`` at the snapshot (disks, velocities in red, the agent's intents in blue); right, over time, how
+    ``window_y_m`` at the snapshot (bodies, velocities in red, the agent's intents in blue); right, over time, how
     many have left, the mean speed of those left and their mean net speed over the stall rule's window (net
     displacement / 20 s) beside the rule's threshold."""
     from ..running.runner import STALL_SPEED_M_S, STALL_WINDOW_S
@@ -717,7 +718,11 @@ def snapshot_figure(study: dict, path, *, window_y_m: tuple = (-5.0, 0.0)) -> Pa
             p = snap["position_m"][i]
             if not window_y_m[0] - 0.5 <= p[1] <= window_y_m[1] + 0.5:
                 continue
-            ax.add_patch(plt.Circle(p, snap["radius_m"][i], fill=False, lw=0.8))
+            depth = snap.get("body_depth_m", 0.0)  # the body's circles (one, the disk, at depth 0)
+            centre, rad, _ = body_circles(snap["position_m"], snap.get("heading_rad", np.zeros(len(snap["active"]))),
+                                          snap["radius_m"], np.array([i]), depth)
+            for c, rc in zip(centre, rad):
+                ax.add_patch(plt.Circle(c, rc, fill=False, lw=0.8))
             ax.arrow(*p, *(0.3 * snap["velocity_m_s"][i]), color="C3", width=0.006, length_includes_head=True)
             ax.arrow(*p, *(0.15 * snap["intent_m_s"][i]), color="C0", width=0.003, alpha=0.6, length_includes_head=True)
         ax.set_title(f"{study['run']} at t = {snap['time_s']:.1f} s: velocity × 0.3 s (red), intent × 0.15 s (blue)",

@@ -223,3 +223,37 @@ def test_a_learned_policy_drives_every_run_and_an_unknown_one_is_refused(capsys)
     assert not any("policy" in t for t in virtual_tasks(_config(), QUICK_PLAN))
     assert main(["--quick", "--policy", "no_such_policy", "--out", "unused"]) == 2
     assert "no_such_policy" in capsys.readouterr().err
+
+
+def test_shoulders_pass_the_070_m_exit_off_the_axis_where_no_disk_can(tmp_path, capsys, monkeypatch):
+    """The preset ``shoulders`` (bodies of three circles that turn their shoulders; docs/validation/
+    virtual_experiments.md, "A body narrower front to back") through the command on the 0.70 m exit that wedges
+    ``calibrated``'s disks for good, seeds 0-1: nobody stalls, and a good share of the passages cross the door
+    farther off its axis than the centre of a 0.46 m disk can (the recorded people: 0.66; a disk: 0 by geometry);
+    some walkers stand closer beside each other than two such disks can. The snapshot of a run draws each body
+    as its three circles."""
+    from crowd_env.cli.virtual_experiments import main
+    from crowd_env.experiments.validation import virtual_experiments as ve
+
+    argv = ["--preset", "shoulders", "--quick", "--experiments", "corridor", "--corridor-runs", "uo-180-180-070",
+            "--backend", "serial", "--no-figure", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    records = [json.loads(p.read_text())["record"] for p in (tmp_path / "runs").glob("*.json")]
+    assert len(records) == 2 and all(r["complete"] and not r["stalled"] for r in records)
+    assert all(r["exit_share_off_axis"] > 0.3 for r in records), [r["exit_share_off_axis"] for r in records]
+    assert all(np.nanmin(r["spacing_q01_m"]) < 2 * 0.23 for r in records)
+    drawn = {}
+
+    def keep(fig, path):
+        from matplotlib.patches import Circle
+
+        patches = fig.axes[0].patches
+        drawn["circles"] = sum(isinstance(p, Circle) for p in patches)
+        drawn["arrows"] = len(patches) - drawn["circles"]  # two per walker: velocity and intent
+        drawn["path"] = path
+        return path
+
+    monkeypatch.setattr(ve, "save_figure", keep)
+    assert main(["--preset", "shoulders", "--snapshot", "uo-180-180-070", "--at", "12", "--out", str(tmp_path)]) == 0
+    assert drawn["path"].name == "snapshot_uo-180-180-070.png"
+    assert drawn["circles"] > 0 and drawn["circles"] == 3 * drawn["arrows"] // 2
