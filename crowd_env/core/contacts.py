@@ -221,13 +221,39 @@ def turning_rate(vel, contacts, c):
 def turning_gaps(contacts, vel, dt_s, depth_m):
     """The gaps the gap projection must keep from closing when the projection moves the bodies but not their
     headings: gap + h × :func:`turning_rate` at the compact velocities ``vel`` (whose ω the projection leaves
-    alone), so that g + h (n·(u_a − u_b) + turning) ≥ 0. For disks (``depth_m`` = 0) the candidates' own gaps."""
+    alone), so that g + h (n·(u_a − u_b) + turning) ≥ 0. For disks (``depth_m`` = 0) the candidates' own gaps.
+
+    A body whose turning alone would close a contact within the step (g + h × turning < min(g, 0), its own part of
+    the turning closing) stops turning first: its ω is set to 0 in ``vel`` (in place; this only takes kinetic energy
+    away), until no contact is closed by a turning, so that the projection, which moves bodies only, has a solution
+    whenever it has one for bodies that do not turn (a body turned between two walls cannot be freed by moving it).
+    Returns ``(gaps, stopped)``, ``stopped`` whether some body stopped."""
     if depth_m <= 0.0:
-        return contacts.gap
+        return contacts.gap, False
     out = np.empty(contacts.gap.shape[0])
+    stopped = False
+    for _ in range(vel.shape[0] + 1):  # each round stops at least one body, or ends
+        changed = False
+        for c in range(out.shape[0]):
+            g = contacts.gap[c]
+            rate = turning_rate(vel, contacts, c)
+            if g + dt_s * rate < min(g, 0.0):
+                nx = contacts.nx[c]
+                ny = contacts.ny[c]
+                a = contacts.a[c]
+                if vel[a, 2] * (contacts.arm_a[c, 0] * ny - contacts.arm_a[c, 1] * nx) < 0.0:
+                    vel[a, 2] = 0.0
+                    changed = True
+                b = contacts.b[c]
+                if b >= 0 and vel[b, 2] * (contacts.arm_b[c, 0] * ny - contacts.arm_b[c, 1] * nx) > 0.0:
+                    vel[b, 2] = 0.0
+                    changed = True
+        stopped = stopped or changed
+        if not changed:
+            break
     for c in range(out.shape[0]):
         out[c] = contacts.gap[c] + dt_s * turning_rate(vel, contacts, c)
-    return out
+    return out, stopped
 
 
 def detect_contacts(position, radius, velocity, index, pairs, walls, wall_owner, eps_m, dt_s, period_m=0.0, *,

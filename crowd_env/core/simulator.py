@@ -115,8 +115,12 @@ class Simulator:
             self._exits = pack_polygons(geometry.exits)  # none at all in a periodic geometry
         self.destination = self._check_destination(destination, state.n)
         self._exit_destination = np.full(state.n, -1, np.int64) if self.destination is None else self.destination
-        state.validate()
         check_body_depth(self.physics.body_depth_m, state.radius_m)
+        if self.physics.body_depth_m > 0.0:  # bodies of three circles may stand closer than their disks
+            state.validate(overlap_tolerance_m=np.inf)
+            self._check_bodies(state)
+        else:
+            state.validate()
         self.period_m = self._check_period(period_m, state)
         self._check_walls(state)
         check_time_step(state, self.physics)  # refuses an unstable dt_s, warns above the safe step (timestep.py)
@@ -162,16 +166,36 @@ class Simulator:
                              "along x)")
         return period
 
+    def _check_bodies(self, state, tolerance_m: float = 1e-9) -> None:
+        """Raise :class:`StateError` naming the pair when two active bodies of three circles overlap (the start check
+        of :meth:`CrowdState.validate <crowd_env.core.state.CrowdState.validate>` for disks, with the bodies' own
+        gaps, :func:`~crowd_env.core.body.body_gaps`; across a periodic seam the disks' check stays, stricter)."""
+        idx = np.flatnonzero(state.active)
+        if idx.size < 2:
+            return
+        pairs = idx[grid_pairs(state.position_m, idx, 2.0 * float(state.radius_m[idx].max()))]
+        if not pairs.size:
+            return
+        gaps = body_gaps(state.position_m, state.heading_rad, state.radius_m, self.physics.body_depth_m, pairs)
+        k = int(np.argmin(gaps))
+        if gaps[k] < -tolerance_m:
+            i, j = int(pairs[k, 0]), int(pairs[k, 1])
+            raise StateError(f"pedestrians {i} and {j} overlap by {-gaps[k]:.4g} m at start (bodies of three circles, "
+                             f"positions {state.position_m[i].tolist()} and {state.position_m[j].tolist()})")
+
     def _check_walls(self, state, tolerance_m: float = 1e-9) -> None:
-        """Raise :class:`StateError` naming the pedestrian and the wall when one overlaps a wall."""
+        """Raise :class:`StateError` naming the pedestrian and the wall when one's body overlaps a wall."""
         idx = np.flatnonzero(state.active)
         if not self.walls.shape[0] or not idx.size:
             return
-        ped, seg, gap, *_ = wall_proximity(state.position_m, state.radius_m, idx, self.walls, self._wall_owner,
-                                           np.zeros(idx.shape[0]))
+        k_circles = circle_count(self.physics.body_depth_m)
+        centre, rad, _ = body_circles(state.position_m, state.heading_rad, state.radius_m, idx,
+                                      self.physics.body_depth_m)
+        ped, seg, gap, *_ = wall_proximity(centre, rad, np.arange(rad.shape[0]), self.walls, self._wall_owner,
+                                           np.zeros(rad.shape[0]))
         if gap.shape[0] and gap.min() < -tolerance_m:
             k = int(np.argmin(gap))
-            i = int(idx[ped[k]])
+            i = int(idx[ped[k] // k_circles])
             raise StateError(f"pedestrian {i} at {state.position_m[i].tolist()} overlaps wall segment {int(seg[k])} "
                              f"{self.walls[seg[k]].tolist()} by {-gap[k]:.4g} m at start")
 
@@ -496,7 +520,7 @@ class Simulator:
             if projected:
                 break
             con = candidates._asdict()  # a projection again: a new candidate bound (lam_p extended)
-            con["gap"] = turning_gaps(candidates, vel, params.dt_s, params.body_depth_m)
+            con["gap"] = turning_gaps(candidates, vel, params.dt_s, params.body_depth_m)[0]
             lam_p = self.cascade.project(vel, mass, con, params.dt_s, self.step_count,
                                          functools.partial(self._candidate_keys, idx, con), lam_p if once else None)
             projected = once = True

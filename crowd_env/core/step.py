@@ -467,8 +467,9 @@ def redetection_round(bodies, index, world, params, vel, v_impact, det_speed, gr
                    np.concatenate((in_impact, np.zeros(extra, np.bool_))))
     if projected:
         lam_p = np.concatenate((lam_p, np.zeros(extra)))
-        gap = turning_gaps(new, vel, dt_s, params.body_depth_m)
-        if gap_residuals(vel, gap / dt_s, new.a, new.b, new.nx, new.ny).min() < 0.0:  # a new one binds
+        gap, stopped = turning_gaps(new, vel, dt_s, params.body_depth_m)
+        # a new one binds, or a body stopped turning against one (the known candidates' gaps changed)
+        if stopped or gap_residuals(vel, gap / dt_s, new.a, new.b, new.nx, new.ny).min() < 0.0:
             vel[:, :2] = v_impact
             projected = False
     return det_speed, candidates, percussions, lam_p, True, projected
@@ -519,9 +520,9 @@ def fused_step(bodies, world, params, inputs, index, links, cached_pairs, cached
             n_redetect += added
         if projected:
             break
-        lam_p, _, st = project_gaps(vel, mass, candidates.a, candidates.b, turning_gaps(candidates, vel, dt_s, depth_m),
-                                    candidates.nx, candidates.ny, dt_s, PROJECTION_TOL_M_S,
-                                    params.max_dense_projection_rows)
+        gap, _ = turning_gaps(candidates, vel, dt_s, depth_m)
+        lam_p, _, st = project_gaps(vel, mass, candidates.a, candidates.b, gap, candidates.nx, candidates.ny, dt_s,
+                                    PROJECTION_TOL_M_S, params.max_dense_projection_rows)
         if st != STATUS_OK:
             return StepFigures(FUSED_PROJECTION, none, ke0, ke1, 0.0, 0, 0, np.inf, 0)
         projected = True
