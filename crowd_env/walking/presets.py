@@ -38,8 +38,8 @@ unless told otherwise; ``ModelParams()`` itself stays the paper's literal parame
   (``shoulder_turn_critical_ratio``, Warren & Whang's ratio; :mod:`crowd_env.walking.shoulder_turn`), Kabalan's
   radius; only the social force calibrated, on every shipped experiment as run at once (``crowd-calibrate
   optimize --objective virtual --preset calibrated --param body_depth_m=0.25 --param
-  shoulder_turn_critical_ratio=1.3 --free A B lambda --weight single_file=0 headway_fit=0``): A = 264.4 N,
-  B = 0.0957 m, λ = 0.0755, configuration-space field, no wall social force. Passes the 0.70 m exit without a
+  shoulder_turn_critical_ratio=1.3 --free A B lambda --weight single_file=0 headway_fit=0``): A = 304.0 N,
+  B = 0.0807 m, λ = 0.0679, configuration-space field, no wall social force. Passes the 0.70 m exit without a
   clog and the narrow doors off their axis as people do; the narrow entrances, the queues' density, the wide runs
   and the single file are not met. Not the default (docs/validation/virtual_experiments.md).
 """
@@ -102,7 +102,7 @@ PRESETS = {
                               "wall_social_strength_n": 0.0}, 0.214,
                     "Seyfried 2009 and the nine Jülich corridor runs as run, at once (--objective virtual); "
                     "a calibrated body, r = 0.214 m; single file unmet", radius_m=0.214),
-    "shoulders": Preset("shoulders", {"social_strength_n": 264.4, "social_range_m": 0.0957, "social_anisotropy": 0.0755,
+    "shoulders": Preset("shoulders", {"social_strength_n": 304.0, "social_range_m": 0.0807, "social_anisotropy": 0.0679,
                                       "wall_social_strength_n": 0.0, "body_depth_m": 0.25,
                                       "shoulder_turn_critical_ratio": 1.3}, _RADIUS_M,
                         "bodies of three circles 0.25 m deep that turn their shoulders at narrow apertures "
