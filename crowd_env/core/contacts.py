@@ -1,7 +1,9 @@
 """Contact detection and the contact operator rows (Kabalan Eq. 1, 2 and 8).
 
 Narrow phase: disk-disk and disk-wall candidates whose gap is within a speculative margin
-δ = ε + 2 h (‖u_i‖ + ‖u_j‖) (stage 3 of :mod:`crowd_env.core.step`). The contact operator B (Δ = B v)
+δ = ε + 2 h (‖u_i‖ + ‖u_j‖) (stage 3 of :mod:`crowd_env.core.step`); for bodies of three circles
+(:mod:`crowd_env.core.body`) circle-circle and circle-wall candidates, each carrying which circles touch and their
+arms from the bodies' centres, the speeds then including the turning (abs(ω) times the arm). The contact operator B (Δ = B v)
 is stored row by row in a two-body sparse form that the Frémond solvers of :mod:`crowd_env.core.solvers`
 (compiled, sparse and cvxpy) take as input:
 
@@ -11,8 +13,9 @@ is stored row by row in a two-body sparse form that the Frémond solvers of :mod
 * ``row_kind``: 0 normal (carries the non-interpenetration constraint), 1 tangent, 2 hand link.
 
 Conventions: the normal n points from j to i (from the wall into i); t = e_z × n; the contact
-point lies on the line of centres at ρ_i = d r_i/(r_i + r_j) from i (ρ_i = r_i against a wall), so
-that angular momentum is conserved exactly. Velocities are (u_x, u_y, ω) per body.
+point lies on the line of the two circles' centres at ρ_i = d r_i/(r_i + r_j) from i's (ρ_i = r_i against a wall),
+so that angular momentum is conserved exactly; a shoulder circle's arm a adds a × n to the normal row's θ
+coefficient (:func:`build_rows`). Velocities are (u_x, u_y, ω) per body.
 
 Periodic along x (``period_m`` L > 0): every displacement between two bodies (a pair's line of centres, a
 hand link's d = A_i − A_j) is taken to its nearest image (:func:`~crowd_env.core.periodic.minimum_image_dx`),
