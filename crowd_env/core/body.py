@@ -16,16 +16,18 @@ centre, so a push on one shoulder turns the body (the θ coefficients of the nor
 
 Each function here is the one place its quantity is computed: :func:`circle_count`, :func:`circle` (offset and
 radius of circle s), :func:`arm_m` (the largest distance of a circle's centre from the body's centre, which the
-contact margins need for a turning body), and :func:`body_gaps` (the surface gap of two bodies, for checks).
+contact margins need for a turning body), :func:`arm_cross` (an arm's lever about a contact direction, the θ
+coefficient of a contact row), :func:`body_gaps` (the surface gap of two bodies, for checks) and
+:func:`body_circles` (every circle of a crowd).
 """
 from __future__ import annotations
 
 import numba as nb
 import numpy as np
 
-from .periodic import minimum_image_dx
+from crowd_env.errors import ParameterError
 
-MAX_CIRCLES = 3
+from .periodic import minimum_image_dx
 
 
 @nb.njit(cache=True, inline="always")
@@ -55,11 +57,16 @@ def arm_m(radius_m, depth_m):
     return 0.0 if depth_m <= 0.0 else radius_m - 0.5 * depth_m
 
 
+@nb.njit(cache=True, inline="always")
+def arm_cross(arm, c, x, y):
+    """a × (x, y) = a_x y − a_y x for the arm ``arm[c]`` (a circle's centre from its body's centre) and a direction
+    (x, y): the lever of a contact along that direction about the body's centre (0 for the disk, whose arm is 0)."""
+    return arm[c, 0] * y - arm[c, 1] * x
+
+
 def check_body_depth(depth_m: float, radius_m: np.ndarray) -> None:
     """Refuse a body depth D the bodies of radii ``radius_m`` cannot have: 0 (the disk) or 0 < D < 2 r_min (at
     D = 2 r the three circles would coincide; use 0). Raises :class:`~crowd_env.errors.ParameterError`."""
-    from crowd_env.errors import ParameterError
-
     if depth_m == 0.0 or radius_m.shape[0] == 0:
         return
     r_min = float(np.min(radius_m))

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from .body import body_circles, circle_count
+from .body import arm_cross, body_circles, circle_count
 from .bundles import Candidates, Links
 from .periodic import minimum_image_dx
 from .segments import wall_rows
@@ -87,10 +87,11 @@ def _pair_rows(position, radius, speed, pairs, index, eps_m, dt_s, margin_out, p
                     dx = minimum_image_dx(centre[ca, 0] - centre[cb, 0], period_m)
                     dy = centre[ca, 1] - centre[cb, 1]
                     d2 = dx * dx + dy * dy
-                    gap = np.sqrt(d2) - crad[ca] - crad[cb]
+                    ra, rb = crad[ca], crad[cb]
                 else:
-                    gap = np.sqrt(d2) - radius[i] - radius[j]
+                    ra, rb = radius[i], radius[j]
                 d = np.sqrt(d2)
+                gap = d - ra - rb
                 if gap > limit:
                     continue
                 a_out[m] = a
@@ -211,12 +212,10 @@ def turning_rate(vel, contacts, c):
     angular velocities of the compact (n, 3) ``vel``."""
     nx = contacts.nx[c]
     ny = contacts.ny[c]
-    arm_a = contacts.arm_a
-    rate = vel[contacts.a[c], 2] * (arm_a[c, 0] * ny - arm_a[c, 1] * nx)
+    rate = vel[contacts.a[c], 2] * arm_cross(contacts.arm_a, c, nx, ny)
     b = contacts.b[c]
     if b >= 0:
-        arm_b = contacts.arm_b
-        rate -= vel[b, 2] * (arm_b[c, 0] * ny - arm_b[c, 1] * nx)
+        rate -= vel[b, 2] * arm_cross(contacts.arm_b, c, nx, ny)
     return rate
 
 
@@ -244,11 +243,11 @@ def turning_gaps(contacts, vel, dt_s, depth_m):
                 nx = contacts.nx[c]
                 ny = contacts.ny[c]
                 a = contacts.a[c]
-                if vel[a, 2] * (contacts.arm_a[c, 0] * ny - contacts.arm_a[c, 1] * nx) < 0.0:
+                if vel[a, 2] * arm_cross(contacts.arm_a, c, nx, ny) < 0.0:
                     vel[a, 2] = 0.0
                     changed = True
                 b = contacts.b[c]
-                if b >= 0 and vel[b, 2] * (contacts.arm_b[c, 0] * ny - contacts.arm_b[c, 1] * nx) > 0.0:
+                if b >= 0 and vel[b, 2] * arm_cross(contacts.arm_b, c, nx, ny) > 0.0:
                     vel[b, 2] = 0.0
                     changed = True
         stopped = stopped or changed
@@ -373,9 +372,9 @@ def build_rows(contact_ids, contacts, link_ids, links, local, k_n, k_tg, k_v, ro
         turn_a = arm_a[c, 0] != 0.0 or arm_a[c, 1] != 0.0  # a shoulder circle: its contact has a lever arm
         turn_b = b >= 0 and (arm_b[c, 0] != 0.0 or arm_b[c, 1] != 0.0)
         if turn_a:
-            coef_a[r, 2] = (arm_a[c, 0] * ny - arm_a[c, 1] * nx) * rot
+            coef_a[r, 2] = arm_cross(arm_a, c, nx, ny) * rot
         if turn_b:
-            coef_b[r, 2] = -(arm_b[c, 0] * ny - arm_b[c, 1] * nx) * rot
+            coef_b[r, 2] = -arm_cross(arm_b, c, nx, ny) * rot
         if nt:
             t = nc + r
             tx = -ny
@@ -389,9 +388,9 @@ def build_rows(contact_ids, contacts, link_ids, links, local, k_n, k_tg, k_v, ro
             coef_b[t, 1] = -ty
             coef_b[t, 2] = -c_rho_b[c] * rot
             if turn_a:
-                coef_a[t, 2] = (arm_a[c, 0] * ty - arm_a[c, 1] * tx - c_rho_a[c]) * rot
+                coef_a[t, 2] = (arm_cross(arm_a, c, tx, ty) - c_rho_a[c]) * rot
             if turn_b:
-                coef_b[t, 2] = -(arm_b[c, 0] * ty - arm_b[c, 1] * tx + c_rho_b[c]) * rot
+                coef_b[t, 2] = -(arm_cross(arm_b, c, tx, ty) + c_rho_b[c]) * rot
             row_k[t] = k_tg
             row_kind[t] = TANGENT
     for q in range(nl):

@@ -188,14 +188,10 @@ class Simulator:
         idx = np.flatnonzero(state.active)
         if not self.walls.shape[0] or not idx.size:
             return
-        k_circles = circle_count(self.physics.body_depth_m)
-        centre, rad, _ = body_circles(state.position_m, state.heading_rad, state.radius_m, idx,
-                                      self.physics.body_depth_m)
-        ped, seg, gap, *_ = wall_proximity(centre, rad, np.arange(rad.shape[0]), self.walls, self._wall_owner,
-                                           np.zeros(rad.shape[0]))
+        ped, seg, gap = self._wall_gaps(state, idx, 0.0)
         if gap.shape[0] and gap.min() < -tolerance_m:
             k = int(np.argmin(gap))
-            i = int(idx[ped[k] // k_circles])
+            i = int(idx[ped[k]])
             raise StateError(f"pedestrian {i} at {state.position_m[i].tolist()} overlaps wall segment {int(seg[k])} "
                              f"{self.walls[seg[k]].tolist()} by {-gap[k]:.4g} m at start")
 
@@ -339,12 +335,15 @@ class Simulator:
                              f"{self._pairs_radius} m this step")
         self._pairs_key, self._pairs, self._pairs_radius = self.step_count, pairs, radius_m
 
-    def wall_proximity(self, margin_m: float):
-        """Wall neighbours of the active pedestrians within ``margin_m`` of their surface
-        (see :func:`crowd_env.core.segments.wall_proximity`)."""
-        idx = self.active_index
-        return wall_proximity(self.state.position_m, self.state.radius_m, idx, self.walls, self._wall_owner,
-                              np.full(idx.shape[0], margin_m))
+    def _wall_gaps(self, state, idx, margin_m: float):
+        """The walls within ``margin_m`` of the bodies ``idx`` of ``state`` (their circles, :mod:`crowd_env.core.body`;
+        the disks for the paper's bodies; :func:`crowd_env.core.segments.wall_proximity`): ``(rows into idx,
+        segments, gaps)``."""
+        depth_m = self.physics.body_depth_m
+        centre, rad, _ = body_circles(state.position_m, state.heading_rad, state.radius_m, idx, depth_m)
+        ped, seg, gap, *_ = wall_proximity(centre, rad, np.arange(rad.shape[0]), self.walls, self._wall_owner,
+                                           np.full(rad.shape[0], margin_m))
+        return ped // circle_count(depth_m), seg, gap
 
     # ------------------------------------------------------------------ stepping
     def _check_input(self, name, value, shape, scale=None, bound=np.inf, unit="", bounds=True):
@@ -588,9 +587,7 @@ class Simulator:
                     d = pair_distances(st.position_m, idx[pairs], self.period_m)
                     best = float(np.min(d - st.radius_m[idx[pairs[:, 0]]] - st.radius_m[idx[pairs[:, 1]]]))
         if self.walls.shape[0] and idx.shape[0]:
-            centre, rad, _ = body_circles(st.position_m, st.heading_rad, st.radius_m, idx, depth_m)
-            _, _, gap, *_ = wall_proximity(centre, rad, np.arange(rad.shape[0]), self.walls, self._wall_owner,
-                                           np.full(rad.shape[0], 0.05))
+            _, _, gap = self._wall_gaps(st, idx, 0.05)
             if gap.shape[0]:
                 best = min(best, float(gap.min()))
         return best

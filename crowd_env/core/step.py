@@ -163,31 +163,34 @@ def kinetic_energy(vel, mass, inertia):
     return 0.5 * e
 
 
-@nb.njit(cache=True)
-def speeds(vel, radius, index, depth_m):
-    """How fast a point of each body's circles can move, from compact (n, 3) velocities: ‖u‖, plus abs(ω) times the
+@nb.njit(cache=True, inline="always")
+def circle_speed(vel, k, radius, index, depth_m):
+    """How fast a point of row ``k``'s circles can move, from compact (n, 3) velocities: ‖u‖, plus abs(ω) times the
     shoulder circles' arm (:func:`~crowd_env.core.body.arm_m`) for bodies of depth ``depth_m`` > 0. The contact
     margins are built from these."""
+    speed = np.sqrt(vel[k, 0] ** 2 + vel[k, 1] ** 2)
+    if depth_m > 0.0:
+        speed += abs(vel[k, 2]) * arm_m(radius[index[k]], depth_m)
+    return speed
+
+
+@nb.njit(cache=True)
+def speeds(vel, radius, index, depth_m):
+    """:func:`circle_speed` of every row of the compact (n, 3) velocities ``vel``."""
     out = np.empty(vel.shape[0])
     for k in range(vel.shape[0]):
-        out[k] = np.sqrt(vel[k, 0] ** 2 + vel[k, 1] ** 2)
-    if depth_m > 0.0:
-        for k in range(vel.shape[0]):
-            out[k] += abs(vel[k, 2]) * arm_m(radius[index[k]], depth_m)
+        out[k] = circle_speed(vel, k, radius, index, depth_m)
     return out
 
 
 @nb.njit(cache=True)
 def grown_margins(vel, detection_speed, eps_m, dt_s, radius, index, depth_m):
-    """Rows whose :func:`speeds` exceed 2 s + ε/(2h), s being the speed the margins were built from: a pair
+    """Rows whose :func:`circle_speed` exceeds 2 s + ε/(2h), s being the speed the margins were built from: a pair
     left out of the candidates could then close within the step (stage 5)."""
     out = np.empty(vel.shape[0], np.int64)
     m = 0
     for k in range(vel.shape[0]):
-        now = np.sqrt(vel[k, 0] ** 2 + vel[k, 1] ** 2)
-        if depth_m > 0.0:  # as speeds() adds it
-            now += abs(vel[k, 2]) * arm_m(radius[index[k]], depth_m)
-        if now > 2.0 * detection_speed[k] + 0.5 * eps_m / dt_s:
+        if circle_speed(vel, k, radius, index, depth_m) > 2.0 * detection_speed[k] + 0.5 * eps_m / dt_s:
             out[m] = k
             m += 1
     return out[:m]

@@ -28,7 +28,7 @@ import warnings
 import numpy as np
 
 from ..errors import InputError
-from ..core.body import body_circles
+from ..core.body import body_circles, circle_count
 from ..core.checks import check_integer, check_number
 from ..core.periodic import minimum_image_dx
 
@@ -148,7 +148,7 @@ class CrowdRenderer:
         check_integer("pixel_multiple", pixel_multiple, error=InputError, minimum=1)
         check_number("percussion_scale_kg_m_s", percussion_scale_kg_m_s, error=InputError, positive=True)
         self.body_depth_m = check_number("body_depth_m", body_depth_m, error=InputError, minimum=0.0)
-        self._circles = 1 if self.body_depth_m == 0.0 else 3
+        self._circles = circle_count(self.body_depth_m)
         self.geometry = geometry
         self.controlled = np.asarray(controlled_mask, dtype=bool)
         self.mode = mode

@@ -35,7 +35,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from ..core.angles import wrap_angle_scalar
+from ..core.angles import direction_angles_rad, wrap_angle_scalar
 from ..core.params import check_parameter
 from ..core.periodic import minimum_image_dx
 from ..core.segments import ray_distances
@@ -81,6 +81,12 @@ def apertures_m(position, radius, index, walk, pairs, walls, period_m, lookahead
     disks of its neighbours ``pairs`` (rows into ``index``); at most 2 :data:`FAR_M`. A line whose centre a
     neighbour's disk covers is no aperture (someone straight ahead is followed, not passed: no turn for it) and is
     left out. Also ``(left, right)``, the two sides at that narrowest line."""
+    return _apertures(position, radius, index, walk, direction_angles_rad(walk), pairs, walls, period_m, lookahead_m)
+
+
+@nb.njit(cache=True)
+def _apertures(position, radius, index, walk, walk_angle, pairs, walls, period_m, lookahead_m):
+    """:func:`apertures_m` with the walking directions' angles ``walk_angle`` (n,) given."""
     n = index.shape[0]
     aperture = np.full(n, 2.0 * FAR_M)
     best_left = np.full(n, FAR_M)
@@ -92,9 +98,8 @@ def apertures_m(position, radius, index, walk, pairs, walls, period_m, lookahead
     q = np.empty((n, 2))
     angles = np.empty((n, 2))
     for k in range(n):
-        a = np.arctan2(walk[k, 1], walk[k, 0])
-        angles[k, 0] = a + 0.5 * np.pi  # left of e
-        angles[k, 1] = a - 0.5 * np.pi
+        angles[k, 0] = walk_angle[k] + 0.5 * np.pi  # left of e
+        angles[k, 1] = walk_angle[k] - 0.5 * np.pi
     for m in range(n_lines):
         for k in range(n):
             i = index[k]
@@ -138,7 +143,8 @@ def shoulder_turn(theta_d, heading, position, radius, index, walk, pairs, walls,
     :class:`ShoulderTurn` ``rule``. Returns how many turn."""
     if rule.critical_ratio <= 0.0 or index.shape[0] == 0:
         return 0
-    aperture, _, _ = apertures_m(position, radius, index, walk, pairs, walls, period_m, rule.lookahead_m)
+    walk_angle = direction_angles_rad(walk)
+    aperture, _, _ = _apertures(position, radius, index, walk, walk_angle, pairs, walls, period_m, rule.lookahead_m)
     turned = 0
     for k in range(index.shape[0]):
         i = index[k]
@@ -146,8 +152,7 @@ def shoulder_turn(theta_d, heading, position, radius, index, walk, pairs, walls,
         if aperture[k] >= span:
             continue
         phi = np.arccos(aperture[k] / span)
-        walk_angle = np.arctan2(walk[k, 1], walk[k, 0])
-        sign = 1.0 if wrap_angle_scalar(heading[i] - walk_angle) >= 0.0 else -1.0
+        sign = 1.0 if wrap_angle_scalar(heading[i] - walk_angle[k]) >= 0.0 else -1.0
         theta_d[i] = wrap_angle_scalar(theta_d[i] + sign * phi)
         turned += 1
     return turned
