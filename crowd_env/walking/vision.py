@@ -22,6 +22,17 @@ steer into gaps. Vision adds both, after the heuristics of Moussaïd, Helbing & 
   heuristic 1): d(α)² = H² + f(α)² − 2 H f(α) cos(α − α_d); ties go to the direction closest to e_d;
 - the walking speed is v_i = min(v0_i, max(0, (f_i(α*) − l)/T)) (heuristic 2; the collision-free speed
   rule), T = ``vision_time_gap_s``, l = ``vision_jam_gap_m``;
+- with ``vision_door_time_gap_s`` T_d a walker keeps the time gap T_d instead of T while its way passes a door:
+  on the stretch it sees, from its centre to r + H_i ahead along e_d (H_i = l + T v0_i), the walls' width across
+  its path (:func:`~crowd_env.walking.apertures.wall_widths_m`) falls below ``vision_door_ratio`` ρ_d shoulder
+  widths (ρ_d 2 r_i; 3: at most two abreast) and opens again further on (:func:`through_a_door`: a narrowing
+  shorter than the stretch; a channel longer than it, or a single-file corridor, is no door). Its speed rule and
+  horizon then take T_d (v_i = min(v0_i, max(0, (f − l)/T_d)), H_i = l + T_d v0_i). People keep about half the
+  time gap through a door that they keep in a corridor, a channel or a ring: read through this rule, the Jülich
+  corridor runs give T ≈ 0.44 s behind the 0.5 m entrance and 0.53 s through the 0.70 m exit, 0.8-1.0 s in the
+  corridor and its queues, the single-file ring 1.1 s (:doc:`/validation/virtual_experiments`); and a short
+  opening passes more people than a longer channel of its width (1.64 /s through the 0.70 m entrance, 1.29 /s
+  through Seyfried's 0.8 m channel 2.8 m long). None (the default): T everywhere;
 - with ``vision_leader_time_s`` T_a > 0 a leader pulling away lends its gap ahead: when a neighbour j ends the
   chosen free walk, f_i(α*) gains T_a max(0, u_l − u_i), u_l and u_i the leader's and the walker's velocities
   along e(α*): the gap T_a later if both keep their speeds, counted only while it opens (the velocity-difference
@@ -54,16 +65,18 @@ from crowd_env.errors import ParameterError
 
 from ..core.params import check_flag, check_parameter
 from ..core.periodic import minimum_image_dx
+from .apertures import FAR_M, wall_widths_m
 
 __all__ = ["Vision", "Sight", "vision_reach_m", "vision_walk", "ray_circle_distance", "moving_circle_distance",
-           "free_distances", "gives_way"]
+           "free_distances", "gives_way", "through_a_door"]
 
 
 class Vision(NamedTuple):
     """The rule's parameters (module docstring; the model's ``vision_<field>`` parameters): T ``time_gap_s`` (0, the
     default: off, the paper's walking model), l ``jam_gap_m``, the fan's ``half_angle_rad`` and ``rays`` (odd: e_d
     is one of them), κ ``body_scale`` and κ_0 ``body_scale_standing`` (None: κ always), w ``anticipation``, T_a
-    ``leader_time_s`` and the ``right_of_way``."""
+    ``leader_time_s``, the ``right_of_way``, and the time gap in a door T_d ``door_time_gap_s`` (None: T) below
+    ρ_d ``door_ratio`` shoulder widths."""
 
     time_gap_s: float = 0.0
     jam_gap_m: float = 0.0
@@ -74,6 +87,8 @@ class Vision(NamedTuple):
     anticipation: float = 0.0
     leader_time_s: float = 0.0
     right_of_way: bool = False
+    door_time_gap_s: float | None = None
+    door_ratio: float = 3.0
 
     def checked(self) -> "Vision":
         """This group, once checked (:class:`~crowd_env.errors.ParameterError` naming the model parameter)."""
@@ -92,14 +107,22 @@ class Vision(NamedTuple):
             raise ParameterError(f"vision_rays = {rays} needs vision_half_angle_rad > 0 (a fan of directions); with one "
                                  "direction set vision_rays = 1")
         check_flag("vision_right_of_way", self.right_of_way)
+        check_parameter("vision_door_ratio", self.door_ratio, minimum=0.0, maximum=FAR_M)
+        if self.door_time_gap_s is not None:
+            check_parameter("vision_door_time_gap_s", self.door_time_gap_s, positive=True)
+            if self.time_gap_s <= 0:
+                raise ParameterError(f"vision_door_time_gap_s = {self.door_time_gap_s!r} needs vision switched on "
+                                     "(vision_time_gap_s > 0)")
         return self
 
     def resolved(self) -> "Vision":
-        """Plain numbers for the kernels: κ_0 = κ when None, the right of way only while the rule is on (T > 0)."""
+        """Plain numbers for the kernels: κ_0 = κ when None, the right of way only while the rule is on (T > 0),
+        T_d = T when None."""
         standing = self.body_scale if self.body_scale_standing is None else self.body_scale_standing
+        door = self.time_gap_s if self.door_time_gap_s is None else self.door_time_gap_s
         return Vision(float(self.time_gap_s), float(self.jam_gap_m), float(self.half_angle_rad), int(self.rays),
                       float(self.body_scale), float(standing), float(self.anticipation), float(self.leader_time_s),
-                      bool(self.time_gap_s > 0 and self.right_of_way))
+                      bool(self.time_gap_s > 0 and self.right_of_way), float(door), float(self.door_ratio))
 
 
 def _unit(name: str, value, *, low_open: bool, none: bool = False) -> None:
@@ -249,6 +272,21 @@ def free_distances(position, radius, velocity, index, rows, angles, neighbourhoo
 
 
 @nb.njit(cache=True)
+def through_a_door(widths_m, narrow_m):
+    """Whether a walker's stretch passes a door (``vision_door_time_gap_s``): the walls' widths across its path on the
+    lines of its stretch, in order (:func:`~crowd_env.walking.apertures.wall_widths_m`), fall below ``narrow_m`` and
+    open to at least ``narrow_m`` again further on. A way that only narrows (into a channel longer than the stretch)
+    or stays narrow (a single-file corridor) is no door."""
+    narrowed = False
+    for m in range(widths_m.shape[0]):
+        if widths_m[m] < narrow_m:
+            narrowed = True
+        elif narrowed:
+            return True
+    return False
+
+
+@nb.njit(cache=True)
 def gives_way(t_j, t_i, dx, dy, ex, ey, by_position):
     """Neighbour j gives way to walker i (``vision_right_of_way``): j is farther from the exit, T_j > T_i; with
     ``by_position`` (a periodic world, where T jumps at the seam, or a navigation without travel times) j is
@@ -282,12 +320,12 @@ def _neighbour_lists(n, pairs):
 
 @nb.njit(cache=True)
 def vision_reach_m(desired_speed, index, vision):
-    """Largest horizon l + T v0 over the pedestrians ``index`` (the :class:`Vision` ``vision``): pairs of centres
-    closer than this + 2 r_max are all vision can see."""
+    """Largest horizon l + max(T, T_d) v0 over the pedestrians ``index`` (the :class:`Vision` ``vision``): pairs of
+    centres closer than this + 2 r_max are all vision can see."""
     v_max = 0.0
     for k in range(index.shape[0]):
         v_max = max(v_max, desired_speed[index[k]])
-    return vision.jam_gap_m + vision.time_gap_s * v_max
+    return vision.jam_gap_m + max(vision.time_gap_s, vision.door_time_gap_s) * v_max
 
 
 @nb.njit(cache=True)
@@ -306,7 +344,9 @@ def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, wa
     u_i the walker's own (a wall's u_l is 0); where the gap is not opening (u_l ≤ u_i) nothing changes.
     ``right_of_way``: the right of way (:func:`gives_way`) by the walkers' travel times ``travel_time_s`` (n,)
     (Eq. 11), or, in a periodic world or when ``travel_time_s`` is empty (a navigation without travel times), by
-    their positions along e_d; off: everyone blocks."""
+    their positions along e_d; off: everyone blocks. ``door_time_gap_s`` T_d ≠ T: T_d, in the speed rule and the
+    horizon, for the walkers whose way ahead the walls narrow below ``door_ratio`` shoulder widths (module
+    docstring)."""
     time_gap_s, jam_gap_m, half_angle_rad, n_rays = vision.time_gap_s, vision.jam_gap_m, vision.half_angle_rad, vision.rays
     body_scale, body_scale_standing = vision.body_scale, vision.body_scale_standing
     anticipation, leader_time_s = vision.anticipation, vision.leader_time_s
@@ -324,6 +364,17 @@ def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, wa
     for k in range(n):
         base[k] = np.arctan2(e_d[k, 1], e_d[k, 0])
         horizon[k] = jam_gap_m + time_gap_s * desired_speed[index[k]]
+    gap_time = np.full(n, time_gap_s)
+    if vision.door_time_gap_s != time_gap_s:  # T_d where the walls narrow the way ahead below ρ_d shoulder widths
+        reach = np.empty(n)
+        for k in range(n):
+            reach[k] = radius[index[k]] + horizon[k]
+        widths = wall_widths_m(position, index, e_d, base, walls, reach)
+        for k in range(n):
+            if through_a_door(widths[k], vision.door_ratio * 2.0 * radius[index[k]]):
+                gap_time[k] = vision.door_time_gap_s
+                horizon[k] = jam_gap_m + gap_time[k] * desired_speed[index[k]]
+    for k in range(n):
         for q in range(n_rays):
             # order: 0, +δ, −δ, +2δ, −2δ, ... so that ties go to the direction closest to e_d
             step = (q + 1) // 2
@@ -360,7 +411,7 @@ def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, wa
         if leader_time_s > 0.0 and free[k, best_q] < h:  # a leader pulling away lends T_a of its relative speed
             own = velocity[index[k], 0] * ex + velocity[index[k], 1] * ey
             gap += leader_time_s * max(0.0, leader[k, best_q] - own)
-        speed[k] = min(desired_speed[index[k]], max(0.0, gap / time_gap_s))
+        speed[k] = min(desired_speed[index[k]], max(0.0, gap / gap_time[k]))
         direction[k, 0] = ex
         direction[k, 1] = ey
     return speed, direction

@@ -9,7 +9,8 @@ import pytest
 
 from crowd_env.core.params import ParameterError
 from crowd_env.walking import ModelParams
-from crowd_env.walking.shoulder_turn import ShoulderTurn, apertures_m, shoulder_turn
+from crowd_env.walking.apertures import apertures_m
+from crowd_env.walking.shoulder_turn import ShoulderTurn, shoulder_turn
 
 R = 0.23
 CORRIDOR = np.array([[-5.0, -0.4, 5.0, -0.4], [-5.0, 0.4, 5.0, 0.4]])  # walls at y = ±0.4

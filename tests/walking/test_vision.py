@@ -7,7 +7,8 @@ import pytest
 
 from crowd_env.core.params import ParameterError
 from crowd_env.walking import ModelParams
-from crowd_env.walking.vision import Sight, Vision, free_distances, gives_way, ray_circle_distance, vision_walk
+from crowd_env.walking.vision import (Sight, Vision, free_distances, gives_way, ray_circle_distance, through_a_door,
+                                     vision_walk)
 
 NO_WALLS = np.zeros((0, 4))
 ALL_PAIRS = np.array([[0, 1], [0, 2], [1, 2]], np.int64)
@@ -15,7 +16,7 @@ ALL_PAIRS = np.array([[0, 1], [0, 2], [1, 2]], np.int64)
 
 def _walk(position, e_d, v0=1.34, T=1.0, l=0.2, half=0.0, rays=1, kappa=1.0, walls=NO_WALLS, pairs=None, radius=0.23,
           kappa_standing=None, velocity=None, anticipation=0.0, leader_time=0.0, right_of_way=False, travel_time=None,
-          period_m=0.0):
+          period_m=0.0, door_time=None, door_ratio=3.0):
     position = np.asarray(position, dtype=float)
     n = position.shape[0]
     if pairs is None:
@@ -25,7 +26,8 @@ def _walk(position, e_d, v0=1.34, T=1.0, l=0.2, half=0.0, rays=1, kappa=1.0, wal
     return vision_walk(position, np.full(n, radius), np.arange(n), np.asarray(e_d, dtype=float), np.full(n, v0),
                        velocity, pairs, walls, period_m,
                        Vision(T, l, half, rays, kappa, kappa if kappa_standing is None else kappa_standing,
-                              anticipation, leader_time, bool(right_of_way or travel_time is not None)), times)
+                              anticipation, leader_time, bool(right_of_way or travel_time is not None),
+                              T if door_time is None else door_time, door_ratio), times)
 
 
 def test_ray_circle_distance_analytic():
@@ -200,6 +202,84 @@ def test_vision_parameters_are_checked():
         ModelParams(vision_body_scale_standing=1.5)
     with pytest.raises(ParameterError, match="vision_time_gap_s"):
         ModelParams(vision_time_gap_s=-1.0)
+    with pytest.raises(ParameterError, match="vision_door_time_gap_s"):
+        ModelParams(vision_time_gap_s=1.0, vision_door_time_gap_s=0.0)
+    with pytest.raises(ParameterError, match="vision_door_time_gap_s .* needs vision switched on"):
+        ModelParams(vision_door_time_gap_s=0.5)
+    with pytest.raises(ParameterError, match="vision_door_ratio"):
+        ModelParams(vision_time_gap_s=1.0, vision_door_ratio=-1.0)
+    assert ModelParams(vision_time_gap_s=1.0).walking_bundle.vision.door_time_gap_s == 1.0  # None: T
+
+
+def _corridor(width_m, door_m=None, door_x_m=3.0):
+    """Walls along +x at y = ±width/2, and with ``door_m`` an end wall 0.1 m thick at x = ``door_x_m`` with a door of
+    that width (its posts' upstream and inner faces)."""
+    h = 0.5 * width_m
+    walls = [[-10.0, -h, 10.0, -h], [-10.0, h, 10.0, h]]
+    if door_m is not None:
+        d = 0.5 * door_m
+        walls += [[door_x_m, -h, door_x_m, -d], [door_x_m, d, door_x_m, h],
+                  [door_x_m, -d, door_x_m + 0.1, -d], [door_x_m, d, door_x_m + 0.1, d]]
+    return np.array(walls, float)
+
+
+def _channel(corridor_m, channel_m, start_x_m, end_x_m):
+    """A corridor along +x narrowing at ``start_x_m`` into a channel ending at ``end_x_m`` in open floor."""
+    h, c = 0.5 * corridor_m, 0.5 * channel_m
+    return np.array([[-10.0, -h, start_x_m, -h], [-10.0, h, start_x_m, h], [start_x_m, -h, start_x_m, -c],
+                     [start_x_m, h, start_x_m, c], [start_x_m, -c, end_x_m, -c], [start_x_m, c, end_x_m, c]], float)
+
+
+@pytest.mark.parametrize("walls, x_m, door", [
+    (_corridor(1.8), 0.0, False),         # a corridor of 3.9 shoulder widths
+    (_corridor(1.2), 0.0, False),         # 2.6 shoulder widths all along: a channel, no door
+    (_corridor(1.8, 0.95), 0.0, False),   # the door 3 m ahead, beyond r + H = 0.23 + 0.2 + 1.34 = 1.77 m
+    (_corridor(1.8, 0.95), 1.4, True),    # 1.6 m ahead, the stretch through it: narrows, opens again
+    (_corridor(1.8, 0.95), 1.3, False),   # 1.7 m ahead: the stretch ends in the door, not yet through it
+    (_corridor(1.8, 0.95), 3.05, True),   # in the door
+    (_corridor(1.8, 0.95), 3.15, False),  # just past it: the posts behind, the corridor's walls go on (1.8 m)
+    (_channel(1.8, 1.0, 2.0, 10.0), 1.0, False),  # into a channel longer than the stretch: no door
+    (_channel(1.8, 1.0, 2.0, 10.0), 9.0, True),   # near its end, where it opens into the floor
+])
+def test_door_time_gap_where_the_way_passes_a_door(walls, x_m, door):
+    """A follower 0.5 m (surface gap) behind a standing leader: v = (f − l)/T_d where its stretch (r + l + T v0
+    ahead) passes a door, a narrowing below ρ_d = 3 shoulder widths (1.38 m) that opens again, (f − l)/T elsewhere;
+    with T_d = T (or None) the rule is vision's. Walls only: the leader ahead does not narrow the way."""
+    pos = [[x_m, 0.0], [x_m + 0.46 + 0.5, 0.0]]
+    e = [[1.0, 0.0], [1.0, 0.0]]
+    speed, _ = _walk(pos, e, T=1.0, l=0.2, walls=walls, door_time=0.5)
+    assert speed[0] == pytest.approx((0.5 - 0.2) / (0.5 if door else 1.0))
+    plain, _ = _walk(pos, e, T=1.0, l=0.2, walls=walls)
+    same, _ = _walk(pos, e, T=1.0, l=0.2, walls=walls, door_time=1.0)
+    assert plain[0] == pytest.approx(0.3) and same[0] == plain[0]
+
+
+def test_door_time_gap_caps_at_the_desired_speed():
+    """In the door a leader 0.9 m ahead leaves (0.9 − l)/T_d = 1.4 m/s: the walker walks at v0 (the horizon
+    l + T_d v0 = 0.87 m); in the corridor before it, (0.9 − l)/T = 0.7 m/s."""
+    walls = _corridor(1.8, 0.95)
+    e = [[1.0, 0.0], [1.0, 0.0]]
+    speed, _ = _walk([[3.05, 0.0], [3.05 + 0.46 + 0.9, 0.0]], e, walls=walls, door_time=0.5)
+    assert speed[0] == 1.34
+    speed, _ = _walk([[-2.0, 0.0], [-2.0 + 0.46 + 0.9, 0.0]], e, walls=walls, door_time=0.5)
+    assert speed[0] == pytest.approx(0.7)
+
+
+def test_door_ratio_sets_the_width_called_a_door():
+    """A door of 1.2 m is 2.6 shoulder widths: a door for ρ_d = 3, not for ρ_d = 2.5."""
+    pos = [[1.4, 0.0], [2.36, 0.0]]
+    e = [[1.0, 0.0], [1.0, 0.0]]
+    narrow, _ = _walk(pos, e, walls=_corridor(1.8, 1.2), door_time=0.5, door_ratio=3.0)
+    wide, _ = _walk(pos, e, walls=_corridor(1.8, 1.2), door_time=0.5, door_ratio=2.5)
+    assert narrow[0] == pytest.approx(0.6) and wide[0] == pytest.approx(0.3)
+
+
+def test_through_a_door_reads_the_widths_in_order():
+    assert through_a_door(np.array([1.8, 1.8, 0.9, 0.9, 1.8]), 1.38)
+    assert not through_a_door(np.array([1.8, 1.8, 0.9, 0.9, 0.9]), 1.38)  # only narrows
+    assert not through_a_door(np.array([0.9, 0.9, 0.9]), 1.38)  # stays narrow
+    assert not through_a_door(np.array([1.8, 1.8]), 1.38)
+    assert through_a_door(np.array([0.9, 1.38]), 1.38)
 
 
 @pytest.mark.parametrize("leader_time_s, right_of_way", [(0.0, False), (1.0, True)])
@@ -212,3 +292,17 @@ def test_compiled_rollout_equals_stepping_with_vision(leader_time_s, right_of_wa
 
     assert_rollout_equals_stepping(get_preset("vision").params(vision_leader_time_s=leader_time_s,
                                                                vision_right_of_way=right_of_way))
+
+
+def test_compiled_rollout_equals_stepping_with_a_door_time_gap():
+    """At a 0.5 m entrance (the Jülich corridor run, its waiting crowd at the barrier) the door's time gap acts (the
+    walk differs from vision's without it) and the compiled rollout and Python stepping run it to the last bit."""
+    from crowd_env.scenarios import make_scenario
+    from crowd_env.walking.presets import get_preset
+
+    from .rollout_check import assert_rollout_equals_stepping
+
+    scenario = make_scenario("juelich_corridor", entrance_width_m=0.5, n_pedestrians=20, seed=1)
+    vision = get_preset("vision").params()
+    assert_rollout_equals_stepping(vision.replace(vision_door_time_gap_s=0.5), scenario=scenario, reference=vision,
+                                   max_time_s=3.0)

@@ -74,6 +74,9 @@ FREE_PARAMETERS = {
     "vision_half_angle_rad": FreeParameter("vision_half_angle_rad", "model", False, (0.1, math.pi), 1.309, 0.2),
     "vision_body_scale": FreeParameter("vision_body_scale", "model", False, (0.1, 1.0), 0.5, 0.1),
     "vision_leader_time_s": FreeParameter("vision_leader_time_s", "model", False, (0.0, 5.0), 0.0, 0.3),
+    # the time gap through a door and the width called a door (start: half the corridor's, three shoulder widths)
+    "vision_door_time_gap_s": FreeParameter("vision_door_time_gap_s", "model", True, (0.05, 5.0), 0.5, 0.3),
+    "vision_door_ratio": FreeParameter("vision_door_ratio", "model", False, (0.0, 5.0), 3.0, 0.5),
     # the time-to-collision interaction (crowd_env.walking.time_to_collision; defaults: the paper's fit)
     "ttc_strength_m2_s2": FreeParameter("ttc_strength_m2_s2", "model", False, (0.0, 10.0), 1.5, 0.5),
     "ttc_horizon_s": FreeParameter("ttc_horizon_s", "model", True, (0.3, 10.0), 3.0, 0.3),
