@@ -275,8 +275,12 @@ def measure_uo_run(trajectories: Trajectories, *, corridor_width_m: float = 1.8,
 class DoorPassage:
     """How walkers pass a line across an opening over a window (:func:`door_passage`): the median and mean time
     between successive passages, the median speed at the line, the spread of where they cross it (10 % to 90 %
-    of x, and its standard deviation), how many passed, and the share of them that crossed farther than
-    ``off_axis_m`` from the middle of the line's x range (NaN when not asked)."""
+    of x, and its standard deviation), how many passed, the share of them that crossed farther than
+    ``off_axis_m`` from the middle of the line's x range (NaN when not asked), and how successive passers follow
+    each other: the median distance along the walk (``following_median_m``: each passer's speed at the line times
+    the time since the one before it passed) and across it (``lateral_step_median_m``: |x_j − x_{j−1}|). One file
+    follows at a body length or more with lateral steps near 0; two staggered files (a zipper) at less than a body
+    length, each passer beside the one before."""
 
     headway_median_s: float
     headway_mean_s: float
@@ -286,13 +290,16 @@ class DoorPassage:
     lateral_sd_m: float
     n_passages: int
     share_off_axis: float = float("nan")
+    following_median_m: float = float("nan")
+    lateral_step_median_m: float = float("nan")
 
 
 def door_passage(trajectories: Trajectories, *, y_m: float, x_range_m: tuple, window_frames: tuple,
                  off_axis_m: float | None = None) -> DoorPassage:
     """The passages of the line y = ``y_m`` (x in ``x_range_m``, towards −y) within ``window_frames`` (first, last
     frame): time headways between successive passages, each walker's speed over ±5 frames around its crossing and
-    the x where it crossed (as the data README's table of the narrowed exits measures the recordings); with
+    the x where it crossed (as the data README's table of the narrowed exits measures the recordings), and how far
+    behind and beside the one before each passer crossed (:class:`DoorPassage`); with
     ``off_axis_m`` (≥ 0) also the share of the passages farther than that from the middle of ``x_range_m`` (for an
     opening of width b on that axis and disks of radius r, b/2 − r: where no disk's centre can pass)."""
     if off_axis_m is not None and not (math.isfinite(off_axis_m) and off_axis_m >= 0.0):
@@ -308,9 +315,10 @@ def door_passage(trajectories: Trajectories, *, y_m: float, x_range_m: tuple, wi
     _, first = np.unique(ids[k][keep], return_index=True)
     k, xc, tc = k[keep][first], xc[keep][first], tc[keep][first]
     inside = (tc >= window_frames[0] / fps) & (tc <= window_frames[1] / fps)
-    k, xc, tc = k[inside], xc[inside], np.sort(tc[inside])
-    speeds = []
-    for j in k:
+    order = np.argsort(tc[inside], kind="stable")
+    k, xc, tc = k[inside][order], xc[inside][order], tc[inside][order]
+    speeds = np.full(k.size, np.nan)
+    for n, j in enumerate(k):
         lo = max(j - UO_SPEED_FRAME_STEP + 1, 0)
         while ids[lo] != ids[j]:
             lo += 1
@@ -318,16 +326,21 @@ def door_passage(trajectories: Trajectories, *, y_m: float, x_range_m: tuple, wi
         while ids[hi] != ids[j]:
             hi -= 1
         if frame[hi] > frame[lo]:
-            speeds.append(np.hypot(x[hi] - x[lo], y[hi] - y[lo]) * fps / (frame[hi] - frame[lo]))
+            speeds[n] = np.hypot(x[hi] - x[lo], y[hi] - y[lo]) * fps / (frame[hi] - frame[lo])
     headways = np.diff(tc)
+    following = speeds[1:] * headways
+    following = following[np.isfinite(following)]
+    measured = speeds[np.isfinite(speeds)]
     nan = float("nan")
     return DoorPassage(float(np.median(headways)) if headways.size else nan,
                        float(headways.mean()) if headways.size else nan,
-                       float(np.median(speeds)) if speeds else nan,
+                       float(np.median(measured)) if measured.size else nan,
                        float(np.quantile(xc, 0.1)) if xc.size else nan, float(np.quantile(xc, 0.9)) if xc.size else nan,
                        float(xc.std()) if xc.size else nan, int(tc.size),
                        float(np.mean(np.abs(xc - 0.5 * (x_range_m[0] + x_range_m[1])) > off_axis_m))
-                       if off_axis_m is not None and xc.size else nan)
+                       if off_axis_m is not None and xc.size else nan,
+                       float(np.median(following)) if following.size else nan,
+                       float(np.median(np.abs(np.diff(xc)))) if xc.size > 1 else nan)
 
 
 def approach_profile(trajectories: Trajectories, *, corridor_width_m: float, window_frames: tuple,

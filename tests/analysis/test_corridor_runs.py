@@ -107,7 +107,8 @@ def test_the_recordings_measure_back_to_their_rows():
 
 def test_door_passage_and_approach_profile_of_a_known_stream():
     """Walkers at 0.8 m/s along x = 0.8 and 1.0 m alternately, one every 0.5 s: headways 0.5 s, speed 0.8 m/s at the
-    line, crossing points 0.8 and 1.0 m; the lattice's bands hold their exact count."""
+    line, crossing points 0.8 and 1.0 m, each passer 0.4 m behind and 0.2 m beside the one before (one file of them:
+    0.8 m behind, in line); the lattice's bands hold their exact count."""
     from crowd_env.analysis.corridor_runs import approach_profile, door_passage
 
     fps = UO_FRAME_RATE_PER_S
@@ -131,6 +132,9 @@ def test_door_passage_and_approach_profile_of_a_known_stream():
     assert d.lateral_sd_m == pytest.approx(np.std([1.0] * 13 + [0.8] * 12), rel=1e-9)
     assert (d.lateral_p10_m, d.lateral_p90_m) == (0.8, 1.0)
     assert np.isnan(d.share_off_axis)  # not asked
+    # a zipper: each passer 0.8 m/s × 0.5 s = 0.4 m behind the one before and 0.2 m beside it
+    assert d.following_median_m == pytest.approx(0.4, rel=1e-9)
+    assert d.lateral_step_median_m == pytest.approx(0.2, rel=1e-9)
     for off, share in ((0.05, 1.0), (0.15, 0.0)):  # every walker 0.1 m off the middle of (0.55, 1.25)
         assert door_passage(traj, y_m=-4.0, x_range_m=(0.55, 1.25), window_frames=(int(fps * 8), int(fps * 20)),
                             off_axis_m=off).share_off_axis == share
@@ -138,6 +142,8 @@ def test_door_passage_and_approach_profile_of_a_known_stream():
         door_passage(traj, y_m=-4.0, x_range_m=(0.55, 1.25), window_frames=(0, 10), off_axis_m=-0.1)
     narrow = door_passage(traj, y_m=-4.0, x_range_m=(0.9, 1.25), window_frames=(int(fps * 8), int(fps * 20)))
     assert narrow.headway_median_s == pytest.approx(1.0, abs=1e-9)  # only the walkers at x = 1.0 m
+    assert narrow.following_median_m == pytest.approx(0.8, rel=1e-9)  # one file: 1 s apart at 0.8 m/s, in line
+    assert narrow.lateral_step_median_m == 0.0
     centres, density, speed = approach_profile(traj, corridor_width_m=1.8, window_frames=(int(fps * 10), int(fps * 18)))
     # one walker every 0.4 m along y: 0.5 m bands hold 1.25 walkers on average, over 0.9 m² of corridor
     np.testing.assert_allclose(density, 1.25 / 0.9, rtol=0.03)

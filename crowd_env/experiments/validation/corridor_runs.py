@@ -96,13 +96,18 @@ def run_corridor_one(task: dict) -> dict:
     return record
 
 
+PASSAGE_FIELDS = ("headway_median_s", "speed_median_m_s", "lateral_sd_m", "share_off_axis", "following_median_m",
+                  "lateral_step_median_m")  # the DoorPassage fields a run's record keeps, as exit_* and entrance_*
+
+
 def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: float, window_frames: tuple,
                     entrance_width_m: float) -> dict:
     """How a run passes its exit and approaches it over its steady state, as JSON-able record fields: ``exit_*``
     (:func:`~crowd_env.analysis.corridor_runs.door_passage` at y = −4 m across the exit) and ``entrance_*`` (the same
     at y = 7.6 m, 0.4 m past the entrance, where the camera sees everybody who came through), each with the share of
     the passages farther off the opening's axis than the centre of a disk of Kabalan's 0.23 m can pass it
-    (``*_share_off_axis``); ``approach_*`` (:func:`~crowd_env.analysis.corridor_runs.approach_profile`: density and
+    (``*_share_off_axis``) and how far behind and beside the one before each passer crossed
+    (``*_following_median_m``, ``*_lateral_step_median_m``); ``approach_*`` (:func:`~crowd_env.analysis.corridor_runs.approach_profile`: density and
     speed in 0.5 m bands before the exit); ``spacing_*`` (:func:`~crowd_env.analysis.corridor_runs.neighbour_spacing`
     in the measurement area: how close walkers come to each other ahead and beside, its bearing edges, the 1 %, 5 %
     and 50 % quantiles of the distance per bin and the share closer than 0.46 m, two radii of Kabalan's body);
@@ -121,7 +126,7 @@ def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: floa
     spacing = neighbour_spacing(trajectories, area=uo_measurement_area(corridor_width_m), window_frames=window_frames)
     figures = {f"{where}_{field}": getattr(passage, field)
                for where, passage in (("exit", exit_), ("entrance", entrance))
-               for field in ("headway_median_s", "speed_median_m_s", "lateral_sd_m", "share_off_axis")}
+               for field in PASSAGE_FIELDS}
     return {**figures, "approach_y_m": y.tolist(), "approach_density_per_m2": density.tolist(),
             "approach_speed_m_s": speed.tolist(), "spacing_bearing_edges_deg": spacing.bearing_edges_deg.tolist(),
             "spacing_q01_m": spacing.distance_m[:, 0].tolist(), "spacing_q05_m": spacing.distance_m[:, 1].tolist(),

@@ -440,7 +440,9 @@ def virtual_figure(records: list, path) -> Path:
 PASSAGE_QUANTITIES = (("headway_median_s", "time between passages, median (s)"),
                       ("speed_median_m_s", "speed at the opening, median (m/s)"),
                       ("lateral_sd_m", "spread of the crossing point, sd (m)"),
-                      ("share_off_axis", "share crossing farther off the axis than a 0.46 m disk's centre can"))
+                      ("share_off_axis", "share crossing farther off the axis than a 0.46 m disk's centre can"),
+                      ("following_median_m", "distance behind the passer before, median (m)"),
+                      ("lateral_step_median_m", "distance beside the passer before, median (m)"))
 
 
 def _corridor_runs_with(records: list, key: str, *, narrowed_exit: bool = False) -> list:
@@ -475,9 +477,10 @@ def passage_rows(records: list) -> list:
         recorded = recorded_passage_figures(name)
         for suffix, label in PASSAGE_QUANTITIES:
             key = f"{prefix}_{suffix}"
-            mean, sd = _stats([r[key] for r in rs])
+            carrying = [r[key] for r in rs if key in r]  # runs stored before a figure existed lack it
+            mean, sd = _stats(carrying)
             rows.append({"run": name, "opening": opening, "quantity": label, "model": mean, "model_sd": sd,
-                         "recorded": recorded[key], "runs": len(rs)})
+                         "recorded": recorded[key], "runs": len(carrying)})
     return rows
 
 

@@ -103,15 +103,14 @@ def test_a_body_radius_reaches_every_experiment():
 
 
 def test_passage_rows_set_the_model_beside_the_recording_measured_alike():
-    from crowd_env.experiments.validation.corridor_runs import recorded_passage_figures
+    from crowd_env.experiments.validation.corridor_runs import PASSAGE_FIELDS, recorded_passage_figures
     from crowd_env.experiments.validation.virtual_experiments import format_passage_rows, passage_rows
 
     recorded = recorded_passage_figures("uo-180-180-070")
     assert recorded["exit_headway_median_s"] == pytest.approx(0.61, abs=0.01)  # the data README's table: 0.61 s
     assert recorded["exit_speed_median_m_s"] == pytest.approx(0.68, abs=0.01)
     assert recorded["exit_lateral_sd_m"] == pytest.approx(0.16, abs=0.01)
-    keys = [f"{where}_{k}" for where in ("exit", "entrance") for k in ("headway_median_s", "speed_median_m_s",
-                                                                      "lateral_sd_m", "share_off_axis")]
+    keys = [f"{where}_{k}" for where in ("exit", "entrance") for k in PASSAGE_FIELDS]
     records = [dict(_corridor_record("uo-180-180-070", s, 3.0, 0.3, 1.6), width_m=0.7,
                     **{k: recorded[k] * (1 + 0.1 * s) for k in keys}) for s in (0, 1)]
     records.append(dict(_corridor_record("uo-180-180-070", 2, 3.0, 0.3, 1.6, complete=False, stalled=True),
@@ -123,15 +122,24 @@ def test_passage_rows_set_the_model_beside_the_recording_measured_alike():
                         **{k: entrance[k] * 2.0 for k in keys}))  # the narrowed entrance: its line, not the exit's
     records.append(dict(_corridor_record("uo-180-180-180", 0, 1.0, 1.2, 2.4), width_m=1.8,
                         **dict.fromkeys(keys, 0.5)))  # no narrowed opening
+    records.append(dict(_corridor_record("uo-180-180-070", 3, 3.0, 0.3, 1.6), width_m=0.7,
+                        **{k: recorded[k] for k in keys if "following" not in k}))  # stored before that figure
     rows = passage_rows(records)
-    assert [r["run"] for r in rows] == ["uo-050-180-180"] * 4 + ["uo-180-180-070"] * 4
-    assert [r["opening"] for r in rows] == ["entrance 0.5 m"] * 4 + ["exit 0.7 m"] * 4
-    assert [r["runs"] for r in rows] == [1] * 4 + [2] * 4
+    n = len(PASSAGE_FIELDS)
+    assert [r["run"] for r in rows] == ["uo-050-180-180"] * n + ["uo-180-180-070"] * n
+    assert [r["opening"] for r in rows] == ["entrance 0.5 m"] * n + ["exit 0.7 m"] * n
+    assert [r["runs"] for r in rows] == [1] * n + [3 if "following" not in f else 2 for f in PASSAGE_FIELDS]
     assert rows[0]["model"] == pytest.approx(entrance["entrance_headway_median_s"] * 2.0)
     assert rows[0]["recorded"] == entrance["entrance_headway_median_s"]
-    assert rows[4]["model"] == pytest.approx(recorded["exit_headway_median_s"] * 1.05)
-    assert rows[4]["recorded"] == recorded["exit_headway_median_s"]
-    assert format_passage_rows(rows).count("uo-180-180-070 | exit 0.7 m") == 4
+    assert rows[n]["model"] == pytest.approx((1.0 + 1.1 + 1.0) / 3 * recorded["exit_headway_median_s"])
+    assert rows[n]["recorded"] == recorded["exit_headway_median_s"]
+    following = PASSAGE_FIELDS.index("following_median_m")
+    assert rows[n + following]["model"] == pytest.approx(recorded["exit_following_median_m"] * 1.05)
+    assert format_passage_rows(rows).count("uo-180-180-070 | exit 0.7 m") == n
+    # people pass the 0.70 m door in two staggered files: each 0.39 m behind and 0.25 m beside the one before, one
+    # body width (0.46 m) between successive heads
+    assert recorded["exit_following_median_m"] == pytest.approx(0.39, abs=0.01)
+    assert recorded["exit_lateral_step_median_m"] == pytest.approx(0.25, abs=0.01)
     # people's heads cross the 0.70 m door farther off its axis than a 0.46 m disk's centre can (0.12 m), most of them
     assert recorded["exit_share_off_axis"] == pytest.approx(0.63, abs=0.05)
 
