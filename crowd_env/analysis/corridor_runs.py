@@ -278,9 +278,11 @@ class DoorPassage:
     of x, and its standard deviation), how many passed, the share of them that crossed farther than
     ``off_axis_m`` from the middle of the line's x range (NaN when not asked), and how successive passers follow
     each other: the median distance along the walk (``following_median_m``: each passer's speed at the line times
-    the time since the one before it passed) and across it (``lateral_step_median_m``: |x_j − x_{j−1}|). One file
-    follows at a body length or more with lateral steps near 0; two staggered files (a zipper) at less than a body
-    length, each passer beside the one before."""
+    the time since the one before it passed) and across it (``lateral_step_median_m``: |x_j − x_{j−1}|), and the
+    share of successive passers who crossed on opposite sides of the middle (``side_alternation``; about 0.5 when
+    the sides are independent, 1 for strict alternation). One file follows at a body length or more with lateral
+    steps near 0; two staggered files (a zipper) at less than a body length, each passer beside the one before, on
+    the other side."""
 
     headway_median_s: float
     headway_mean_s: float
@@ -292,6 +294,7 @@ class DoorPassage:
     share_off_axis: float = float("nan")
     following_median_m: float = float("nan")
     lateral_step_median_m: float = float("nan")
+    side_alternation: float = float("nan")
 
 
 def door_passage(trajectories: Trajectories, *, y_m: float, x_range_m: tuple, window_frames: tuple,
@@ -340,7 +343,8 @@ def door_passage(trajectories: Trajectories, *, y_m: float, x_range_m: tuple, wi
                        float(np.mean(np.abs(xc - 0.5 * (x_range_m[0] + x_range_m[1])) > off_axis_m))
                        if off_axis_m is not None and xc.size else nan,
                        float(np.median(following)) if following.size else nan,
-                       float(np.median(np.abs(np.diff(xc)))) if xc.size > 1 else nan)
+                       float(np.median(np.abs(np.diff(xc)))) if xc.size > 1 else nan,
+                       float(np.mean(np.diff(xc > 0.5 * (x_range_m[0] + x_range_m[1])))) if xc.size > 1 else nan)
 
 
 def approach_profile(trajectories: Trajectories, *, corridor_width_m: float, window_frames: tuple,

@@ -135,6 +135,7 @@ def test_door_passage_and_approach_profile_of_a_known_stream():
     # a zipper: each passer 0.8 m/s × 0.5 s = 0.4 m behind the one before and 0.2 m beside it
     assert d.following_median_m == pytest.approx(0.4, rel=1e-9)
     assert d.lateral_step_median_m == pytest.approx(0.2, rel=1e-9)
+    assert d.side_alternation == 1.0  # x = 0.8 and 1.0 m about the middle 0.9 m, strictly in turn
     for off, share in ((0.05, 1.0), (0.15, 0.0)):  # every walker 0.1 m off the middle of (0.55, 1.25)
         assert door_passage(traj, y_m=-4.0, x_range_m=(0.55, 1.25), window_frames=(int(fps * 8), int(fps * 20)),
                             off_axis_m=off).share_off_axis == share
@@ -144,6 +145,7 @@ def test_door_passage_and_approach_profile_of_a_known_stream():
     assert narrow.headway_median_s == pytest.approx(1.0, abs=1e-9)  # only the walkers at x = 1.0 m
     assert narrow.following_median_m == pytest.approx(0.8, rel=1e-9)  # one file: 1 s apart at 0.8 m/s, in line
     assert narrow.lateral_step_median_m == 0.0
+    assert narrow.side_alternation == 0.0
     centres, density, speed = approach_profile(traj, corridor_width_m=1.8, window_frames=(int(fps * 10), int(fps * 18)))
     # one walker every 0.4 m along y: 0.5 m bands hold 1.25 walkers on average, over 0.9 m² of corridor
     np.testing.assert_allclose(density, 1.25 / 0.9, rtol=0.03)

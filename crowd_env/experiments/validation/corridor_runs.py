@@ -97,7 +97,7 @@ def run_corridor_one(task: dict) -> dict:
 
 
 PASSAGE_FIELDS = ("headway_median_s", "speed_median_m_s", "lateral_sd_m", "share_off_axis", "following_median_m",
-                  "lateral_step_median_m")  # the DoorPassage fields a run's record keeps, as exit_* and entrance_*
+                  "lateral_step_median_m", "side_alternation")  # the DoorPassage fields a run's record keeps, as exit_* and entrance_*
 
 
 def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: float, window_frames: tuple,
@@ -107,7 +107,8 @@ def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: floa
     at y = 7.6 m, 0.4 m past the entrance, where the camera sees everybody who came through), each with the share of
     the passages farther off the opening's axis than the centre of a disk of Kabalan's 0.23 m can pass it
     (``*_share_off_axis``) and how far behind and beside the one before each passer crossed
-    (``*_following_median_m``, ``*_lateral_step_median_m``); ``approach_*`` (:func:`~crowd_env.analysis.corridor_runs.approach_profile`: density and
+    (``*_following_median_m``, ``*_lateral_step_median_m``) and on which side (``*_side_alternation``);
+    ``approach_*`` (:func:`~crowd_env.analysis.corridor_runs.approach_profile`: density and
     speed in 0.5 m bands before the exit); ``spacing_*`` (:func:`~crowd_env.analysis.corridor_runs.neighbour_spacing`
     in the measurement area: how close walkers come to each other ahead and beside, its bearing edges, the 1 %, 5 %
     and 50 % quantiles of the distance per bin and the share closer than 0.46 m, two radii of Kabalan's body);

@@ -442,7 +442,8 @@ PASSAGE_QUANTITIES = (("headway_median_s", "time between passages, median (s)"),
                       ("lateral_sd_m", "spread of the crossing point, sd (m)"),
                       ("share_off_axis", "share crossing farther off the axis than a 0.46 m disk's centre can"),
                       ("following_median_m", "distance behind the passer before, median (m)"),
-                      ("lateral_step_median_m", "distance beside the passer before, median (m)"))
+                      ("lateral_step_median_m", "distance beside the passer before, median (m)"),
+                      ("side_alternation", "share passing on the other side of the axis than the passer before"))
 
 
 def _corridor_runs_with(records: list, key: str, *, narrowed_exit: bool = False) -> list:

@@ -140,6 +140,7 @@ def test_passage_rows_set_the_model_beside_the_recording_measured_alike():
     # body width (0.46 m) between successive heads
     assert recorded["exit_following_median_m"] == pytest.approx(0.39, abs=0.01)
     assert recorded["exit_lateral_step_median_m"] == pytest.approx(0.25, abs=0.01)
+    assert recorded["exit_side_alternation"] > 0.7  # each on the other side of the one before, three times in four
     # people's heads cross the 0.70 m door farther off its axis than a 0.46 m disk's centre can (0.12 m), most of them
     assert recorded["exit_share_off_axis"] == pytest.approx(0.63, abs=0.05)
 
