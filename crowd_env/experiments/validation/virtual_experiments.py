@@ -512,6 +512,50 @@ def approach_figure(records: list, path) -> Path | None:
     return save_figure(fig, Path(path))
 
 
+def passing_figure(records: list, path) -> Path | None:
+    """How successive walkers pass each run's narrowed opening: the median distance behind the passer before against
+    the median distance beside it (:func:`~crowd_env.analysis.corridor_runs.door_passage`), the recording and the
+    model's seed mean of each run joined, the share passing on the other side of the axis than the one before in the
+    legend; the circle of one body width (0.46 m) between successive centres. One file lies high on the vertical
+    axis, two staggered files (a zipper) near the circle. None without such runs or figures."""
+    from .corridor_runs import recorded_passage_figures
+
+    found = []
+    for name, rs in _corridor_runs_with(records, "entrance_following_median_m"):
+        run = uo_run(name)
+        if min(run.entrance_width_m, run.exit_width_m) >= run.corridor_width_m:
+            continue
+        opening, prefix = _limiting_opening(name)
+        found.append((name, opening, prefix, rs))
+    if not found:
+        return None
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7.5, 6.5))
+    angle = np.linspace(0.0, 0.5 * np.pi, 50)
+    ax.plot(0.46 * np.cos(angle), 0.46 * np.sin(angle), ":", color="0.5", label="0.46 m between centres")
+    for k, (name, opening, prefix, rs) in enumerate(found):
+        recorded = recorded_passage_figures(name)
+        beside = np.nanmean([r[f"{prefix}_lateral_step_median_m"] for r in rs])
+        behind = np.nanmean([r[f"{prefix}_following_median_m"] for r in rs])
+        alternation = np.nanmean([r[f"{prefix}_side_alternation"] for r in rs])
+        colour = f"C{k % 10}"
+        ax.plot([recorded[f"{prefix}_lateral_step_median_m"], beside],
+                [recorded[f"{prefix}_following_median_m"], behind], "-", color=colour, lw=0.8)
+        ax.plot(recorded[f"{prefix}_lateral_step_median_m"], recorded[f"{prefix}_following_median_m"], "o",
+                mfc="white", color=colour)
+        ax.plot(beside, behind, "s", color=colour,
+                label=f"{opening} ({name}): other side {recorded[f'{prefix}_side_alternation']:.2f} recorded, "
+                      f"{alternation:.2f} model")
+    ax.set_xlabel("distance beside the passer before, median (m)")
+    ax.set_ylabel("distance behind the passer before, median (m)")
+    ax.set_xlim(0, None)
+    ax.set_ylim(0, None)
+    ax.set_aspect("equal")
+    ax.set_title("open circles: recorded; squares: model (seed mean)", fontsize=9)
+    ax.legend(fontsize=6.5, loc="upper right")
+    return save_figure(fig, Path(path))
+
+
 def _beside_recording(rows: list, leading: tuple, trailing: dict | None = None) -> str:
     """A Markdown table of rows that set the model beside a recording: the ``leading`` fields, the model's mean ±
     sd, the recorded value, then the ``trailing`` columns (title: a function of the row)."""
@@ -682,7 +726,8 @@ def lapse_figure(records: list, path) -> Path | None:
 def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True) -> list:
     """``OUT/virtual_experiments.csv`` (the rows), ``.md`` (the table in Markdown) and, with ``figure``,
     ``.png``; with runs of a narrowed opening also ``OUT/door_passage.md`` (:func:`passage_rows`) and, with
-    ``figure`` and a narrowed exit, ``OUT/approach.png`` (:func:`approach_figure`); with corridor runs ``OUT/spacing.md``
+    ``figure`` and a narrowed exit, ``OUT/approach.png`` (:func:`approach_figure`), with ``figure`` and the runs'
+    passing figures ``OUT/passing.png`` (:func:`passing_figure`); with corridor runs ``OUT/spacing.md``
     (:func:`spacing_rows`) and, with ``figure``, ``OUT/spacing.png`` (:func:`spacing_figure`), and
     ``OUT/passage_lapses.md`` (:func:`lapse_rows`) and, with ``figure``, ``OUT/passage_lapses.png``
     (:func:`lapse_figure`); returns the paths."""
@@ -692,17 +737,19 @@ def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True
     write_atomic(paths[1], format_rows(rows, markdown=True) + "\n")
     if figure:
         paths.append(virtual_figure(records, out / "virtual_experiments.png"))
-    for table, make_rows, format_table, plot, picture in (
-            ("door_passage.md", passage_rows, format_passage_rows, approach_figure, "approach.png"),
-            ("spacing.md", spacing_rows, format_spacing_rows, spacing_figure, "spacing.png"),
-            ("passage_lapses.md", lapse_rows, format_lapse_rows, lapse_figure, "passage_lapses.png")):
+    for table, make_rows, format_table, plots in (
+            ("door_passage.md", passage_rows, format_passage_rows,
+             ((approach_figure, "approach.png"), (passing_figure, "passing.png"))),
+            ("spacing.md", spacing_rows, format_spacing_rows, ((spacing_figure, "spacing.png"),)),
+            ("passage_lapses.md", lapse_rows, format_lapse_rows, ((lapse_figure, "passage_lapses.png"),))):
         found = make_rows(records)
         if found:
             paths.append(out / table)
             write_atomic(paths[-1], format_table(found) + "\n")
-            drawn = plot(records, out / picture) if figure else None
-            if drawn is not None:  # approach.png needs a narrowed exit; door_passage.md a narrowed opening
-                paths.append(drawn)
+            for plot, picture in plots if figure else ():
+                drawn = plot(records, out / picture)
+                if drawn is not None:  # approach.png needs a narrowed exit; door_passage.md a narrowed opening
+                    paths.append(drawn)
     return paths
 
 

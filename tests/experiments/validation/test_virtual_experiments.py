@@ -102,9 +102,9 @@ def test_a_body_radius_reaches_every_experiment():
     assert "radius_m" not in virtual_config(p.params(), navigation_clearance_m=0.23)
 
 
-def test_passage_rows_set_the_model_beside_the_recording_measured_alike():
+def test_passage_rows_set_the_model_beside_the_recording_measured_alike(tmp_path):
     from crowd_env.experiments.validation.corridor_runs import PASSAGE_FIELDS, recorded_passage_figures
-    from crowd_env.experiments.validation.virtual_experiments import format_passage_rows, passage_rows
+    from crowd_env.experiments.validation.virtual_experiments import format_passage_rows, passage_rows, passing_figure
 
     recorded = recorded_passage_figures("uo-180-180-070")
     assert recorded["exit_headway_median_s"] == pytest.approx(0.61, abs=0.01)  # the data README's table: 0.61 s
@@ -141,6 +141,9 @@ def test_passage_rows_set_the_model_beside_the_recording_measured_alike():
     assert recorded["exit_following_median_m"] == pytest.approx(0.39, abs=0.01)
     assert recorded["exit_lateral_step_median_m"] == pytest.approx(0.25, abs=0.01)
     assert recorded["exit_side_alternation"] > 0.7  # each on the other side of the one before, three times in four
+    assert passing_figure(records, tmp_path / "passing.png").stat().st_size > 0
+    assert passing_figure(records[-2:], tmp_path / "none.png") is None  # no narrowed opening
+
     # people's heads cross the 0.70 m door farther off its axis than a 0.46 m disk's centre can (0.12 m), most of them
     assert recorded["exit_share_off_axis"] == pytest.approx(0.63, abs=0.05)
 
