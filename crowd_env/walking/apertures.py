@@ -18,7 +18,7 @@ from ..core.angles import direction_angles_rad
 from ..core.periodic import minimum_image_dx
 from ..core.segments import ray_distances
 
-__all__ = ["FAR_M", "LINE_STEP_M", "apertures_m", "apertures_along", "wall_widths_m"]
+__all__ = ["FAR_M", "LINE_STEP_M", "apertures_m", "apertures_along", "wall_sides_m"]
 
 FAR_M = 5.0  # apertures beyond 2 FAR_M are not told apart
 LINE_STEP_M = 0.05  # the lines across the path are at most this far apart
@@ -83,21 +83,23 @@ def apertures_along(position, radius, index, walk, walk_angle, pairs, walls, per
 
 
 @nb.njit(cache=True)
-def wall_widths_m(position, index, walk, walk_angle, walls, reach_m):
-    """The walls' width across the path on each line of each walker's stretch (:func:`apertures_along`'s lines, walls
-    only): (n, :func:`line_count`) distances from each line's centre to the nearest wall on the left of e plus the
-    same on the right, the lines in order from the walker's centre outwards (at most 2 :data:`FAR_M`)."""
+def wall_sides_m(position, index, walk, walk_angle, walls, reach_m):
+    """The free room to the walls on either side of the path on each line of each walker's stretch
+    (:func:`apertures_along`'s lines, walls only): (n, :func:`line_count`, 2) distances from each line's centre to the
+    nearest wall on the left of e and on the right (each at most :data:`FAR_M`), the lines in order from the walker's
+    centre outwards; their sum is the walls' width across the path."""
     n = index.shape[0]
     n_lines = line_count(reach_m)
-    widths = np.empty((n, n_lines))
+    sides = np.empty((n, n_lines, 2))
     q = np.empty((n, 2))
     angles = _across(walk_angle)
     for m in range(n_lines):
         _line_centres(position, index, walk, reach_m, m, n_lines, q)
         side = ray_distances(q, angles, walls, FAR_M)
         for k in range(n):
-            widths[k, m] = side[k, 0] + side[k, 1]
-    return widths
+            sides[k, m, 0] = side[k, 0]
+            sides[k, m, 1] = side[k, 1]
+    return sides
 
 
 @nb.njit(cache=True)

@@ -23,10 +23,11 @@ steer into gaps. Vision adds both, after the heuristics of Moussaïd, Helbing & 
 - the walking speed is v_i = min(v0_i, max(0, (f_i(α*) − l)/T)) (heuristic 2; the collision-free speed
   rule), T = ``vision_time_gap_s``, l = ``vision_jam_gap_m``;
 - with ``vision_door_time_gap_s`` T_d a walker keeps the time gap T_d instead of T while its way passes a door:
-  on the stretch it sees, from its centre to r + H_i ahead along e_d (H_i = l + T v0_i), the walls' width across
-  its path (:func:`~crowd_env.walking.apertures.wall_widths_m`) falls below ``vision_door_ratio`` ρ_d shoulder
-  widths (ρ_d 2 r_i; 3: at most two abreast) and opens again further on (:func:`through_a_door`: a narrowing
-  shorter than the stretch; a channel longer than it, or a single-file corridor, is no door). Its speed rule and
+  on the stretch it sees, from its centre to r + H_i ahead along e_d (H_i = l + T v0_i) or to the first wall
+  straight ahead if nearer (in a bend the straight line leaves the corridor), the walls' width across
+  its path (:func:`~crowd_env.walking.apertures.wall_sides_m`) falls below ``vision_door_ratio`` ρ_d shoulder
+  widths (ρ_d 2 r_i; 3: at most two abreast) and further on opens to half that on both sides (:func:`through_a_door`:
+  a narrowing shorter than the stretch; a channel longer than it, a single-file corridor or a bend is no door). Its speed rule and
   horizon then take T_d (v_i = min(v0_i, max(0, (f − l)/T_d)), H_i = l + T_d v0_i). People keep about half the
   time gap through a door that they keep in a corridor, a channel or a ring: read through this rule, the Jülich
   corridor runs give T ≈ 0.44 s behind the 0.5 m entrance and 0.53 s through the 0.70 m exit, 0.8-1.0 s in the
@@ -65,7 +66,8 @@ from crowd_env.errors import ParameterError
 
 from ..core.params import check_flag, check_parameter
 from ..core.periodic import minimum_image_dx
-from .apertures import FAR_M, wall_widths_m
+from ..core.segments import ray_distances
+from .apertures import FAR_M, wall_sides_m
 
 __all__ = ["Vision", "Sight", "vision_reach_m", "vision_walk", "ray_circle_distance", "moving_circle_distance",
            "free_distances", "gives_way", "through_a_door"]
@@ -272,16 +274,18 @@ def free_distances(position, radius, velocity, index, rows, angles, neighbourhoo
 
 
 @nb.njit(cache=True)
-def through_a_door(widths_m, narrow_m):
-    """Whether a walker's stretch passes a door (``vision_door_time_gap_s``): the walls' widths across its path on the
-    lines of its stretch, in order (:func:`~crowd_env.walking.apertures.wall_widths_m`), fall below ``narrow_m`` and
-    open to at least ``narrow_m`` again further on. A way that only narrows (into a channel longer than the stretch)
-    or stays narrow (a single-file corridor) is no door."""
+def through_a_door(sides_m, narrow_m):
+    """Whether a walker's stretch passes a door (``vision_door_time_gap_s``): on the lines of its stretch, in order,
+    the free room to the walls on its left and right (:func:`~crowd_env.walking.apertures.wall_sides_m`, (lines, 2))
+    adds up to less than ``narrow_m`` and further on opens to at least ``narrow_m``/2 on both sides. A way that only
+    narrows (into a channel longer than the stretch), stays narrow (a single-file corridor) or opens on one side
+    only (a bend) is no door."""
     narrowed = False
-    for m in range(widths_m.shape[0]):
-        if widths_m[m] < narrow_m:
+    half = 0.5 * narrow_m
+    for m in range(sides_m.shape[0]):
+        if sides_m[m, 0] + sides_m[m, 1] < narrow_m:
             narrowed = True
-        elif narrowed:
+        elif narrowed and sides_m[m, 0] >= half and sides_m[m, 1] >= half:
             return True
     return False
 
@@ -366,12 +370,13 @@ def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, wa
         horizon[k] = jam_gap_m + time_gap_s * desired_speed[index[k]]
     gap_time = np.full(n, time_gap_s)
     if vision.door_time_gap_s != time_gap_s:  # T_d where the walls narrow the way ahead below ρ_d shoulder widths
+        ahead = ray_distances(position[index], base.reshape(n, 1), walls, FAR_M)  # the stretch ends at a wall
         reach = np.empty(n)
         for k in range(n):
-            reach[k] = radius[index[k]] + horizon[k]
-        widths = wall_widths_m(position, index, e_d, base, walls, reach)
+            reach[k] = min(radius[index[k]] + horizon[k], ahead[k, 0])
+        sides = wall_sides_m(position, index, e_d, base, walls, reach)
         for k in range(n):
-            if through_a_door(widths[k], vision.door_ratio * 2.0 * radius[index[k]]):
+            if through_a_door(sides[k], vision.door_ratio * 2.0 * radius[index[k]]):
                 gap_time[k] = vision.door_time_gap_s
                 horizon[k] = jam_gap_m + gap_time[k] * desired_speed[index[k]]
     for k in range(n):

@@ -4,28 +4,30 @@ read)."""
 import numpy as np
 import pytest
 
-from crowd_env.walking.apertures import LINE_STEP_M, apertures_along, line_count, wall_widths_m
+from crowd_env.walking.apertures import LINE_STEP_M, apertures_along, line_count, wall_sides_m
 
 NO_PAIRS = np.zeros((0, 2), np.int64)
 
 
-def test_wall_widths_through_a_door_by_hand():
+def test_wall_sides_through_a_door_by_hand():
     """Walking along +x in a 1.8 m corridor towards a 0.95 m door in a wall 0.1 m thick at x = 1.02: the lines (every
-    LINE_STEP_M at most, from the centre to 1.5 m ahead) read 1.8 m before the door, 0.95 m within it, 1.8 m past it."""
+    LINE_STEP_M at most, from the centre to 1.5 m ahead) read 1.8 m before the door, 0.95 m within it, 1.8 m past it,
+    0.8 + 1.0 m (the walker 0.1 m left of the axis) and 0.375 + 0.575 m in the door on its left and right."""
     walls = np.array([[-5.0, -0.9, 5.0, -0.9], [-5.0, 0.9, 5.0, 0.9],
                       [1.02, -0.9, 1.02, -0.475], [1.02, 0.475, 1.02, 0.9],
                       [1.02, -0.475, 1.12, -0.475], [1.02, 0.475, 1.12, 0.475]])
     reach = np.array([1.5])
-    widths = wall_widths_m(np.array([[0.0, 0.1]]), np.arange(1), np.array([[1.0, 0.0]]), np.zeros(1), walls, reach)
+    sides = wall_sides_m(np.array([[0.0, 0.1]]), np.arange(1), np.array([[1.0, 0.0]]), np.zeros(1), walls, reach)
     n_lines = line_count(reach)
-    assert n_lines == int(np.ceil(1.5 / LINE_STEP_M)) + 1 and widths.shape == (1, n_lines)
+    assert n_lines == int(np.ceil(1.5 / LINE_STEP_M)) + 1 and sides.shape == (1, n_lines, 2)
     s = np.linspace(0.0, 1.5, n_lines)
-    want = np.where((s > 1.02) & (s < 1.12), 0.95, 1.8)  # the lines at s = 1.05 and 1.1
-    np.testing.assert_allclose(widths[0], want, atol=1e-12)
+    door = (s > 1.02) & (s < 1.12)  # the lines at s = 1.05 and 1.1
+    np.testing.assert_allclose(sides[0, :, 0], np.where(door, 0.375, 0.8), atol=1e-12)
+    np.testing.assert_allclose(sides[0, :, 1], np.where(door, 0.575, 1.0), atol=1e-12)
 
 
 def test_aperture_without_neighbours_is_the_narrowest_wall_width():
-    """Random walls and walkers: apertures_along with no pairs equals the smallest of wall_widths_m's lines."""
+    """Random walls and walkers: apertures_along with no pairs equals the narrowest of wall_sides_m's lines."""
     rng = np.random.default_rng(7)
     for _ in range(10):
         n = 5
@@ -36,7 +38,7 @@ def test_aperture_without_neighbours_is_the_narrowest_wall_width():
         reach = rng.uniform(0.2, 1.8, n)
         aperture, left, right = apertures_along(pos, np.full(n, 0.23), np.arange(n), walk, ang, NO_PAIRS, walls, 0.0,
                                                 reach)
-        widths = wall_widths_m(pos, np.arange(n), walk, ang, walls, reach)
-        np.testing.assert_allclose(aperture, widths.min(axis=1), atol=1e-12)
+        sides = wall_sides_m(pos, np.arange(n), walk, ang, walls, reach)
+        np.testing.assert_allclose(aperture, sides.sum(axis=2).min(axis=1), atol=1e-12)
         np.testing.assert_allclose(left + right, aperture, atol=1e-12)
         assert np.all(aperture > 0.0)

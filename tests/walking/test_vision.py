@@ -230,6 +230,15 @@ def _channel(corridor_m, channel_m, start_x_m, end_x_m):
                      [start_x_m, h, start_x_m, c], [start_x_m, -c, end_x_m, -c], [start_x_m, c, end_x_m, c]], float)
 
 
+def _bend(width_m, turn_x_m):
+    """A corridor along +x of ``width_m`` turning left (+y) at ``turn_x_m``: its inner wall ends there, its outer wall
+    meets the end wall across the path; the leg going up is as wide."""
+    h = 0.5 * width_m
+    return np.array([[-10.0, h, turn_x_m, h], [turn_x_m, h, turn_x_m, 10.0],  # inner corner, then the leg's wall
+                     [-10.0, -h, turn_x_m + width_m, -h],  # outer wall to the corner
+                     [turn_x_m + width_m, -h, turn_x_m + width_m, 10.0]], float)  # across the path, the leg's wall
+
+
 @pytest.mark.parametrize("walls, x_m, door", [
     (_corridor(1.8), 0.0, False),         # a corridor of 3.9 shoulder widths
     (_corridor(1.2), 0.0, False),         # 2.6 shoulder widths all along: a channel, no door
@@ -240,6 +249,7 @@ def _channel(corridor_m, channel_m, start_x_m, end_x_m):
     (_corridor(1.8, 0.95), 3.15, False),  # just past it: the posts behind, the corridor's walls go on (1.8 m)
     (_channel(1.8, 1.0, 2.0, 10.0), 1.0, False),  # into a channel longer than the stretch: no door
     (_channel(1.8, 1.0, 2.0, 10.0), 9.0, True),   # near its end, where it opens into the floor
+    (_bend(0.8, 2.0), 1.0, False),        # a corridor of 0.8 m turning left 1 m ahead: opens on one side only
 ])
 def test_door_time_gap_where_the_way_passes_a_door(walls, x_m, door):
     """A follower 0.5 m (surface gap) behind a standing leader: v = (f − l)/T_d where its stretch (r + l + T v0
@@ -274,12 +284,18 @@ def test_door_ratio_sets_the_width_called_a_door():
     assert narrow[0] == pytest.approx(0.6) and wide[0] == pytest.approx(0.3)
 
 
-def test_through_a_door_reads_the_widths_in_order():
-    assert through_a_door(np.array([1.8, 1.8, 0.9, 0.9, 1.8]), 1.38)
-    assert not through_a_door(np.array([1.8, 1.8, 0.9, 0.9, 0.9]), 1.38)  # only narrows
-    assert not through_a_door(np.array([0.9, 0.9, 0.9]), 1.38)  # stays narrow
-    assert not through_a_door(np.array([1.8, 1.8]), 1.38)
-    assert through_a_door(np.array([0.9, 1.38]), 1.38)
+def test_through_a_door_reads_the_sides_in_order():
+    def door(*widths):  # symmetric lines of these widths
+        return through_a_door(np.array([[0.5 * w, 0.5 * w] for w in widths]), 1.38)
+
+    assert door(1.8, 1.8, 0.9, 0.9, 1.8)
+    assert not door(1.8, 1.8, 0.9, 0.9, 0.9)  # only narrows
+    assert not door(0.9, 0.9, 0.9)  # stays narrow
+    assert not door(1.8, 1.8)
+    assert door(0.9, 1.38)
+    # a bend: past the narrow part the room opens on the left only
+    assert not through_a_door(np.array([[0.4, 0.4], [0.4, 0.4], [5.0, 0.4], [5.0, 0.4]]), 1.38)
+    assert through_a_door(np.array([[0.4, 0.4], [5.0, 0.69], [5.0, 0.4]]), 1.38)
 
 
 @pytest.mark.parametrize("leader_time_s, right_of_way", [(0.0, False), (1.0, True)])
