@@ -530,7 +530,7 @@ def passing_figure(records: list, path) -> Path | None:
     if not found:
         return None
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7.5, 6.5))
+    fig, ax = plt.subplots(figsize=(11, 6.5))
     angle = np.linspace(0.0, 0.5 * np.pi, 50)
     ax.plot(0.46 * np.cos(angle), 0.46 * np.sin(angle), ":", color="0.5", label="0.46 m between centres")
     for k, (name, opening, prefix, rs) in enumerate(found):
@@ -544,15 +544,16 @@ def passing_figure(records: list, path) -> Path | None:
         ax.plot(recorded[f"{prefix}_lateral_step_median_m"], recorded[f"{prefix}_following_median_m"], "o",
                 mfc="white", color=colour)
         ax.plot(beside, behind, "s", color=colour,
-                label=f"{opening} ({name}): other side {recorded[f'{prefix}_side_alternation']:.2f} recorded, "
-                      f"{alternation:.2f} model")
+                label=f"{opening}: {recorded[f'{prefix}_side_alternation']:.2f} / {alternation:.2f}")
     ax.set_xlabel("distance beside the passer before, median (m)")
     ax.set_ylabel("distance behind the passer before, median (m)")
-    ax.set_xlim(0, None)
-    ax.set_ylim(0, None)
+    top = max(0.5, *(max(line.get_xdata().max(), line.get_ydata().max()) for line in ax.get_lines())) + 0.1
+    ax.set_xlim(0, top)
+    ax.set_ylim(0, top)
     ax.set_aspect("equal")
     ax.set_title("open circles: recorded; squares: model (seed mean)", fontsize=9)
-    ax.legend(fontsize=6.5, loc="upper right")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), title="the share on the other side\nthan the passer before,\nrecorded / model",
+              title_fontsize=7)
     return save_figure(fig, Path(path))
 
 
