@@ -7,7 +7,8 @@ along the unit direction e is the narrowest free width across e over the lines a
 0 ≤ s ≤ reach (every :data:`LINE_STEP_M` at most): on each line, the distance from its centre to the nearest wall
 (a ray cast) or neighbour's disk on the left of e plus the same on the right. A line whose centre a neighbour's disk
 covers is no aperture (someone straight ahead is followed, not passed) and is left out. Widths beyond 2 :data:`FAR_M`
-are not told apart. A periodic corridor's displacements are taken to the nearest image along x.
+are not told apart. In a periodic corridor the displacements to neighbours are taken to the nearest image along x
+and the lines' centres are brought into the periodic cell, whose walls they see.
 """
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ import numba as nb
 import numpy as np
 
 from ..core.angles import direction_angles_rad
-from ..core.periodic import minimum_image_dx
+from ..core.periodic import minimum_image_dx, wrap_x
 from ..core.segments import ray_distances
 
 __all__ = ["FAR_M", "LINE_STEP_M", "apertures_m", "apertures_along", "wall_sides_m"]
@@ -51,7 +52,7 @@ def apertures_along(position, radius, index, walk, walk_angle, pairs, walls, per
     q = np.empty((n, 2))
     angles = _across(walk_angle)
     for m in range(n_lines):
-        _line_centres(position, index, walk, reach_m, m, n_lines, q)
+        _line_centres(position, index, walk, reach_m, m, n_lines, period_m, q)
         side = ray_distances(q, angles, walls, FAR_M)
         left = side[:, 0].copy()
         right = side[:, 1].copy()
@@ -83,7 +84,7 @@ def apertures_along(position, radius, index, walk, walk_angle, pairs, walls, per
 
 
 @nb.njit(cache=True)
-def wall_sides_m(position, index, walk, walk_angle, walls, reach_m):
+def wall_sides_m(position, index, walk, walk_angle, walls, period_m, reach_m):
     """The free room to the walls on either side of the path on each line of each walker's stretch
     (:func:`apertures_along`'s lines, walls only): (n, :func:`line_count`, 2) distances from each line's centre to the
     nearest wall on the left of e and on the right (each at most :data:`FAR_M`), the lines in order from the walker's
@@ -94,7 +95,7 @@ def wall_sides_m(position, index, walk, walk_angle, walls, reach_m):
     q = np.empty((n, 2))
     angles = _across(walk_angle)
     for m in range(n_lines):
-        _line_centres(position, index, walk, reach_m, m, n_lines, q)
+        _line_centres(position, index, walk, reach_m, m, n_lines, period_m, q)
         side = ray_distances(q, angles, walls, FAR_M)
         for k in range(n):
             sides[k, m, 0] = side[k, 0]
@@ -122,10 +123,11 @@ def _across(walk_angle):
 
 
 @nb.njit(cache=True, inline="always")
-def _line_centres(position, index, walk, reach_m, m, n_lines, q):
-    """Centres ``q`` (n, 2) of the lines number ``m`` of ``n_lines``, evenly spaced on each walker's stretch."""
+def _line_centres(position, index, walk, reach_m, m, n_lines, period_m, q):
+    """Centres ``q`` (n, 2) of the lines number ``m`` of ``n_lines``, evenly spaced on each walker's stretch, brought
+    into the periodic cell [0, ``period_m``) along x (a periodic strip's walls are the cell's)."""
     for k in range(index.shape[0]):
         i = index[k]
         s = reach_m[k] * m / max(n_lines - 1, 1)
-        q[k, 0] = position[i, 0] + s * walk[k, 0]
+        q[k, 0] = wrap_x(position[i, 0] + s * walk[k, 0], period_m)
         q[k, 1] = position[i, 1] + s * walk[k, 1]

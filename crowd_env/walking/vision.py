@@ -374,7 +374,7 @@ def vision_walk(position, radius, index, e_d, desired_speed, velocity, pairs, wa
         reach = np.empty(n)
         for k in range(n):
             reach[k] = min(radius[index[k]] + horizon[k], ahead[k, 0])
-        sides = wall_sides_m(position, index, e_d, base, walls, reach)
+        sides = wall_sides_m(position, index, e_d, base, walls, period_m, reach)
         for k in range(n):
             if through_a_door(sides[k], vision.door_ratio * 2.0 * radius[index[k]]):
                 gap_time[k] = vision.door_time_gap_s

@@ -17,7 +17,7 @@ def test_wall_sides_through_a_door_by_hand():
                       [1.02, -0.9, 1.02, -0.475], [1.02, 0.475, 1.02, 0.9],
                       [1.02, -0.475, 1.12, -0.475], [1.02, 0.475, 1.12, 0.475]])
     reach = np.array([1.5])
-    sides = wall_sides_m(np.array([[0.0, 0.1]]), np.arange(1), np.array([[1.0, 0.0]]), np.zeros(1), walls, reach)
+    sides = wall_sides_m(np.array([[0.0, 0.1]]), np.arange(1), np.array([[1.0, 0.0]]), np.zeros(1), walls, 0.0, reach)
     n_lines = line_count(reach)
     assert n_lines == int(np.ceil(1.5 / LINE_STEP_M)) + 1 and sides.shape == (1, n_lines, 2)
     s = np.linspace(0.0, 1.5, n_lines)
@@ -38,7 +38,21 @@ def test_aperture_without_neighbours_is_the_narrowest_wall_width():
         reach = rng.uniform(0.2, 1.8, n)
         aperture, left, right = apertures_along(pos, np.full(n, 0.23), np.arange(n), walk, ang, NO_PAIRS, walls, 0.0,
                                                 reach)
-        sides = wall_sides_m(pos, np.arange(n), walk, ang, walls, reach)
+        sides = wall_sides_m(pos, np.arange(n), walk, ang, walls, 0.0, reach)
         np.testing.assert_allclose(aperture, sides.sum(axis=2).min(axis=1), atol=1e-12)
         np.testing.assert_allclose(left + right, aperture, atol=1e-12)
         assert np.all(aperture > 0.0)
+
+
+def test_a_periodic_strip_has_walls_across_its_seam():
+    """In a strip periodic along x (cell [0, 10), walls along y = ±0.35 over the cell), a walker 0.5 m before the seam
+    sees the walls on every line of its 1.5 m stretch, those beyond the seam too: 0.7 m wide all along (without the
+    periodic cell the lines past x = 10 would see no wall)."""
+    walls = np.array([[0.0, -0.35, 10.0, -0.35], [0.0, 0.35, 10.0, 0.35]])
+    args = (np.array([[9.5, 0.0]]), np.arange(1), np.array([[1.0, 0.0]]), np.zeros(1), walls)
+    sides = wall_sides_m(*args, 10.0, np.array([1.5]))
+    np.testing.assert_allclose(sides[0].sum(axis=1), 0.7, atol=1e-12)
+    open_ended = wall_sides_m(*args, 0.0, np.array([1.5]))
+    assert open_ended[0, -1].sum() > 5.0
+    aperture, _, _ = apertures_along(args[0], np.full(1, 0.23), *args[1:4], NO_PAIRS, walls, 10.0, np.array([1.5]))
+    assert aperture[0] == pytest.approx(0.7, abs=1e-12)
