@@ -754,11 +754,25 @@ def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True
     return paths
 
 
-def snapshot_figure(study: dict, path, *, window_y_m: tuple = (-5.0, 0.0)) -> Path:
-    """A corridor run followed step by step (:func:`~.corridor_runs.corridor_snapshot`): left, the crowd in
-    ``window_y_m`` at the snapshot (bodies, velocities in red, the agent's intents in blue); right, over time, how
-    many have left, the mean speed of those left and their mean net speed over the stall rule's window (net
-    displacement / 20 s) beside the rule's threshold."""
+def snapshot_window_m(name: str) -> tuple:
+    """``(x range, y range)`` (m) of a corridor run's snapshot: around its narrower opening (:func:`_limiting_opening`),
+    the exit (the last 5 m of the corridor) or the entrance (the barrier, the waiting crowd before it and the floor
+    behind it)."""
+    _, prefix = _limiting_opening(name)
+    if prefix == "exit":
+        return (-1.0, 2.8), (-5.0, 0.0)
+    return (-1.7, 3.5), (6.0, 10.0)
+
+
+def snapshot_figure(study: dict, path, *, window_y_m: tuple | None = None, window_x_m: tuple | None = None) -> Path:
+    """A corridor run followed step by step (:func:`~.corridor_runs.corridor_snapshot`): left, the crowd in the window
+    (``window_x_m``, ``window_y_m``; None: :func:`snapshot_window_m`, around the run's narrower opening) at the
+    snapshot (bodies, velocities in red, the agent's intents in blue); right, over time, how many have left, the mean
+    speed of those left and their mean net speed over the stall rule's window (net displacement / 20 s) beside the
+    rule's threshold."""
+    default_x, default_y = snapshot_window_m(study["run"])
+    window_x_m = default_x if window_x_m is None else window_x_m
+    window_y_m = default_y if window_y_m is None else window_y_m
     from ..running.runner import STALL_SPEED_M_S, STALL_WINDOW_S
 
     plt = pyplot()
@@ -779,7 +793,7 @@ def snapshot_figure(study: dict, path, *, window_y_m: tuple = (-5.0, 0.0)) -> Pa
             ax.arrow(*p, *(0.15 * snap["intent_m_s"][i]), color="C0", width=0.003, alpha=0.6, length_includes_head=True)
         ax.set_title(f"{study['run']} at t = {snap['time_s']:.1f} s: velocity × 0.3 s (red), intent × 0.15 s (blue)",
                      fontsize=9)
-    ax.set_xlim(-1.0, 2.8)
+    ax.set_xlim(*window_x_m)
     ax.set_ylim(*window_y_m)
     ax.set_aspect("equal")
     s = study["series"]

@@ -269,3 +269,26 @@ def test_shoulders_pass_the_070_m_exit_off_the_axis_where_no_disk_can(tmp_path, 
     assert main(["--preset", "shoulders", "--snapshot", "uo-180-180-070", "--at", "12", "--out", str(tmp_path)]) == 0
     assert drawn["path"].name == "snapshot_uo-180-180-070.png"
     assert drawn["circles"] > 0 and drawn["circles"] == 3 * drawn["arrows"] // 2
+
+
+def test_snapshot_frames_the_runs_narrower_opening(tmp_path):
+    """The snapshot of a corridor run shows the crowd at its narrower opening: the entrance's barrier (y = 8-8.3 m)
+    and the waiting crowd for a narrowed entrance, the corridor's last 5 m before a narrowed exit; a short run of the
+    0.5 m entrance draws."""
+    from crowd_env.experiments.validation.corridor_runs import corridor_snapshot
+    from crowd_env.experiments.validation.virtual_experiments import (VirtualPlan, snapshot_figure, snapshot_window_m,
+                                                                       virtual_config, virtual_tasks)
+    from crowd_env.walking.presets import get_preset
+
+    assert snapshot_window_m("uo-050-180-180") == ((-1.7, 3.5), (6.0, 10.0))
+    assert snapshot_window_m("uo-180-180-070") == ((-1.0, 2.8), (-5.0, 0.0))
+    assert snapshot_window_m("uo-180-180-180")[1] == (6.0, 10.0)  # as wide at both ends: the entrance
+    plan = VirtualPlan(experiments=("corridor",), corridor_runs=("uo-050-180-180",), seeds=(0,))
+    preset = get_preset("calibrated")
+    config = virtual_config(preset.params(), navigation_clearance_m=preset.navigation_clearance_m)
+    task = next(t for t in virtual_tasks(config, plan))
+    study = corridor_snapshot(task, at_s=2.0)
+    ys = study["snapshot"]["position_m"][study["snapshot"]["active"], 1]
+    assert ys.min() > 6.0  # after 2 s the first have just come through the entrance ...
+    assert np.mean((ys > 6.0) & (ys < 10.0)) > 0.5  # ... and most stand within the window
+    assert snapshot_figure(study, tmp_path / "snapshot.png").stat().st_size > 0
