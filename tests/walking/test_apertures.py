@@ -6,6 +6,8 @@ import pytest
 
 from crowd_env.walking.apertures import LINE_STEP_M, apertures_along, line_count, wall_sides_m
 
+from .scenes import random_scene
+
 NO_PAIRS = np.zeros((0, 2), np.int64)
 
 
@@ -31,10 +33,7 @@ def test_aperture_without_neighbours_is_the_narrowest_wall_width():
     rng = np.random.default_rng(7)
     for _ in range(10):
         n = 5
-        pos = rng.uniform(-1.0, 1.0, (n, 2))
-        ang = rng.uniform(-np.pi, np.pi, n)
-        walk = np.c_[np.cos(ang), np.sin(ang)]
-        walls = np.c_[rng.uniform(-2, 2, (4, 2)), rng.uniform(-2, 2, (4, 2))]
+        pos, ang, walk, walls = random_scene(rng, n, 4)
         reach = rng.uniform(0.2, 1.8, n)
         aperture, left, right = apertures_along(pos, np.full(n, 0.23), np.arange(n), walk, ang, NO_PAIRS, walls, 0.0,
                                                 reach)

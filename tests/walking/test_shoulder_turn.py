@@ -12,6 +12,8 @@ from crowd_env.walking import ModelParams
 from crowd_env.walking.apertures import apertures_m
 from crowd_env.walking.shoulder_turn import ShoulderTurn, shoulder_turn
 
+from .scenes import random_scene
+
 R = 0.23
 CORRIDOR = np.array([[-5.0, -0.4, 5.0, -0.4], [-5.0, 0.4, 5.0, 0.4]])  # walls at y = ±0.4
 
@@ -58,10 +60,7 @@ def test_aperture_equals_a_sampled_one():
     t = np.arange(1, 10001) * 5e-4  # up to 5 m
     for trial in range(8):
         n = 6
-        pos = rng.uniform(-1.0, 1.0, (n, 2))
-        ang = rng.uniform(-np.pi, np.pi, n)
-        walk = np.c_[np.cos(ang), np.sin(ang)]
-        walls = np.c_[rng.uniform(-2, 2, (3, 2)), rng.uniform(-2, 2, (3, 2))]
+        pos, ang, walk, walls = random_scene(rng, n, 3)
         got, _, _ = _aperture(pos, walk, walls=walls)
         n_lines = int(np.ceil((R + 0.3) / 0.05)) + 1
         for k in range(n):

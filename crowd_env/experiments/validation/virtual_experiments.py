@@ -457,6 +457,17 @@ def _corridor_runs_with(records: list, key: str, *, narrowed_exit: bool = False)
     return sorted(runs.items())
 
 
+def _narrowed_opening_runs(records: list, key: str) -> list:
+    """``(run name, its narrower opening's label, that opening's record prefix, its complete records)`` of every
+    corridor run with a narrowed entrance or exit whose records carry the figure ``key`` (:func:`_limiting_opening`)."""
+    found = []
+    for name, rs in _corridor_runs_with(records, key):
+        run = uo_run(name)
+        if min(run.entrance_width_m, run.exit_width_m) < run.corridor_width_m:
+            found.append((name, *_limiting_opening(name), rs))
+    return found
+
+
 def _narrowed_exit_runs(records: list) -> list:
     """The complete corridor records of the runs with a narrowed exit that carry the passage figures, by run name."""
     return _corridor_runs_with(records, "exit_headway_median_s", narrowed_exit=True)
@@ -470,11 +481,7 @@ def passage_rows(records: list) -> list:
     from .corridor_runs import recorded_passage_figures
 
     rows = []
-    for name, rs in _corridor_runs_with(records, "entrance_headway_median_s"):
-        run = uo_run(name)
-        if min(run.entrance_width_m, run.exit_width_m) >= run.corridor_width_m:
-            continue
-        opening, prefix = _limiting_opening(name)
+    for name, opening, prefix, rs in _narrowed_opening_runs(records, "entrance_headway_median_s"):
         recorded = recorded_passage_figures(name)
         for suffix, label in PASSAGE_QUANTITIES:
             key = f"{prefix}_{suffix}"
@@ -520,13 +527,7 @@ def passing_figure(records: list, path) -> Path | None:
     axis, two staggered files (a zipper) near the circle. None without such runs or figures."""
     from .corridor_runs import recorded_passage_figures
 
-    found = []
-    for name, rs in _corridor_runs_with(records, "entrance_following_median_m"):
-        run = uo_run(name)
-        if min(run.entrance_width_m, run.exit_width_m) >= run.corridor_width_m:
-            continue
-        opening, prefix = _limiting_opening(name)
-        found.append((name, opening, prefix, rs))
+    found = _narrowed_opening_runs(records, "entrance_following_median_m")
     if not found:
         return None
     plt = pyplot()
