@@ -278,7 +278,7 @@ class DoorPassage:
     of x, and its standard deviation), how many passed, the share of them that crossed farther than
     ``off_axis_m`` from the middle of the line's x range (NaN when not asked), and how successive passers follow
     each other: the median distance along the walk (``following_median_m``: each passer's speed at the line times
-    the time since the one before it passed) and across it (``lateral_step_median_m``: |x_j − x_{j−1}|), and the
+    the time since the one before it passed) and across it (``lateral_step_median_m``: ``|x_j − x_{j−1}|``), and the
     share of successive passers who crossed on opposite sides of the middle (``side_alternation``; about 0.5 when
     the sides are independent, 1 for strict alternation). One file follows at a body length or more with lateral
     steps near 0; two staggered files (a zipper) at less than a body length, each passer beside the one before, on
