@@ -34,9 +34,9 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from ..core.angles import direction_angles_rad, wrap_angle_scalar
+from ..core.angles import wrap_angle_scalar
 from ..core.params import check_parameter
-from .apertures import FAR_M, apertures_along
+from .apertures import FAR_M, apertures_m
 
 __all__ = ["ShoulderTurn", "shoulder_turn", "shoulder_turn_reach_m"]
 
@@ -74,11 +74,7 @@ def shoulder_turn(theta_d, heading, position, radius, index, walk, pairs, walls,
     :class:`ShoulderTurn` ``rule``. Returns how many turn."""
     if rule.critical_ratio <= 0.0 or index.shape[0] == 0:
         return 0
-    walk_angle = direction_angles_rad(walk)
-    reach = np.empty(index.shape[0])
-    for k in range(index.shape[0]):
-        reach[k] = radius[index[k]] + rule.lookahead_m
-    aperture, _, _ = apertures_along(position, radius, index, walk, walk_angle, pairs, walls, period_m, reach)
+    aperture, _, _ = apertures_m(position, radius, index, walk, pairs, walls, period_m, rule.lookahead_m)
     turned = 0
     for k in range(index.shape[0]):
         i = index[k]
@@ -86,7 +82,8 @@ def shoulder_turn(theta_d, heading, position, radius, index, walk, pairs, walls,
         if aperture[k] >= span:
             continue
         phi = np.arccos(aperture[k] / span)
-        sign = 1.0 if wrap_angle_scalar(heading[i] - walk_angle[k]) >= 0.0 else -1.0
+        walk_angle = np.arctan2(walk[k, 1], walk[k, 0])  # as direction_angles_rad computes it
+        sign = 1.0 if wrap_angle_scalar(heading[i] - walk_angle) >= 0.0 else -1.0
         theta_d[i] = wrap_angle_scalar(theta_d[i] + sign * phi)
         turned += 1
     return turned

@@ -35,7 +35,7 @@ from ...analysis.experiment import (INSIDE_DENSITY_RANGE_PER_M2, INSIDE_SPEED_RA
 from ...analysis.corridor_runs import lapse_summary, uo_run
 from ...analysis.fd_reference import single_file
 from ...analysis.figures import pyplot, save_figure
-from ...core.body import body_circles
+from ...core.body import body_circles, circle_count
 from ...walking.model import ModelParams
 from ..running.backends import execute
 from ..running.crowd_policy import policy_entry
@@ -781,14 +781,14 @@ def snapshot_figure(study: dict, path, *, window_y_m: tuple | None = None, windo
     snap = study["snapshot"]
     ax.plot(*study["outline_m"].T, color="k", lw=1)
     if snap:
-        for i in np.flatnonzero(snap["active"]):
+        y = snap["position_m"][:, 1]
+        shown = np.flatnonzero(snap["active"] & (y >= window_y_m[0] - 0.5) & (y <= window_y_m[1] + 0.5))
+        k = circle_count(snap["body_depth_m"])  # the bodies' circles (one, the disk, at depth 0)
+        centre, rad, _ = body_circles(snap["position_m"], snap["heading_rad"], snap["radius_m"], shown,
+                                      snap["body_depth_m"])
+        for n, i in enumerate(shown):
             p = snap["position_m"][i]
-            if not window_y_m[0] - 0.5 <= p[1] <= window_y_m[1] + 0.5:
-                continue
-            depth = snap.get("body_depth_m", 0.0)  # the body's circles (one, the disk, at depth 0)
-            centre, rad, _ = body_circles(snap["position_m"], snap.get("heading_rad", np.zeros(len(snap["active"]))),
-                                          snap["radius_m"], np.array([i]), depth)
-            for c, rc in zip(centre, rad):
+            for c, rc in zip(centre[n * k:(n + 1) * k], rad[n * k:(n + 1) * k]):
                 ax.add_patch(plt.Circle(c, rc, fill=False, lw=0.8))
             ax.arrow(*p, *(0.3 * snap["velocity_m_s"][i]), color="C3", width=0.006, length_includes_head=True)
             ax.arrow(*p, *(0.15 * snap["intent_m_s"][i]), color="C0", width=0.003, alpha=0.6, length_includes_head=True)
