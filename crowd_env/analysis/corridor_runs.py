@@ -43,7 +43,7 @@ __all__ = ["SteadyStateFigures", "UORun", "juelich_uo_runs", "uo_run", "recorded
            "uo_measurement_area", "steady_frames", "UORunMeasures", "measure_uo_run", "crossing_times_s",
            "STEADY_CROSSING_FRACTIONS", "UO_FRAME_RATE_PER_S", "UO_SPEED_FRAME_STEP", "DoorPassage", "door_passage",
            "approach_profile", "NeighbourSpacing", "neighbour_spacing", "uo_scenario", "passage_lapses",
-           "lapse_summary", "LapseSummary"]
+           "lapse_summary", "LapseSummary", "OpeningEntry", "opening_entries"]
 
 UO_FRAME_RATE_PER_S = 16.0  # the recordings' frame rate
 UO_SPEED_FRAME_STEP = 5  # individual speeds over ±5 frames (±0.3125 s), PedPy's notebook
@@ -309,14 +309,8 @@ def door_passage(trajectories: Trajectories, *, y_m: float, x_range_m: tuple, wi
         raise InputError(f"off_axis_m must be a distance >= 0 in m, got {off_axis_m!r}")
     fps = trajectories.frame_rate_per_s
     ids, frame, x, y = _by_walker(trajectories)
-    step = (ids[1:] == ids[:-1]) & (frame[1:] == frame[:-1] + 1) & (y[:-1] > y_m) & (y[1:] <= y_m)
-    k = np.flatnonzero(step)
-    alpha = (y[k] - y_m) / (y[k] - y[k + 1])
-    xc = x[k] + alpha * (x[k + 1] - x[k])
-    tc = (frame[k] + alpha) / fps
-    keep = (xc >= x_range_m[0]) & (xc <= x_range_m[1])
-    _, first = np.unique(ids[k][keep], return_index=True)
-    k, xc, tc = k[keep][first], xc[keep][first], tc[keep][first]
+    k, xc, tc = _first_crossings(ids, frame, x, y, y_m, x_range_m)
+    tc = tc / fps
     inside = (tc >= window_frames[0] / fps) & (tc <= window_frames[1] / fps)
     order = np.argsort(tc[inside], kind="stable")
     k, xc, tc = k[inside][order], xc[inside][order], tc[inside][order]
@@ -345,6 +339,79 @@ def door_passage(trajectories: Trajectories, *, y_m: float, x_range_m: tuple, wi
                        float(np.median(following)) if following.size else nan,
                        float(np.median(np.abs(np.diff(xc)))) if xc.size > 1 else nan,
                        float(np.mean(np.diff(xc > 0.5 * (x_range_m[0] + x_range_m[1])))) if xc.size > 1 else nan)
+
+
+@dataclass(frozen=True)
+class OpeningEntry:
+    """Where the next walker was when the one before it left an opening (:func:`opening_entries`), over the pairs of
+    successive walkers through it: how long after the other left it entered (``wait_median_s``; negative: both were
+    in the opening at once), how far before the opening's upstream face it then stood (``before_median_m``, its position interpolated between frames;
+    negative: already inside), how far off the opening's axis (``offset_median_m``), the share standing beside the
+    opening's span rather than in line with it (``share_beside``: |x − axis| > b/2, to enter it must move sideways
+    round its edge), and its speed then (``speed_median_m_s``). ``n_pairs`` = 0 (every figure NaN) where the
+    trajectories do not reach the opening's upstream face (the recordings of the entrances: the camera starts past
+    it)."""
+
+    n_pairs: int
+    wait_median_s: float = float("nan")
+    before_median_m: float = float("nan")
+    offset_median_m: float = float("nan")
+    share_beside: float = float("nan")
+    speed_median_m_s: float = float("nan")
+
+
+def _first_crossings(ids, frame, x, y, y_m: float, x_range_m: tuple) -> tuple:
+    """Each walker's first crossing of the line y = ``y_m`` towards −y with x in ``x_range_m``, rows sorted by walker
+    then frame (:func:`_by_walker`): ``(row before the crossing, x at the crossing, time in frames)`` (interpolated),
+    one entry per walker in walker order."""
+    step = (ids[1:] == ids[:-1]) & (frame[1:] == frame[:-1] + 1) & (y[:-1] > y_m) & (y[1:] <= y_m)
+    k = np.flatnonzero(step)
+    alpha = (y[k] - y_m) / (y[k] - y[k + 1])
+    xc = x[k] + alpha * (x[k + 1] - x[k])
+    keep = (xc >= x_range_m[0]) & (xc <= x_range_m[1])
+    _, first = np.unique(ids[k][keep], return_index=True)
+    return k[keep][first], xc[keep][first], (frame[k] + alpha)[keep][first]
+
+
+def opening_entries(trajectories: Trajectories, *, upstream_y_m: float, downstream_y_m: float, x_range_m: tuple,
+                    window_frames: tuple) -> OpeningEntry:
+    """How the next walker gets into an opening through a wall between y = ``upstream_y_m`` and ``downstream_y_m``
+    (walking towards −y; x in ``x_range_m``, the opening's span): for successive walkers leaving it (crossing the
+    downstream face, ordered by time, the follower's exit within ``window_frames``), where the follower stood and
+    how fast it moved in the frame the one before left, and how long after that it entered (crossed the upstream
+    face). The same function measures the recordings and the model's runs; it needs trajectories upstream of the
+    opening (:class:`OpeningEntry`)."""
+    if not upstream_y_m > downstream_y_m:
+        raise InputError(f"the upstream face (y = {upstream_y_m!r} m) must lie above the downstream face "
+                         f"(y = {downstream_y_m!r} m): walkers go towards −y")
+    fps = trajectories.frame_rate_per_s
+    ids, frame, x, y = _by_walker(trajectories)
+    k, _, t = _first_crossings(ids, frame, x, y, upstream_y_m, x_range_m)
+    entered = dict(zip(ids[k].tolist(), t.tolist()))
+    k, _, t = _first_crossings(ids, frame, x, y, downstream_y_m, x_range_m)
+    through = sorted((t, w) for w, t in zip(ids[k].tolist(), t.tolist()) if w in entered)
+    dx, dy = _displacements(ids, frame, x, y)
+    row = {(int(i), int(f)): r for r, (i, f) in enumerate(zip(ids, frame))}
+    axis = 0.5 * (x_range_m[0] + x_range_m[1])
+    half = 0.5 * (x_range_m[1] - x_range_m[0])
+    figures = []
+    for (t_before, before), (t_next, walker) in zip(through[:-1], through[1:]):
+        if not window_frames[0] <= t_next <= window_frames[1]:
+            continue
+        f0 = int(np.floor(t_before))
+        r0, r1 = row.get((walker, f0)), row.get((walker, f0 + 1))
+        if r0 is None or r1 is None:  # the follower is not seen then
+            continue
+        a = t_before - f0  # its position interpolated between the frames, as the crossing times are
+        figures.append(((entered[walker] - t_before) / fps, y[r0] + a * (y[r1] - y[r0]) - upstream_y_m,
+                        abs(x[r0] + a * (x[r1] - x[r0]) - axis),
+                        np.hypot(dx[r0], dy[r0]) * fps / (2 * UO_SPEED_FRAME_STEP)))
+    if not figures:
+        return OpeningEntry(0)
+    f = np.array(figures)
+    speed = f[:, 3][np.isfinite(f[:, 3])]
+    return OpeningEntry(len(f), float(np.median(f[:, 0])), float(np.median(f[:, 1])), float(np.median(f[:, 2])),
+                        float(np.mean(f[:, 2] > half)), float(np.median(speed)) if speed.size else float("nan"))
 
 
 def approach_profile(trajectories: Trajectories, *, corridor_width_m: float, window_frames: tuple,

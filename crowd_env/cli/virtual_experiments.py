@@ -53,6 +53,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="options of the juelich_corridor scenario for every corridor run (the set-up's undocumented "
                          "dimensions: barrier_thickness_m, end_wall_thickness_m, floor_width_m, outflow_width_m, "
                          "waiting_width_m, waiting_density_per_m2)")
+    ap.add_argument("--navigation-clearance", type=float, default=None, metavar="M",
+                    help="clearance of the eikonal field (Eq. 11-13) in every bottleneck and corridor run, in m "
+                         "(default: the preset's, the disk centres' field of its body; e.g. half the depth of a body "
+                         "that turns its shoulders)")
     ap.add_argument("--policy", default=None, metavar="POLICY",
                     help="drive every pedestrian of every run by this learned policy: a shipped trained policy's name "
                          "(e.g. human_juelich), a policy file (.npz) or an import path module:attribute of an "
@@ -81,27 +85,41 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+def config_from_args(args) -> dict:
+    """The folder's configuration (:func:`virtual_config`) from the parsed options: the preset with ``--param`` on top,
+    ``--pedestrian``, the body (``--radius``), the corridor's options and the navigation clearance (``--navigation-
+    clearance``: the bottleneck's and every corridor run's), the policy."""
+    preset = get_preset(args.preset)
+    params = preset.params(**key_values(args.param, "--param expects NAME=VALUE"))
+    pedestrian = key_values(args.pedestrian, "--pedestrian expects NAME=VALUE")
+    corridor_geometry = key_values(args.corridor_option, "--corridor-option expects NAME=VALUE")
+    clearance = preset.navigation_clearance_m
+    if args.navigation_clearance is not None:
+        if "navigation_clearance_m" in corridor_geometry:
+            raise CrowdEnvError("give the clearance once: --navigation-clearance sets it in the corridor runs too "
+                                "(drop --corridor-option navigation_clearance_m)")
+        clearance = corridor_geometry["navigation_clearance_m"] = args.navigation_clearance
+    return virtual_config(params, navigation_clearance_m=clearance, pedestrian=pedestrian,
+                          radius_m=preset.body_radius_m if args.radius is None else args.radius,
+                          corridor_geometry=corridor_geometry, policy=args.policy)
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
         if args.seeds < 1:
             raise CrowdEnvError(f"--seeds must be at least 1, got {args.seeds}")
-        preset = get_preset(args.preset)
-        params = preset.params(**key_values(args.param, "--param expects NAME=VALUE"))
-        pedestrian = key_values(args.pedestrian, "--pedestrian expects NAME=VALUE")
         plan = QUICK_PLAN if args.quick else VirtualPlan(seeds=tuple(range(args.seeds)))
         plan = replace(plan, experiments=tuple(args.experiments), max_time_s=args.max_time)
         if args.corridor_runs:
             plan = replace(plan, corridor_runs=tuple(args.corridor_runs))
-        config = virtual_config(params, navigation_clearance_m=preset.navigation_clearance_m, pedestrian=pedestrian,
-                                radius_m=preset.body_radius_m if args.radius is None else args.radius,
-                                corridor_geometry=key_values(args.corridor_option,
-                                                             "--corridor-option expects NAME=VALUE"),
-                                policy=args.policy)
+        config = config_from_args(args)
         if args.snapshot:
             return _snapshot(args, config, plan)
         who = f"policy {args.policy} (physics: {args.preset})" if config.get("policy") else args.preset
-        print(f"virtual experiments of {who}{' with ' + ' '.join(args.param) if args.param else ''}: "
+        clearance = "" if args.navigation_clearance is None else \
+            f" (navigation clearance {args.navigation_clearance:g} m)"
+        print(f"virtual experiments of {who}{' with ' + ' '.join(args.param) if args.param else ''}{clearance}: "
               f"{', '.join(plan.experiments)}; seeds {list(plan.seeds)}{' (quick plan)' if args.quick else ''}")
         with make_backend(args.backend, address=args.address, jobs=args.jobs) as backend:
             records = run_virtual_experiments(args.out, config, plan, backend)

@@ -36,12 +36,14 @@ from .registry import register_scenario
 from .scenario import Measurement, Scenario, ScenarioError
 
 __all__ = ["juelich_corridor", "juelich_corridor_geometry", "UO_CORRIDOR_START_Y_M", "UO_CORRIDOR_END_Y_M",
-           "UO_BARRIER_Y_M", "UO_VIEW_Y_M", "UO_MEASUREMENT_Y_M", "UO_ENTRANCE_LINE_Y_M"]
+           "UO_BARRIER_Y_M", "UO_BARRIER_THICKNESS_M", "UO_END_WALL_THICKNESS_M", "UO_VIEW_Y_M", "UO_MEASUREMENT_Y_M", "UO_ENTRANCE_LINE_Y_M"]
 
 UO_CORRIDOR_START_Y_M = 4.0  # the corridor's start (recordings' frame)
 UO_CORRIDOR_END_Y_M = -4.0  # the end wall's upstream face, where the exit line lies
 UO_BARRIER_Y_M = 8.0  # the entrance barrier's downstream face: 4 m of floor before the corridor
 UO_ENTRANCE_LINE_Y_M = 7.6  # a line 0.4 m past the barrier: the camera sees everybody cross it (they appear at 7.8 m)
+UO_BARRIER_THICKNESS_M = 0.3  # our choice (not documented): the barrier with the entrance
+UO_END_WALL_THICKNESS_M = 0.1  # our choice (not documented): the end wall with the exit
 UO_MEASUREMENT_Y_M = (-2.0, 0.0)  # the measurement area along y (PedPy's notebook for these runs)
 UO_VIEW_Y_M = (-6.5, 8.0)  # y range of the camera view as PedPy's notebook bounds its walkable area
 MIN_WAITING_DEPTH_M = 1.0  # the waiting area of a few walkers (N < 15 at 3 /m²): they stand in its front rows
@@ -51,8 +53,8 @@ def juelich_corridor_geometry(entrance_width_m: float = 1.8, exit_width_m: float
                               corridor_width_m: float = 1.8, n_pedestrians: int = 220,
                               corridor_length_m: float = 8.0, floor_length_m: float = 4.0,
                               floor_width_m: float = 5.0, waiting_width_m: float = 5.0,
-                              waiting_density_per_m2: float = 3.0, barrier_thickness_m: float = 0.3,
-                              end_wall_thickness_m: float = 0.1, outflow_width_m: float = 5.0,
+                              waiting_density_per_m2: float = 3.0, barrier_thickness_m: float = UO_BARRIER_THICKNESS_M,
+                              end_wall_thickness_m: float = UO_END_WALL_THICKNESS_M, outflow_width_m: float = 5.0,
                               outflow_depth_m: float = 2.5, exit_depth_m: float = 0.5) -> tuple:
     """``(Geometry, waiting area)`` of the UO set-up (module docstring); the waiting area is deep enough for
     ``n_pedestrians`` at ``waiting_density_per_m2``. Raises :class:`ScenarioError` naming an opening wider than
@@ -105,7 +107,7 @@ def juelich_corridor_geometry(entrance_width_m: float = 1.8, exit_width_m: float
 def juelich_corridor(entrance_width_m: float = 1.8, exit_width_m: float = 1.8, n_pedestrians: int = 220,
                      seed: int | None = 0, corridor_width_m: float = 1.8, radius_m: float = 0.23,
                      floor_width_m: float = 5.0, waiting_width_m: float = 5.0, waiting_density_per_m2: float = 3.0,
-                     barrier_thickness_m: float = 0.3, end_wall_thickness_m: float = 0.1,
+                     barrier_thickness_m: float = UO_BARRIER_THICKNESS_M, end_wall_thickness_m: float = UO_END_WALL_THICKNESS_M,
                      outflow_width_m: float = 5.0, navigation_clearance_m: float | None = None,
                      navigation_resolution_m: float = 0.02) -> Scenario:
     """One UO run: ``n_pedestrians`` start at ``waiting_density_per_m2`` in the waiting area and walk through

@@ -105,6 +105,65 @@ def test_the_recordings_measure_back_to_their_rows():
         assert rule.flow_exit_per_s == pytest.approx(run.flow_exit_per_s, rel=0.07), run.name
 
 
+def _walking(paths, fps):
+    """Long-format trajectories of walkers following ``paths`` (callables of the time since their start, giving
+    (x, y) or None once gone), each with its start time, sampled at ``fps``."""
+    frame, ids, x, y = [], [], [], []
+    for pid, (start, path) in enumerate(paths):
+        f = int(round(fps * start))
+        while (xy := path(f / fps - start)) is not None:
+            frame.append(f)
+            ids.append(pid)
+            x.append(xy[0])
+            y.append(xy[1])
+            f += 1
+    return Trajectories(np.array(frame), np.array(ids), np.array(x), np.array(y), None, fps)
+
+
+def test_opening_entries_of_a_file_in_line_and_of_walkers_coming_from_beside():
+    """An opening between y = 0.3 and 0 m, x in [0.65, 1.15] m (0.5 m wide). One file on its axis at 1 m/s, 1 m
+    apart: when one leaves, the next is 0.7 m before the upstream face, on the axis, and enters 0.7 s later. Walkers
+    that come down 0.4 m beside the axis to y = 0.6 m, slide sideways onto it and walk through, one every 1.5 s
+    (each 1 s down, 0.4 s sideways, 0.6 s to leave): when one leaves the next has walked 0.5 m down, stands 0.8 m
+    before the face and 0.4 m off the axis, beside the opening's span, and enters 1.2 s later."""
+    from crowd_env.analysis.corridor_runs import opening_entries
+
+    fps = UO_FRAME_RATE_PER_S
+    line = _walking([(1.0 * i, lambda t: (0.9, 3.0 - t) if t <= 5.0 else None) for i in range(20)], fps)
+    e = opening_entries(line, upstream_y_m=0.3, downstream_y_m=0.0, x_range_m=(0.65, 1.15),
+                        window_frames=(0, int(fps * 100)))
+    assert e.n_pairs == 19
+    assert e.wait_median_s == pytest.approx(0.7, abs=1e-9) and e.before_median_m == pytest.approx(0.7, abs=1e-9)
+    assert e.offset_median_m == pytest.approx(0.0, abs=1e-12) and e.share_beside == 0.0
+    assert e.speed_median_m_s == pytest.approx(1.0, rel=1e-9)
+
+    def beside(side):
+        def path(t):
+            if t <= 1.0:
+                return 0.9 + 0.4 * side, 1.6 - t
+            if t <= 1.4:
+                return 0.9 + side * (0.4 - (t - 1.0)), 0.6
+            return (0.9, 0.6 - (t - 1.4)) if t <= 4.0 else None
+        return path
+
+    sides = _walking([(1.5 * i, beside(1 if i % 2 else -1)) for i in range(12)], fps)
+    e = opening_entries(sides, upstream_y_m=0.3, downstream_y_m=0.0, x_range_m=(0.65, 1.15),
+                        window_frames=(0, int(fps * 100)))
+    assert e.n_pairs == 11 and e.share_beside == 1.0
+    assert e.wait_median_s == pytest.approx(1.2, abs=1e-9) and e.before_median_m == pytest.approx(0.8, abs=1e-9)
+    assert e.offset_median_m == pytest.approx(0.4, abs=1e-9) and e.speed_median_m_s == pytest.approx(1.0, rel=1e-9)
+    # the window counts the pairs by the follower's exit: walkers 1-5 leave at 3.5, 5, ..., 9.5 s
+    assert opening_entries(sides, upstream_y_m=0.3, downstream_y_m=0.0, x_range_m=(0.65, 1.15),
+                           window_frames=(int(fps * 3.0), int(fps * 10.0))).n_pairs == 5
+    # trajectories that start past the upstream face (the recordings of the entrances) measure nothing
+    late = _walking([(1.0 * i, lambda t: (0.9, 0.2 - t) if t <= 3.0 else None) for i in range(5)], fps)
+    none = opening_entries(late, upstream_y_m=0.3, downstream_y_m=0.0, x_range_m=(0.65, 1.15),
+                           window_frames=(0, int(fps * 100)))
+    assert none.n_pairs == 0 and np.isnan(none.wait_median_s) and np.isnan(none.share_beside)
+    with pytest.raises(InputError, match="upstream face"):
+        opening_entries(line, upstream_y_m=0.0, downstream_y_m=0.3, x_range_m=(0.65, 1.15), window_frames=(0, 10))
+
+
 def test_door_passage_and_approach_profile_of_a_known_stream():
     """Walkers at 0.8 m/s along x = 0.8 and 1.0 m alternately, one every 0.5 s: headways 0.5 s, speed 0.8 m/s at the
     line, crossing points 0.8 and 1.0 m, each passer 0.4 m behind and 0.2 m beside the one before (one file of them:

@@ -24,9 +24,10 @@ import numpy as np
 from crowd_env.errors import InputError
 
 from ...analysis.corridor_runs import (UO_FRAME_RATE_PER_S, approach_profile, door_passage, juelich_uo_runs,
-                                      measure_uo_run, neighbour_spacing, passage_lapses, recorded_uo_trajectories,
-                                      uo_measurement_area, uo_run)
-from ...scenarios.juelich_corridor import UO_CORRIDOR_END_Y_M, UO_ENTRANCE_LINE_Y_M
+                                      measure_uo_run, neighbour_spacing, opening_entries, passage_lapses,
+                                      recorded_uo_trajectories, uo_measurement_area, uo_run)
+from ...scenarios.juelich_corridor import (UO_BARRIER_THICKNESS_M, UO_BARRIER_Y_M, UO_CORRIDOR_END_Y_M,
+                                           UO_END_WALL_THICKNESS_M, UO_ENTRANCE_LINE_Y_M)
 from ...core.params import PedestrianDefaults
 from ...walking.model import ModelParams
 from ...scenarios import make_scenario
@@ -35,7 +36,7 @@ from ..running.recording import record_run
 from .bottleneck import params_dict
 
 __all__ = ["CORRIDOR_RUN_NAMES", "CORRIDOR_TOLERANCES", "corridor_tasks", "run_corridor_one", "summarise_corridor",
-           "corridor_snapshot", "passage_figures", "recorded_passage_figures"]
+           "corridor_snapshot", "passage_figures", "recorded_passage_figures", "PASSAGE_FIELDS", "ENTRY_FIELDS"]
 
 CORRIDOR_RUN_NAMES = tuple(r.name for r in juelich_uo_runs())
 # The issue's targets for each run: speed within ±0.10 m/s, density within ±15 %, exit flow within ±10 %.
@@ -91,7 +92,9 @@ def run_corridor_one(task: dict) -> dict:
         measured = {k: getattr(m, k) for k in _MEASURED}
         record.update(passage_figures(traj, corridor_width_m=task["corridor_width_m"], exit_width_m=task["exit_width_m"],
                                       entrance_width_m=task["entrance_width_m"],
-                                      window_frames=(m.steady_from_frame, m.steady_to_frame)))
+                                      window_frames=(m.steady_from_frame, m.steady_to_frame),
+                                      barrier_thickness_m=scenario.metadata["barrier_thickness_m"],
+                                      end_wall_thickness_m=scenario.metadata["end_wall_thickness_m"]))
     record.update(measured)
     return record
 
@@ -100,8 +103,13 @@ PASSAGE_FIELDS = ("headway_median_s", "speed_median_m_s", "lateral_sd_m", "share
                   "lateral_step_median_m", "side_alternation")  # the DoorPassage fields a run's record keeps, as exit_* and entrance_*
 
 
+ENTRY_FIELDS = ("wait_median_s", "before_median_m", "offset_median_m", "share_beside", "speed_median_m_s")
+# the OpeningEntry fields a run's record keeps, as exit_entry_* and entrance_entry_*
+
+
 def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: float, window_frames: tuple,
-                    entrance_width_m: float) -> dict:
+                    entrance_width_m: float, barrier_thickness_m: float = UO_BARRIER_THICKNESS_M,
+                    end_wall_thickness_m: float = UO_END_WALL_THICKNESS_M) -> dict:
     """How a run passes its exit and approaches it over its steady state, as JSON-able record fields: ``exit_*``
     (:func:`~crowd_env.analysis.corridor_runs.door_passage` at y = −4 m across the exit) and ``entrance_*`` (the same
     at y = 7.6 m, 0.4 m past the entrance, where the camera sees everybody who came through), each with the share of
@@ -113,7 +121,11 @@ def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: floa
     in the measurement area: how close walkers come to each other ahead and beside, its bearing edges, the 1 %, 5 %
     and 50 % quantiles of the distance per bin and the share closer than 0.46 m, two radii of Kabalan's body);
     ``entrance_lapses_s`` and ``exit_lapses_s`` (:func:`~crowd_env.analysis.corridor_runs.passage_lapses`: the time
-    lapses between successive passages of the entrance line and of the exit line, each over its own steady state).
+    lapses between successive passages of the entrance line and of the exit line, each over its own steady state);
+    ``entrance_entry_*`` and ``exit_entry_*`` (:func:`~crowd_env.analysis.corridor_runs.opening_entries`, the
+    fields :data:`ENTRY_FIELDS`: where the next walker stood when the one before left the opening through the
+    barrier, ``barrier_thickness_m`` thick, or the end wall, ``end_wall_thickness_m``; NaN for the recordings'
+    entrances, which the camera sees only past the barrier).
     The same function measures the recordings (:func:`recorded_passage_figures`)."""
     half = 0.5 * exit_width_m
     centre = 0.5 * corridor_width_m
@@ -128,6 +140,13 @@ def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: floa
     figures = {f"{where}_{field}": getattr(passage, field)
                for where, passage in (("exit", exit_), ("entrance", entrance))
                for field in PASSAGE_FIELDS}
+    half_e = 0.5 * entrance_width_m
+    for where, upstream, downstream, span in (
+            ("entrance", UO_BARRIER_Y_M + barrier_thickness_m, UO_BARRIER_Y_M, (centre - half_e, centre + half_e)),
+            ("exit", UO_CORRIDOR_END_Y_M, UO_CORRIDOR_END_Y_M - end_wall_thickness_m, door)):
+        entry = opening_entries(trajectories, upstream_y_m=upstream, downstream_y_m=downstream, x_range_m=span,
+                                window_frames=window_frames)
+        figures.update({f"{where}_entry_{field}": getattr(entry, field) for field in ENTRY_FIELDS})
     return {**figures, "approach_y_m": y.tolist(), "approach_density_per_m2": density.tolist(),
             "approach_speed_m_s": speed.tolist(), "spacing_bearing_edges_deg": spacing.bearing_edges_deg.tolist(),
             "spacing_q01_m": spacing.distance_m[:, 0].tolist(), "spacing_q05_m": spacing.distance_m[:, 1].tolist(),

@@ -443,7 +443,13 @@ PASSAGE_QUANTITIES = (("headway_median_s", "time between passages, median (s)"),
                       ("share_off_axis", "share crossing farther off the axis than a 0.46 m disk's centre can"),
                       ("following_median_m", "distance behind the passer before, median (m)"),
                       ("lateral_step_median_m", "distance beside the passer before, median (m)"),
-                      ("side_alternation", "share passing on the other side of the axis than the passer before"))
+                      ("side_alternation", "share passing on the other side of the axis than the passer before"),
+                      # where the next one stood as the one before left the opening (the recordings' entrances: "–")
+                      ("entry_wait_median_s", "next one enters the opening after the one before left it, median (s)"),
+                      ("entry_before_median_m", "next one's distance before the opening then, median (m)"),
+                      ("entry_offset_median_m", "next one's distance off the axis then, median (m)"),
+                      ("entry_share_beside", "share of next ones standing beside the opening's span then"),
+                      ("entry_speed_median_m_s", "next one's speed then, median (m/s)"))
 
 
 def _corridor_runs_with(records: list, key: str, *, narrowed_exit: bool = False) -> list:

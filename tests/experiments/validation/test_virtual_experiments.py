@@ -103,14 +103,17 @@ def test_a_body_radius_reaches_every_experiment():
 
 
 def test_passage_rows_set_the_model_beside_the_recording_measured_alike(tmp_path):
-    from crowd_env.experiments.validation.corridor_runs import PASSAGE_FIELDS, recorded_passage_figures
-    from crowd_env.experiments.validation.virtual_experiments import format_passage_rows, passage_rows, passing_figure
+    from crowd_env.experiments.validation.corridor_runs import ENTRY_FIELDS, PASSAGE_FIELDS, recorded_passage_figures
+    from crowd_env.experiments.validation.virtual_experiments import (PASSAGE_QUANTITIES, format_passage_rows,
+                                                                      passage_rows, passing_figure)
 
     recorded = recorded_passage_figures("uo-180-180-070")
     assert recorded["exit_headway_median_s"] == pytest.approx(0.61, abs=0.01)  # the data README's table: 0.61 s
     assert recorded["exit_speed_median_m_s"] == pytest.approx(0.68, abs=0.01)
     assert recorded["exit_lateral_sd_m"] == pytest.approx(0.16, abs=0.01)
-    keys = [f"{where}_{k}" for where in ("exit", "entrance") for k in PASSAGE_FIELDS]
+    fields = PASSAGE_FIELDS + tuple(f"entry_{k}" for k in ENTRY_FIELDS)
+    assert [q for q, _ in PASSAGE_QUANTITIES] == list(fields)  # every figure a record keeps has its row
+    keys = [f"{where}_{k}" for where in ("exit", "entrance") for k in fields]
     records = [dict(_corridor_record("uo-180-180-070", s, 3.0, 0.3, 1.6), width_m=0.7,
                     **{k: recorded[k] * (1 + 0.1 * s) for k in keys}) for s in (0, 1)]
     records.append(dict(_corridor_record("uo-180-180-070", 2, 3.0, 0.3, 1.6, complete=False, stalled=True),
@@ -125,10 +128,10 @@ def test_passage_rows_set_the_model_beside_the_recording_measured_alike(tmp_path
     records.append(dict(_corridor_record("uo-180-180-070", 3, 3.0, 0.3, 1.6), width_m=0.7,
                         **{k: recorded[k] for k in keys if "following" not in k}))  # stored before that figure
     rows = passage_rows(records)
-    n = len(PASSAGE_FIELDS)
+    n = len(fields)
     assert [r["run"] for r in rows] == ["uo-050-180-180"] * n + ["uo-180-180-070"] * n
     assert [r["opening"] for r in rows] == ["entrance 0.5 m"] * n + ["exit 0.7 m"] * n
-    assert [r["runs"] for r in rows] == [1] * n + [3 if "following" not in f else 2 for f in PASSAGE_FIELDS]
+    assert [r["runs"] for r in rows] == [1] * n + [3 if "following" not in f else 2 for f in fields]
     assert rows[0]["model"] == pytest.approx(entrance["entrance_headway_median_s"] * 2.0)
     assert rows[0]["recorded"] == entrance["entrance_headway_median_s"]
     assert rows[n]["model"] == pytest.approx((1.0 + 1.1 + 1.0) / 3 * recorded["exit_headway_median_s"])
@@ -146,6 +149,14 @@ def test_passage_rows_set_the_model_beside_the_recording_measured_alike(tmp_path
 
     # people's heads cross the 0.70 m door farther off its axis than a 0.46 m disk's centre can (0.12 m), most of them
     assert recorded["exit_share_off_axis"] == pytest.approx(0.63, abs=0.05)
+    # as one leaves the 0.70 m door the next is already at it, in line with its span: 0.22 m before the wall's face,
+    # 0.20 m off the axis, at 0.48 m/s, and enters 0.47 s later; the camera does not see before the entrances
+    assert recorded["exit_entry_before_median_m"] == pytest.approx(0.22, abs=0.01)
+    assert recorded["exit_entry_offset_median_m"] == pytest.approx(0.20, abs=0.01)
+    assert recorded["exit_entry_wait_median_s"] == pytest.approx(0.47, abs=0.01)
+    assert recorded["exit_entry_share_beside"] < 0.05
+    assert all(np.isnan(entrance[f"entrance_entry_{k}"]) for k in ENTRY_FIELDS)
+    assert [r["recorded"] for r in rows[:n] if r["quantity"].startswith("next one")] == [pytest.approx(math.nan, nan_ok=True)] * 4
 
 
 def test_lapse_rows_take_each_runs_narrower_opening_beside_the_recording(tmp_path):
@@ -191,6 +202,27 @@ def test_corridor_options_reach_every_corridor_run_and_bad_ones_are_refused():
         virtual_config(p.params(), navigation_clearance_m=0.23, corridor_geometry={"barrier_m": 0.1})
 
 
+def test_one_navigation_clearance_reaches_the_bottleneck_and_every_corridor_run(capsys):
+    from crowd_env.cli.virtual_experiments import build_parser, config_from_args, main
+    from crowd_env.scenarios import make_scenario
+
+    base = ["--preset", "joint", "--param", "body_depth_m=0.25", "--quick"]
+    config = config_from_args(build_parser().parse_args(base + ["--navigation-clearance", "0.125"]))
+    tasks = virtual_tasks(config, QUICK_PLAN)
+    neck = [t for t in tasks if t["experiment"] == "bottleneck"]
+    corridor = [t for t in tasks if t["experiment"] == "corridor"]
+    assert neck and all(t["geometry"]["navigation_clearance_m"] == 0.125 and t["geometry"]["radius_m"] == 0.214
+                        for t in neck)  # not reset to the radius by the body
+    assert corridor and all(t["geometry"] == {"navigation_clearance_m": 0.125, "radius_m": 0.214} for t in corridor)
+    built = make_scenario("juelich_corridor", entrance_width_m=0.5, **corridor[0]["geometry"])
+    assert built.navigation_clearance_m == 0.125
+    default = virtual_tasks(config_from_args(build_parser().parse_args(base)), QUICK_PLAN)
+    assert {t["geometry"]["navigation_clearance_m"] for t in default if t["experiment"] == "bottleneck"} == {0.214}
+    assert all("navigation_clearance_m" not in t["geometry"] for t in default if t["experiment"] == "corridor")
+    twice = base + ["--navigation-clearance", "0.1", "--corridor-option", "navigation_clearance_m=0.1"]
+    assert main(twice) == 2 and "give the clearance once" in capsys.readouterr().err
+
+
 def test_joint_passes_the_070_m_exit_and_keeps_what_it_was_calibrated_to_meet(tmp_path, capsys):
     """The reduced virtual experiment of the ``joint`` preset through the command (``--quick``: seeds 0-1, Seyfried's
     b = 1.0 m at N = 60; ``--corridor-runs``: the 1.0 m entrance run and the 0.70 m exit that wedges ``calibrated``
@@ -220,6 +252,15 @@ def test_joint_passes_the_070_m_exit_and_keeps_what_it_was_calibrated_to_meet(tm
     # How the narrower opening is passed (passage_lapses.md): the 0.70 m exit never blocked for 2 s
     assert all(max(r["exit_lapses_s"]) < 2.0 for r in spaced if r["run"] == "uo-180-180-070")
     assert (tmp_path / "passage_lapses.md").read_text().count("uo-180-180-070 | exit 0.7 m") == 6
+    # and the next walker enters the door as people do: as one leaves, the next stands in line with the door just
+    # before it and enters about half a second later (recorded 0.47 s, 0.22 m before, 0.20 m off the axis)
+    from crowd_env.experiments.validation.corridor_runs import recorded_passage_figures
+
+    recorded = recorded_passage_figures("uo-180-180-070")
+    door = [r for r in spaced if r["run"] == "uo-180-180-070"]
+    assert len(door) == 2
+    for key, within in (("wait_median_s", 0.1), ("before_median_m", 0.1), ("offset_median_m", 0.05)):
+        assert all(abs(r[f"exit_entry_{key}"] - recorded[f"exit_entry_{key}"]) < within for r in door), key
 
 
 def test_a_learned_policy_drives_every_run_and_an_unknown_one_is_refused(capsys):
