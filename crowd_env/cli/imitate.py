@@ -80,7 +80,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="training options (JSON values): hidden, bc_epochs, dad_rounds, dad_epochs, batch_size, "
                          "learning_rate, smoothing_s, seed, dad (a dict of the rollouts' options; those it does "
                          "not name keep the human policy's), policy (a dict of observation options), radius_m (the "
-                         "body of the replays and rollouts; default the calibrated preset's, 0.23 m), training_runs, "
+                         "body of the replays and rollouts; default the calibrated preset's, 0.23 m), body_depth_m (0, "
+                         "the disk, or bodies of three circles that deep: crowd_env.core.body), training_runs, "
                          "validation_runs")
     tr.add_argument("--backend", choices=["ray", "process", "serial"], default="serial")
     tr.add_argument("--jobs", type=int, default=None, help="processes of the pool / CPUs of local Ray")

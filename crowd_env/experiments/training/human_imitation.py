@@ -59,7 +59,7 @@ from .recorded_rollouts import DEFAULT_DAD, calibrated_actions, dad_rollouts
 
 __all__ = ["TRAINING_RUNS", "VALIDATION_RUNS", "DEFAULT_HUMAN_TRAINING", "QUICK_HUMAN_TRAINING", "HUMAN_POLICY_NAME",
            "train_human_policy", "open_loop_errors", "human_training_config", "demonstrations_task",
-           "dad_task", "stage_names", "learning_curves_figure"]
+           "dad_task", "rollout_params", "stage_names", "learning_curves_figure"]
 
 HUMAN_POLICY_NAME = "human_juelich"
 VALIDATION_RUNS = ("uo-100-180-180", "uo-180-180-095")
@@ -68,7 +68,7 @@ TRAINING_RUNS = ("uo-050-180-180", "uo-060-180-180", "uo-070-180-180", "uo-145-1
 DEFAULT_HUMAN_TRAINING = {"hidden": [128, 128], "bc_epochs": 20, "dad_rounds": 3, "dad_epochs": 8, "batch_size": 512,
                           "learning_rate": 1e-3, "smoothing_s": DEFAULT_SMOOTHING_S, "seed": 0,
                           "dad": {**DEFAULT_DAD, "spawn_newcomers": True}, "policy": {"neighbor_radius_m": 3.0},
-                          "radius_m": None}
+                          "radius_m": None, "body_depth_m": 0.0}
 # The same code path in seconds: two short runs, a few epochs, one round from a few starts (the default tests).
 QUICK_HUMAN_TRAINING = {**DEFAULT_HUMAN_TRAINING, "hidden": [16, 16], "bc_epochs": 2, "dad_rounds": 1, "dad_epochs": 1,
                         "dad": {**DEFAULT_HUMAN_TRAINING["dad"], "horizon_s": 1.0, "start_every_s": 20.0},
@@ -104,6 +104,12 @@ def human_training_config(config: dict | None = None, *, preset: str = "calibrat
     if not (isinstance(cfg["radius_m"], (int, float)) and 0.0 < cfg["radius_m"] < 0.5):
         raise TrainingError(f"radius_m must be a body radius in m in (0, 0.5), got {cfg['radius_m']!r}")
     cfg["radius_m"] = float(cfg["radius_m"])
+    depth = cfg.pop("body_depth_m")
+    if isinstance(depth, bool) or not isinstance(depth, (int, float)) or not 0.0 <= depth < 2.0 * cfg["radius_m"]:
+        raise TrainingError(f"body_depth_m must be 0 (the disk) or a depth in m below the body's width "
+                            f"{2.0 * cfg['radius_m']:g} m, got {depth!r}")
+    if depth > 0.0:  # bodies of three circles in the replays and the rollouts (a disk's configuration: no key)
+        cfg["params"]["body_depth_m"] = float(depth)
     cfg["preset"] = preset
     cfg["kind"] = "human_imitation"
     return cfg
@@ -132,14 +138,19 @@ def demonstrations_task(task: dict) -> dict:
     return {"run": task["run"], "n_decisions": len(demos), "n_seen": int(demos.seen.sum())}
 
 
+def rollout_params(cfg: dict) -> ModelParams:
+    """The physics of a training's rollouts: its preset's, with the training's body depth (``body_depth_m``)."""
+    depth = cfg["params"].get("body_depth_m")
+    return get_preset(cfg["preset"]).params(**({} if depth is None else {"body_depth_m": depth}))
+
+
 def dad_task(task: dict) -> dict:
     """Executor task: the labelled rollouts of the policy file ``task['policy']`` on run ``task['run']`` written to
     ``task['path']`` (:func:`~.recorded_rollouts.dad_rollouts`)."""
     cfg = task["config"]
     scenario, replay = _replay(task["run"], cfg)
     policy = FileObservationPolicy(task["policy"])
-    params = get_preset(cfg["preset"]).params()
-    demos = dad_rollouts(replay, scenario, policy, params=params, options=cfg["options"], **cfg["dad"])
+    demos = dad_rollouts(replay, scenario, policy, params=rollout_params(cfg), options=cfg["options"], **cfg["dad"])
     demos.save(task["path"])
     return {"run": task["run"], "n_decisions": len(demos)}
 
@@ -342,7 +353,7 @@ def open_loop_errors(out, cfg: dict, stages: list) -> dict:
     next 0.1 s) and of the calibrated agent (its intent, desired speed 1.34 m/s), with the same means over the
     decisions where no two recorded disks overlap (``*_sparse``: states a disk crowd can be in)."""
     out = Path(out)
-    params = get_preset(cfg["preset"]).params()
+    params = rollout_params(cfg)
     table = {}
     for name in cfg["validation_runs"]:
         demos = load_demonstrations(out / "demonstrations" / f"{name}.npz")

@@ -164,6 +164,22 @@ def test_the_training_body_is_the_presets_unless_given():
     np.testing.assert_array_equal(scenario.radius_m(), 0.2)  # the replay's, the rollouts' and the spawned crowd's
 
 
+def test_a_training_in_bodies_of_three_circles_reaches_the_replays_and_the_rollouts():
+    from crowd_env.experiments.training.human_imitation import rollout_params
+    from crowd_env.walking.presets import get_preset
+
+    plain = human_training_config()
+    assert "body_depth_m" not in plain["params"] and "body_depth_m" not in plain  # a disk's configuration as before
+    assert rollout_params(plain) == get_preset("calibrated").params()
+    cfg = human_training_config({"body_depth_m": 0.25}, preset="joint")
+    assert cfg["params"]["body_depth_m"] == 0.25
+    physics = rollout_params(cfg)  # the rollouts' physics: the preset's, in the body
+    assert physics == get_preset("joint").params(body_depth_m=0.25)
+    for bad in (-0.1, 0.43, True, "0.25"):  # joint's body is 0.428 m across
+        with pytest.raises(TrainingError, match="body_depth_m must be"):
+            human_training_config({"body_depth_m": bad}, preset="joint")
+
+
 def test_the_quick_training_writes_a_policy_resumes_without_redoing_and_refuses_to_overwrite(tmp_path, capsys):
     from crowd_env.cli.imitate import main
 
