@@ -347,7 +347,7 @@ class OpeningEntry:
     successive walkers through it: how long after the other left it entered (``wait_median_s``; negative: both were
     in the opening at once), how far before the opening's upstream face it then stood (``before_median_m``, its position interpolated between frames;
     negative: already inside), how far off the opening's axis (``offset_median_m``), the share standing beside the
-    opening's span rather than in line with it (``share_beside``: |x − axis| > b/2, to enter it must move sideways
+    opening's span rather than in line with it (``share_beside``: ``|x − axis| > b/2``, to enter it must move sideways
     round its edge), and its speed then (``speed_median_m_s``). ``n_pairs`` = 0 (every figure NaN) where the
     trajectories do not reach the opening's upstream face (the recordings of the entrances: the camera starts past
     it)."""
