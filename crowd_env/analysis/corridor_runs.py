@@ -345,12 +345,13 @@ def door_passage(trajectories: Trajectories, *, y_m: float, x_range_m: tuple, wi
 class OpeningEntry:
     """Where the next walker was when the one before it left an opening (:func:`opening_entries`), over the pairs of
     successive walkers through it: how long after the other left it entered (``wait_median_s``; negative: both were
-    in the opening at once), how far before the opening's upstream face it then stood (``before_median_m``, its position interpolated between frames;
-    negative: already inside), how far off the opening's axis (``offset_median_m``), the share standing beside the
-    opening's span rather than in line with it (``share_beside``: ``|x − axis| > b/2``, to enter it must move sideways
-    round its edge), and its speed then (``speed_median_m_s``). ``n_pairs`` = 0 (every figure NaN) where the
-    trajectories do not reach the opening's upstream face (the recordings of the entrances: the camera starts past
-    it)."""
+    in the opening at once), how far before the opening's upstream face it then stood (``before_median_m``, its
+    position interpolated between frames; negative: already inside), how far off the opening's axis
+    (``offset_median_m``), the share standing beside the opening's span rather than in line with it
+    (``share_beside``: ``|x − axis| > b/2``, to enter it must move sideways round its edge), and its speed then
+    (``speed_median_m_s``); ``positions_m``: each pair's (x − axis, distance before the face) of the next one, in the
+    order of the exits. ``n_pairs`` = 0 (every figure NaN) where the trajectories do not reach the opening's upstream
+    face (the recordings of the entrances: the camera starts past it)."""
 
     n_pairs: int
     wait_median_s: float = float("nan")
@@ -358,6 +359,7 @@ class OpeningEntry:
     offset_median_m: float = float("nan")
     share_beside: float = float("nan")
     speed_median_m_s: float = float("nan")
+    positions_m: tuple = ()
 
 
 def _first_crossings(ids, frame, x, y, y_m: float, x_range_m: tuple) -> tuple:
@@ -395,7 +397,7 @@ def opening_entries(trajectories: Trajectories, *, upstream_y_m: float, downstre
     axis = 0.5 * (x_range_m[0] + x_range_m[1])
     half = 0.5 * (x_range_m[1] - x_range_m[0])
     figures = []
-    for (t_before, before), (t_next, walker) in zip(through[:-1], through[1:]):
+    for (t_before, _leader), (t_next, walker) in zip(through[:-1], through[1:]):
         if not window_frames[0] <= t_next <= window_frames[1]:
             continue
         f0 = int(np.floor(t_before))
@@ -403,15 +405,17 @@ def opening_entries(trajectories: Trajectories, *, upstream_y_m: float, downstre
         if r0 is None or r1 is None:  # the follower is not seen then
             continue
         a = t_before - f0  # its position interpolated between the frames, as the crossing times are
-        figures.append(((entered[walker] - t_before) / fps, y[r0] + a * (y[r1] - y[r0]) - upstream_y_m,
-                        abs(x[r0] + a * (x[r1] - x[r0]) - axis),
+        figures.append(((entered[walker] - t_before) / fps, x[r0] + a * (x[r1] - x[r0]) - axis,
+                        y[r0] + a * (y[r1] - y[r0]) - upstream_y_m,
                         np.hypot(dx[r0], dy[r0]) * fps / (2 * UO_SPEED_FRAME_STEP)))
     if not figures:
         return OpeningEntry(0)
     f = np.array(figures)
+    offset = np.abs(f[:, 1])
     speed = f[:, 3][np.isfinite(f[:, 3])]
-    return OpeningEntry(len(f), float(np.median(f[:, 0])), float(np.median(f[:, 1])), float(np.median(f[:, 2])),
-                        float(np.mean(f[:, 2] > half)), float(np.median(speed)) if speed.size else float("nan"))
+    return OpeningEntry(len(f), float(np.median(f[:, 0])), float(np.median(f[:, 2])), float(np.median(offset)),
+                        float(np.mean(offset > half)), float(np.median(speed)) if speed.size else float("nan"),
+                        tuple((float(u), float(v)) for u, v in f[:, 1:3]))
 
 
 def approach_profile(trajectories: Trajectories, *, corridor_width_m: float, window_frames: tuple,

@@ -8,7 +8,8 @@ it; runs that stalled or stayed incomplete are counted, never averaged in. Write
 ``.md`` and ``.png`` (the density-speed plane, each run's model and experiment points joined), and beside the
 recordings measured alike: with corridor runs ``OUT/spacing.md`` and ``.png`` (how close walkers come ahead and
 beside) and ``OUT/passage_lapses.md`` and ``.png`` (the time lapses between passages of each run's narrower
-opening: how long it stays blocked), with a narrowed entrance or exit ``OUT/door_passage.md`` (how it is passed) and
+opening: how long it stays blocked), with a narrowed entrance or exit ``OUT/door_passage.md``, ``OUT/passing.png``
+and ``OUT/entries.png`` (how it is passed, where the next walker stands as the one before leaves it) and
 with a narrowed exit ``OUT/approach.png`` (the queue before it). Runs are
 stored under ``OUT/runs/``: a stopped command resumes. The corridor runs are measured with PedPy (``pip install
 'crowd_env[analysis]'``).

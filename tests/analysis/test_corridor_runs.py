@@ -152,6 +152,9 @@ def test_opening_entries_of_a_file_in_line_and_of_walkers_coming_from_beside():
     assert e.n_pairs == 11 and e.share_beside == 1.0
     assert e.wait_median_s == pytest.approx(1.2, abs=1e-9) and e.before_median_m == pytest.approx(0.8, abs=1e-9)
     assert e.offset_median_m == pytest.approx(0.4, abs=1e-9) and e.speed_median_m_s == pytest.approx(1.0, rel=1e-9)
+    signs = np.sign([p[0] for p in e.positions_m])  # each next one from the other side, 0.4 m off, 0.8 m before
+    assert len(e.positions_m) == 11 and np.all(signs[1:] == -signs[:-1])
+    np.testing.assert_allclose(np.abs(e.positions_m), [[0.4, 0.8]] * 11, atol=1e-9)
     # the window counts the pairs by the follower's exit: walkers 1-5 leave at 3.5, 5, ..., 9.5 s
     assert opening_entries(sides, upstream_y_m=0.3, downstream_y_m=0.0, x_range_m=(0.65, 1.15),
                            window_frames=(int(fps * 3.0), int(fps * 10.0))).n_pairs == 5
@@ -159,7 +162,7 @@ def test_opening_entries_of_a_file_in_line_and_of_walkers_coming_from_beside():
     late = _walking([(1.0 * i, lambda t: (0.9, 0.2 - t) if t <= 3.0 else None) for i in range(5)], fps)
     none = opening_entries(late, upstream_y_m=0.3, downstream_y_m=0.0, x_range_m=(0.65, 1.15),
                            window_frames=(0, int(fps * 100)))
-    assert none.n_pairs == 0 and np.isnan(none.wait_median_s) and np.isnan(none.share_beside)
+    assert none.n_pairs == 0 and np.isnan(none.wait_median_s) and np.isnan(none.share_beside) and none.positions_m == ()
     with pytest.raises(InputError, match="upstream face"):
         opening_entries(line, upstream_y_m=0.0, downstream_y_m=0.3, x_range_m=(0.65, 1.15), window_frames=(0, 10))
 

@@ -123,9 +123,10 @@ def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: floa
     ``entrance_lapses_s`` and ``exit_lapses_s`` (:func:`~crowd_env.analysis.corridor_runs.passage_lapses`: the time
     lapses between successive passages of the entrance line and of the exit line, each over its own steady state);
     ``entrance_entry_*`` and ``exit_entry_*`` (:func:`~crowd_env.analysis.corridor_runs.opening_entries`, the
-    fields :data:`ENTRY_FIELDS`: where the next walker stood when the one before left the opening through the
-    barrier, ``barrier_thickness_m`` thick, or the end wall, ``end_wall_thickness_m``; NaN for the recordings'
-    entrances, which the camera sees only past the barrier).
+    fields :data:`ENTRY_FIELDS` and ``*_entry_positions_m``, each pair's: where the next walker stood when the one
+    before left the opening through the barrier, ``barrier_thickness_m`` thick, or the end wall,
+    ``end_wall_thickness_m``; NaN and none for the recordings' entrances, which the camera sees only past the
+    barrier).
     The same function measures the recordings (:func:`recorded_passage_figures`)."""
     half = 0.5 * exit_width_m
     centre = 0.5 * corridor_width_m
@@ -147,6 +148,7 @@ def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: floa
         entry = opening_entries(trajectories, upstream_y_m=upstream, downstream_y_m=downstream, x_range_m=span,
                                 window_frames=window_frames)
         figures.update({f"{where}_entry_{field}": getattr(entry, field) for field in ENTRY_FIELDS})
+        figures[f"{where}_entry_positions_m"] = [list(p) for p in entry.positions_m]
     return {**figures, "approach_y_m": y.tolist(), "approach_density_per_m2": density.tolist(),
             "approach_speed_m_s": speed.tolist(), "spacing_bearing_edges_deg": spacing.bearing_edges_deg.tolist(),
             "spacing_q01_m": spacing.distance_m[:, 0].tolist(), "spacing_q05_m": spacing.distance_m[:, 1].tolist(),

@@ -49,7 +49,8 @@ from crowd_env.files import write_atomic, write_csv_atomic
 __all__ = ["EXPERIMENTS", "VirtualPlan", "QUICK_PLAN", "virtual_config", "virtual_tasks", "run_virtual_task",
            "run_virtual_experiments", "virtual_rows", "ROW_COLUMNS", "format_rows", "write_virtual_outputs",
            "virtual_figure", "snapshot_figure", "BOTTLENECK_TOLERANCE", "SINGLE_FILE_TOLERANCE_M_S",
-           "PASSAGE_QUANTITIES", "passage_rows", "format_passage_rows", "approach_figure", "spacing_rows",
+           "PASSAGE_QUANTITIES", "passage_rows", "format_passage_rows", "approach_figure", "entry_figure",
+           "spacing_rows",
            "format_spacing_rows", "spacing_figure", "LAPSE_QUANTITIES", "lapse_rows", "format_lapse_rows",
            "lapse_figure", "corridor_miss", "format_selection"]
 
@@ -564,6 +565,41 @@ def passing_figure(records: list, path) -> Path | None:
     return save_figure(fig, Path(path))
 
 
+def entry_figure(records: list, path) -> Path | None:
+    """Where the next walker stood when the one before left each run's narrowed opening
+    (:func:`~crowd_env.analysis.corridor_runs.opening_entries`): one panel per run, its position across the axis and
+    before the wall's face, the model's seeds pooled beside the recording (the exits; the camera does not see before
+    the entrances), the wall and its opening drawn. A crowd queued in line stands above the gap; one pressed against
+    the barrier stands beside it. None without such runs or figures."""
+    from .corridor_runs import recorded_passage_figures
+
+    found = _narrowed_opening_runs(records, "entrance_entry_positions_m")
+    if not found:
+        return None
+    plt = pyplot()
+    fig, axes = plt.subplots(1, len(found), figsize=(3.4 * len(found), 2.7), squeeze=False)
+    for ax, (name, opening, prefix, rs) in zip(axes[0], found):
+        run = uo_run(name)
+        half = 0.5 * (run.exit_width_m if prefix == "exit" else run.entrance_width_m)
+        wall = 0.5 * run.corridor_width_m if prefix == "exit" else 1.3  # the corridor's walls; the barrier goes on
+        for side in (-1.0, 1.0):
+            ax.plot([side * half, side * wall], [0.0, 0.0], "-", color="0.3", lw=3)
+        model = np.array([p for r in rs for p in r[f"{prefix}_entry_positions_m"]], dtype=np.float64).reshape(-1, 2)
+        ax.plot(model[:, 0], model[:, 1], ".", color="C3", ms=3, alpha=0.5, label=f"model ({len(rs)} runs)")
+        recorded = np.array(recorded_passage_figures(name)[f"{prefix}_entry_positions_m"],
+                            dtype=np.float64).reshape(-1, 2)
+        if recorded.size:
+            ax.plot(recorded[:, 0], recorded[:, 1], "o", mfc="none", color="k", ms=3.5, label="recorded")
+        ax.set_xlim(-1.3, 1.3)
+        ax.set_ylim(-0.3, 1.3)
+        ax.set_aspect("equal")
+        ax.set_xlabel("across the axis (m)")
+        ax.set_title(f"{name}: {opening}", fontsize=8)
+        ax.legend(fontsize=7, loc="upper right")
+    axes[0, 0].set_ylabel("before the wall's face (m)")
+    return save_figure(fig, Path(path))
+
+
 def _beside_recording(rows: list, leading: tuple, trailing: dict | None = None) -> str:
     """A Markdown table of rows that set the model beside a recording: the ``leading`` fields, the model's mean ±
     sd, the recorded value, then the ``trailing`` columns (title: a function of the row)."""
@@ -735,7 +771,7 @@ def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True
     """``OUT/virtual_experiments.csv`` (the rows), ``.md`` (the table in Markdown) and, with ``figure``,
     ``.png``; with runs of a narrowed opening also ``OUT/door_passage.md`` (:func:`passage_rows`) and, with
     ``figure`` and a narrowed exit, ``OUT/approach.png`` (:func:`approach_figure`), with ``figure`` and the runs'
-    passing figures ``OUT/passing.png`` (:func:`passing_figure`); with corridor runs ``OUT/spacing.md``
+    passing figures ``OUT/passing.png`` (:func:`passing_figure`) and ``OUT/entries.png`` (:func:`entry_figure`); with corridor runs ``OUT/spacing.md``
     (:func:`spacing_rows`) and, with ``figure``, ``OUT/spacing.png`` (:func:`spacing_figure`), and
     ``OUT/passage_lapses.md`` (:func:`lapse_rows`) and, with ``figure``, ``OUT/passage_lapses.png``
     (:func:`lapse_figure`); returns the paths."""
@@ -747,7 +783,7 @@ def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True
         paths.append(virtual_figure(records, out / "virtual_experiments.png"))
     for table, make_rows, format_table, plots in (
             ("door_passage.md", passage_rows, format_passage_rows,
-             ((approach_figure, "approach.png"), (passing_figure, "passing.png"))),
+             ((approach_figure, "approach.png"), (passing_figure, "passing.png"), (entry_figure, "entries.png"))),
             ("spacing.md", spacing_rows, format_spacing_rows, ((spacing_figure, "spacing.png"),)),
             ("passage_lapses.md", lapse_rows, format_lapse_rows, ((lapse_figure, "passage_lapses.png"),))):
         found = make_rows(records)

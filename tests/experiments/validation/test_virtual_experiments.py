@@ -104,8 +104,9 @@ def test_a_body_radius_reaches_every_experiment():
 
 def test_passage_rows_set_the_model_beside_the_recording_measured_alike(tmp_path):
     from crowd_env.experiments.validation.corridor_runs import ENTRY_FIELDS, PASSAGE_FIELDS, recorded_passage_figures
-    from crowd_env.experiments.validation.virtual_experiments import (PASSAGE_QUANTITIES, format_passage_rows,
-                                                                      passage_rows, passing_figure)
+    from crowd_env.experiments.validation.virtual_experiments import (PASSAGE_QUANTITIES, entry_figure,
+                                                                      format_passage_rows, passage_rows,
+                                                                      passing_figure)
 
     recorded = recorded_passage_figures("uo-180-180-070")
     assert recorded["exit_headway_median_s"] == pytest.approx(0.61, abs=0.01)  # the data README's table: 0.61 s
@@ -146,6 +147,12 @@ def test_passage_rows_set_the_model_beside_the_recording_measured_alike(tmp_path
     assert recorded["exit_side_alternation"] > 0.7  # each on the other side of the one before, three times in four
     assert passing_figure(records, tmp_path / "passing.png").stat().st_size > 0
     assert passing_figure(records[-2:], tmp_path / "none.png") is None  # no narrowed opening
+    for r in records:  # where the next walkers stood: the exit's as recorded, the entrance's beside the gap
+        if r["complete"]:
+            r["exit_entry_positions_m"] = recorded["exit_entry_positions_m"]
+            r["entrance_entry_positions_m"] = [[0.3, 0.2], [-0.3, 0.25]]
+    assert entry_figure(records, tmp_path / "entries.png").stat().st_size > 0
+    assert entry_figure([records[-2]], tmp_path / "none.png") is None  # the open 1.8 / 1.8 m run has no opening
 
     # people's heads cross the 0.70 m door farther off its axis than a 0.46 m disk's centre can (0.12 m), most of them
     assert recorded["exit_share_off_axis"] == pytest.approx(0.63, abs=0.05)
@@ -155,6 +162,10 @@ def test_passage_rows_set_the_model_beside_the_recording_measured_alike(tmp_path
     assert recorded["exit_entry_offset_median_m"] == pytest.approx(0.20, abs=0.01)
     assert recorded["exit_entry_wait_median_s"] == pytest.approx(0.47, abs=0.01)
     assert recorded["exit_entry_share_beside"] < 0.05
+    positions = np.array(recorded["exit_entry_positions_m"])  # every pair's, whose medians the rows give
+    assert np.median(positions[:, 1]) == pytest.approx(recorded["exit_entry_before_median_m"])
+    assert np.median(np.abs(positions[:, 0])) == pytest.approx(recorded["exit_entry_offset_median_m"])
+    assert entrance["entrance_entry_positions_m"] == []
     assert all(np.isnan(entrance[f"entrance_entry_{k}"]) for k in ENTRY_FIELDS)
     assert [r["recorded"] for r in rows[:n] if r["quantity"].startswith("next one")] == [pytest.approx(math.nan, nan_ok=True)] * 4
 
