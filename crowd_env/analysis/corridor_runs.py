@@ -393,7 +393,15 @@ def opening_entries(trajectories: Trajectories, *, upstream_y_m: float, downstre
     k, _, t = _first_crossings(ids, frame, x, y, downstream_y_m, x_range_m)
     through = sorted((t, w) for w, t in zip(ids[k].tolist(), t.tolist()) if w in entered)
     dx, dy = _displacements(ids, frame, x, y)
-    row = {(int(i), int(f)): r for r, (i, f) in enumerate(zip(ids, frame))}
+    span = int(frame.max()) + 2 if frame.size else 1
+    keys = ids * span + frame  # rows are sorted by walker, then frame: so are their keys
+
+    def row(walker, f):
+        """The row of ``walker`` at frame ``f``, or None."""
+        key = walker * span + f
+        r = int(np.searchsorted(keys, key))
+        return r if r < keys.size and keys[r] == key else None
+
     axis = 0.5 * (x_range_m[0] + x_range_m[1])
     half = 0.5 * (x_range_m[1] - x_range_m[0])
     figures = []
@@ -401,7 +409,7 @@ def opening_entries(trajectories: Trajectories, *, upstream_y_m: float, downstre
         if not window_frames[0] <= t_next <= window_frames[1]:
             continue
         f0 = int(np.floor(t_before))
-        r0, r1 = row.get((walker, f0)), row.get((walker, f0 + 1))
+        r0, r1 = row(walker, f0), row(walker, f0 + 1)
         if r0 is None or r1 is None:  # the follower is not seen then
             continue
         a = t_before - f0  # its position interpolated between the frames, as the crossing times are
