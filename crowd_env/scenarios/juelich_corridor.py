@@ -30,6 +30,8 @@ from shapely.geometry import Polygon, box
 from shapely.ops import unary_union
 
 from ..core.geometry import Geometry
+from ..core.segments import GeometryError
+from ..walking.navigation import NavigationField
 from .checks import check_clearance, check_count, check_positive
 from .placement import place_pedestrians
 from .registry import register_scenario
@@ -109,13 +111,15 @@ def juelich_corridor(entrance_width_m: float = 1.8, exit_width_m: float = 1.8, n
                      floor_width_m: float = 5.0, waiting_width_m: float = 5.0, waiting_density_per_m2: float = 3.0,
                      barrier_thickness_m: float = UO_BARRIER_THICKNESS_M, end_wall_thickness_m: float = UO_END_WALL_THICKNESS_M,
                      outflow_width_m: float = 5.0, navigation_clearance_m: float | None = None,
-                     navigation_resolution_m: float = 0.02) -> Scenario:
+                     navigation_resolution_m: float = 0.02, navigation_wall_slowdown=None) -> Scenario:
     """One UO run: ``n_pedestrians`` start at ``waiting_density_per_m2`` in the waiting area and walk through
     the entrance (``entrance_width_m``), the corridor (``corridor_width_m`` x 8 m) and its exit
     (``exit_width_m``) to leave 2.5 m beyond it (module docstring). The defaults are the run uo-180-180-180.
 
     ``navigation_resolution_m`` is finer than elsewhere (0.02 m) so that the eikonal field of the disk centres
-    (``navigation_clearance_m``, default the radius) has nodes in a 0.5 m entrance. Raises
+    (``navigation_clearance_m``, default the radius) has nodes in a 0.5 m entrance. ``navigation_wall_slowdown``:
+    ``(distance_m, speed_factor)`` for a slower eikonal wavefront within that distance of a wall (Eq. 11's 0 < V < 1,
+    which the paper describes but does not use: ways that keep off the walls), or None. Raises
     :class:`ScenarioError` naming an opening no wider than a pedestrian or any other impossible set-up.
     """
     check_positive(radius_m=radius_m, navigation_resolution_m=navigation_resolution_m)
@@ -140,6 +144,10 @@ def juelich_corridor(entrance_width_m: float = 1.8, exit_width_m: float = 1.8, n
     except ScenarioError as exc:
         raise ScenarioError(f"waiting area ({waiting_width_m:g} m wide at {waiting_density_per_m2:g} /m²): {exc}") from exc
     clearance = check_clearance(navigation_clearance_m, radius_m)
+    try:
+        slowdown = NavigationField.check_wall_slowdown(navigation_wall_slowdown)
+    except GeometryError as exc:
+        raise ScenarioError(f"navigation_wall_slowdown: {exc}") from exc
     x0, y0, x1, y1 = waiting.bounds
     metadata = {
         "source": "Zhang, Klingsch, Schadschneider, Seyfried (2011) J. Stat. Mech. P06004, runs UO (Jülich data archive)",
@@ -150,6 +158,7 @@ def juelich_corridor(entrance_width_m: float = 1.8, exit_width_m: float = 1.8, n
         "floor_width_m": float(floor_width_m), "barrier_thickness_m": float(barrier_thickness_m),
         "end_wall_thickness_m": float(end_wall_thickness_m), "outflow_width_m": float(outflow_width_m),
         "view": {"y_m": list(UO_VIEW_Y_M)}, "navigation_clearance_m": clearance,
+        "navigation_wall_slowdown": None if slowdown is None else list(slowdown),
         "confidence": {"corridor": "high (sketch, recordings)", "entrance_and_exit_on_axis": "high (recordings)",
                        "waiting_area": "medium (sketch: 5 m wide, about 3 /m²)", "floor_length": "high (recordings)",
                        "floor_width": "assumption", "barrier_thickness": "assumption",
@@ -158,4 +167,4 @@ def juelich_corridor(entrance_width_m: float = 1.8, exit_width_m: float = 1.8, n
     return Scenario(geometry=geometry, position_m=position, pedestrian_params={"radius_m": float(radius_m)},
                     spawn_area=waiting, name="juelich_corridor", metadata=metadata, seed=seed,
                     navigation_resolution_m=navigation_resolution_m, navigation_clearance_m=clearance,
-                    measurement=Measurement("exit", ("measurement",)))
+                    wall_slowdown=slowdown, measurement=Measurement("exit", ("measurement",)))

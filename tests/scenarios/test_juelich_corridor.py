@@ -61,6 +61,25 @@ def test_bad_set_ups_are_refused_by_name():
         make_scenario("juelich_corridor", n_pedestrians=0)
     with pytest.raises(ScenarioError, match="barrier_thickness_m"):
         make_scenario("juelich_corridor", barrier_thickness_m=-0.1)
+    with pytest.raises(ScenarioError, match="navigation_wall_slowdown: wall_slowdown speed_factor"):
+        make_scenario("juelich_corridor", navigation_wall_slowdown=(0.35, 1.5))
+
+
+def test_a_wall_slowdown_turns_the_way_of_a_walker_against_the_barrier_off_it():
+    """Beside the 0.5 m entrance, a centre one radius from the barrier: the disk centres' field leads it along the
+    barrier to the gap; with a slower wavefront within 0.35 m of walls (Eq. 11, V < 1 there) the way leaves the
+    barrier first. Far from every wall the field is the same."""
+    plain = make_scenario("juelich_corridor", entrance_width_m=0.5, n_pedestrians=61)
+    slow = make_scenario("juelich_corridor", entrance_width_m=0.5, n_pedestrians=61,
+                         navigation_wall_slowdown=[0.35, 0.5])
+    assert plain.metadata["navigation_wall_slowdown"] is None and slow.metadata["navigation_wall_slowdown"] == [0.35, 0.5]
+    beside = np.array([[0.9 - 0.6, 8.3 + 0.24], [0.9 + 0.6, 8.3 + 0.24]])
+    along, _ = plain.navigation().sample(beside)
+    off, _ = slow.navigation().sample(beside)
+    np.testing.assert_allclose(np.abs(along[:, 0]), 1.0, atol=0.05)  # along the barrier, towards the gap
+    assert np.all(off[:, 1] > 0.3) and np.all(along[:, 0] * off[:, 0] > 0)  # away from it, still towards the gap
+    far = np.array([[0.9, 10.5]])
+    np.testing.assert_allclose(plain.navigation().sample(far)[0], slow.navigation().sample(far)[0], atol=0.05)
 
 
 def test_a_few_walkers_stand_in_the_front_rows_of_a_waiting_area_one_metre_deep():
