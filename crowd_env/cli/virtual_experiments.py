@@ -58,6 +58,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="clearance of the eikonal field (Eq. 11-13) in every bottleneck and corridor run, in m "
                          "(default: the preset's, the disk centres' field of its body; e.g. half the depth of a body "
                          "that turns its shoulders)")
+    ap.add_argument("--navigation-wall-slowdown", type=float, nargs=2, default=None, metavar=("DIST", "FACTOR"),
+                    help="a slower eikonal wavefront within DIST m of a wall, times FACTOR in (0, 1] (Eq. 11's V < 1: "
+                         "ways that keep off the walls), in the bottleneck and every corridor run (default: none)")
     ap.add_argument("--policy", default=None, metavar="POLICY",
                     help="drive every pedestrian of every run by this learned policy: a shipped trained policy's name "
                          "(e.g. human_juelich), a policy file (.npz) or an import path module:attribute of an "
@@ -88,8 +91,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def config_from_args(args) -> dict:
     """The folder's configuration (:func:`virtual_config`) from the parsed options: the preset with ``--param`` on top,
-    ``--pedestrian``, the body (``--radius``), the corridor's options and the navigation clearance (``--navigation-
-    clearance``: the bottleneck's and every corridor run's), the policy."""
+    ``--pedestrian``, the body (``--radius``), the corridor's options, the navigation field's clearance and wall
+    slowdown (``--navigation-clearance``, ``--navigation-wall-slowdown``: the bottleneck's and every corridor run's),
+    the policy."""
     preset = get_preset(args.preset)
     params = preset.params(**key_values(args.param, "--param expects NAME=VALUE"))
     pedestrian = key_values(args.pedestrian, "--pedestrian expects NAME=VALUE")
@@ -100,9 +104,15 @@ def config_from_args(args) -> dict:
             raise CrowdEnvError("give the clearance once: --navigation-clearance sets it in the corridor runs too "
                                 "(drop --corridor-option navigation_clearance_m)")
         clearance = corridor_geometry["navigation_clearance_m"] = args.navigation_clearance
+    if args.navigation_wall_slowdown is not None:
+        if "navigation_wall_slowdown" in corridor_geometry:
+            raise CrowdEnvError("give the wall slowdown once: --navigation-wall-slowdown sets it in the corridor runs "
+                                "too (drop --corridor-option navigation_wall_slowdown)")
+        corridor_geometry["navigation_wall_slowdown"] = list(args.navigation_wall_slowdown)
     return virtual_config(params, navigation_clearance_m=clearance, pedestrian=pedestrian,
                           radius_m=preset.body_radius_m if args.radius is None else args.radius,
-                          corridor_geometry=corridor_geometry, policy=args.policy)
+                          corridor_geometry=corridor_geometry, policy=args.policy,
+                          navigation_wall_slowdown=args.navigation_wall_slowdown)
 
 
 def main(argv=None) -> int:

@@ -234,6 +234,26 @@ def test_one_navigation_clearance_reaches_the_bottleneck_and_every_corridor_run(
     assert main(twice) == 2 and "give the clearance once" in capsys.readouterr().err
 
 
+def test_one_wall_slowdown_reaches_the_bottleneck_and_every_corridor_run(capsys):
+    from crowd_env.cli.virtual_experiments import build_parser, config_from_args, main
+    from crowd_env.scenarios import make_scenario
+
+    base = ["--quick", "--navigation-wall-slowdown", "0.35", "0.5"]
+    tasks = virtual_tasks(config_from_args(build_parser().parse_args(base)), QUICK_PLAN)
+    neck = [t for t in tasks if t["experiment"] == "bottleneck"]
+    corridor = [t for t in tasks if t["experiment"] == "corridor"]
+    assert neck and all(t["geometry"]["navigation_wall_slowdown"] == [0.35, 0.5] for t in neck)
+    assert corridor and all(t["geometry"] == {"navigation_wall_slowdown": [0.35, 0.5]} for t in corridor)
+    assert make_scenario("seyfried_bottleneck", **neck[0]["geometry"]).wall_slowdown == (0.35, 0.5)
+    assert make_scenario("juelich_corridor", **corridor[0]["geometry"]).wall_slowdown == (0.35, 0.5)
+    plain = virtual_tasks(config_from_args(build_parser().parse_args(["--quick"])), QUICK_PLAN)
+    assert all("navigation_wall_slowdown" not in t["geometry"] for t in plain if t["experiment"] != "single_file")
+    assert main(["--quick", "--navigation-wall-slowdown", "0.35", "1.5"]) == 2
+    assert "speed_factor" in capsys.readouterr().err
+    twice = base + ["--corridor-option", "navigation_wall_slowdown=[0.35,0.5]"]
+    assert main(twice) == 2 and "give the wall slowdown once" in capsys.readouterr().err
+
+
 def test_joint_passes_the_070_m_exit_and_keeps_what_it_was_calibrated_to_meet(tmp_path, capsys):
     """The reduced virtual experiment of the ``joint`` preset through the command (``--quick``: seeds 0-1, Seyfried's
     b = 1.0 m at N = 60; ``--corridor-runs``: the 1.0 m entrance run and the 0.70 m exit that wedges ``calibrated``
