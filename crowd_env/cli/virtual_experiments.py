@@ -98,17 +98,16 @@ def config_from_args(args) -> dict:
     params = preset.params(**key_values(args.param, "--param expects NAME=VALUE"))
     pedestrian = key_values(args.pedestrian, "--pedestrian expects NAME=VALUE")
     corridor_geometry = key_values(args.corridor_option, "--corridor-option expects NAME=VALUE")
-    clearance = preset.navigation_clearance_m
-    if args.navigation_clearance is not None:
-        if "navigation_clearance_m" in corridor_geometry:
-            raise CrowdEnvError("give the clearance once: --navigation-clearance sets it in the corridor runs too "
-                                "(drop --corridor-option navigation_clearance_m)")
-        clearance = corridor_geometry["navigation_clearance_m"] = args.navigation_clearance
-    if args.navigation_wall_slowdown is not None:
-        if "navigation_wall_slowdown" in corridor_geometry:
-            raise CrowdEnvError("give the wall slowdown once: --navigation-wall-slowdown sets it in the corridor runs "
-                                "too (drop --corridor-option navigation_wall_slowdown)")
-        corridor_geometry["navigation_wall_slowdown"] = list(args.navigation_wall_slowdown)
+    for what, value, flag, option in (
+            ("clearance", args.navigation_clearance, "--navigation-clearance", "navigation_clearance_m"),
+            ("wall slowdown", args.navigation_wall_slowdown, "--navigation-wall-slowdown", "navigation_wall_slowdown")):
+        if value is None:
+            continue
+        if option in corridor_geometry:  # the field's options reach the bottleneck and every corridor run alike
+            raise CrowdEnvError(f"give the {what} once: {flag} sets it in the corridor runs too (drop "
+                                f"--corridor-option {option})")
+        corridor_geometry[option] = value
+    clearance = preset.navigation_clearance_m if args.navigation_clearance is None else args.navigation_clearance
     return virtual_config(params, navigation_clearance_m=clearance, pedestrian=pedestrian,
                           radius_m=preset.body_radius_m if args.radius is None else args.radius,
                           corridor_geometry=corridor_geometry, policy=args.policy,
@@ -128,9 +127,10 @@ def main(argv=None) -> int:
         if args.snapshot:
             return _snapshot(args, config, plan)
         who = f"policy {args.policy} (physics: {args.preset})" if config.get("policy") else args.preset
-        clearance = "" if args.navigation_clearance is None else \
-            f" (navigation clearance {args.navigation_clearance:g} m)"
-        print(f"virtual experiments of {who}{' with ' + ' '.join(args.param) if args.param else ''}{clearance}: "
+        field = "".join(f", navigation {what} {value}" for what, value in (
+            ("clearance", args.navigation_clearance), ("wall slowdown", args.navigation_wall_slowdown))
+            if value is not None)
+        print(f"virtual experiments of {who}{' with ' + ' '.join(args.param) if args.param else ''}{field}: "
               f"{', '.join(plan.experiments)}; seeds {list(plan.seeds)}{' (quick plan)' if args.quick else ''}")
         with make_backend(args.backend, address=args.address, jobs=args.jobs) as backend:
             records = run_virtual_experiments(args.out, config, plan, backend)

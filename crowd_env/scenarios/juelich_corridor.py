@@ -38,7 +38,8 @@ from .registry import register_scenario
 from .scenario import Measurement, Scenario, ScenarioError
 
 __all__ = ["juelich_corridor", "juelich_corridor_geometry", "UO_CORRIDOR_START_Y_M", "UO_CORRIDOR_END_Y_M",
-           "UO_BARRIER_Y_M", "UO_BARRIER_THICKNESS_M", "UO_END_WALL_THICKNESS_M", "UO_VIEW_Y_M", "UO_MEASUREMENT_Y_M", "UO_ENTRANCE_LINE_Y_M"]
+           "UO_BARRIER_Y_M", "UO_BARRIER_THICKNESS_M", "UO_END_WALL_THICKNESS_M", "UO_VIEW_Y_M", "UO_MEASUREMENT_Y_M",
+           "UO_ENTRANCE_LINE_Y_M"]
 
 UO_CORRIDOR_START_Y_M = 4.0  # the corridor's start (recordings' frame)
 UO_CORRIDOR_END_Y_M = -4.0  # the end wall's upstream face, where the exit line lies
@@ -55,7 +56,8 @@ def juelich_corridor_geometry(entrance_width_m: float = 1.8, exit_width_m: float
                               corridor_width_m: float = 1.8, n_pedestrians: int = 220,
                               corridor_length_m: float = 8.0, floor_length_m: float = 4.0,
                               floor_width_m: float = 5.0, waiting_width_m: float = 5.0,
-                              waiting_density_per_m2: float = 3.0, barrier_thickness_m: float = UO_BARRIER_THICKNESS_M,
+                              waiting_density_per_m2: float = 3.0,
+                              barrier_thickness_m: float = UO_BARRIER_THICKNESS_M,
                               end_wall_thickness_m: float = UO_END_WALL_THICKNESS_M, outflow_width_m: float = 5.0,
                               outflow_depth_m: float = 2.5, exit_depth_m: float = 0.5) -> tuple:
     """``(Geometry, waiting area)`` of the UO set-up (module docstring); the waiting area is deep enough for
@@ -109,8 +111,9 @@ def juelich_corridor_geometry(entrance_width_m: float = 1.8, exit_width_m: float
 def juelich_corridor(entrance_width_m: float = 1.8, exit_width_m: float = 1.8, n_pedestrians: int = 220,
                      seed: int | None = 0, corridor_width_m: float = 1.8, radius_m: float = 0.23,
                      floor_width_m: float = 5.0, waiting_width_m: float = 5.0, waiting_density_per_m2: float = 3.0,
-                     barrier_thickness_m: float = UO_BARRIER_THICKNESS_M, end_wall_thickness_m: float = UO_END_WALL_THICKNESS_M,
-                     outflow_width_m: float = 5.0, navigation_clearance_m: float | None = None,
+                     barrier_thickness_m: float = UO_BARRIER_THICKNESS_M,
+                     end_wall_thickness_m: float = UO_END_WALL_THICKNESS_M, outflow_width_m: float = 5.0,
+                     navigation_clearance_m: float | None = None,
                      navigation_resolution_m: float = 0.02, navigation_wall_slowdown=None) -> Scenario:
     """One UO run: ``n_pedestrians`` start at ``waiting_density_per_m2`` in the waiting area and walk through
     the entrance (``entrance_width_m``), the corridor (``corridor_width_m`` x 8 m) and its exit

@@ -17,6 +17,7 @@ and ``policy`` (:mod:`crowd_env.experiments.running.crowd_policy`).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
@@ -158,7 +159,13 @@ def passage_figures(trajectories, *, corridor_width_m: float, exit_width_m: floa
 
 
 def recorded_passage_figures(name: str) -> dict:
-    """:func:`passage_figures` of the recording of run ``name`` over its hand-chosen steady state."""
+    """:func:`passage_figures` of the recording of run ``name`` over its hand-chosen steady state (measured once per
+    process: every table and figure of ``crowd-virtual-experiments`` sets its runs beside it; a fresh dict each call)."""
+    return dict(_recorded_passage_figures(name))
+
+
+@functools.lru_cache(maxsize=None)
+def _recorded_passage_figures(name: str) -> dict:
     run = uo_run(name)
     return passage_figures(recorded_uo_trajectories(name), corridor_width_m=run.corridor_width_m,
                            entrance_width_m=run.entrance_width_m,

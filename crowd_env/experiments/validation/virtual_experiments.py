@@ -586,10 +586,11 @@ def entry_figure(records: list, path) -> Path | None:
         return None
     plt = pyplot()
     fig, axes = plt.subplots(1, len(found), figsize=(3.4 * len(found), 2.7), squeeze=False)
+    reach_m = 1.3  # each panel's half-width and height
     for ax, (name, opening, prefix, rs) in zip(axes[0], found):
         run = uo_run(name)
         half = 0.5 * (run.exit_width_m if prefix == "exit" else run.entrance_width_m)
-        wall = 0.5 * run.corridor_width_m if prefix == "exit" else 1.3  # the corridor's walls; the barrier goes on
+        wall = 0.5 * run.corridor_width_m if prefix == "exit" else reach_m  # the corridor's walls; the barrier on
         for side in (-1.0, 1.0):
             ax.plot([side * half, side * wall], [0.0, 0.0], "-", color="0.3", lw=3)
         model = np.array([p for r in rs for p in r[f"{prefix}_entry_positions_m"]], dtype=np.float64).reshape(-1, 2)
@@ -598,8 +599,8 @@ def entry_figure(records: list, path) -> Path | None:
                             dtype=np.float64).reshape(-1, 2)
         if recorded.size:
             ax.plot(recorded[:, 0], recorded[:, 1], "o", mfc="none", color="k", ms=3.5, label="recorded")
-        ax.set_xlim(-1.3, 1.3)
-        ax.set_ylim(-0.3, 1.3)
+        ax.set_xlim(-reach_m, reach_m)
+        ax.set_ylim(-0.3, reach_m)
         ax.set_aspect("equal")
         ax.set_xlabel("across the axis (m)")
         ax.set_title(f"{name}: {opening}", fontsize=8)
@@ -779,10 +780,10 @@ def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True
     """``OUT/virtual_experiments.csv`` (the rows), ``.md`` (the table in Markdown) and, with ``figure``,
     ``.png``; with runs of a narrowed opening also ``OUT/door_passage.md`` (:func:`passage_rows`) and, with
     ``figure`` and a narrowed exit, ``OUT/approach.png`` (:func:`approach_figure`), with ``figure`` and the runs'
-    passing figures ``OUT/passing.png`` (:func:`passing_figure`) and ``OUT/entries.png`` (:func:`entry_figure`); with corridor runs ``OUT/spacing.md``
-    (:func:`spacing_rows`) and, with ``figure``, ``OUT/spacing.png`` (:func:`spacing_figure`), and
-    ``OUT/passage_lapses.md`` (:func:`lapse_rows`) and, with ``figure``, ``OUT/passage_lapses.png``
-    (:func:`lapse_figure`); returns the paths."""
+    passing figures ``OUT/passing.png`` (:func:`passing_figure`) and ``OUT/entries.png`` (:func:`entry_figure`);
+    with corridor runs ``OUT/spacing.md`` (:func:`spacing_rows`) and, with ``figure``, ``OUT/spacing.png``
+    (:func:`spacing_figure`), and ``OUT/passage_lapses.md`` (:func:`lapse_rows`) and, with ``figure``,
+    ``OUT/passage_lapses.png`` (:func:`lapse_figure`); returns the paths."""
     out = Path(out)
     paths = [out / "virtual_experiments.csv", out / "virtual_experiments.md"]
     write_csv_atomic(paths[0], ROW_COLUMNS, rows)
