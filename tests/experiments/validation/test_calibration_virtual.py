@@ -131,6 +131,43 @@ def test_the_evaluator_scores_a_point_on_stand_in_runs_and_keeps_the_radius_to_t
         ModelParams.from_dict(t["params"]).walking.social.lateral_range_scale == 0.4 for t in with_params)
 
 
+def test_the_wall_slowdown_reaches_the_bottleneck_and_every_corridor_run_but_not_the_ring(tmp_path):
+    """``crowd-calibrate ... --navigation-wall-slowdown`` (the configuration's) and a freed constant reach the
+    bottleneck's field and every corridor run's alike; the single file's ring has no walls; a pair that is not one
+    (a constant missing, or out of range) is refused before anything runs."""
+    preset = get_preset("calibrated")
+    params = preset.params()
+    config = base_config(bottleneck_config(params, navigation_clearance_m=preset.navigation_clearance_m,
+                                           navigation_wall_slowdown=(0.35, 0.5))["geometry"], params, 300.0)
+
+    def slowdowns(tasks):
+        neck = {tuple(t["geometry"]["navigation_wall_slowdown"]) for t in tasks
+                if "setup" not in t and t.get("experiment") != "corridor"}
+        corridor = {tuple(t["geometry"]["navigation_wall_slowdown"]) for t in tasks
+                    if t.get("experiment") == "corridor"}
+        ring = [t for t in tasks if t.get("setup") == "single_file"]
+        assert ring and all("navigation_wall_slowdown" not in str(t) for t in ring)
+        return neck, corridor
+
+    assert slowdowns(make_virtual_tasks(config, {}, {}, WIDTHS, (0,))) == ({(0.35, 0.5)}, {(0.35, 0.5)})
+    assert slowdowns(make_virtual_tasks(config, {}, {}, WIDTHS, (0,), navigation_wall_slowdown=(0.2, 0.8))) == \
+        ({(0.2, 0.8)}, {(0.2, 0.8)})
+    ev = PointEvaluator(tmp_path / "v", config, WIDTHS, (20, 40, 60), [0], SerialBackend(), objective="virtual")
+    assert slowdowns(ev.tasks({"A": 300.0, "wall_slowdown_m": 0.6})) == ({(0.6, 0.5)}, {(0.6, 0.5)})
+    assert slowdowns(ev.tasks({"wall_slowdown_m": 0.6, "wall_speed_factor": 0.7})) == ({(0.6, 0.7)}, {(0.6, 0.7)})
+    plain = base_config(bottleneck_config(params, navigation_clearance_m=preset.navigation_clearance_m)["geometry"],
+                        params, 300.0)
+    assert all("navigation_wall_slowdown" not in t["geometry"] for t in make_virtual_tasks(plain, {}, {}, WIDTHS, (0,))
+               if "geometry" in t)  # off unless asked: stored runs keep their keys
+    bare = PointEvaluator(tmp_path / "b", plain, WIDTHS, (20, 40, 60), [0], SerialBackend(), objective="virtual")
+    with pytest.raises(CalibrationError, match="free wall_speed_factor too, or give the other constant"):
+        bare.tasks({"wall_slowdown_m": 0.6})
+    assert slowdowns(bare.tasks({"wall_slowdown_m": 0.6, "wall_speed_factor": 0.7})) == ({(0.6, 0.7)}, {(0.6, 0.7)})
+    targets = PointEvaluator(tmp_path / "t", config, WIDTHS, (20, 40, 60), [0], SerialBackend(), objective="targets")
+    with pytest.raises(CalibrationError, match="wall slowdown is calibrated with --objective virtual"):
+        targets.tasks({"wall_speed_factor": 0.7})
+
+
 def test_the_corridor_table_has_a_row_per_run_and_judges_each_on_every_tolerance():
     from crowd_env.experiments.validation.calibration.objective import corridor_table
 

@@ -48,7 +48,8 @@ FAILED_OBJECTIVE = 1.0e6  # objective of a point whose runs failed (not cached: 
 
 @dataclass(frozen=True)
 class FreeParameter:
-    """A calibratable parameter: its field in ModelParams (``model``) or PedestrianDefaults (``pedestrian``)."""
+    """A calibratable parameter: its field in ModelParams (``model``) or PedestrianDefaults (``pedestrian``), the
+    body's radius (``body``) or a constant of the navigation field's wall slowdown (``navigation``)."""
 
     field: str
     target: str
@@ -86,6 +87,12 @@ FREE_PARAMETERS = {
     # the body: every pedestrian's radius (Kabalan's Table 2: 0.23 m), in every scenario of the point's runs
     # (tasks.with_body; the navigation's clearance follows it where it is the disk centres' field)
     "radius": FreeParameter("radius_m", "body", False, (0.12, 0.26), 0.23, 0.02),
+    # the navigation field's wall slowdown (Eq. 11's V = factor within distance of a wall;
+    # crowd_env.walking.navigation), in the bottleneck's field and every corridor run's; the one not freed is the
+    # configuration's (--navigation-wall-slowdown). Start: the pair measured on calibrated and joint (docs: virtual
+    # experiments).
+    "wall_slowdown_m": FreeParameter("distance_m", "navigation", False, (0.02, 1.0), 0.35, 0.1),
+    "wall_speed_factor": FreeParameter("speed_factor", "navigation", False, (0.05, 1.0), 0.5, 0.15),
 }
 METHODS = ("Nelder-Mead", "Powell")
 # "epsilon": Eq. 24-25 (+ the optional N = 20/40 range penalty), the paper's objective; "targets": every
@@ -222,17 +229,35 @@ class PointEvaluator:
         model = {FREE_PARAMETERS[n].field: v for n, v in values.items() if FREE_PARAMETERS[n].target == "model"}
         ped = {FREE_PARAMETERS[n].field: v for n, v in values.items() if FREE_PARAMETERS[n].target == "pedestrian"}
         radius = values.get("radius")
+        slowdown = self.wall_slowdown(values)
         if self.objective == "virtual":
-            return make_virtual_tasks(self.config, model, ped, self.widths_m, self.seeds, radius_m=radius)
-        if radius is not None:
-            raise CalibrationError("the radius is calibrated with --objective virtual (every scenario's body changes "
-                                   "with it, the corridor runs' and the single file's too)")
+            return make_virtual_tasks(self.config, model, ped, self.widths_m, self.seeds, radius_m=radius,
+                                      navigation_wall_slowdown=slowdown)
+        if radius is not None or slowdown is not None:
+            raise CalibrationError(f"the {'radius' if radius is not None else 'wall slowdown'} is calibrated with "
+                                   "--objective virtual (it changes every scenario, the corridor runs' too)")
         if self.objective == "targets+fd":
             return (target_tasks(self.config, model, ped, self.widths_m, self.seeds)
                     + make_fd_tasks(self.config, model, ped, self.fd_plan))
         if self.objective == "targets":
             return target_tasks(self.config, model, ped, self.widths_m, self.seeds)
         return point_tasks(self.config, model, ped, self.widths_m, self.sizes, self.seeds)
+
+    def wall_slowdown(self, values: dict):
+        """The navigation field's ``(distance_m, speed_factor)`` of a point with ``wall_slowdown_m`` and/or
+        ``wall_speed_factor`` free (the other from the configuration's ``navigation_wall_slowdown``); None when
+        neither is free."""
+        free = {FREE_PARAMETERS[n].field: float(v) for n, v in values.items()
+                if FREE_PARAMETERS[n].target == "navigation"}
+        if not free:
+            return None
+        own = self.config["geometry"].get("navigation_wall_slowdown")
+        if len(free) < 2 and own is None:
+            missing = "wall_speed_factor" if "distance_m" in free else "wall_slowdown_m"
+            raise CalibrationError(f"free {missing} too, or give the other constant of the wall slowdown with "
+                                   "--navigation-wall-slowdown DIST FACTOR")
+        dist_m, factor = (float(v) for v in own) if own is not None else (None, None)
+        return free.get("distance_m", dist_m), free.get("speed_factor", factor)
 
     def __call__(self, values: dict, desc: str = "evaluation") -> dict:
         unknown = sorted(set(values) - set(FREE_PARAMETERS))

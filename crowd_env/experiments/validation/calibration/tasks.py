@@ -158,15 +158,38 @@ def with_body(task: dict, radius_m: float | None) -> dict:
     return dict(task, geometry=geometry)
 
 
+def with_navigation(task: dict, wall_slowdown) -> dict:
+    """A bottleneck task with the navigation field's wall slowdown ``(distance_m, speed_factor)`` (Eq. 11's V < 1
+    within distance_m of a wall; None: the task's own)."""
+    if wall_slowdown is None:
+        return task
+    return dict(task, geometry={**task["geometry"], "navigation_wall_slowdown": [float(v) for v in wall_slowdown]})
+
+
+def corridor_geometry(config: dict, radius_m: float | None, wall_slowdown) -> dict:
+    """The options of every corridor run of a point (:func:`make_virtual_tasks`): the body ``radius_m`` (None: the
+    scenario's) and the wall slowdown ``wall_slowdown`` (None: the configuration's, if any). The corridor's field is
+    the disk centres' of its body, as in ``crowd-virtual-experiments`` without ``--navigation-clearance``. Options
+    the configuration leaves at the scenario's defaults stay out, so that stored runs keep their keys."""
+    out = {} if radius_m is None else {"radius_m": float(radius_m)}
+    if wall_slowdown is None:
+        wall_slowdown = config["geometry"].get("navigation_wall_slowdown")
+    if wall_slowdown is not None:
+        out["navigation_wall_slowdown"] = [float(v) for v in wall_slowdown]
+    return out
+
+
 def make_virtual_tasks(config: dict, model: dict, pedestrian: dict, widths_m, seeds, *, radius_m: float | None = None,
-                       single_file_densities=SINGLE_FILE_DENSITIES, max_time_s: float | None = None) -> list:
+                       navigation_wall_slowdown=None, single_file_densities=SINGLE_FILE_DENSITIES,
+                       max_time_s: float | None = None) -> list:
     """The runs of one parameter point on every shipped experiment as it was run (the objective
     :func:`~crowd_env.experiments.validation.calibration.objective.virtual_error`): the bottleneck's
     :func:`~crowd_env.experiments.validation.calibration.objective.required_cases` at ``widths_m``, the nine Jülich
     corridor runs (:func:`~crowd_env.experiments.validation.corridor_runs.corridor_tasks`) and the single file at
     ``single_file_densities``, every one at ``seeds`` (common random numbers), with ``config``'s model and the
-    overrides ``model`` (ModelParams fields), ``pedestrian`` (PedestrianDefaults fields) and ``radius_m`` (the
-    body; None: the configuration's)."""
+    overrides ``model`` (ModelParams fields), ``pedestrian`` (PedestrianDefaults fields), ``radius_m`` (the
+    body; None: the configuration's) and ``navigation_wall_slowdown`` (``(distance_m, speed_factor)`` in the
+    bottleneck's and every corridor run's field; None: the configuration's). The single-file ring has no walls."""
     from .objective import required_cases
 
     params = _point_params(config, model)
@@ -175,10 +198,10 @@ def make_virtual_tasks(config: dict, model: dict, pedestrian: dict, widths_m, se
     if radius_m is None:  # the configuration's body (a preset's, e.g. joint's) in every experiment, not only its own
         own = config["geometry"].get("radius_m")
         radius_m = None if own is None or float(own) == PedestrianDefaults().radius_m else float(own)
-    neck = [with_body(make_task(config, model, pedestrian, b, n, s), radius_m) for b, n in required_cases(widths_m)
-            for s in seeds]
+    neck = [with_navigation(with_body(make_task(config, model, pedestrian, b, n, s), radius_m),
+                            navigation_wall_slowdown) for b, n in required_cases(widths_m) for s in seeds]
     corridor = corridor_tasks(params, seeds=seeds, pedestrian=ped or None, max_time_s=limit,
-                              geometry={} if radius_m is None else {"radius_m": float(radius_m)})
+                              geometry=corridor_geometry(config, radius_m, navigation_wall_slowdown))
     single = [dict(t, pedestrian=ped) for t in fd_tasks(["single_file"], {"single_file": single_file_densities}, seeds,
                                                        params, radius_m=radius_m)]
     return neck + corridor + single
