@@ -262,6 +262,18 @@ def _add_landscape_parser(sub, common) -> None:
     lp.add_argument("--no-figures", action="store_true")
 
 
+def _calibration_config(args, params) -> dict:
+    """The folder's configuration: the bottleneck's runs as the flags describe them (``config_of``); an explicit
+    ``--navigation-clearance`` reaches the corridor runs too (``--objective virtual``, ``targets --virtual``), as in
+    crowd-virtual-experiments, where without it the corridor keeps the disk centres' field of its body."""
+    cfg = config_of(args, params)
+    clearance = getattr(args, "navigation_clearance", None)
+    corridor = getattr(args, "objective", None) == "virtual" or getattr(args, "virtual", False)
+    return base_config(cfg["geometry"], params, cfg["max_time_s"],
+                       corridor_geometry={"navigation_clearance_m": float(clearance)}
+                       if corridor and clearance is not None else None)
+
+
 def _backend(args) -> DeferredBackend:
     """The backend of the flags, started at the first run: every mode checks its plan inside ``with _backend(args)``
     before it runs anything, so an impossible plan is refused before Ray starts or a pool forks."""
@@ -277,8 +289,7 @@ def _seeds(args) -> list:
 def run_landscape(args) -> int:
     """``crowd-calibrate landscape``: :func:`crowd_env.experiments.validation.calibration.landscape.landscape` and its outputs."""
     params = model_params_from_args(args)
-    cfg = config_of(args, params)
-    config = base_config(cfg["geometry"], params, cfg["max_time_s"])
+    config = _calibration_config(args, params)
     seeds = _seeds(args)
     with _backend(args) as be:
         evaluator = PointEvaluator(args.out, config, args.widths, args.sizes, seeds, be,
@@ -304,9 +315,7 @@ def run_targets(args) -> int:
     configs = {}
     for name in args.presets:
         args.preset = name
-        params = model_params_from_args(args)
-        cfg = config_of(args, params)
-        configs[name] = base_config(cfg["geometry"], params, cfg["max_time_s"])
+        configs[name] = _calibration_config(args, model_params_from_args(args))
     fd_plan = _fd_plan(args, args.fd)
     with _backend(args) as be:
         tables, scores = preset_targets(args.out, configs, widths, seeds, be, fd_plan=fd_plan, virtual=args.virtual)
@@ -379,8 +388,7 @@ def run(args) -> int:
     if args.mode == "landscape":
         return run_landscape(args)
     params = model_params_from_args(args)
-    cfg = config_of(args, params)
-    config = base_config(cfg["geometry"], params, cfg["max_time_s"])
+    config = _calibration_config(args, params)
     seeds = _seeds(args)
     widths, sizes, seeds = check_run_plan(args.widths, args.sizes, seeds)
     reference = _reference(args.reference)

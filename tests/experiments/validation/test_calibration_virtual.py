@@ -15,6 +15,7 @@ from crowd_env.experiments.validation.calibration.objective import (FAILED_POINT
                                                                     target_error, virtual_error)
 from crowd_env.experiments.validation.calibration.optimize import PointEvaluator
 from crowd_env.walking import ModelParams
+from crowd_env.cli.options import model_params_from_args
 from crowd_env.experiments.validation.calibration.tasks import base_config, make_virtual_tasks
 from crowd_env.experiments.validation.fundamental_diagram import SINGLE_FILE_WIDTH_M
 from tests.experiments.validation.test_objective import WIDTHS, _fd_records, _records
@@ -166,6 +167,28 @@ def test_the_wall_slowdown_reaches_the_bottleneck_and_every_corridor_run_but_not
     targets = PointEvaluator(tmp_path / "t", config, WIDTHS, (20, 40, 60), [0], SerialBackend(), objective="targets")
     with pytest.raises(CalibrationError, match="wall slowdown is calibrated with --objective virtual"):
         targets.tasks({"wall_speed_factor": 0.7})
+
+
+def test_an_explicit_clearance_reaches_the_calibrations_corridor_runs_as_in_the_virtual_experiments():
+    """``crowd-calibrate optimize --objective virtual --navigation-clearance M`` (and ``targets --virtual``) give the
+    field's clearance to every corridor run as ``crowd-virtual-experiments --navigation-clearance M`` does; without
+    it, or where no corridor run is part of the objective, the configuration keeps the form earlier folders have."""
+    from crowd_env.cli.calibrate import _calibration_config, build_parser
+
+    def config(*argv):
+        args = build_parser().parse_args(list(argv))
+        return _calibration_config(args, model_params_from_args(args))
+
+    virtual = config("optimize", "--objective", "virtual", "--preset", "joint", "--navigation-clearance", "0.125")
+    assert virtual["corridor_geometry"] == {"navigation_clearance_m": 0.125}
+    assert virtual["geometry"]["navigation_clearance_m"] == 0.125
+    corridor = [t for t in make_virtual_tasks(virtual, {}, {}, WIDTHS, (0,)) if t.get("experiment") == "corridor"]
+    assert len(corridor) == 9 and all(t["geometry"] == {"navigation_clearance_m": 0.125, "radius_m": 0.214}
+                                      for t in corridor)
+    assert "corridor_geometry" not in config("optimize", "--objective", "virtual", "--preset", "joint")
+    assert "corridor_geometry" not in config("optimize", "--objective", "targets", "--navigation-clearance", "0.125")
+    assert config("targets", "--virtual", "--navigation-clearance", "0.2")["corridor_geometry"] == \
+        {"navigation_clearance_m": 0.2}
 
 
 def test_the_corridor_table_has_a_row_per_run_and_judges_each_on_every_tolerance():

@@ -55,10 +55,17 @@ def check_pedestrian(pedestrian: dict) -> dict:
     return out
 
 
-def base_config(geometry: dict, params: ModelParams, max_time_s: float) -> dict:
-    """The fixed part of a calibration (geometry, base model parameters, time limit): one per folder."""
-    return {"kind": "calibration", "geometry": dict(geometry), "params": params_dict(params),
-            "max_time_s": float(max_time_s)}
+def base_config(geometry: dict, params: ModelParams, max_time_s: float, *,
+                corridor_geometry: dict | None = None) -> dict:
+    """The fixed part of a calibration (geometry, base model parameters, time limit): one per folder.
+    ``corridor_geometry``: options of every Jülich corridor run (``--objective virtual``) beyond the body and the
+    wall slowdown, which follow the bottleneck's (:func:`corridor_geometry`); an explicit navigation clearance is
+    one. Left out when empty, so that earlier folders keep their configuration."""
+    config = {"kind": "calibration", "geometry": dict(geometry), "params": params_dict(params),
+              "max_time_s": float(max_time_s)}
+    if corridor_geometry:
+        config["corridor_geometry"] = dict(corridor_geometry)
+    return config
 
 
 def _point_params(config: dict, model: dict) -> ModelParams:
@@ -167,11 +174,14 @@ def with_navigation(task: dict, wall_slowdown) -> dict:
 
 
 def corridor_geometry(config: dict, radius_m: float | None, wall_slowdown) -> dict:
-    """The options of every corridor run of a point (:func:`make_virtual_tasks`): the body ``radius_m`` (None: the
-    scenario's) and the wall slowdown ``wall_slowdown`` (None: the configuration's, if any). The corridor's field is
-    the disk centres' of its body, as in ``crowd-virtual-experiments`` without ``--navigation-clearance``. Options
-    the configuration leaves at the scenario's defaults stay out, so that stored runs keep their keys."""
-    out = {} if radius_m is None else {"radius_m": float(radius_m)}
+    """The options of every corridor run of a point (:func:`make_virtual_tasks`): the configuration's
+    ``corridor_geometry`` (:func:`base_config`), the body ``radius_m`` (None: the scenario's) and the wall slowdown
+    ``wall_slowdown`` (None: the configuration's, if any). The corridor's field is the disk centres' of its body
+    unless ``corridor_geometry`` sets a clearance, as in ``crowd-virtual-experiments``. Options left at the
+    scenario's defaults stay out, so that stored runs keep their keys."""
+    out = dict(config.get("corridor_geometry") or {})
+    if radius_m is not None:
+        out["radius_m"] = float(radius_m)
     if wall_slowdown is None:
         wall_slowdown = config["geometry"].get("navigation_wall_slowdown")
     if wall_slowdown is not None:
