@@ -56,14 +56,21 @@ from ..experiments.validation.calibration.preset_targets import preset_targets, 
 from ..experiments.validation.calibration.tasks import FDPlan
 from ..experiments.validation.fundamental_diagram import CORRIDOR_DENSITIES, SINGLE_FILE_DENSITIES
 from ..experiments.running.store import RunStore
-from .options import add_geometry_arguments, config_of, model_params_from_args
+from .options import add_key_values, add_geometry_arguments, config_of, model_params_from_args
 
 
-def _name_value(text: str, what: str):
-    if "=" not in text:
-        raise CalibrationError(f"{what} expects NAME=VALUE, got {text!r}")
-    name, value = text.split("=", 1)
-    return name.strip(), value.strip()
+def _name_values(items, what: str) -> dict:
+    """``NAME=VALUE`` items (``--x0``, ``--bounds``, ``--weight``) as a dict of text values; an item without ``=``
+    or a name given twice is refused."""
+    out = {}
+    for text in items:
+        if "=" not in text:
+            raise CalibrationError(f"{what} expects NAME=VALUE, got {text!r}")
+        name, value = (t.strip() for t in text.split("=", 1))
+        if name in out:
+            raise CalibrationError(f"{what}: {name!r} is given twice ({out[name]} and {value}); give it once")
+        out[name] = value
+    return out
 
 
 OBJECTIVE_HELP = ("'epsilon': ε_T of Eq. 24 (+ --range-weight), the paper's; 'targets': every figure the experiment "
@@ -79,8 +86,8 @@ OBJECTIVE_HELP = ("'epsilon': ε_T of Eq. 24 (+ --range-weight), the paper's; 't
 def _add_target_arguments(parser) -> None:
     """The target objective's weights and the fundamental diagram's runs (optimize, landscape)."""
     g = parser.add_argument_group("target objective and fundamental diagram (--objective targets / targets+fd)")
-    g.add_argument("--weight", nargs="+", default=[], metavar="NAME=VALUE",
-                   help=f"weights of the target terms (default 1 each): {', '.join(TargetWeights().as_dict())}, "
+    add_key_values(g, "--weight",
+                   f"weights of the target terms (default 1 each): {', '.join(TargetWeights().as_dict())}, "
                         "corridor_runs (--objective virtual)")
     _add_fd_arguments(g)
 
@@ -116,8 +123,7 @@ def _weights(args) -> TargetWeights | None:
         raise CalibrationError("--weight weighs the terms of --objective targets, targets+fd or virtual")
     known = TargetWeights().virtual_dict() if args.objective == "virtual" else TargetWeights().as_dict()
     values = {}
-    for text in args.weight:
-        k, v = _name_value(text, "--weight")
+    for k, v in _name_values(args.weight, "--weight").items():
         if k not in known:
             raise CalibrationError(f"unknown weight {k!r}; choose from {list(known)}")
         values[k] = float(v)
@@ -195,7 +201,7 @@ def _common_parser() -> argparse.ArgumentParser:
     m.add_argument("--anisotropy", type=float, default=None, dest="social_anisotropy", help="λ in [0, 1]")
     m.add_argument("--kn", type=float, default=None, dest="normal_dissipation_kg", help="K_n (kg)")
     m.add_argument("--no-rotation", action="store_true", help="freeze headings (Section 4.1.1)")
-    m.add_argument("--param", action="append", default=[], metavar="NAME=VALUE", help="any other ModelParams field")
+    add_key_values(m, "--param", "any other ModelParams field")
     common.set_defaults(social_strength_n=None, social_range_m=None, no_social=False)
 
     return common
@@ -221,8 +227,8 @@ def _add_optimize_parser(sub, common) -> None:
     op = sub.add_parser("optimize", aliases=["optimise"], parents=[common], help="minimise ε_T (Eq. 25)")
     op.add_argument("--free", nargs="+", default=["A", "B"],
                     help=f"free parameters: {' '.join(FREE_PARAMETERS)} (vision_rays is fixed: --param vision_rays=N)")
-    op.add_argument("--x0", nargs="+", default=[], metavar="NAME=VALUE", help="start values, e.g. A=790 B=0.08")
-    op.add_argument("--bounds", nargs="+", default=[], metavar="NAME=LOW:HIGH", help="bounds, e.g. A=10:3000")
+    add_key_values(op, "--x0", "start values, e.g. A=790 B=0.08")
+    add_key_values(op, "--bounds", "bounds, e.g. A=10:3000", metavar="NAME=LOW:HIGH")
     op.add_argument("--method", choices=["Nelder-Mead", "Powell"], default="Nelder-Mead")
     op.add_argument("--max-evaluations", type=int, default=60, help="parameter points evaluated at most")
     op.add_argument("--xatol", type=float, default=0.02, help="tolerance on ln A, ln B, ... (0.02 = 2 %%)")
@@ -395,13 +401,12 @@ def run(args) -> int:
     if args.mode == "grid":
         a, b = _grid_axes(args)
     else:
-        x0 = {k: float(v) for k, v in (_name_value(t, "--x0") for t in args.x0)}
+        x0 = {k: float(v) for k, v in _name_values(args.x0, "--x0").items()}
         bounds = {}
-        for text in args.bounds:
-            k, v = _name_value(text, "--bounds")
+        for k, v in _name_values(args.bounds, "--bounds").items():
             lo, sep, hi = v.partition(":")
             if not sep:
-                raise CalibrationError(f"--bounds expects NAME=LOW:HIGH, got {text!r}")
+                raise CalibrationError(f"--bounds expects NAME=LOW:HIGH, got {k}={v!r}")
             bounds[k] = (float(lo), float(hi))
     if args.mode != "grid" and args.objective in ("targets", "targets+fd", "virtual"):
         sizes = sorted({n for _, n in required_cases(widths)})

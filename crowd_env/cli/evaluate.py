@@ -42,7 +42,7 @@ from ..experiments.running.evaluation import (describe_setup, evaluate, import_o
                                               resolve_policy, summarize)
 from ..experiments.output.video import per_policy
 from ..errors import CrowdEnvError, InputError, OptionError, PolicyError, ScenarioError
-from .options import DEFAULT_POLICY_RESOLVER, DEFAULT_SCENARIO, PICKLED_MODELS_NOTE, policy_run_setup
+from .options import add_key_values, DEFAULT_POLICY_RESOLVER, DEFAULT_SCENARIO, PICKLED_MODELS_NOTE, policy_run_setup
 
 DEFAULT_MAX_TIME_S = 90.0
 
@@ -61,8 +61,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--scenario", default=None,
                     help=f"registered scenario name (default: the model's env_config.json, else {DEFAULT_SCENARIO}); "
                          "another scenario than the recorded one starts from its own default options")
-    ap.add_argument("--scenario-option", action="append", default=[], metavar="KEY=VALUE",
-                    help="scenario option (repeatable, JSON values) on top of the recorded or default ones, e.g. "
+    add_key_values(ap, "--scenario-option", metavar="KEY=VALUE",
+                   help="scenario option (JSON values) on top of the recorded or default ones, e.g. "
                          "n_pedestrians=20")
     ap.add_argument("--widths", type=float, nargs="*", default=None,
                     help="bottleneck widths: one scenario per width (sets width_m)")

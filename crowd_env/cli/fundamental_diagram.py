@@ -48,7 +48,7 @@ from ..experiments.validation.fundamental_diagram import (CORRIDOR_DENSITIES, SE
 from ..experiments.running.recording import record_bottleneck_run
 from ..experiments.running.store import RunStore
 from crowd_env.files import write_atomic, write_csv_atomic, write_json_atomic
-from .options import key_values
+from .options import add_key_values, key_values
 
 CSV_COLUMNS = ["area", "frame", "time_s", "density_per_m2", "speed_m_s", "specific_flow_per_m_s"]
 
@@ -87,10 +87,10 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--jobs", type=int, default=None, help="worker processes (default: the cores)")
     cd = ap.add_argument_group("door and corridor of parameter points (--candidates)")
     cd.add_argument("--candidates", action="store_true", help="measure parameter points on the door and corridor")
-    cd.add_argument("--set", nargs="+", default=[], metavar="NAME=VALUE",
-                    help="ModelParams fields on top of --preset (for --candidates and --sweep)")
-    cd.add_argument("--grid", nargs="+", default=[], metavar="NAME=V1,V2,...",
-                    help="ModelParams fields to vary (every combination); values as JSON (null for None)")
+    add_key_values(cd, "--set",
+                   "ModelParams fields on top of --preset (for --candidates and --sweep)")
+    add_key_values(cd, "--grid", "ModelParams fields to vary (every combination); values as JSON (null for None)",
+                   metavar="NAME=V1,V2,...")
     return ap
 
 
@@ -102,6 +102,8 @@ def _assignments(items, what: str) -> dict:
         name, sep, value = item.partition("=")
         if not sep or not name or not value:
             raise SystemExit(f"error: {what} {item!r}: expected NAME=VALUE")
+        if name in out:
+            raise SystemExit(f"error: {what}: {name!r} is given twice; give it once")
         values = [key_values([f"{name}={v}"], f"{what} expects NAME=VALUE")[name] for v in value.split(",")]
         if any(isinstance(v, str) for v in values):
             raise SystemExit(f"error: {what} {item!r}: {value!r} is not a number, null, true or false")

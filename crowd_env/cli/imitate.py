@@ -48,7 +48,7 @@ from ..experiments.validation.virtual_experiments import (VirtualPlan, corridor_
 from ..files import copy_atomic, write_atomic
 from ..scenarios import make_scenario
 from ..walking.presets import DEFAULT_PRESET, get_preset
-from .options import key_values
+from .options import add_key_values, key_values
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -61,14 +61,14 @@ def build_parser() -> argparse.ArgumentParser:
     de.add_argument("--uo-run", default=None, metavar="NAME",
                     help="instead of a file: the shipped recording of this Jülich corridor run, in its scenario")
     de.add_argument("--scenario", default=None, help="a registered scenario (crowd_env.scenarios.list_scenarios())")
-    de.add_argument("--scenario-option", nargs="+", default=[], metavar="KEY=VALUE", help="its options (JSON values)")
+    add_key_values(de, "--scenario-option", "its options (JSON values)", metavar="KEY=VALUE")
     de.add_argument("--frame-rate", type=float, default=None, help="frames per second when the file's header has none")
     de.add_argument("--unit", choices=["m", "cm"], default=None, help="the file's length unit (default: its header's, "
                                                                      "else metres)")
     de.add_argument("--smoothing", type=float, default=DEFAULT_SMOOTHING_S, metavar="S",
                     help="centred moving average of the positions over S seconds (default %(default)s; 0: none)")
-    de.add_argument("--policy-option", nargs="+", default=[], metavar="KEY=VALUE",
-                    help="observation and decision options (n_neighbors, n_rays, neighbor_radius_m, ray_range_m, "
+    add_key_values(de, "--policy-option", metavar="KEY=VALUE",
+                   help="observation and decision options (n_neighbors, n_rays, neighbor_radius_m, ray_range_m, "
                          "observation_frame, observation_components, frame_skip, action_max_m_s)")
     de.add_argument("--out", required=True, type=Path, help="the dataset (.npz)")
     tr = sub.add_parser("train", help="the human policy from the shipped recordings", description=__doc__,
@@ -76,8 +76,8 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--out", required=True, type=Path, help="output folder (checkpoints, policies, progress)")
     tr.add_argument("--quick", action="store_true", help="two short runs, tiny budgets: the code path in seconds")
     tr.add_argument("--resume", action="store_true", help="continue the training in --out after its last stage")
-    tr.add_argument("--set", nargs="+", default=[], metavar="KEY=VALUE",
-                    help="training options (JSON values): hidden, bc_epochs, dad_rounds, dad_epochs, batch_size, "
+    add_key_values(tr, "--set", metavar="KEY=VALUE",
+                   help="training options (JSON values): hidden, bc_epochs, dad_rounds, dad_epochs, batch_size, "
                          "learning_rate, smoothing_s, seed, dad (a dict of the rollouts' options; those it does "
                          "not name keep the human policy's), policy (a dict of observation options), radius_m (the "
                          "body of the replays and rollouts; default the calibrated preset's, 0.23 m), body_depth_m (0, "

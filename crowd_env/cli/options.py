@@ -29,14 +29,23 @@ DEFAULT_SCENARIO = "seyfried_bottleneck"
 
 
 
+def add_key_values(group, flag: str, help: str, *, metavar: str = "NAME=VALUE") -> None:
+    """A ``NAME=VALUE ...`` option (read with :func:`key_values`): given once with several items or repeated, every
+    item counts (``--param a=1 --param b=2`` is ``--param a=1 b=2``); a repeat never replaces the items before it."""
+    group.add_argument(flag, nargs="+", action="extend", default=[], metavar=metavar, help=f"{help} (repeatable)")
+
+
 def key_values(items, usage: str) -> dict:
     """``["k=v", ...]`` → ``{k: v}``, each v read as JSON when it is JSON, else kept as text; an item
-    without ``=`` raises :class:`~crowd_env.errors.OptionError` ``f"{usage}, got {item!r}"``."""
+    without ``=`` raises :class:`~crowd_env.errors.OptionError` ``f"{usage}, got {item!r}"``, and so does a name
+    given twice (which value was meant, the command cannot know)."""
     out = {}
     for item in items or []:
         if "=" not in item:
             raise OptionError(f"{usage}, got {item!r}")
         key, value = item.split("=", 1)
+        if key in out:
+            raise OptionError(f"{usage.split()[0]}: {key!r} is given twice ({out[key]!r} and {value!r}); give it once")
         try:
             out[key] = json.loads(value)
         except json.JSONDecodeError:

@@ -41,7 +41,7 @@ from ..experiments.validation.bottleneck import (SetupError, SweepError, check_s
 from ..core.timestep import check_time_step_floor
 from ..experiments.running.runner import check_step_limit
 from ..experiments.running.store import RunStore, RunStoreError
-from .options import add_geometry_arguments, config_of, model_params_from_args, radius_from_args
+from .options import add_key_values, add_geometry_arguments, config_of, model_params_from_args, radius_from_args
 
 # Configurations of the model and the navigation, the base that explicit flags override: see
 # crowd_env.walking.presets (calibrated, the default; paper, the literal Section 4; recalibrated).
@@ -82,8 +82,8 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--kn", type=float, default=None, dest="normal_dissipation_kg", help="K_n (kg)")
     m.add_argument("--no-social", action="store_true", help="switch social repulsion off (paper Fig. 9)")
     m.add_argument("--no-rotation", action="store_true", help="freeze headings (paper Section 4.1.1)")
-    m.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                   help="any other ModelParams field, e.g. --param tangential_dissipation_kg=100")
+    add_key_values(m, "--param",
+                   "any other ModelParams field, e.g. --param tangential_dissipation_kg=100")
     ap.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     t = ap.add_argument_group("trajectories (PedPy text format; an output option, not part of the configuration)")
     t.add_argument("--trajectories", action="store_true",

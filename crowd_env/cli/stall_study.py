@@ -32,10 +32,10 @@ from pathlib import Path
 
 from ..walking.presets import get_preset
 from ..experiments.validation.stall_study import figure, run_jobs, stall_jobs
-from .options import key_values
+from .options import add_key_values, key_values
 
 
-def main(argv=None) -> int:
+def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="crowd-stall-study", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--presets", nargs="+", default=["paper", "calibrated"])
@@ -46,9 +46,13 @@ def main(argv=None) -> int:
     ap.add_argument("--max-time", type=float, default=300.0)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", type=Path, default=Path("out/stalls"))
-    ap.add_argument("--set", nargs="+", default=[], metavar="NAME=VALUE",
-                    help="ModelParams fields on top of every preset (values as JSON: numbers, true, false, null)")
-    args = ap.parse_args(argv)
+    add_key_values(ap, "--set",
+                   "ModelParams fields on top of every preset (values as JSON: numbers, true, false, null)")
+    return ap
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
     changes = key_values(args.set, "--set expects NAME=VALUE")
     for name in args.presets:
         get_preset(name).params(**changes)  # unknown presets or parameters fail here, naming them

@@ -6,7 +6,7 @@ from __future__ import annotations
 from ..errors import OptionError
 from ..experiments.running.evaluation import import_object
 from ..experiments.training.ppo import DEFAULT_SCENARIO_OPTIONS
-from .options import DEFAULT_POLICY_RESOLVER, key_values
+from .options import add_key_values, DEFAULT_POLICY_RESOLVER, key_values
 
 __all__ = ["add_env_arguments", "add_evaluation_arguments", "env_config_from_args", "env_config_and_resolver"]
 
@@ -16,8 +16,8 @@ def add_env_arguments(ap) -> None:
     decisions every 0.1 s, 10 s episodes, as ``crowd-train-ppo``)."""
     g = ap.add_argument_group("environment")
     g.add_argument("--scenario", default="seyfried_bottleneck", help="registered scenario name")
-    g.add_argument("--scenario-option", action="append", metavar="KEY=VALUE",
-                   help="scenario option (repeatable; JSON values); defaults for seyfried_bottleneck "
+    add_key_values(g, "--scenario-option", metavar="KEY=VALUE",
+                   help="scenario option (JSON values); defaults for seyfried_bottleneck "
                         f"{DEFAULT_SCENARIO_OPTIONS}, for other scenarios their own")
     g.add_argument("--n-pedestrians", type=int, default=None, help="shortcut for --scenario-option n_pedestrians=N")
     g.add_argument("--width", type=float, default=None, help="shortcut for --scenario-option width_m=B")

@@ -35,7 +35,7 @@ import sys
 from ..errors import CrowdEnvError
 from ..experiments.output.video import record_rollout, record_trajectory_file
 from ..experiments.running.evaluation import describe_setup
-from .options import DEFAULT_POLICY_RESOLVER, DEFAULT_SCENARIO, PICKLED_MODELS_NOTE, policy_run_setup
+from .options import add_key_values, DEFAULT_POLICY_RESOLVER, DEFAULT_SCENARIO, PICKLED_MODELS_NOTE, policy_run_setup
 
 DEFAULT_MAX_TIME_S = 30.0
 
@@ -65,8 +65,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="ignore the env_config.json beside a saved --policy model (default: film it on that problem)")
     ro.add_argument("--scenario", default=None,
                     help=f"a registered scenario name (default: the model's env_config.json, else {DEFAULT_SCENARIO})")
-    ro.add_argument("--scenario-option", action="append", default=[], metavar="KEY=VALUE",
-                    help="scenario option (repeatable, JSON values) on top of the recorded or default ones, e.g. "
+    add_key_values(ro, "--scenario-option", metavar="KEY=VALUE",
+                   help="scenario option (JSON values) on top of the recorded or default ones, e.g. "
                          "n_pedestrians=20")
     ro.add_argument("--seed", type=int, default=0)
     ro.add_argument("--controlled", default=None, help="'all', a count, a fraction or comma-separated ids: the "

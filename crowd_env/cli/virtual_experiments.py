@@ -35,23 +35,23 @@ from ..experiments.validation.corridor_runs import CORRIDOR_RUN_NAMES, corridor_
 from ..experiments.validation.virtual_experiments import (EXPERIMENTS, QUICK_PLAN, VirtualPlan, format_rows,
                                                           run_virtual_experiments, snapshot_figure, virtual_config,
                                                           virtual_rows, virtual_tasks, write_virtual_outputs)
-from .options import key_values
+from .options import add_key_values, key_values
 
 
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="crowd-virtual-experiments", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--preset", choices=sorted(PRESETS), default=DEFAULT_PRESET, help="the model (default: %(default)s)")
-    ap.add_argument("--param", nargs="+", default=[], metavar="NAME=VALUE",
-                    help="ModelParams fields on top of the preset (values as JSON)")
-    ap.add_argument("--pedestrian", nargs="+", default=[], metavar="NAME=VALUE",
-                    help="per-pedestrian defaults on top of Kabalan's Table 2: tau_s, desired_speed_mean_m_s, "
+    add_key_values(ap, "--param",
+                   "ModelParams fields on top of the preset (values as JSON)")
+    add_key_values(ap, "--pedestrian",
+                   "per-pedestrian defaults on top of Kabalan's Table 2: tau_s, desired_speed_mean_m_s, "
                          "desired_speed_std_m_s")
     ap.add_argument("--radius", type=float, default=None, metavar="R",
                     help="every pedestrian's radius in m, in every experiment (default the preset's: Kabalan's Table 2, "
                          "0.23, unless the preset calibrated its body)")
-    ap.add_argument("--corridor-option", nargs="+", default=[], metavar="NAME=VALUE",
-                    help="options of the juelich_corridor scenario for every corridor run (the set-up's undocumented "
+    add_key_values(ap, "--corridor-option",
+                   "options of the juelich_corridor scenario for every corridor run (the set-up's undocumented "
                          "dimensions: barrier_thickness_m, end_wall_thickness_m, floor_width_m, outflow_width_m, "
                          "waiting_width_m, waiting_density_per_m2)")
     ap.add_argument("--navigation-clearance", type=float, default=None, metavar="M",
