@@ -80,7 +80,8 @@ OBJECTIVE_HELP = ("'epsilon': ε_T of Eq. 24 (+ --range-weight), the paper's; 't
                   "speeds at the Jülich bins and monotone, single-file speeds and headway fit), its runs set by the "
                   "--fd-* options; 'virtual': every shipped experiment as it was run (the bottleneck's targets, the "
                   "nine Jülich corridor runs with their entrance and exit: density, speed, exit flow; the single "
-                  "file), the only one with --free radius; a point with a stalled run counts as failed")
+                  "file), the only one with --free radius, wall_slowdown_m and wall_speed_factor; a point with a stalled run "
+                  "counts as failed")
 
 
 def _add_target_arguments(parser) -> None:
