@@ -80,8 +80,8 @@ OBJECTIVE_HELP = ("'epsilon': ε_T of Eq. 24 (+ --range-weight), the paper's; 't
                   "speeds at the Jülich bins and monotone, single-file speeds and headway fit), its runs set by the "
                   "--fd-* options; 'virtual': every shipped experiment as it was run (the bottleneck's targets, the "
                   "nine Jülich corridor runs with their entrance and exit: density, speed, exit flow; the single "
-                  "file), the only one with --free radius, wall_slowdown_m and wall_speed_factor; a point with a stalled run "
-                  "counts as failed")
+                  "file), the only one with --free radius, wall_slowdown_m and wall_speed_factor; a point with a "
+                  "stalled run counts as failed")
 
 
 def _add_target_arguments(parser) -> None:
@@ -89,7 +89,7 @@ def _add_target_arguments(parser) -> None:
     g = parser.add_argument_group("target objective and fundamental diagram (--objective targets / targets+fd)")
     add_key_values(g, "--weight",
                    f"weights of the target terms (default 1 each): {', '.join(TargetWeights().as_dict())}, "
-                        "corridor_runs (--objective virtual)")
+                   "corridor_runs (--objective virtual)")
     _add_fd_arguments(g)
 
 
@@ -194,7 +194,10 @@ def _common_parser() -> argparse.ArgumentParser:
     dist.add_argument("--jobs", type=int, default=None, help="CPUs of the local Ray instance / process pool")
     dist.add_argument("--connect-timeout", type=float, default=5.0, help="seconds to reach --address before giving up")
     add_geometry_arguments(common.add_argument_group("geometry (Seyfried 2009 defaults, as crowd-bottleneck)"),
-                           "default: the preset's (0 for 'paper', 0.23 for 'calibrated' and 'recalibrated')")
+                           "default: the preset's (0 for 'paper', 0.23 for 'calibrated' and 'recalibrated'); given, "
+                           "it reaches the corridor runs of --objective virtual and targets --virtual too",
+                           wall_slowdown_where="the bottleneck's field and, with --objective virtual or targets "
+                                               "--virtual, every corridor run's")
     m = common.add_argument_group("fixed model parameters")
     m.add_argument("--preset", choices=sorted(PRESETS), default=DEFAULT_PRESET,
                    help="base configuration as in crowd-bottleneck (crowd_env.walking.presets; A, B and the other free "

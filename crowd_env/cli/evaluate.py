@@ -63,7 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "another scenario than the recorded one starts from its own default options")
     add_key_values(ap, "--scenario-option", metavar="KEY=VALUE",
                    help="scenario option (JSON values) on top of the recorded or default ones, e.g. "
-                         "n_pedestrians=20")
+                        "n_pedestrians=20")
     ap.add_argument("--widths", type=float, nargs="*", default=None,
                     help="bottleneck widths: one scenario per width (sets width_m)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="episode seeds (default 0 1 2)")

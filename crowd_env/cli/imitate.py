@@ -69,7 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="centred moving average of the positions over S seconds (default %(default)s; 0: none)")
     add_key_values(de, "--policy-option", metavar="KEY=VALUE",
                    help="observation and decision options (n_neighbors, n_rays, neighbor_radius_m, ray_range_m, "
-                         "observation_frame, observation_components, frame_skip, action_max_m_s)")
+                        "observation_frame, observation_components, frame_skip, action_max_m_s)")
     de.add_argument("--out", required=True, type=Path, help="the dataset (.npz)")
     tr = sub.add_parser("train", help="the human policy from the shipped recordings", description=__doc__,
                         formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -78,11 +78,11 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--resume", action="store_true", help="continue the training in --out after its last stage")
     add_key_values(tr, "--set", metavar="KEY=VALUE",
                    help="training options (JSON values): hidden, bc_epochs, dad_rounds, dad_epochs, batch_size, "
-                         "learning_rate, smoothing_s, seed, dad (a dict of the rollouts' options; those it does "
-                         "not name keep the human policy's), policy (a dict of observation options), radius_m (the "
-                         "body of the replays and rollouts; default the calibrated preset's, 0.23 m), body_depth_m (0, "
-                         "the disk, or bodies of three circles that deep: crowd_env.core.body), training_runs, "
-                         "validation_runs")
+                        "learning_rate, smoothing_s, seed, dad (a dict of the rollouts' options; those it does "
+                        "not name keep the human policy's), policy (a dict of observation options), radius_m (the "
+                        "body of the replays and rollouts; default the calibrated preset's, 0.23 m), body_depth_m (0, "
+                        "the disk, or bodies of three circles that deep: crowd_env.core.body), training_runs, "
+                        "validation_runs")
     tr.add_argument("--backend", choices=["ray", "process", "serial"], default="serial")
     tr.add_argument("--jobs", type=int, default=None, help="processes of the pool / CPUs of local Ray")
     se = sub.add_parser("select", help="trained policies scored closed loop on the validation runs; the best kept",

@@ -120,7 +120,7 @@ def policy_run_setup(model=None, *, scenario=None, scenario_option=(), widths=No
     return scenarios, env_options, max_time, source
 
 
-def add_geometry_arguments(group, clearance_help: str) -> None:
+def add_geometry_arguments(group, clearance_help: str, wall_slowdown_where: str = "the bottleneck's field") -> None:
     """The scenario's geometry and navigation options."""
     for flag, (_, default) in GEOMETRY_OPTIONS.items():
         if flag == "radius":  # the preset's body (Preset.radius_m), resolved with the preset in config_of
@@ -132,11 +132,18 @@ def add_geometry_arguments(group, clearance_help: str) -> None:
                            help=f"default {default}")
     group.add_argument("--navigation-clearance", type=float, default=None, dest="navigation_clearance",
                        help=clearance_help)
+    add_wall_slowdown_argument(group, wall_slowdown_where)
+
+
+def add_wall_slowdown_argument(group, where: str) -> None:
+    """``--navigation-wall-slowdown DIST FACTOR`` (``args.navigation_wall_slowdown``: None or two floats) in the
+    navigation fields ``where`` names."""
     group.add_argument("--navigation-wall-slowdown", type=float, nargs=2, default=None, metavar=("DIST", "FACTOR"),
                        dest="navigation_wall_slowdown",
                        help="slower wavefront speed near walls, an option the paper describes with Eq. 11 but does not "
                             "use: V is multiplied by FACTOR in (0, 1] within DIST m of a wall, so that desired "
-                            "directions keep away from walls; default off (V = 1 everywhere, as in the paper)")
+                            f"directions keep away from walls, in {where}; default off (V = 1 everywhere, as in the "
+                            "paper)")
 
 
 def model_params_from_args(args) -> ModelParams:

@@ -67,7 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help=f"a registered scenario name (default: the model's env_config.json, else {DEFAULT_SCENARIO})")
     add_key_values(ro, "--scenario-option", metavar="KEY=VALUE",
                    help="scenario option (JSON values) on top of the recorded or default ones, e.g. "
-                         "n_pedestrians=20")
+                        "n_pedestrians=20")
     ro.add_argument("--seed", type=int, default=0)
     ro.add_argument("--controlled", default=None, help="'all', a count, a fraction or comma-separated ids: the "
                     "pedestrians the policy drives (blue); the others follow the background policy (grey) "

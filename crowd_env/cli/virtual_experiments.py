@@ -35,7 +35,7 @@ from ..experiments.validation.corridor_runs import CORRIDOR_RUN_NAMES, corridor_
 from ..experiments.validation.virtual_experiments import (EXPERIMENTS, QUICK_PLAN, VirtualPlan, format_rows,
                                                           run_virtual_experiments, snapshot_figure, virtual_config,
                                                           virtual_rows, virtual_tasks, write_virtual_outputs)
-from .options import add_key_values, key_values
+from .options import add_key_values, add_wall_slowdown_argument, key_values
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -46,21 +46,19 @@ def build_parser() -> argparse.ArgumentParser:
                    "ModelParams fields on top of the preset (values as JSON)")
     add_key_values(ap, "--pedestrian",
                    "per-pedestrian defaults on top of Kabalan's Table 2: tau_s, desired_speed_mean_m_s, "
-                         "desired_speed_std_m_s")
+                   "desired_speed_std_m_s")
     ap.add_argument("--radius", type=float, default=None, metavar="R",
                     help="every pedestrian's radius in m, in every experiment (default the preset's: Kabalan's Table 2, "
                          "0.23, unless the preset calibrated its body)")
     add_key_values(ap, "--corridor-option",
                    "options of the juelich_corridor scenario for every corridor run (the set-up's undocumented "
-                         "dimensions: barrier_thickness_m, end_wall_thickness_m, floor_width_m, outflow_width_m, "
-                         "waiting_width_m, waiting_density_per_m2)")
+                   "dimensions: barrier_thickness_m, end_wall_thickness_m, floor_width_m, outflow_width_m, "
+                   "waiting_width_m, waiting_density_per_m2)")
     ap.add_argument("--navigation-clearance", type=float, default=None, metavar="M",
                     help="clearance of the eikonal field (Eq. 11-13) in every bottleneck and corridor run, in m "
                          "(default: the preset's, the disk centres' field of its body; e.g. half the depth of a body "
                          "that turns its shoulders)")
-    ap.add_argument("--navigation-wall-slowdown", type=float, nargs=2, default=None, metavar=("DIST", "FACTOR"),
-                    help="a slower eikonal wavefront within DIST m of a wall, times FACTOR in (0, 1] (Eq. 11's V < 1: "
-                         "ways that keep off the walls), in the bottleneck and every corridor run (default: none)")
+    add_wall_slowdown_argument(ap, "the bottleneck's and every corridor run's fields")
     ap.add_argument("--policy", default=None, metavar="POLICY",
                     help="drive every pedestrian of every run by this learned policy: a shipped trained policy's name "
                          "(e.g. human_juelich), a policy file (.npz) or an import path module:attribute of an "

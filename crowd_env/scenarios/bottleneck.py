@@ -43,9 +43,8 @@ from shapely.geometry import Polygon, box
 from shapely.ops import unary_union
 
 from ..core.geometry import Geometry
-from ..walking.navigation import NavigationField
 from ..core.segments import GeometryError
-from .checks import check_clearance, check_count, check_positive as _positive
+from .checks import check_clearance, check_count, check_positive as _positive, check_wall_slowdown
 from .placement import place_pedestrians
 from .registry import register_scenario
 from .scenario import Measurement, Scenario, ScenarioError
@@ -171,10 +170,7 @@ def seyfried_bottleneck(width_m: float = 1.0, n_pedestrians: int = 60, seed: int
               block_start_upstream_m=block_start_upstream_m, radius_m=radius_m)
     n_pedestrians = check_count("n_pedestrians", n_pedestrians)
     clearance = check_clearance(navigation_clearance_m, radius_m)
-    try:
-        slowdown = NavigationField.check_wall_slowdown(navigation_wall_slowdown)
-    except GeometryError as exc:
-        raise ScenarioError(f"navigation_wall_slowdown: {exc}") from exc
+    slowdown = check_wall_slowdown(navigation_wall_slowdown)
     if width_m <= 2.0 * radius_m:
         raise GeometryError(f"bottleneck width {width_m} m is not wider than a pedestrian (diameter "
                             f"{2 * radius_m} m): nobody can pass")

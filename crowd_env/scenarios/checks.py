@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from crowd_env.errors import ScenarioError
 from ..core.checks import check_integer, check_number
+from ..core.segments import GeometryError
+from ..walking.navigation import NavigationField
 
 __all__ = ["check_positive", "check_clearance", "check_count"]
 
@@ -19,6 +21,16 @@ def check_clearance(value, radius_m: float) -> float:
     if value is None:
         return float(radius_m)
     return check_number("navigation_clearance_m", value, error=ScenarioError, minimum=0.0, suffix=" or None")
+
+
+def check_wall_slowdown(value) -> tuple | None:
+    """The navigation field's wall slowdown ``(distance_m, speed_factor)`` (Eq. 11's V < 1 near walls) as a tuple
+    of floats, or None; :class:`ScenarioError` naming what is wrong
+    (:meth:`~crowd_env.walking.navigation.NavigationField.check_wall_slowdown`)."""
+    try:
+        return NavigationField.check_wall_slowdown(value)
+    except GeometryError as exc:
+        raise ScenarioError(f"navigation_wall_slowdown: {exc}") from exc
 
 
 def check_count(name: str, value, minimum: int = 1) -> int:

@@ -30,9 +30,7 @@ from shapely.geometry import Polygon, box
 from shapely.ops import unary_union
 
 from ..core.geometry import Geometry
-from ..core.segments import GeometryError
-from ..walking.navigation import NavigationField
-from .checks import check_clearance, check_count, check_positive
+from .checks import check_clearance, check_count, check_positive, check_wall_slowdown
 from .placement import place_pedestrians
 from .registry import register_scenario
 from .scenario import Measurement, Scenario, ScenarioError
@@ -147,10 +145,7 @@ def juelich_corridor(entrance_width_m: float = 1.8, exit_width_m: float = 1.8, n
     except ScenarioError as exc:
         raise ScenarioError(f"waiting area ({waiting_width_m:g} m wide at {waiting_density_per_m2:g} /m²): {exc}") from exc
     clearance = check_clearance(navigation_clearance_m, radius_m)
-    try:
-        slowdown = NavigationField.check_wall_slowdown(navigation_wall_slowdown)
-    except GeometryError as exc:
-        raise ScenarioError(f"navigation_wall_slowdown: {exc}") from exc
+    slowdown = check_wall_slowdown(navigation_wall_slowdown)
     x0, y0, x1, y1 = waiting.bounds
     metadata = {
         "source": "Zhang, Klingsch, Schadschneider, Seyfried (2011) J. Stat. Mech. P06004, runs UO (Jülich data archive)",

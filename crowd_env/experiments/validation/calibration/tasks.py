@@ -59,7 +59,7 @@ def base_config(geometry: dict, params: ModelParams, max_time_s: float, *,
                 corridor_geometry: dict | None = None) -> dict:
     """The fixed part of a calibration (geometry, base model parameters, time limit): one per folder.
     ``corridor_geometry``: options of every Jülich corridor run (``--objective virtual``) beyond the body and the
-    wall slowdown, which follow the bottleneck's (:func:`corridor_geometry`); an explicit navigation clearance is
+    wall slowdown, which follow the bottleneck's (:func:`corridor_run_options`); an explicit navigation clearance is
     one. Left out when empty, so that earlier folders keep their configuration."""
     config = {"kind": "calibration", "geometry": dict(geometry), "params": params_dict(params),
               "max_time_s": float(max_time_s)}
@@ -173,7 +173,7 @@ def with_navigation(task: dict, wall_slowdown) -> dict:
     return dict(task, geometry={**task["geometry"], "navigation_wall_slowdown": [float(v) for v in wall_slowdown]})
 
 
-def corridor_geometry(config: dict, radius_m: float | None, wall_slowdown) -> dict:
+def corridor_run_options(config: dict, radius_m: float | None, wall_slowdown) -> dict:
     """The options of every corridor run of a point (:func:`make_virtual_tasks`): the configuration's
     ``corridor_geometry`` (:func:`base_config`), the body ``radius_m`` (None: the scenario's) and the wall slowdown
     ``wall_slowdown`` (None: the configuration's, if any). The corridor's field is the disk centres' of its body
@@ -211,7 +211,7 @@ def make_virtual_tasks(config: dict, model: dict, pedestrian: dict, widths_m, se
     neck = [with_navigation(with_body(make_task(config, model, pedestrian, b, n, s), radius_m),
                             navigation_wall_slowdown) for b, n in required_cases(widths_m) for s in seeds]
     corridor = corridor_tasks(params, seeds=seeds, pedestrian=ped or None, max_time_s=limit,
-                              geometry=corridor_geometry(config, radius_m, navigation_wall_slowdown))
+                              geometry=corridor_run_options(config, radius_m, navigation_wall_slowdown))
     single = [dict(t, pedestrian=ped) for t in fd_tasks(["single_file"], {"single_file": single_file_densities}, seeds,
                                                        params, radius_m=radius_m)]
     return neck + corridor + single
