@@ -21,8 +21,8 @@ from crowd_env.envs.observations import to_world_frame
 from crowd_env.errors import InputError, RunStoreError, TrainingError
 from crowd_env.experiments.training.demonstrations import replay_trajectories
 from crowd_env.experiments.training.human_imitation import human_training_config
-from crowd_env.experiments.training.recorded_rollouts import (RecordedView, calibrated_actions, dad_rollouts,
-                                                              separated)
+from crowd_env.experiments.training.recorded_rollouts import (RecordedView, _give_way_m, calibrated_actions,
+                                                              dad_rollouts, separated)
 from crowd_env.walking.agent import SocialForceAgent
 
 RUN = "uo-050-180-180"
@@ -111,6 +111,60 @@ def test_newcomers_start_in_the_spawn_area_and_walk_along_e_d_to_arrive_when_the
     assert start.sum() >= 2 and np.all(np.diff(gaps) > -0.3)
     plain = dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=1.0)
     assert not np.any(plain.position_m[:, 1] > 8.3)  # without them nobody stands there
+
+
+def test_a_newcomer_too_close_behind_one_recorded_first_steps_back_to_give_way(replay):
+    scenario, rep = replay
+    first = np.argmax(rep.present, axis=0)
+    k0 = int(np.sort(first[first > 30])[0]) - 12
+    gap, pull, most = 0.3, 1.0, 1.0
+    demos = dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=2.0, newcomer_speed_m_s=50.0,
+                         spawn_newcomers=True, give_way_gap_m=gap, pull_time_s=pull, max_pull_m_s=most)
+    plain = dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=2.0, newcomer_speed_m_s=50.0,
+                         spawn_newcomers=True)
+    np.testing.assert_array_equal(demos.position_m, plain.position_m)  # standing still: the same states
+    col = {int(i): c for c, i in enumerate(rep.ids)}
+    arrival = np.array([rep.time_s[first[col[int(p)]]] if not rep.present[k0, col[int(p)]] else -np.inf
+                        for p in demos.pedestrian])
+    world = to_world_frame(demos.action, np.cos(demos.heading_rad), np.sin(demos.heading_rad))
+    plain_world = to_world_frame(plain.action, np.cos(plain.heading_rad), np.sin(plain.heading_rad))
+    navigation = scenario.navigation()
+    r2 = 2.0 * float(scenario.radius_m()[0])
+    stepped_back = 0
+    k = np.searchsorted(rep.time_s, demos.time_s - 1e-9)
+    walking = np.array([np.isfinite(a) and not rep.present[kk, col[int(p)]]
+                        for a, kk, p in zip(arrival, k, demos.pedestrian)])
+    for r in np.flatnonzero(walking):  # the labels of the newcomers not yet recorded, one by one
+        e_d, _ = navigation.sample(demos.position_m[r:r + 1])
+        same_time = np.flatnonzero(np.isclose(demos.time_s, demos.time_s[r]))
+        owed = 0.0  # the room owed to those recorded first and ahead along e_d, brute force
+        for o in same_time:
+            d = demos.position_m[o] - demos.position_m[r]
+            if o != r and arrival[o] < arrival[r] and d @ e_d[0] > 0.0:
+                owed = max(owed, r2 + gap - float(np.hypot(*d)))
+        back = -(world[r] @ e_d[0])  # a step back is along -e_d, at most the pull's speed
+        if back > 0.0:
+            stepped_back += 1
+            np.testing.assert_allclose(world[r], -e_d[0] * back, atol=1e-9)
+            assert back <= most + 1e-12
+        else:  # or the walk of the plain rollout
+            np.testing.assert_allclose(world[r], plain_world[r], atol=1e-12)
+        # the room owed to those labelled too is given back at least (the unlabelled ones on the floor count too)
+        assert max(back, 0.0) >= min(owed / pull, most) - 1e-9
+    assert stepped_back > 0
+    with pytest.raises(TrainingError, match="give_way_gap_m"):
+        dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=1.0, give_way_gap_m=-0.1)
+
+
+def test_the_room_owed_is_to_those_ahead_along_e_d_whom_the_recording_shows_first():
+    pos = np.array([[0.0, 0.0], [0.0, -0.5], [0.5, 0.0], [0.0, 0.6], [0.0, -0.2]])
+    arrival = np.array([5.0, np.nan, 3.0, 4.0, 9.0])
+    e_d = np.tile([0.0, -1.0], (5, 1))  # everybody heads towards -y
+    owed = _give_way_m(pos, arrival, np.arange(5), e_d, 0.23, 0.1)
+    # 0: owes 1 (on the floor from the start, 0.5 m ahead): 0.56 - 0.5; not 2 (beside), not 4 (later)
+    # 1: nobody is before it; 2: nobody ahead within 0.56 m; 3: 0 is later; 4: 1 is 0.3 m ahead of it (and 0 behind)
+    np.testing.assert_allclose(owed, [0.06, 0.0, 0.0, 0.0, 0.26], atol=1e-12)
+    np.testing.assert_allclose(_give_way_m(pos, arrival, np.array([4]), e_d[:1], 0.23, 0.0), [0.16], atol=1e-12)
 
 
 def test_the_calibrated_agent_acts_on_a_recorded_crowd_as_on_a_simulator(replay):
