@@ -227,7 +227,7 @@ class ObservationBuilder:
         if fused is not None:
             _write_builtins(crowd, index, (act, near, velocity, cos_t, sin_t, e_d, travel), spec.period_m, fused, obs)
         ctx = ObservationContext(state, index, spec, self.walls, self._walls_d, velocity, cos_t, sin_t, e_d, travel,
-                                 speed, act, near)
+                                 speed, act, near, self.navigation)
         for write, col, size in self._writers:
             write(ctx, obs, col, size)
         return obs, travel, speed

@@ -78,14 +78,16 @@ class ObservationContext:
     vectors, Eq. 13), ``travel_time_s`` T (m,), ``speed_m_s`` (m,); ``active_index``: the global rows of
     the pedestrians on the floor, and ``neighbor_rows`` (m, k): rows into it of the k nearest others
     within ``spec.neighbor_radius_m``, nearest first, −1 for none (only when a component asks for
-    neighbours, else (m, 0)).
+    neighbours, else (m, 0)); ``navigation``: the field e_d and T come from (``sample(points)``, or
+    ``sample(points, index)`` when its ``per_pedestrian`` is true), for a component that reads it elsewhere.
     """
 
     __slots__ = ("state", "index", "spec", "world", "walls", "wall_directions", "velocity_m_s", "cos_heading",
-                 "sin_heading", "desired_direction", "travel_time_s", "speed_m_s", "active_index", "neighbor_rows")
+                 "sin_heading", "desired_direction", "travel_time_s", "speed_m_s", "active_index", "neighbor_rows",
+                 "navigation")
 
     def __init__(self, state, index, spec, walls, wall_directions, velocity_m_s, cos_heading, sin_heading,
-                 desired_direction, travel_time_s, speed_m_s, active_index, neighbor_rows):
+                 desired_direction, travel_time_s, speed_m_s, active_index, neighbor_rows, navigation=None):
         self.state = state
         self.index = index
         self.spec = spec
@@ -100,6 +102,7 @@ class ObservationContext:
         self.speed_m_s = speed_m_s
         self.active_index = active_index
         self.neighbor_rows = neighbor_rows
+        self.navigation = navigation
 
     @property
     def frame(self) -> str:

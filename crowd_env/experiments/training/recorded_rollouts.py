@@ -38,11 +38,14 @@ barrier beside a narrow entrance: measured, it taught the crowd to press on the 
 entrances.) The appearance points then count as the vanishing ones do in the edge rule (the people
 behind the entrance are simulated).
 
-**Giving way in the recording's order** (``give_way_gap_m`` g, a candidate measured on docs/validation/
-human_policy.md, off by default): of two people who reach an opening together the recording shows one first, so
-the other gave way. With this option a newcomer labelled with its walk who stands closer than 2r + g to someone
-ahead of it along e_d whom the recording shows first (or who is on the floor already) is labelled instead stepping
-back along −e_d at the speed that gives that room back within ``pull_time_s`` (at most ``max_pull_m_s``).
+**Giving way** (``give_way_gap_m`` g, candidates measured on docs/validation/human_policy.md, off by default): of
+two people who reach an opening together one goes first and the other gives way. With this option a newcomer
+labelled with its walk who stands closer than 2r + g to someone ahead of it along e_d who goes first is labelled
+instead stepping back along −e_d at the speed that gives that room back within ``pull_time_s`` (at most
+``max_pull_m_s``). Who goes first (``give_way_to``): ``"recorded_first"``, the one the recording shows first (or
+who is on the floor already), which the policy cannot see; or ``"nearer_exit"``, the one with the smaller travel
+time T, which it sees with the observation component
+:mod:`~crowd_env.envs.observations.neighbor_travel_time`.
 
 :func:`calibrated_actions` gives the calibrated agent's intents (Kabalan et al. 2016, Eq. 14-16) on a recorded
 state, through a read-only view of it that answers what the agent asks a simulator (:class:`RecordedView`), with
@@ -71,7 +74,9 @@ from .demonstrations import Demonstrations, observation_reach_m, policy_options,
 __all__ = ["DEFAULT_DAD", "separated", "dad_rollouts", "RecordedView", "calibrated_actions"]
 
 DEFAULT_DAD = {"horizon_s": 3.0, "start_every_s": 2.0, "pull_time_s": 1.0, "max_pull_m_s": 1.0,
-               "newcomer_speed_m_s": 2.0, "intent_gain": 0.0, "spawn_newcomers": False, "give_way_gap_m": None}
+               "newcomer_speed_m_s": 2.0, "intent_gain": 0.0, "spawn_newcomers": False, "give_way_gap_m": None,
+               "give_way_to": "recorded_first"}
+GIVE_WAY_TO = ("recorded_first", "nearer_exit")
 
 
 def separated(position_m: np.ndarray, radius_m: float, walls: np.ndarray, *, area=None, iterations: int = 2000,
@@ -161,7 +166,8 @@ def dad_rollouts(replay, scenario, policy, *, params: ModelParams | None = None,
                  start_every_s: float = DEFAULT_DAD["start_every_s"],
                  intent_gain: float = DEFAULT_DAD["intent_gain"],
                  spawn_newcomers: bool = DEFAULT_DAD["spawn_newcomers"],
-                 give_way_gap_m: float | None = DEFAULT_DAD["give_way_gap_m"]) -> Demonstrations:
+                 give_way_gap_m: float | None = DEFAULT_DAD["give_way_gap_m"],
+                 give_way_to: str = DEFAULT_DAD["give_way_to"]) -> Demonstrations:
     """The labelled decisions of rollouts of the observation ``policy`` from the recorded decisions ``starts``
     (indices into ``replay.time_s``; default every ``start_every_s``) of ``replay`` in ``scenario`` (module
     docstring). ``options``: the policy's (default its ``env_overrides`` over the human policy's)."""
@@ -169,6 +175,8 @@ def dad_rollouts(replay, scenario, policy, *, params: ModelParams | None = None,
     options = policy_options({**(options or {}), **{k: v for k, v in policy.env_overrides.items()}})
     if give_way_gap_m is not None and (isinstance(give_way_gap_m, bool) or not give_way_gap_m >= 0.0):
         raise TrainingError(f"give_way_gap_m must be None (nobody gives way) or a gap in m >= 0, got {give_way_gap_m!r}")
+    if give_way_to not in GIVE_WAY_TO:
+        raise TrainingError(f"give_way_to must be one of {list(GIVE_WAY_TO)}, got {give_way_to!r}")
     if not (pull_time_s > 0 and max_pull_m_s >= 0 and horizon_s > 0 and newcomer_speed_m_s > 0 and intent_gain >= 0):
         raise TrainingError("dad_rollouts needs horizon_s > 0, pull_time_s > 0, max_pull_m_s >= 0, newcomer_speed_m_s "
                             f"> 0 and intent_gain >= 0, got {horizon_s}, {pull_time_s}, {max_pull_m_s}, "
@@ -180,14 +188,15 @@ def dad_rollouts(replay, scenario, policy, *, params: ModelParams | None = None,
     edges = (cKDTree(pts[~appears]) if (~appears).any() else None, cKDTree(pts[appears]) if appears.any() else None)
     spawned = bool(spawn_newcomers) and scenario.spawn_area is not None
     setting = (scenario, params, options, horizon, pull_time_s, max_pull_m_s, newcomer_speed_m_s, float(intent_gain),
-               edges, spawned, None if give_way_gap_m is None else float(give_way_gap_m))
+               edges, spawned, None if give_way_gap_m is None else (float(give_way_gap_m), give_way_to))
     parts = [p for k0 in starts for p in _rollout(replay, policy, int(k0), setting)]
     if not parts:
         raise TrainingError("the rollouts reached no decision with a label")
     arrays = [np.concatenate(col) for col in zip(*parts)]
     meta = {"kind": "dad", "options": options, "decision_dt_s": replay.decision_dt_s, "horizon_s": float(horizon_s),
             "pull_time_s": float(pull_time_s), "max_pull_m_s": float(max_pull_m_s), "n_starts": int(len(starts)),
-            "intent_gain": float(intent_gain), "spawn_newcomers": spawned, "give_way_gap_m": setting[-1],
+            "intent_gain": float(intent_gain), "spawn_newcomers": spawned, "give_way_to": give_way_to,
+            "give_way_gap_m": None if give_way_gap_m is None else float(give_way_gap_m),
             "n_decisions": int(arrays[1].shape[0]), "n_seen": int(arrays[7].sum())}
     return Demonstrations(*arrays, meta=meta)
 
@@ -222,13 +231,13 @@ def _start_crowd(replay, scenario, k0: int, horizon: int, spawned: bool, radius:
             np.vstack([vel, np.zeros((new.size, 2))]), np.r_[arrival, replay.time_s[first]], np.vstack([point, where]))
 
 
-def _give_way_m(pos: np.ndarray, arrival: np.ndarray, rows: np.ndarray, e_d: np.ndarray, radius_m: float,
+def _give_way_m(pos: np.ndarray, first: np.ndarray, rows: np.ndarray, e_d: np.ndarray, radius_m: float,
                 gap_m: float) -> np.ndarray:
     """How far (m) each of the pedestrians ``rows`` (indices into ``pos``, heading along ``e_d``) stands inside the
-    room ``gap_m`` it owes the nearest of those ahead of it along e_d whom the recording shows first (an earlier
-    ``arrival``; NaN: on the floor from the start, before everybody): 2 ``radius_m`` + ``gap_m`` minus the distance
-    of their centres, 0 where nobody such is that close."""
-    order = np.where(np.isnan(arrival), -np.inf, arrival)
+    room ``gap_m`` it owes the nearest of those ahead of it along e_d who go first (a smaller ``first``: the
+    recorded arrival, NaN for those on the floor from the start, before everybody; or the travel time T): 2
+    ``radius_m`` + ``gap_m`` minus the distance of their centres, 0 where nobody such is that close."""
+    order = np.where(np.isnan(first), -np.inf, first)
     reach = 2.0 * radius_m + gap_m
     out = np.zeros(rows.size)
     for n, (j, near) in enumerate(zip(rows, cKDTree(pos).query_ball_point(pos[rows], reach))):
@@ -244,9 +253,9 @@ def _targets(replay, f, k: int, k0: int, pos, arrival, point, setting: tuple, ra
     from ``k0``: the recorded action plus the pull (recorded rows), or the walk along e_d that covers the geodesic
     distance to the first recorded point (the travel times' difference) by the recorded time, at most
     ``newcomer_speed_m_s`` (newcomers not yet recorded, those arriving within the horizon: the ones behind them
-    stand where they would); with ``give_way_gap_m``, a newcomer too close behind someone the recording shows
-    first steps back (:func:`_give_way_m`, module docstring)."""
-    _, _, _, horizon, pull_time_s, max_pull, newcomer_speed, *_, give_way_gap_m = setting
+    stand where they would); with ``give_way_gap_m``, a newcomer too close behind someone who goes first steps back
+    (:func:`_give_way_m`, module docstring)."""
+    _, _, _, horizon, pull_time_s, max_pull, newcomer_speed, *_, give_way = setting
     dt = replay.decision_dt_s
     rec = replay.present[k, f] & replay.present[k + 1, f]
     with np.errstate(invalid="ignore"):
@@ -261,8 +270,10 @@ def _targets(replay, f, k: int, k0: int, pos, arrival, point, setting: tuple, ra
         e_d, left = navigation.sample(pos[waiting])
         _, there = navigation.sample(point[waiting])
         speed = np.clip((left - there) / np.maximum(arrival[waiting] - t, dt), 0.0, newcomer_speed)
-        if give_way_gap_m is not None:
-            owed = _give_way_m(pos, arrival, np.flatnonzero(waiting), e_d, radius_m, give_way_gap_m)
+        if give_way is not None:
+            gap, to = give_way
+            order = arrival if to == "recorded_first" else navigation.sample(pos)[1]
+            owed = _give_way_m(pos, order, np.flatnonzero(waiting), e_d, radius_m, gap)
             speed = np.where(owed > 0.0, -np.minimum(owed / pull_time_s, max_pull), speed)
         walk[waiting] = e_d * speed[:, None]
     return np.where(rec[:, None], a_rec + pull, walk), waiting

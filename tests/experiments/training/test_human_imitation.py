@@ -113,19 +113,23 @@ def test_newcomers_start_in_the_spawn_area_and_walk_along_e_d_to_arrive_when_the
     assert not np.any(plain.position_m[:, 1] > 8.3)  # without them nobody stands there
 
 
-def test_a_newcomer_too_close_behind_one_recorded_first_steps_back_to_give_way(replay):
+@pytest.mark.parametrize("to", ["recorded_first", "nearer_exit"])
+def test_a_newcomer_too_close_behind_one_who_goes_first_steps_back_to_give_way(replay, to):
     scenario, rep = replay
     first = np.argmax(rep.present, axis=0)
     k0 = int(np.sort(first[first > 30])[0]) - 12
     gap, pull, most = 0.3, 1.0, 1.0
     demos = dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=2.0, newcomer_speed_m_s=50.0,
-                         spawn_newcomers=True, give_way_gap_m=gap, pull_time_s=pull, max_pull_m_s=most)
+                         spawn_newcomers=True, give_way_gap_m=gap, give_way_to=to, pull_time_s=pull,
+                         max_pull_m_s=most)
+    assert demos.meta["give_way_to"] == to and demos.meta["give_way_gap_m"] == gap
     plain = dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=2.0, newcomer_speed_m_s=50.0,
                          spawn_newcomers=True)
     np.testing.assert_array_equal(demos.position_m, plain.position_m)  # standing still: the same states
     col = {int(i): c for c, i in enumerate(rep.ids)}
     arrival = np.array([rep.time_s[first[col[int(p)]]] if not rep.present[k0, col[int(p)]] else -np.inf
                         for p in demos.pedestrian])
+    goes_first = arrival if to == "recorded_first" else scenario.navigation().sample(demos.position_m)[1]
     world = to_world_frame(demos.action, np.cos(demos.heading_rad), np.sin(demos.heading_rad))
     plain_world = to_world_frame(plain.action, np.cos(plain.heading_rad), np.sin(plain.heading_rad))
     navigation = scenario.navigation()
@@ -140,7 +144,7 @@ def test_a_newcomer_too_close_behind_one_recorded_first_steps_back_to_give_way(r
         owed = 0.0  # the room owed to those recorded first and ahead along e_d, brute force
         for o in same_time:
             d = demos.position_m[o] - demos.position_m[r]
-            if o != r and arrival[o] < arrival[r] and d @ e_d[0] > 0.0:
+            if o != r and goes_first[o] < goes_first[r] and d @ e_d[0] > 0.0:
                 owed = max(owed, r2 + gap - float(np.hypot(*d)))
         back = -(world[r] @ e_d[0])  # a step back is along -e_d, at most the pull's speed
         if back > 0.0:
@@ -154,6 +158,8 @@ def test_a_newcomer_too_close_behind_one_recorded_first_steps_back_to_give_way(r
     assert stepped_back > 0
     with pytest.raises(TrainingError, match="give_way_gap_m"):
         dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=1.0, give_way_gap_m=-0.1)
+    with pytest.raises(TrainingError, match="give_way_to"):
+        dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=1.0, give_way_gap_m=0.1, give_way_to="left")
 
 
 def test_the_room_owed_is_to_those_ahead_along_e_d_whom_the_recording_shows_first():
@@ -165,6 +171,34 @@ def test_the_room_owed_is_to_those_ahead_along_e_d_whom_the_recording_shows_firs
     # 1: nobody is before it; 2: nobody ahead within 0.56 m; 3: 0 is later; 4: 1 is 0.3 m ahead of it (and 0 behind)
     np.testing.assert_allclose(owed, [0.06, 0.0, 0.0, 0.0, 0.26], atol=1e-12)
     np.testing.assert_allclose(_give_way_m(pos, arrival, np.array([4]), e_d[:1], 0.23, 0.0), [0.16], atol=1e-12)
+
+
+@pytest.mark.parametrize("to", ["recorded_first", "nearer_exit"])
+def test_who_gives_way_is_the_later_one_or_the_one_farther_from_the_exit(to):
+    """Two waiting newcomers in line before the 0.5 m entrance: A, behind, is recorded first; B, ahead, is nearer
+    the exit. In the recording's order nobody owes room to anyone ahead of it; by travel time A steps back."""
+    from types import SimpleNamespace
+
+    from crowd_env.experiments.training.recorded_rollouts import _targets
+
+    scenario = uo_scenario(RUN)
+    k_max = 40
+    rep = SimpleNamespace(present=np.zeros((k_max, 2), bool), time_s=np.arange(k_max) * 0.1, decision_dt_s=0.1,
+                          position_m=np.full((k_max, 2, 2), np.nan))
+    pos = np.array([[0.9, 9.3], [0.9, 8.8]])  # A behind B, 0.5 m apart, both heading to the opening (-y)
+    arrival = np.array([1.0, 2.0])  # A recorded first
+    point = np.array([[0.9, 7.9], [0.9, 7.9]])
+    gap = 0.3
+    setting = (scenario, None, None, k_max - 1, 1.0, 1.0, 5.0, 0.0, None, True, (gap, to))
+    target, waiting = _targets(rep, np.arange(2), 0, 0, pos, arrival, point, setting, 0.23)
+    assert waiting.all()
+    e_d, travel = scenario.navigation().sample(pos)
+    assert travel[1] < travel[0] and e_d[0] @ (pos[1] - pos[0]) > 0 > e_d[1] @ (pos[0] - pos[1])
+    assert target[1] @ e_d[1] > 0.0  # B walks on either way
+    if to == "recorded_first":
+        assert target[0] @ e_d[0] > 0.0  # B is later: A owes it nothing
+    else:
+        np.testing.assert_allclose(target[0], -e_d[0] * (0.46 + gap - 0.5), atol=1e-12)
 
 
 def test_the_calibrated_agent_acts_on_a_recorded_crowd_as_on_a_simulator(replay):
