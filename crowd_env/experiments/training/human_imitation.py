@@ -55,7 +55,7 @@ from ..running.store import check_config
 from .demonstrations import (DEFAULT_SMOOTHING_S, demonstrations_from_replay, load_demonstrations, policy_options,
                              replay_trajectories)
 from .imitation import fit_epoch, mlp_network, network_policy_file
-from .recorded_rollouts import DEFAULT_DAD, calibrated_actions, dad_rollouts
+from .recorded_rollouts import DEFAULT_DAD, calibrated_actions, check_rollout_options, dad_rollouts
 
 __all__ = ["TRAINING_RUNS", "VALIDATION_RUNS", "DEFAULT_HUMAN_TRAINING", "QUICK_HUMAN_TRAINING", "HUMAN_POLICY_NAME",
            "train_human_policy", "open_loop_errors", "human_training_config", "demonstrations_task",
@@ -95,6 +95,7 @@ def human_training_config(config: dict | None = None, *, preset: str = "calibrat
     if not isinstance(cfg["dad"], dict) or set(cfg["dad"]) - set(DEFAULT_DAD):
         raise TrainingError(f"dad must be a dict of the rollouts' options {sorted(DEFAULT_DAD)}, got {cfg['dad']!r}")
     cfg["dad"] = {**DEFAULT_HUMAN_TRAINING["dad"], **cfg["dad"]}  # a partial dict changes only what it names
+    check_rollout_options(**cfg["dad"])
     cfg["options"] = policy_options(cfg["policy"])
     physics = get_preset(preset)
     params = physics.params()

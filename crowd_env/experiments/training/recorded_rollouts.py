@@ -71,7 +71,8 @@ from ...walking.agent import SocialForceAgent, desired_direction
 from ...walking.model import ModelParams
 from .demonstrations import Demonstrations, observation_reach_m, policy_options, recorded_state
 
-__all__ = ["DEFAULT_DAD", "separated", "dad_rollouts", "RecordedView", "calibrated_actions"]
+__all__ = ["DEFAULT_DAD", "GIVE_WAY_TO", "check_rollout_options", "separated", "dad_rollouts", "RecordedView",
+           "calibrated_actions"]
 
 DEFAULT_DAD = {"horizon_s": 3.0, "start_every_s": 2.0, "pull_time_s": 1.0, "max_pull_m_s": 1.0,
                "newcomer_speed_m_s": 2.0, "intent_gain": 0.0, "spawn_newcomers": False, "give_way_gap_m": None,
@@ -159,6 +160,31 @@ def _label_mask(replay, rows, k: int, k0: int, pos, reach, edges: tuple, newcome
     return mask
 
 
+def check_rollout_options(**options) -> None:
+    """Raise :class:`TrainingError` naming the first of the rollouts' ``options`` (:data:`DEFAULT_DAD`'s names; those
+    not given are not checked) with a value :func:`dad_rollouts` cannot take: before a training's first round, not
+    minutes into it."""
+    def number(name, ok):
+        value = options.get(name)
+        if name in options and (isinstance(value, bool) or not isinstance(value, (int, float)) or not ok(value)):
+            raise TrainingError(f"rollout option {name} must be {explain[name]}, got {value!r}")
+
+    explain = {"horizon_s": "a time in s > 0", "start_every_s": "a time in s > 0", "pull_time_s": "a time in s > 0",
+               "max_pull_m_s": "a speed in m/s >= 0", "newcomer_speed_m_s": "a speed in m/s > 0",
+               "intent_gain": "a gain >= 0", "give_way_gap_m": "None (nobody gives way) or a gap in m >= 0"}
+    for name in ("horizon_s", "start_every_s", "pull_time_s", "newcomer_speed_m_s"):
+        number(name, lambda v: v > 0)
+    for name in ("max_pull_m_s", "intent_gain"):
+        number(name, lambda v: v >= 0)
+    if options.get("give_way_gap_m") is not None:
+        number("give_way_gap_m", lambda v: v >= 0)
+    if "give_way_to" in options and options["give_way_to"] not in GIVE_WAY_TO:
+        raise TrainingError(f"rollout option give_way_to must be one of {list(GIVE_WAY_TO)}, "
+                            f"got {options['give_way_to']!r}")
+    if "spawn_newcomers" in options and not isinstance(options["spawn_newcomers"], bool):
+        raise TrainingError(f"rollout option spawn_newcomers must be true or false, got {options['spawn_newcomers']!r}")
+
+
 def dad_rollouts(replay, scenario, policy, *, params: ModelParams | None = None, options: dict | None = None,
                  starts=None, horizon_s: float = DEFAULT_DAD["horizon_s"],
                  pull_time_s: float = DEFAULT_DAD["pull_time_s"], max_pull_m_s: float = DEFAULT_DAD["max_pull_m_s"],
@@ -173,14 +199,9 @@ def dad_rollouts(replay, scenario, policy, *, params: ModelParams | None = None,
     docstring). ``options``: the policy's (default its ``env_overrides`` over the human policy's)."""
     params = ModelParams() if params is None else params
     options = policy_options({**(options or {}), **{k: v for k, v in policy.env_overrides.items()}})
-    if give_way_gap_m is not None and (isinstance(give_way_gap_m, bool) or not give_way_gap_m >= 0.0):
-        raise TrainingError(f"give_way_gap_m must be None (nobody gives way) or a gap in m >= 0, got {give_way_gap_m!r}")
-    if give_way_to not in GIVE_WAY_TO:
-        raise TrainingError(f"give_way_to must be one of {list(GIVE_WAY_TO)}, got {give_way_to!r}")
-    if not (pull_time_s > 0 and max_pull_m_s >= 0 and horizon_s > 0 and newcomer_speed_m_s > 0 and intent_gain >= 0):
-        raise TrainingError("dad_rollouts needs horizon_s > 0, pull_time_s > 0, max_pull_m_s >= 0, newcomer_speed_m_s "
-                            f"> 0 and intent_gain >= 0, got {horizon_s}, {pull_time_s}, {max_pull_m_s}, "
-                            f"{newcomer_speed_m_s}, {intent_gain}")
+    check_rollout_options(horizon_s=horizon_s, start_every_s=start_every_s, pull_time_s=pull_time_s,
+                          max_pull_m_s=max_pull_m_s, newcomer_speed_m_s=newcomer_speed_m_s, intent_gain=intent_gain,
+                          give_way_gap_m=give_way_gap_m, give_way_to=give_way_to)
     if starts is None:
         starts = np.arange(0, replay.time_s.size - 1, max(1, int(round(start_every_s / replay.decision_dt_s))))
     horizon = max(1, int(round(horizon_s / replay.decision_dt_s)))

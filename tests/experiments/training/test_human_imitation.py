@@ -156,7 +156,7 @@ def test_a_newcomer_too_close_behind_one_who_goes_first_steps_back_to_give_way(r
         # the room owed to those labelled too is given back at least (the unlabelled ones on the floor count too)
         assert max(back, 0.0) >= min(owed / pull, most) - 1e-9
     assert stepped_back > 0
-    with pytest.raises(TrainingError, match="give_way_gap_m"):
+    with pytest.raises(TrainingError, match="give_way_gap_m must be None"):
         dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=1.0, give_way_gap_m=-0.1)
     with pytest.raises(TrainingError, match="give_way_to"):
         dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=1.0, give_way_gap_m=0.1, give_way_to="left")
@@ -230,6 +230,13 @@ def test_training_options_are_checked():
         human_training_config({"dad": {"horizon": 8.0}})
     with pytest.raises(TrainingError, match="radius_m must be a body radius"):
         human_training_config({"radius_m": 0.0})
+    for bad, match in ((("give_way_to", "left"), "give_way_to must be one of"),
+                       (("give_way_gap_m", -0.1), "give_way_gap_m must be None"),
+                       (("horizon_s", 0.0), "horizon_s must be a time"),
+                       (("intent_gain", "2"), "intent_gain must be a gain"),
+                       (("spawn_newcomers", 1), "spawn_newcomers must be true or false")):
+        with pytest.raises(TrainingError, match=match):  # refused at once, not when the first round starts
+            human_training_config({"dad": dict([bad])})
 
 
 def test_a_partial_rollout_option_changes_only_what_it_names():
