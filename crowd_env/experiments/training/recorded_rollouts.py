@@ -288,13 +288,14 @@ def _targets(replay, f, k: int, k0: int, pos, arrival, point, setting: tuple, ra
     walk = np.zeros_like(pos)
     if waiting.any():  # along e_d, at the geodesic distance left over the time left
         navigation = setting[0].navigation()
-        e_d, left = navigation.sample(pos[waiting])
+        e_all, travel = navigation.sample(pos)  # everybody's T: the waiting ones' walk, who is nearer the exit
+        e_d, left = e_all[waiting], travel[waiting]
         _, there = navigation.sample(point[waiting])
         speed = np.clip((left - there) / np.maximum(arrival[waiting] - t, dt), 0.0, newcomer_speed)
         if give_way is not None:
             gap, to = give_way
-            order = arrival if to == "recorded_first" else navigation.sample(pos)[1]
-            owed = _give_way_m(pos, order, np.flatnonzero(waiting), e_d, radius_m, gap)
+            owed = _give_way_m(pos, arrival if to == "recorded_first" else travel, np.flatnonzero(waiting), e_d,
+                               radius_m, gap)
             speed = np.where(owed > 0.0, -np.minimum(owed / pull_time_s, max_pull), speed)
         walk[waiting] = e_d * speed[:, None]
     return np.where(rec[:, None], a_rec + pull, walk), waiting
