@@ -45,7 +45,10 @@ instead stepping back along −e_d at the speed that gives that room back within
 ``max_pull_m_s``). Who goes first (``give_way_to``): ``"recorded_first"``, the one the recording shows first (or
 who is on the floor already), which the policy cannot see; or ``"nearer_exit"``, the one with the smaller travel
 time T, which it sees with the observation component
-:mod:`~crowd_env.envs.observations.neighbor_travel_time`.
+:mod:`~crowd_env.envs.observations.neighbor_travel_time`. Where (``give_way_below_m`` w): two bodies pass abreast
+through an opening at least two shoulder widths wide, and one gives way to the other only where they cannot; with
+w the labels give way only in the runs whose entrance (the opening the waiting crowd passes, the scenario's
+``metadata['entrance_width_m']``) is narrower than w, and are the walk in the others (None: in every run).
 
 :func:`calibrated_actions` gives the calibrated agent's intents (Kabalan et al. 2016, Eq. 14-16) on a recorded
 state, through a read-only view of it that answers what the agent asks a simulator (:class:`RecordedView`), with
@@ -76,7 +79,7 @@ __all__ = ["DEFAULT_DAD", "GIVE_WAY_TO", "check_rollout_options", "separated", "
 
 DEFAULT_DAD = {"horizon_s": 3.0, "start_every_s": 2.0, "pull_time_s": 1.0, "max_pull_m_s": 1.0,
                "newcomer_speed_m_s": 2.0, "intent_gain": 0.0, "spawn_newcomers": False, "give_way_gap_m": None,
-               "give_way_to": "recorded_first"}
+               "give_way_to": "recorded_first", "give_way_below_m": None}
 GIVE_WAY_TO = ("recorded_first", "nearer_exit")
 
 
@@ -171,13 +174,16 @@ def check_rollout_options(**options) -> None:
 
     explain = {"horizon_s": "a time in s > 0", "start_every_s": "a time in s > 0", "pull_time_s": "a time in s > 0",
                "max_pull_m_s": "a speed in m/s >= 0", "newcomer_speed_m_s": "a speed in m/s > 0",
-               "intent_gain": "a gain >= 0", "give_way_gap_m": "None (nobody gives way) or a gap in m >= 0"}
+               "intent_gain": "a gain >= 0", "give_way_gap_m": "None (nobody gives way) or a gap in m >= 0",
+               "give_way_below_m": "None (every run) or a width in m > 0"}
     for name in ("horizon_s", "start_every_s", "pull_time_s", "newcomer_speed_m_s"):
         number(name, lambda v: v > 0)
     for name in ("max_pull_m_s", "intent_gain"):
         number(name, lambda v: v >= 0)
     if options.get("give_way_gap_m") is not None:
         number("give_way_gap_m", lambda v: v >= 0)
+    if options.get("give_way_below_m") is not None:
+        number("give_way_below_m", lambda v: v > 0)
     if "give_way_to" in options and options["give_way_to"] not in GIVE_WAY_TO:
         raise TrainingError(f"rollout option give_way_to must be one of {list(GIVE_WAY_TO)}, "
                             f"got {options['give_way_to']!r}")
@@ -193,7 +199,8 @@ def dad_rollouts(replay, scenario, policy, *, params: ModelParams | None = None,
                  intent_gain: float = DEFAULT_DAD["intent_gain"],
                  spawn_newcomers: bool = DEFAULT_DAD["spawn_newcomers"],
                  give_way_gap_m: float | None = DEFAULT_DAD["give_way_gap_m"],
-                 give_way_to: str = DEFAULT_DAD["give_way_to"]) -> Demonstrations:
+                 give_way_to: str = DEFAULT_DAD["give_way_to"],
+                 give_way_below_m: float | None = DEFAULT_DAD["give_way_below_m"]) -> Demonstrations:
     """The labelled decisions of rollouts of the observation ``policy`` from the recorded decisions ``starts``
     (indices into ``replay.time_s``; default every ``start_every_s``) of ``replay`` in ``scenario`` (module
     docstring). ``options``: the policy's (default its ``env_overrides`` over the human policy's)."""
@@ -201,15 +208,16 @@ def dad_rollouts(replay, scenario, policy, *, params: ModelParams | None = None,
     options = policy_options({**(options or {}), **{k: v for k, v in policy.env_overrides.items()}})
     check_rollout_options(horizon_s=horizon_s, start_every_s=start_every_s, pull_time_s=pull_time_s,
                           max_pull_m_s=max_pull_m_s, newcomer_speed_m_s=newcomer_speed_m_s, intent_gain=intent_gain,
-                          give_way_gap_m=give_way_gap_m, give_way_to=give_way_to)
+                          give_way_gap_m=give_way_gap_m, give_way_to=give_way_to, give_way_below_m=give_way_below_m)
     if starts is None:
         starts = np.arange(0, replay.time_s.size - 1, max(1, int(round(start_every_s / replay.decision_dt_s))))
     horizon = max(1, int(round(horizon_s / replay.decision_dt_s)))
     pts, appears = replay.edge_points_m, replay.edge_appears
     edges = (cKDTree(pts[~appears]) if (~appears).any() else None, cKDTree(pts[appears]) if appears.any() else None)
     spawned = bool(spawn_newcomers) and scenario.spawn_area is not None
+    gives_way = give_way_gap_m is not None and _narrow_entrance(scenario, give_way_below_m)
     setting = (scenario, params, options, horizon, pull_time_s, max_pull_m_s, newcomer_speed_m_s, float(intent_gain),
-               edges, spawned, None if give_way_gap_m is None else (float(give_way_gap_m), give_way_to))
+               edges, spawned, (float(give_way_gap_m), give_way_to) if gives_way else None)
     parts = [p for k0 in starts for p in _rollout(replay, policy, int(k0), setting)]
     if not parts:
         raise TrainingError("the rollouts reached no decision with a label")
@@ -218,8 +226,20 @@ def dad_rollouts(replay, scenario, policy, *, params: ModelParams | None = None,
             "pull_time_s": float(pull_time_s), "max_pull_m_s": float(max_pull_m_s), "n_starts": int(len(starts)),
             "intent_gain": float(intent_gain), "spawn_newcomers": spawned, "give_way_to": give_way_to,
             "give_way_gap_m": None if give_way_gap_m is None else float(give_way_gap_m),
+            "give_way_below_m": None if give_way_below_m is None else float(give_way_below_m), "gives_way": gives_way,
             "n_decisions": int(arrays[1].shape[0]), "n_seen": int(arrays[7].sum())}
     return Demonstrations(*arrays, meta=meta)
+
+
+def _narrow_entrance(scenario, below_m: float | None) -> bool:
+    """Whether the give-way labels act in ``scenario``: its entrance is narrower than ``below_m`` (None: always)."""
+    if below_m is None:
+        return True
+    width = scenario.metadata.get("entrance_width_m")
+    if width is None:
+        raise TrainingError(f"rollout option give_way_below_m needs a scenario with an entrance "
+                            f"(metadata['entrance_width_m']); {scenario.name!r} has none")
+    return float(width) < float(below_m)
 
 
 def _start_crowd(replay, scenario, k0: int, horizon: int, spawned: bool, radius: float) -> tuple:

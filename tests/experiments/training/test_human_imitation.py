@@ -4,6 +4,7 @@ recording, the calibrated agent on a recorded state, and the command's quick pat
 nothing, the refusals."""
 from __future__ import annotations
 
+import copy
 import csv
 import json
 import time
@@ -156,6 +157,18 @@ def test_a_newcomer_too_close_behind_one_who_goes_first_steps_back_to_give_way(r
         # the room owed to those labelled too is given back at least (the unlabelled ones on the floor count too)
         assert max(back, 0.0) >= min(owed / pull, most) - 1e-9
     assert stepped_back > 0
+    # only where two bodies cannot pass abreast: the labels give way in a run whose entrance (0.5 m) is narrower
+    # than give_way_below_m, and are the plain walk in one whose entrance is not
+    for below, same_as in ((0.6, demos), (0.5, plain)):
+        only = dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=2.0, newcomer_speed_m_s=50.0,
+                            spawn_newcomers=True, give_way_gap_m=gap, give_way_to=to, pull_time_s=pull,
+                            max_pull_m_s=most, give_way_below_m=below)
+        assert only.meta["give_way_below_m"] == below and only.meta["gives_way"] is (same_as is demos)
+        np.testing.assert_array_equal(only.action, same_as.action)
+    no_entrance = copy.copy(scenario)
+    no_entrance.metadata = {k: v for k, v in scenario.metadata.items() if k != "entrance_width_m"}
+    with pytest.raises(TrainingError, match="give_way_below_m needs a scenario with an entrance"):
+        dad_rollouts(rep, no_entrance, _Still(), starts=[k0], horizon_s=1.0, give_way_gap_m=gap, give_way_below_m=1.0)
     with pytest.raises(TrainingError, match="give_way_gap_m must be None"):
         dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=1.0, give_way_gap_m=-0.1)
     with pytest.raises(TrainingError, match="give_way_to"):
@@ -232,6 +245,7 @@ def test_training_options_are_checked():
         human_training_config({"radius_m": 0.0})
     for bad, match in ((("give_way_to", "left"), "give_way_to must be one of"),
                        (("give_way_gap_m", -0.1), "give_way_gap_m must be None"),
+                       (("give_way_below_m", 0.0), "give_way_below_m must be None"),
                        (("horizon_s", 0.0), "horizon_s must be a time"),
                        (("intent_gain", "2"), "intent_gain must be a gain"),
                        (("spawn_newcomers", 1), "spawn_newcomers must be true or false")):
