@@ -29,12 +29,13 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..walking.presets import DEFAULT_PRESET, PRESETS, get_preset
-from ..errors import CrowdEnvError
+from ..errors import CrowdEnvError, InputError
 from ..experiments.running.backends import make_backend
-from ..experiments.validation.corridor_runs import CORRIDOR_RUN_NAMES, corridor_snapshot
+from ..experiments.validation.corridor_runs import CORRIDOR_RUN_NAMES
 from ..experiments.validation.virtual_experiments import (EXPERIMENTS, QUICK_PLAN, VirtualPlan, format_rows,
-                                                          run_virtual_experiments, snapshot_figure, virtual_config,
-                                                          virtual_rows, virtual_tasks, write_virtual_outputs)
+                                                          run_snapshot, run_virtual_experiments, snapshot_case,
+                                                          snapshot_figure, virtual_config, virtual_rows, virtual_tasks,
+                                                          write_virtual_outputs)
 from .options import add_key_values, add_wall_slowdown_argument, key_values
 
 
@@ -79,10 +80,14 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--jobs", type=int, default=None, help="processes of the pool / CPUs of local Ray")
     ap.add_argument("--address", default=None, help="Ray cluster to join (with --backend ray)")
     ap.add_argument("--no-figure", action="store_true", help="skip virtual_experiments.png")
-    ap.add_argument("--snapshot", choices=CORRIDOR_RUN_NAMES, default=None, metavar="RUN",
-                    help="instead: follow corridor run RUN (seed 0) step by step to --at and write OUT/snapshot_RUN.png: "
-                         "the crowd near the exit and, over time, those out, their mean speed and mean net speed "
-                         "(how a crowd wedged for good still shakes)")
+    ap.add_argument("--snapshot", default=None, metavar="CASE",
+                    help="instead: follow one run step by step to --at and write OUT/snapshot_CASE.png (with "
+                         "--snapshot-seed S > 0, OUT/snapshot_CASE_seedS.png): the crowd at the narrower opening and, "
+                         "over time, those out, their mean speed and mean net speed (how a crowd wedged for good "
+                         "still shakes). CASE: a corridor run (" + ", ".join(CORRIDOR_RUN_NAMES) + ") or "
+                         "bottleneck-B-N (Seyfried's bottleneck of width B m with N walkers, e.g. bottleneck-0.8-60)")
+    ap.add_argument("--snapshot-seed", type=int, default=0, metavar="S", help="the seed of the run --snapshot follows "
+                    "(default 0)")
     ap.add_argument("--at", type=float, default=60.0, help="time of the snapshot (s; default 60)")
     return ap
 
@@ -143,18 +148,20 @@ def main(argv=None) -> int:
 
 
 def _snapshot(args, config: dict, plan: VirtualPlan) -> int:
-    task = next(t for t in virtual_tasks(config, replace(plan, experiments=("corridor",), corridor_runs=(args.snapshot,),
-                                                          seeds=(0,))))
-    study = corridor_snapshot(task, at_s=args.at)
+    keywords, case = snapshot_case(args.snapshot)
+    if args.snapshot_seed < 0:
+        raise InputError(f"--snapshot-seed must be an integer >= 0, got {args.snapshot_seed}")
+    task = next(t for t in virtual_tasks(config, replace(plan, seeds=(args.snapshot_seed,), **keywords)))
+    study = run_snapshot(task, at_s=args.at)
     args.out.mkdir(parents=True, exist_ok=True)
-    path = snapshot_figure(study, args.out / f"snapshot_{args.snapshot}.png")
+    suffix = f"_seed{args.snapshot_seed}" if args.snapshot_seed else ""
+    path = snapshot_figure(study, args.out / f"snapshot_{case}{suffix}.png")
     s = study["series"]
-    print(f"{args.snapshot}, seed 0, to t = {s['time_s'][-1]:.1f} s: {s['left'][-1]} of {task['n_pedestrians']} out; "
-          f"those left move at {s['mean_speed_m_s'][-1]:.3f} m/s on average, {s['net_displacement_m'][-1]:.3f} m net "
-          f"over the last 20 s")
+    print(f"{case}, seed {args.snapshot_seed}, to t = {s['time_s'][-1]:.1f} s: {s['left'][-1]} of "
+          f"{task['n_pedestrians']} out; those left move at {s['mean_speed_m_s'][-1]:.3f} m/s on average, "
+          f"{s['net_displacement_m'][-1]:.3f} m net over the last 20 s")
     print(f"wrote {path}")
     return 0
-
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -35,7 +35,7 @@ from ..running.store import RunStore, check_record, config_hash, normalise_recor
 from crowd_env.files import write_csv_atomic
 
 __all__ = ["GEOMETRY_OPTIONS", "LANE_BIN_M", "RESULT_COLUMNS", "SetupError", "SweepError", "model_params",
-           "params_dict", "bottleneck_config", "check_setups", "check_records", "SUMMARY_FIELDS", "run_one", "run_sweep", "write_results",
+           "params_dict", "bottleneck_config", "check_setups", "check_records", "SUMMARY_FIELDS", "bottleneck_scenario", "run_one", "run_sweep", "write_results",
            "summarise", "write_summary", "flow_fit"]
 
 GEOMETRY_OPTIONS = {  # command-line flag -> seyfried_bottleneck option, with the Seyfried defaults
@@ -108,6 +108,12 @@ def check_setups(geometry: dict, widths_m, sizes, seed: int) -> None:
                 raise SetupError(f"b = {b} m, N = {n}: {exc}") from None
 
 
+def bottleneck_scenario(task: dict):
+    """The ``seyfried_bottleneck`` scenario of a task of the task format (module docstring)."""
+    return make_scenario("seyfried_bottleneck", width_m=task["width_m"], n_pedestrians=task["n_pedestrians"],
+                         seed=task["seed"], **task["geometry"])
+
+
 def run_one(task: dict) -> dict:
     """One bottleneck run of the task format (module docstring); returns a JSON-able record.
 
@@ -120,8 +126,7 @@ def run_one(task: dict) -> dict:
     them (:mod:`crowd_env.experiments.running.runner`).
     """
     params = ModelParams.from_dict(task["params"])
-    scenario = make_scenario("seyfried_bottleneck", width_m=task["width_m"], n_pedestrians=task["n_pedestrians"],
-                             seed=task["seed"], **task["geometry"])
+    scenario = bottleneck_scenario(task)
     agent = crowd_policy(task, scenario, params)  # the calibrated agent, unless the task names a learned policy
     state = None
     if task.get("pedestrian"):

@@ -37,7 +37,7 @@ from ..running.recording import record_run
 from .bottleneck import params_dict
 
 __all__ = ["CORRIDOR_RUN_NAMES", "CORRIDOR_TOLERANCES", "corridor_tasks", "run_corridor_one", "summarise_corridor",
-           "corridor_snapshot", "passage_figures", "recorded_passage_figures", "PASSAGE_FIELDS", "ENTRY_FIELDS"]
+           "corridor_scenario", "passage_figures", "recorded_passage_figures", "PASSAGE_FIELDS", "ENTRY_FIELDS"]
 
 CORRIDOR_RUN_NAMES = tuple(r.name for r in juelich_uo_runs())
 # The issue's targets for each run: speed within ±0.10 m/s, density within ±15 %, exit flow within ±10 %.
@@ -69,13 +69,18 @@ def corridor_tasks(params: ModelParams, *, runs=CORRIDOR_RUN_NAMES, seeds=(0,), 
     return tasks
 
 
+def corridor_scenario(task: dict):
+    """The ``juelich_corridor`` scenario of a corridor task (:func:`corridor_tasks`)."""
+    return make_scenario("juelich_corridor", entrance_width_m=task["entrance_width_m"],
+                         exit_width_m=task["exit_width_m"], corridor_width_m=task["corridor_width_m"],
+                         n_pedestrians=task["n_pedestrians"], seed=task["seed"], **task["geometry"])
+
+
 def run_corridor_one(task: dict) -> dict:
     """One corridor run of the task format; a JSON-able record: the measured figures (nan unless the run is
     complete), ``complete`` / ``stalled`` / ``stall_time_s``, the exit's passages, the smallest gap and the cost."""
     params = ModelParams.from_dict(task["params"])
-    scenario = make_scenario("juelich_corridor", entrance_width_m=task["entrance_width_m"],
-                             exit_width_m=task["exit_width_m"], corridor_width_m=task["corridor_width_m"],
-                             n_pedestrians=task["n_pedestrians"], seed=task["seed"], **task["geometry"])
+    scenario = corridor_scenario(task)
     state = None
     if task.get("pedestrian"):
         state = scenario.make_state(defaults=dataclasses.replace(PedestrianDefaults(), **task["pedestrian"]))
@@ -204,44 +209,3 @@ def summarise_corridor(records: list) -> list:
             "min_gap_m": float(min(r["min_gap_m"] for r in rs)),
         })
     return rows
-
-
-def corridor_snapshot(task: dict, *, at_s: float, every_s: float = 0.25) -> dict:
-    """A corridor run of the task format followed step by step: the crowd at ``at_s`` (positions, radii, headings and
-    the body depth, velocities, the agent's intents, who is left), and every ``every_s`` the passages of the exit so far, the mean speed ‖u‖ of
-    those left and their mean net displacement over the stall rule's window (from their positions
-    :data:`~crowd_env.experiments.running.runner.STALL_WINDOW_S` earlier): a crowd that shakes in place keeps a
-    speed while its net displacement falls to nothing. The run stops at ``at_s`` (or at its end)."""
-    from ..running.runner import STALL_WINDOW_S, run_scenario
-
-    params = ModelParams.from_dict(task["params"])
-    scenario = make_scenario("juelich_corridor", entrance_width_m=task["entrance_width_m"],
-                             exit_width_m=task["exit_width_m"], corridor_width_m=task["corridor_width_m"],
-                             n_pedestrians=task["n_pedestrians"], seed=task["seed"], **task["geometry"])
-    policy = crowd_policy(task, scenario, params)
-    series = {"time_s": [], "left": [], "mean_speed_m_s": [], "net_displacement_m": []}
-    kept = []  # (time, positions) every every_s, for the net displacement
-    snap = {}
-
-    def capture(sim):
-        st = sim.state
-        if not series["time_s"] or sim.time_s >= series["time_s"][-1] + every_s - 1e-9:
-            inside = st.active
-            kept.append((sim.time_s, st.position_m.copy()))
-            old = next((p for t, p in reversed(kept) if t <= sim.time_s - STALL_WINDOW_S + 1e-9), None)
-            series["time_s"].append(sim.time_s)
-            series["left"].append(int(st.n - inside.sum()))
-            speed = np.hypot(*st.velocity_m_s[inside].T) if inside.any() else np.zeros(0)
-            series["mean_speed_m_s"].append(float(speed.mean()) if speed.size else math.nan)
-            series["net_displacement_m"].append(float(np.hypot(*(st.position_m[inside] - old[inside]).T).mean())
-                                                if old is not None and inside.any() else math.nan)
-        if not snap and sim.time_s >= at_s - 1e-9:
-            intents, _ = policy(sim)
-            snap.update(position_m=st.position_m.copy(), radius_m=st.radius_m.copy(), velocity_m_s=st.velocity_m_s.copy(),
-                        intent_m_s=intents.copy(), active=st.active.copy(), time_s=sim.time_s,
-                        heading_rad=st.heading_rad.copy(), body_depth_m=sim.physics.body_depth_m)
-
-    result = run_scenario(scenario, policy, params, max_time_s=min(task["max_time_s"], at_s + 1e-6), line="exit",
-                          density_areas=(), lane_area=None, progress=capture, compiled=False, stall_window_s=None)
-    return {"snapshot": snap, "series": {k: np.asarray(v) for k, v in series.items()}, "complete": result.complete,
-            "outline_m": np.asarray(scenario.geometry.walkable_area.exterior.coords), "run": task["run"]}

@@ -39,17 +39,18 @@ from ...core.body import body_circles, circle_count
 from ...walking.model import ModelParams
 from ...walking.navigation import NavigationField
 from ..running.backends import execute
-from ..running.crowd_policy import policy_entry
+from ..running.crowd_policy import crowd_policy, policy_entry
 from ..running.store import RunStore
-from .bottleneck import GEOMETRY_OPTIONS, params_dict, run_one
+from .bottleneck import GEOMETRY_OPTIONS, bottleneck_scenario, params_dict, run_one
 from .calibration.tasks import with_body
-from .corridor_runs import CORRIDOR_RUN_NAMES, CORRIDOR_TOLERANCES, corridor_tasks, run_corridor_one, summarise_corridor
+from .corridor_runs import (CORRIDOR_RUN_NAMES, CORRIDOR_TOLERANCES, corridor_scenario, corridor_tasks,
+                            run_corridor_one, summarise_corridor)
 from .fundamental_diagram import SINGLE_FILE_DENSITIES, fd_tasks, run_fd_one
 from crowd_env.files import write_atomic, write_csv_atomic
 
 __all__ = ["EXPERIMENTS", "VirtualPlan", "QUICK_PLAN", "virtual_config", "virtual_tasks", "run_virtual_task",
            "run_virtual_experiments", "virtual_rows", "ROW_COLUMNS", "format_rows", "write_virtual_outputs",
-           "virtual_figure", "snapshot_figure", "BOTTLENECK_TOLERANCE", "SINGLE_FILE_TOLERANCE_M_S",
+           "virtual_figure", "snapshot_case", "run_snapshot", "snapshot_figure", "BOTTLENECK_TOLERANCE", "SINGLE_FILE_TOLERANCE_M_S",
            "PASSAGE_QUANTITIES", "passage_rows", "format_passage_rows", "approach_figure", "entry_figure",
            "spacing_rows",
            "format_spacing_rows", "spacing_figure", "LAPSE_QUANTITIES", "lapse_rows", "format_lapse_rows",
@@ -806,10 +807,79 @@ def write_virtual_outputs(out, records: list, rows: list, *, figure: bool = True
     return paths
 
 
+def snapshot_case(case: str) -> tuple:
+    """``(plan keywords, label)`` of a snapshot's case: a corridor run's name, or ``bottleneck-B-N`` (Seyfried's
+    bottleneck of width B m with N walkers, e.g. ``bottleneck-0.8-60``). Raises :class:`InputError` naming what is
+    wrong."""
+    if case in CORRIDOR_RUN_NAMES:
+        return {"experiments": ("corridor",), "corridor_runs": (case,)}, case
+    parts = case.split("-")
+    try:
+        if len(parts) != 3 or parts[0] != "bottleneck":
+            raise ValueError
+        width, n = float(parts[1]), int(parts[2])
+    except ValueError:
+        raise InputError(f"snapshot case {case!r}: give a corridor run ({', '.join(CORRIDOR_RUN_NAMES)}) or "
+                         "bottleneck-B-N (the bottleneck's width B in m and its N walkers, e.g. bottleneck-0.8-60)") \
+            from None
+    if not (math.isfinite(width) and width > 0.0) or n < 1:
+        raise InputError(f"snapshot case {case!r}: the width must be > 0 m and N at least 1")
+    return {"experiments": ("bottleneck",), "widths_m": (width,), "sizes": (n,)}, case
+
+
+def run_snapshot(task: dict, *, at_s: float, every_s: float = 0.25) -> dict:
+    """A bottleneck or corridor run of the task format (:func:`virtual_tasks`) followed step by step: the crowd at
+    ``at_s`` (positions, radii, headings and the body depth, velocities, the agent's intents, who is left), the times
+    its measurement line was passed (``crossing_times_s``: the corridor's exit, the bottleneck's line), and every
+    ``every_s`` how many have left the floor so far, the mean speed ‖u‖ of those left and their mean net displacement over the stall rule's window (from their positions
+    :data:`~crowd_env.experiments.running.runner.STALL_WINDOW_S` earlier): a crowd that shakes in place keeps a
+    speed while its net displacement falls to nothing. The run stops at ``at_s`` (or at its end)."""
+    from ..running.runner import STALL_WINDOW_S, run_scenario
+
+    kind = task["experiment"]
+    if kind not in ("bottleneck", "corridor"):
+        raise InputError(f"a snapshot follows a bottleneck or corridor run, not a {kind!r} one")
+    params = ModelParams.from_dict(task["params"])
+    scenario = bottleneck_scenario(task) if kind == "bottleneck" else corridor_scenario(task)
+    policy = crowd_policy(task, scenario, params)
+    series = {"time_s": [], "left": [], "mean_speed_m_s": [], "net_displacement_m": []}
+    kept = []  # (time, positions) every every_s, for the net displacement
+    snap = {}
+
+    def capture(sim):
+        st = sim.state
+        if not series["time_s"] or sim.time_s >= series["time_s"][-1] + every_s - 1e-9:
+            inside = st.active
+            kept.append((sim.time_s, st.position_m.copy()))
+            old = next((p for t, p in reversed(kept) if t <= sim.time_s - STALL_WINDOW_S + 1e-9), None)
+            series["time_s"].append(sim.time_s)
+            series["left"].append(int(st.n - inside.sum()))
+            speed = np.hypot(*st.velocity_m_s[inside].T) if inside.any() else np.zeros(0)
+            series["mean_speed_m_s"].append(float(speed.mean()) if speed.size else math.nan)
+            series["net_displacement_m"].append(float(np.hypot(*(st.position_m[inside] - old[inside]).T).mean())
+                                                if old is not None and inside.any() else math.nan)
+        if not snap and sim.time_s >= at_s - 1e-9:
+            intents, _ = policy(sim)
+            snap.update(position_m=st.position_m.copy(), radius_m=st.radius_m.copy(), velocity_m_s=st.velocity_m_s.copy(),
+                        intent_m_s=intents.copy(), active=st.active.copy(), time_s=sim.time_s,
+                        heading_rad=st.heading_rad.copy(), body_depth_m=sim.physics.body_depth_m)
+
+    result = run_scenario(scenario, policy, params, max_time_s=min(task["max_time_s"], at_s + 1e-6),
+                          line="exit" if kind == "corridor" else "bottleneck", density_areas=(), lane_area=None,
+                          progress=capture, compiled=False, stall_window_s=None)
+    case = task["run"] if kind == "corridor" else f"bottleneck-{task['width_m']:g}-{task['n_pedestrians']}"
+    return {"snapshot": snap, "series": {k: np.asarray(v) for k, v in series.items()}, "complete": result.complete,
+            "outline_m": np.asarray(scenario.geometry.walkable_area.exterior.coords), "run": case,
+            "seed": int(task["seed"]), "crossing_times_s": np.sort(result.crossing_times_s)}
+
+
 def snapshot_window_m(name: str) -> tuple:
-    """``(x range, y range)`` (m) of a corridor run's snapshot: around its narrower opening (:func:`_limiting_opening`),
-    the exit (the last 5 m of the corridor) or the entrance (the barrier, the waiting crowd before it and the floor
-    behind it)."""
+    """``(x range, y range)`` (m) of a snapshot: for a corridor run, around its narrower opening
+    (:func:`_limiting_opening`), the exit (the last 5 m of the corridor) or the entrance (the barrier, the waiting
+    crowd before it and the floor behind it); for Seyfried's bottleneck (``bottleneck-B-N``), the crowd before the
+    channel and the channel."""
+    if name.startswith("bottleneck"):
+        return (-3.0, 3.3), (-2.0, 2.0)
     _, prefix = _limiting_opening(name)
     if prefix == "exit":
         return (-1.0, 2.8), (-5.0, 0.0)
@@ -817,7 +887,7 @@ def snapshot_window_m(name: str) -> tuple:
 
 
 def snapshot_figure(study: dict, path, *, window_y_m: tuple | None = None, window_x_m: tuple | None = None) -> Path:
-    """A corridor run followed step by step (:func:`~.corridor_runs.corridor_snapshot`): left, the crowd in the window
+    """A run followed step by step (:func:`run_snapshot`): left, the crowd in the window
     (``window_x_m``, ``window_y_m``; None: :func:`snapshot_window_m`, around the run's narrower opening) at the
     snapshot (bodies, velocities in red, the agent's intents in blue); right, over time, how many have left, the mean
     speed of those left and their mean net speed over the stall rule's window (net displacement / 20 s) beside the
@@ -832,8 +902,9 @@ def snapshot_figure(study: dict, path, *, window_y_m: tuple | None = None, windo
     snap = study["snapshot"]
     ax.plot(*study["outline_m"].T, color="k", lw=1)
     if snap:
-        y = snap["position_m"][:, 1]
-        shown = np.flatnonzero(snap["active"] & (y >= window_y_m[0] - 0.5) & (y <= window_y_m[1] + 0.5))
+        x, y = snap["position_m"].T
+        shown = np.flatnonzero(snap["active"] & (x >= window_x_m[0] - 0.5) & (x <= window_x_m[1] + 0.5)
+                               & (y >= window_y_m[0] - 0.5) & (y <= window_y_m[1] + 0.5))
         k = circle_count(snap["body_depth_m"])  # the bodies' circles (one, the disk, at depth 0)
         centre, rad, _ = body_circles(snap["position_m"], snap["heading_rad"], snap["radius_m"], shown,
                                       snap["body_depth_m"])
@@ -843,7 +914,8 @@ def snapshot_figure(study: dict, path, *, window_y_m: tuple | None = None, windo
                 ax.add_patch(plt.Circle(c, rc, fill=False, lw=0.8))
             ax.arrow(*p, *(0.3 * snap["velocity_m_s"][i]), color="C3", width=0.006, length_includes_head=True)
             ax.arrow(*p, *(0.15 * snap["intent_m_s"][i]), color="C0", width=0.003, alpha=0.6, length_includes_head=True)
-        ax.set_title(f"{study['run']} at t = {snap['time_s']:.1f} s: velocity × 0.3 s (red), intent × 0.15 s (blue)",
+        ax.set_title(f"{study['run']} (seed {study.get('seed', 0)}) at t = {snap['time_s']:.1f} s: velocity × 0.3 s (red), "
+                     "intent × 0.15 s (blue)",
                      fontsize=9)
     ax.set_xlim(*window_x_m)
     ax.set_ylim(*window_y_m)

@@ -347,9 +347,8 @@ def test_snapshot_frames_the_runs_narrower_opening(tmp_path):
     """The snapshot of a corridor run shows the crowd at its narrower opening: the entrance's barrier (y = 8-8.3 m)
     and the waiting crowd for a narrowed entrance, the corridor's last 5 m before a narrowed exit; a short run of the
     0.5 m entrance draws."""
-    from crowd_env.experiments.validation.corridor_runs import corridor_snapshot
-    from crowd_env.experiments.validation.virtual_experiments import (VirtualPlan, snapshot_figure, snapshot_window_m,
-                                                                       virtual_config, virtual_tasks)
+    from crowd_env.experiments.validation.virtual_experiments import (VirtualPlan, run_snapshot, snapshot_figure,
+                                                                       snapshot_window_m, virtual_config, virtual_tasks)
     from crowd_env.walking.presets import get_preset
 
     assert snapshot_window_m("uo-050-180-180") == ((-1.7, 3.5), (6.0, 10.0))
@@ -359,8 +358,41 @@ def test_snapshot_frames_the_runs_narrower_opening(tmp_path):
     preset = get_preset("calibrated")
     config = virtual_config(preset.params(), navigation_clearance_m=preset.navigation_clearance_m)
     task = next(t for t in virtual_tasks(config, plan))
-    study = corridor_snapshot(task, at_s=2.0)
+    study = run_snapshot(task, at_s=2.0)
     ys = study["snapshot"]["position_m"][study["snapshot"]["active"], 1]
     assert ys.min() > 6.0  # after 2 s the first have just come through the entrance ...
     assert np.mean((ys > 6.0) & (ys < 10.0)) > 0.5  # ... and most stand within the window
+    assert snapshot_figure(study, tmp_path / "snapshot.png").stat().st_size > 0
+
+
+def test_a_snapshot_follows_a_bottleneck_run_of_any_seed_as_the_virtual_experiments_run_it(tmp_path):
+    """``--snapshot bottleneck-B-N``: Seyfried's bottleneck followed step by step, the same run as the virtual
+    experiments' (its passages through the bottleneck line are the run's); a bad case is refused by name."""
+    from crowd_env.experiments.validation.bottleneck import run_one
+    from crowd_env.experiments.validation.virtual_experiments import (VirtualPlan, run_snapshot, snapshot_case,
+                                                                       snapshot_figure, snapshot_window_m,
+                                                                       virtual_config, virtual_tasks)
+    from crowd_env.walking.presets import get_preset
+
+    keywords, case = snapshot_case("bottleneck-0.8-20")
+    assert case == "bottleneck-0.8-20" and keywords == {"experiments": ("bottleneck",), "widths_m": (0.8,),
+                                                         "sizes": (20,)}
+    assert snapshot_case("uo-180-180-070") == ({"experiments": ("corridor",), "corridor_runs": ("uo-180-180-070",)},
+                                               "uo-180-180-070")
+    for bad in ("bottleneck-0.8", "bottleneck-wide-20", "bottleneck-0-20", "uo-999-180-180"):
+        with pytest.raises(InputError, match="snapshot case"):
+            snapshot_case(bad)
+    assert snapshot_window_m("bottleneck-0.8-20") == ((-3.0, 3.3), (-2.0, 2.0))
+    preset = get_preset("calibrated")
+    config = virtual_config(preset.params(), navigation_clearance_m=preset.navigation_clearance_m)
+    task = next(t for t in virtual_tasks(config, VirtualPlan(seeds=(3,), **keywords)))
+    study = run_snapshot(task, at_s=8.0)
+    assert study["run"] == "bottleneck-0.8-20" and study["seed"] == 3
+    crossed = np.sort(run_one(task)["crossing_times_s"])  # the virtual experiments' run of that seed ...
+    assert study["crossing_times_s"].size > 0  # ... passes the bottleneck's line at the same times, to the bit
+    np.testing.assert_array_equal(np.round(study["crossing_times_s"], 4), crossed[:study["crossing_times_s"].size])
+    # (the record keeps them to 0.1 ms)
+    assert crossed[study["crossing_times_s"].size] > study["snapshot"]["time_s"]
+    xs = study["snapshot"]["position_m"][study["snapshot"]["active"], 0]
+    assert np.all(xs > -7.0) and np.mean(xs < 3.3) > 0.9  # those left stand in the window, before or in the channel
     assert snapshot_figure(study, tmp_path / "snapshot.png").stat().st_size > 0
