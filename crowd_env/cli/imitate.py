@@ -81,8 +81,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "learning_rate, smoothing_s, seed, dad (a dict of the rollouts' options; those it does "
                         "not name keep the human policy's), policy (a dict of observation options), radius_m (the "
                         "body of the replays and rollouts; default the calibrated preset's, 0.23 m), body_depth_m (0, "
-                        "the disk, or bodies of three circles that deep: crowd_env.core.body), training_runs, "
-                        "validation_runs")
+                        "the disk, or bodies of three circles that deep: crowd_env.core.body), "
+                        "shoulder_turn_critical_ratio (0, no turn, or the ratio at which the heading turns at a "
+                        "narrow aperture: crowd_env.walking.shoulder_turn), training_runs, validation_runs")
     tr.add_argument("--backend", choices=["ray", "process", "serial"], default="serial")
     tr.add_argument("--jobs", type=int, default=None, help="processes of the pool / CPUs of local Ray")
     se = sub.add_parser("select", help="trained policies scored closed loop on the validation runs; the best kept",

@@ -17,7 +17,9 @@ pedestrians exactly as the environment runs it for its agents:
 - an egocentric action is turned into the world frame at the decision and held there, as the
   environment does for its agents;
 - the desired heading θ_d is the angle of the intent (the current heading for a zero intent), or the
-  angle of e_d at every step with ``heading_target="desired_direction"``;
+  angle of e_d at every step with ``heading_target="desired_direction"``, the shoulders turned at a narrow
+  aperture when the model turns them (``shoulder_turn_critical_ratio`` > 0,
+  :func:`~crowd_env.walking.agent.facing_headings`);
 - an action outside the policy's Box(-a_max, a_max) or not finite raises
   :class:`~crowd_env.errors.PolicyError` naming the pedestrians: nothing is clipped.
 
@@ -40,8 +42,7 @@ import numpy as np
 
 from crowd_env.errors import EnvOptionError, PolicyError
 
-from ..core.angles import direction_angles_rad
-from ..walking.agent import desired_direction
+from ..walking.agent import facing_headings
 from .observations import ObservationBuilder, to_world_frame
 from .policy_files import load_policy_file
 
@@ -167,7 +168,7 @@ class ObservingBackground:
         heading = st.heading_rad.copy()
         idx = (self.mask & st.active).nonzero()[0]
         if idx.size:
-            heading[idx] = direction_angles_rad(desired_direction(self.navigation, st.position_m, idx))
+            heading[idx] = facing_headings(self.navigation, sim, idx)
         return intents.copy(), heading
 
     def _decide(self, st) -> np.ndarray:

@@ -29,7 +29,8 @@ Actions
     the social force and can exceed it in dense crowds, up to about 6.5 m/s at the Seyfried bottleneck).
     The intent drives the pedestrian through m (u_int − u)/τ; the desired heading θ_d of the heading
     spring-damper is the angle of the intent (the current heading for a zero intent), or the angle of
-    e_d with ``heading_target="desired_direction"`` (the baseline's choice). Actions are held for
+    e_d with ``heading_target="desired_direction"`` (the baseline's choice; the shoulders turned at a narrow
+    aperture when the model turns them, ``shoulder_turn_critical_ratio`` > 0). Actions are held for
     ``frame_skip`` simulator steps of ``params.dt_s`` (0.01 s by default).
     A pedestrian whose premovement time (the scenario's ``premovement_s``, RiMEA's reaction time) has
     not come stands still: its action is read and validated but held at zero until then.
@@ -130,13 +131,12 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from ..core.angles import direction_angles_rad
 from ..core.checks import check_integer, check_seed
 from ..core.periodic import minimum_image_dx
 from ..core.simulator import Simulator
 from ..walking.presets import get_preset
 from ..scenarios import Scenario, body_options, make_scenario
-from ..walking.agent import SocialForceAgent, desired_direction, hold_waiting
+from ..walking.agent import SocialForceAgent, facing_headings, hold_waiting
 from .background import is_observation_policy, load_named_background
 from .config import (DEFAULT_ACTION_MAX_M_S, ENV_DEFAULTS, ENV_OPTIONS, OPTION_ALIASES, CrowdEnvConfig, agent_id,
                      make_config, resolve_options, select_controlled, unknown_options_message)
@@ -209,7 +209,8 @@ class CrowdParallelEnv(ParallelEnv):
       :func:`~crowd_env.envs.observations.resolve_components`).
     - ``render_mode``: None, ``"human"`` or ``"rgb_array"``.
     - ``frame_skip``: simulator steps per environment step (decision interval frame_skip × dt; default 1).
-    - ``heading_target``: ``"intent"`` (θ_d = angle of the action) or ``"desired_direction"`` (angle of e_d).
+    - ``heading_target``: ``"intent"`` (θ_d = angle of the action) or ``"desired_direction"`` (angle of e_d,
+      turned at a narrow aperture as the model turns shoulders: :func:`~crowd_env.walking.agent.facing_headings`).
     - ``observation_frame``: ``"world"`` (default) or ``"egocentric"`` (observations, actions and the
       state in the body frame, resp. the scenario frame; see the module docstring).
     - ``reseed_scenario``: rebuild a named scenario with a seed drawn from the env's RNG at each reset,
@@ -645,7 +646,7 @@ class CrowdParallelEnv(ParallelEnv):
                 intents = np.zeros((n, 2))
                 heading = st.heading_rad.copy()
             if not by_intent:
-                theta_c = direction_angles_rad(desired_direction(self.navigation, st.position_m, idx_c))
+                theta_c = facing_headings(self.navigation, sim, idx_c)
             _set_agent_inputs(intents, heading, st.heading_rad, idx_c, intent_c, theta_c, by_intent)
             if sim.time_s < self._last_premovement_s:  # somebody has not started yet: hold them still
                 hold_waiting(intents, heading, st.heading_rad, st.premovement_s, sim.time_s, sim.active_index)

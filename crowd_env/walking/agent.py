@@ -410,6 +410,45 @@ def desired_direction(navigation, position_m: np.ndarray, index: np.ndarray) -> 
     return _read_navigation(navigation, navigation.direction, position_m, index)
 
 
+def facing_headings_rad(navigation, position_m: np.ndarray, radius_m: np.ndarray, heading_rad: np.ndarray,
+                        index: np.ndarray, walls: np.ndarray, rule: ShoulderTurn, *, floor: np.ndarray | None = None,
+                        period_m: float = 0.0) -> np.ndarray:
+    """θ_d (m,) of the pedestrians ``index`` facing their desired directions: the angle of e_d (Eq. 13, from
+    ``navigation``), their shoulders turned at a narrow aperture ahead along e_d by the resolved
+    :class:`~crowd_env.walking.shoulder_turn.ShoulderTurn` ``rule`` (off at ``critical_ratio`` 0), as the
+    calibrated agent turns its own (:func:`baseline_intents`, walking along e_d). The heading target of a learned
+    policy that walks where it wants and faces e_d (the environment's ``heading_target="desired_direction"``).
+    ``floor``: the rows of everybody on the floor, whose bodies narrow the apertures (default ``index``); only those
+    of ``index`` on the floor turn. ``heading_rad`` (N,): the current headings (the way a body turns); ``walls``
+    (S, 4)."""
+    index = np.asarray(index, np.int64)
+    facing = direction_angles_rad(desired_direction(navigation, position_m, index))
+    if rule.critical_ratio <= 0.0:
+        return facing
+    floor = index if floor is None else np.asarray(floor, np.int64)
+    on_floor = np.isin(index, floor)
+    if not on_floor.any():
+        return facing
+    walk = desired_direction(navigation, position_m, floor)
+    theta = np.array(heading_rad, dtype=np.float64, copy=True)
+    theta[floor] = direction_angles_rad(walk)
+    r_max = float(np.max(radius_m[floor]))
+    pairs = grid_pairs(position_m, floor, 2.0 * r_max + shoulder_turn_reach_m(r_max, rule), period_m)
+    shoulder_turn(theta, np.asarray(heading_rad, np.float64), position_m, radius_m, floor, walk, pairs, walls,
+                  period_m, rule)
+    return np.where(on_floor, theta[index], facing)
+
+
+def facing_headings(navigation, sim, index: np.ndarray) -> np.ndarray:
+    """:func:`facing_headings_rad` in a :class:`~crowd_env.core.simulator.Simulator` ``sim``: its active pedestrians
+    on the floor, its walls and periodicity, and the shoulder turn of its model (``sim.params``; off for the paper's
+    model and for the core's physics alone)."""
+    st = sim.state
+    return facing_headings_rad(navigation, st.position_m, st.radius_m, st.heading_rad, index, sim.walls,
+                               walking_bundle(sim.params).shoulder_turn, floor=sim.active_index,
+                               period_m=sim.period_m)
+
+
 class SocialForceAgent:
     """Policy object: ``agent(sim) -> (intents (N, 2), desired_heading (N,))`` for a :class:`Simulator`.
 

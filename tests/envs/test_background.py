@@ -143,6 +143,30 @@ def test_per_pedestrian_destinations_and_desired_direction_heading(tmp_path):
 
 
 
+def test_background_pedestrians_turn_their_shoulders_as_the_same_policys_agents(tmp_path):
+    """In a model that turns the shoulders (the preset ``shoulders``: bodies of three circles, ρ = 1.3), with
+    heading_target='desired_direction': the background's θ_d is turned at a narrow aperture as an agent's is, and
+    both move alike; the turn is exercised (some heading target departs from e_d's angle)."""
+    from crowd_env.walking.agent import desired_direction, facing_headings
+
+    d = observation_size(6, 8, "egocentric")
+    rng = np.random.default_rng(1)
+    pf = MLPPolicyFile([rng.normal(0, 0.3, (d, 4))], [np.array([0.8, 0.0, 0.0, 0.0])], "tanh", "tanh_box",
+                       np.full(2, -2.5), np.full(2, 2.5), np.zeros(d), np.full(d, 2.0),
+                       env_config={"heading_target": "desired_direction", "observation_frame": "egocentric",
+                                   "frame_skip": 5})
+    policy = FilePolicy(save_policy_file(pf, str(tmp_path / "turn.npz")))
+    scenario = {"scenario": "seyfried_bottleneck", "scenario_options": {"width_m": 0.5, "n_pedestrians": 12}}
+    env = crowd_v0.parallel_env(**scenario, preset="shoulders", controlled="all", **policy.env_overrides)
+    a = _positions(env, policy, 40)
+    sim = env.sim
+    idx = sim.active_index
+    plain = np.arctan2(*desired_direction(env.navigation, sim.state.position_m, idx)[:, ::-1].T)
+    assert np.abs(np.angle(np.exp(1j * (facing_headings(env.navigation, sim, idx) - plain)))).max() > 0.1
+    b = _positions(crowd_v0.parallel_env(**scenario, preset="shoulders", controlled=[0], background_policy=policy,
+                                         **policy.env_overrides), policy, 40)
+    np.testing.assert_allclose(b, a, rtol=0, atol=1e-9)
+
 def test_crowd_evaluate_takes_a_background_policy(tmp_path, capsys):
     from crowd_env.cli.evaluate import main
 
@@ -193,3 +217,48 @@ def test_a_shipped_clone_walks_a_crowd_out_as_its_background():
         assert m.complete and m.n_evacuated == 20 and m.min_gap_m > -1e-3
     clone, model = runs["bottleneck_bc"].specific_flow_per_m_s, runs["calibrated"].specific_flow_per_m_s
     assert abs(clone - model) < 0.10 * model
+
+
+class _WalkAlongDesiredDirection:
+    """An observation policy that walks along e_d at 1 m/s (its observation is e_d in the body frame), facing e_d."""
+
+    env_overrides = {"observation_frame": "egocentric", "heading_target": "desired_direction",
+                     "observation_components": ["desired_direction"], "frame_skip": 10, "action_max_m_s": 2.5}
+
+    def actions(self, obs):
+        return obs[:, :2] / np.maximum(np.hypot(obs[:, 0], obs[:, 1]), 1e-12)[:, None]
+
+
+@pytest.mark.parametrize("ratio", [0.0, 1.3])
+def test_a_policy_facing_e_d_turns_its_shoulders_through_a_gap_as_the_models_walkers_do(ratio):
+    """A body of three circles driven by an observation policy (heading_target="desired_direction") towards a 0.40 m
+    gap, narrower than its shoulders: facing e_d it stops at the gap's corners; in a model that turns the shoulders
+    (ρ = 1.3) its heading target turns as the calibrated agent's does (tests/walking/test_shoulder_turn.py) and it
+    goes through, turned by more than 45°."""
+    import math
+    from types import SimpleNamespace
+
+    from crowd_env.core import CrowdState, Simulator
+    from crowd_env.envs.drivers import intents_and_headings, observing_driver
+    from crowd_env.walking import ModelParams
+    from tests.walking.scenes import gap_world
+
+    geometry, navigation = gap_world(0.20)
+    params = ModelParams(body_depth_m=0.25, shoulder_turn_critical_ratio=ratio)
+    sim = Simulator(CrowdState.create(np.array([[0.0, 0.0]]), radius_m=0.23, desired_speed_m_s=1.0),
+                    geometry=geometry, params=params)
+    driver = observing_driver(_WalkAlongDesiredDirection(), SimpleNamespace(geometry=geometry), navigation=navigation,
+                              mask=np.ones(1, bool), dt_s=params.dt_s, velocity_bound_m_s=20.0,
+                              travel_time_bound_s=100.0)
+    crossing = None
+    for _ in range(800):
+        intents, heading = intents_and_headings(driver(sim), sim.state)
+        sim.step(intents, desired_heading_rad=heading)
+        assert sim.min_gap_m() > -1e-3
+        x = sim.state.position_m[0, 0] if sim.state.active[0] else np.inf
+        if crossing is None and x >= 1.05:
+            crossing = abs(math.remainder(sim.state.heading_rad[0], 2 * math.pi))
+    if ratio == 0.0:
+        assert x < 1.0 and crossing is None  # stuck before the gap
+    else:
+        assert x > 1.1 and crossing > math.radians(45)

@@ -12,7 +12,7 @@ from crowd_env.walking import ModelParams
 from crowd_env.walking.apertures import apertures_m
 from crowd_env.walking.shoulder_turn import ShoulderTurn, shoulder_turn
 
-from .scenes import random_scene
+from .scenes import gap_world, random_scene
 
 R = 0.23
 CORRIDOR = np.array([[-5.0, -0.4, 5.0, -0.4], [-5.0, 0.4, 5.0, 0.4]])  # walls at y = ±0.4
@@ -137,15 +137,8 @@ def test_a_walker_of_three_circles_turns_through_a_gap_it_cannot_pass_facing_it(
     through, turned by more than 45° as it passes."""
     from baselines.social_force import SocialForceAgent
     from crowd_env.core import CrowdState, Simulator
-    from crowd_env.core.geometry import Geometry
-    from crowd_env.walking.navigation import NavigationField
-    from shapely.geometry import Polygon, box
 
-    half = 0.20
-    room = Polygon([(-3, -2), (6, -2), (6, 2), (-3, 2)])
-    wall = box(1.0, -2.0, 1.1, -half).union(box(1.0, half, 1.1, 2.0))
-    geometry = Geometry(room.difference(wall), exits=[box(5.5, -2, 6, 2)])
-    navigation = NavigationField(geometry)
+    geometry, navigation = gap_world(0.20)
     runs = {}
     for ratio in (0.0, 1.3):
         params = ModelParams(body_depth_m=0.25, shoulder_turn_critical_ratio=ratio, social_forces=False)
@@ -163,3 +156,38 @@ def test_a_walker_of_three_circles_turns_through_a_gap_it_cannot_pass_facing_it(
         runs[ratio] = (sim.state.position_m[0, 0] if sim.state.active[0] else np.inf, crossing)
     assert runs[0.0][0] < 1.0 and runs[0.0][1] is None  # stuck before the gap
     assert runs[1.3][0] > 1.1 and runs[1.3][1] > math.radians(45)
+
+
+def test_the_heading_a_learned_policy_faces_is_the_agents_turned_at_a_narrow_aperture():
+    """``facing_headings_rad`` (the heading target of a policy with heading_target="desired_direction"): the angle of
+    e_d, turned as the calibrated agent turns its own when it walks along e_d (no social force: its walk is e_d), by
+    arccos(A/(ρ S)) at a gap A narrower than ρ S; a walker off the floor neither turns nor narrows anyone's gap."""
+    from crowd_env.core import CrowdState, Simulator
+    from crowd_env.walking.agent import SocialForceAgent, desired_direction, facing_headings, facing_headings_rad
+
+    geometry, navigation = gap_world()
+    pos = np.array([[0.75, 0.0], [0.6, 1.0], [-2.0, -1.5], [1.25, 0.3]])  # the last one just past the gap
+    for ratio in (0.0, 1.3):
+        params = ModelParams(body_depth_m=0.25, shoulder_turn_critical_ratio=ratio, social_forces=False)
+        st = CrowdState.create(pos, radius_m=R, heading_rad=np.array([0.05, 0.0, 0.0, 0.0]), desired_speed_m_s=1.0)
+        st.active[3] = False
+        sim = Simulator(st, geometry=geometry, params=params)
+        agent_theta = SocialForceAgent(navigation)(sim)[1]
+        active = sim.active_index
+        np.testing.assert_allclose(facing_headings(navigation, sim, active), agent_theta[active], atol=1e-12)
+        e_d = desired_direction(navigation, pos, np.arange(4))
+        plain = np.arctan2(e_d[:, 1], e_d[:, 0])
+        theta = facing_headings(navigation, sim, np.arange(4))
+        assert theta[3] == plain[3]  # off the floor: e_d's angle
+        if ratio == 0.0:
+            np.testing.assert_array_equal(theta, plain)
+            continue
+        # the first walker, 0.25 m before a 0.40 m gap: A = 0.40 m < 1.3 × 0.46 m; it turns the way it faces (+)
+        assert theta[0] == pytest.approx(plain[0] + math.acos(0.40 / (1.3 * 2 * R)), abs=1e-9)
+        np.testing.assert_allclose(theta[1:3], plain[1:3])  # the open room: no turn
+        # the walker off the floor, just past the gap, narrows nobody's aperture; on the floor it narrows the first's
+        assert theta[0] == facing_headings_rad(navigation, pos[:3], np.full(3, R), st.heading_rad[:3], np.arange(3),
+                                               sim.walls, params.walking.shoulder_turn)[0]
+        on_floor = facing_headings_rad(navigation, pos, np.full(4, R), st.heading_rad, np.arange(4), sim.walls,
+                                       params.walking.shoulder_turn)
+        assert on_floor[0] > theta[0] + 0.1

@@ -14,8 +14,9 @@ Trajectories`) is replayed in its scenario (:mod:`crowd_env.scenarios`, e.g. ``j
    (over the next one at a pedestrian's first decision); the heading is the environment's own: the heading
    spring-damper of the core (:func:`crowd_env.core.step.smooth_update`, Kabalan Eq. 15) driven, step by step of
    the simulator, towards the target the environment's ``heading_target`` gives (``"desired_direction"``: the
-   angle of e_d at the recorded position; the recordings hold no heading), starting at that target with no
-   angular velocity when the pedestrian first appears.
+   angle of e_d at the recorded position, the shoulders turned at a narrow aperture when the model turns them,
+   :func:`~crowd_env.walking.agent.facing_headings_rad` with the recorded crowd on the floor; the recordings hold
+   no heading), starting at that target with no angular velocity when the pedestrian first appears.
 3. **Observation**: the environment's own :class:`~crowd_env.envs.observations.ObservationBuilder` with the
    policy's options (:func:`policy_options`) on that state, every pedestrian on the floor a neighbour: the
    observation an agent of :mod:`crowd_env.envs.crowd_v0` would get in that state (``tests/experiments/training/
@@ -53,15 +54,15 @@ from scipy.spatial import cKDTree
 from crowd_env.errors import TrainingError
 from crowd_env.files import write_npz_atomic
 
-from ...core.angles import direction_angles_rad
 from ...core.bundles import StepInputs, StepParams
 from ...core.params import PedestrianDefaults
+from ...core.segments import as_segments
 from ...core.state import CrowdState
 from ...core.step import smooth_update
 from ...envs.config import ENV_DEFAULTS, observation_policy_options
 from ...envs.background import OBSERVATION_POLICY_OPTIONS
 from ...envs.observations import ObservationBuilder, to_body_frame, to_world_frame
-from ...walking.agent import desired_direction
+from ...walking.agent import facing_headings_rad, walking_bundle
 from ...walking.model import ModelParams
 
 __all__ = ["DEMONSTRATIONS_FORMAT", "HUMAN_POLICY_OPTIONS", "DEFAULT_SMOOTHING_S", "policy_options", "Replay",
@@ -252,6 +253,9 @@ def _replay_headings(grid, f0: int, fps: float, step_times, scenario, options: d
     n = grid.shape[1]
     radius = scenario.radius_m()[0] if scenario.n_pedestrians else PedestrianDefaults().radius_m
     bodies = CrowdState.create(np.column_stack([np.arange(n) * 10.0, np.zeros(n)]), radius_m=radius)
+    radii = np.full(n, float(radius))
+    walls = as_segments(scenario.geometry.walls)
+    rule = walking_bundle(params).shoulder_turn  # with the model's shoulder turn, the shoulders turn at a narrow gap
     theta = np.zeros(n)
     omega = np.zeros(n)
     zeros2 = np.zeros((n, 2))
@@ -269,7 +273,7 @@ def _replay_headings(grid, f0: int, fps: float, step_times, scenario, options: d
         if not idx.size or s == step_times.size - 1:
             continue
         target = np.zeros(n)
-        target[idx] = direction_angles_rad(desired_direction(navigation, pos[s], idx))
+        target[idx] = facing_headings_rad(navigation, pos[s], radii, theta, idx, walls, rule)
         theta[new] = target[new]
         omega[new] = 0.0
         out[s, new] = theta[new]

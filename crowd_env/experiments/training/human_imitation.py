@@ -68,7 +68,7 @@ TRAINING_RUNS = ("uo-050-180-180", "uo-060-180-180", "uo-070-180-180", "uo-145-1
 DEFAULT_HUMAN_TRAINING = {"hidden": [128, 128], "bc_epochs": 20, "dad_rounds": 3, "dad_epochs": 8, "batch_size": 512,
                           "learning_rate": 1e-3, "smoothing_s": DEFAULT_SMOOTHING_S, "seed": 0,
                           "dad": {**DEFAULT_DAD, "spawn_newcomers": True}, "policy": {"neighbor_radius_m": 3.0},
-                          "radius_m": None, "body_depth_m": 0.0}
+                          "radius_m": None, "body_depth_m": 0.0, "shoulder_turn_critical_ratio": 0.0}
 # The same code path in seconds: two short runs, a few epochs, one round from a few starts (the default tests).
 QUICK_HUMAN_TRAINING = {**DEFAULT_HUMAN_TRAINING, "hidden": [16, 16], "bc_epochs": 2, "dad_rounds": 1, "dad_epochs": 1,
                         "dad": {**DEFAULT_HUMAN_TRAINING["dad"], "horizon_s": 1.0, "start_every_s": 20.0},
@@ -111,6 +111,12 @@ def human_training_config(config: dict | None = None, *, preset: str = "calibrat
                             f"{2.0 * cfg['radius_m']:g} m, got {depth!r}")
     if depth > 0.0:  # bodies of three circles in the replays and the rollouts (a disk's configuration: no key)
         cfg["params"]["body_depth_m"] = float(depth)
+    turn = cfg.pop("shoulder_turn_critical_ratio")
+    if isinstance(turn, bool) or not isinstance(turn, (int, float)) or not 0.0 <= turn < 10.0:
+        raise TrainingError(f"shoulder_turn_critical_ratio must be 0 (no turn) or Warren & Whang's critical ratio "
+                            f"A/S in (0, 10), e.g. 1.3, got {turn!r}")
+    if turn > 0.0:  # headings turned at narrow apertures in the replays and the rollouts (off: no key)
+        cfg["params"]["shoulder_turn_critical_ratio"] = float(turn)
     cfg["preset"] = preset
     cfg["kind"] = "human_imitation"
     return cfg
@@ -140,9 +146,10 @@ def demonstrations_task(task: dict) -> dict:
 
 
 def rollout_params(cfg: dict) -> ModelParams:
-    """The physics of a training's rollouts: its preset's, with the training's body depth (``body_depth_m``)."""
-    depth = cfg["params"].get("body_depth_m")
-    return get_preset(cfg["preset"]).params(**({} if depth is None else {"body_depth_m": depth}))
+    """The physics of a training's rollouts: its preset's, with the training's body depth (``body_depth_m``) and
+    shoulder turn (``shoulder_turn_critical_ratio``)."""
+    body = {k: cfg["params"][k] for k in ("body_depth_m", "shoulder_turn_critical_ratio") if k in cfg["params"]}
+    return get_preset(cfg["preset"]).params(**body)
 
 
 def dad_task(task: dict) -> dict:

@@ -289,6 +289,37 @@ def test_a_training_in_bodies_of_three_circles_reaches_the_replays_and_the_rollo
             human_training_config({"body_depth_m": bad}, preset="joint")
 
 
+def test_a_training_with_the_shoulder_turn_turns_the_replays_headings_in_a_crowd(replay):
+    """``shoulder_turn_critical_ratio``: the replays' and rollouts' physics turn the shoulders; a replay's headings
+    turn where the recorded crowd narrows the way ahead below 1.3 shoulder widths (the queue before the 0.70 m exit)
+    and stay the plain replay's where nothing does (the sparse corridor behind the 0.5 m entrance); bad ratios are
+    refused."""
+    from crowd_env.analysis.trajectories import Trajectories
+    from crowd_env.experiments.training.human_imitation import rollout_params
+    from crowd_env.walking.presets import get_preset
+
+    assert "shoulder_turn_critical_ratio" not in human_training_config()["params"]
+    cfg = human_training_config({"body_depth_m": 0.25, "shoulder_turn_critical_ratio": 1.3})
+    assert rollout_params(cfg) == get_preset("calibrated").params(body_depth_m=0.25, shoulder_turn_critical_ratio=1.3)
+    for bad in (-0.1, True, "1.3"):
+        with pytest.raises(TrainingError, match="shoulder_turn_critical_ratio must be"):
+            human_training_config({"shoulder_turn_critical_ratio": bad})
+    params = ModelParams(**cfg["params"])
+
+    def turn(run, plain=None):
+        traj = recorded_uo_trajectories(run)
+        keep = traj.frame < 400
+        cut = Trajectories(traj.frame[keep], traj.id[keep], traj.x_m[keep], traj.y_m[keep], None, 16.0)
+        plain = plain or replay_trajectories(cut, uo_scenario(run))
+        turned = replay_trajectories(cut, uo_scenario(run), params=params)
+        np.testing.assert_array_equal(turned.position_m, plain.position_m)
+        return np.where(plain.present, np.abs(np.angle(np.exp(1j * (turned.heading_rad - plain.heading_rad)))), 0.0)
+
+    assert turn(RUN, replay[1]).max() == 0.0  # the sparse corridor: nobody's way narrows below 1.3 × 0.46 m
+    queue = turn("uo-180-180-070")
+    assert queue.max() > np.radians(45) and np.mean(queue > np.radians(5)) > 0.05  # the queue turns its shoulders
+
+
 def test_the_quick_training_writes_a_policy_resumes_without_redoing_and_refuses_to_overwrite(tmp_path, capsys):
     from crowd_env.cli.imitate import main
 
