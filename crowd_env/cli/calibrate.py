@@ -56,21 +56,7 @@ from ..experiments.validation.calibration.preset_targets import preset_targets, 
 from ..experiments.validation.calibration.tasks import FDPlan
 from ..experiments.validation.fundamental_diagram import CORRIDOR_DENSITIES, SINGLE_FILE_DENSITIES
 from ..experiments.running.store import RunStore
-from .options import add_key_values, add_geometry_arguments, config_of, model_params_from_args
-
-
-def _name_values(items, what: str) -> dict:
-    """``NAME=VALUE`` items (``--x0``, ``--bounds``, ``--weight``) as a dict of text values; an item without ``=``
-    or a name given twice is refused."""
-    out = {}
-    for text in items:
-        if "=" not in text:
-            raise CalibrationError(f"{what} expects NAME=VALUE, got {text!r}")
-        name, value = (t.strip() for t in text.split("=", 1))
-        if name in out:
-            raise CalibrationError(f"{what}: {name!r} is given twice ({out[name]} and {value}); give it once")
-        out[name] = value
-    return out
+from .options import add_key_values, add_geometry_arguments, config_of, key_values, model_params_from_args
 
 
 OBJECTIVE_HELP = ("'epsilon': ε_T of Eq. 24 (+ --range-weight), the paper's; 'targets': every figure the experiment "
@@ -124,7 +110,7 @@ def _weights(args) -> TargetWeights | None:
         raise CalibrationError("--weight weighs the terms of --objective targets, targets+fd or virtual")
     known = TargetWeights().virtual_dict() if args.objective == "virtual" else TargetWeights().as_dict()
     values = {}
-    for k, v in _name_values(args.weight, "--weight").items():
+    for k, v in key_values(args.weight, "--weight expects NAME=VALUE", parse=str.strip).items():
         if k not in known:
             raise CalibrationError(f"unknown weight {k!r}; choose from {list(known)}")
         values[k] = float(v)
@@ -405,9 +391,9 @@ def run(args) -> int:
     if args.mode == "grid":
         a, b = _grid_axes(args)
     else:
-        x0 = {k: float(v) for k, v in _name_values(args.x0, "--x0").items()}
+        x0 = {k: float(v) for k, v in key_values(args.x0, "--x0 expects NAME=VALUE", parse=str.strip).items()}
         bounds = {}
-        for k, v in _name_values(args.bounds, "--bounds").items():
+        for k, v in key_values(args.bounds, "--bounds expects NAME=LOW:HIGH", parse=str.strip).items():
             lo, sep, hi = v.partition(":")
             if not sep:
                 raise CalibrationError(f"--bounds expects NAME=LOW:HIGH, got {k}={v!r}")

@@ -40,6 +40,7 @@ from ..analysis.figures import candidates_figure, fd_sweep_figure, fundamental_d
 from ..analysis.trajectories import (DEFAULT_FRAME_RATE_PER_S, Trajectories, TrajectoryFormatError,
                                      fundamental_diagram_data, pedpy_measurement_area, read_geometry)
 from ..core.params import ParameterError
+from ..errors import OptionError
 from ..walking.presets import DEFAULT_PRESET, PRESETS, get_preset
 from ..experiments.running.backends import execute, failure_report, make_backend
 from ..experiments.validation.bottleneck import params_dict
@@ -48,7 +49,7 @@ from ..experiments.validation.fundamental_diagram import (CORRIDOR_DENSITIES, SE
 from ..experiments.running.recording import record_bottleneck_run
 from ..experiments.running.store import RunStore
 from crowd_env.files import write_atomic, write_csv_atomic, write_json_atomic
-from .options import add_key_values, key_values
+from .options import add_key_values, json_or_text, key_values
 
 CSV_COLUMNS = ["area", "frame", "time_s", "density_per_m2", "speed_m_s", "specific_flow_per_m_s"]
 
@@ -95,18 +96,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _assignments(items, what: str) -> dict:
-    """``--set`` NAME=VALUE or ``--grid`` NAME=V1,V2,... items, each value read by :func:`~crowd_env.cli.options.
-    key_values` (JSON: numbers, true, false, null); ``--grid`` gives a list per name."""
+    """``--set`` NAME=VALUE or ``--grid`` NAME=V1,V2,... items (:func:`~crowd_env.cli.options.key_values`), each value
+    read as JSON (numbers, true, false, null); ``--grid`` gives a list per name."""
+    try:
+        texts = key_values(items, f"{what} expected NAME=VALUE", parse=str)
+    except OptionError as exc:
+        raise SystemExit(f"error: {exc}") from None
     out = {}
-    for item in items:
-        name, sep, value = item.partition("=")
-        if not sep or not name or not value:
-            raise SystemExit(f"error: {what} {item!r}: expected NAME=VALUE")
-        if name in out:
-            raise SystemExit(f"error: {what}: {name!r} is given twice; give it once")
-        values = [key_values([f"{name}={v}"], f"{what} expects NAME=VALUE")[name] for v in value.split(",")]
+    for name, value in texts.items():
+        values = [json_or_text(v) for v in value.split(",")]
         if any(isinstance(v, str) for v in values):
-            raise SystemExit(f"error: {what} {item!r}: {value!r} is not a number, null, true or false")
+            raise SystemExit(f"error: {what} {name}={value}: {value!r} is not a number, null, true or false")
         out[name] = values if what == "--grid" else values[0]
     return out
 

@@ -35,21 +35,27 @@ def add_key_values(group, flag: str, help: str, *, metavar: str = "NAME=VALUE") 
     group.add_argument(flag, nargs="+", action="extend", default=[], metavar=metavar, help=f"{help} (repeatable)")
 
 
-def key_values(items, usage: str) -> dict:
-    """``["k=v", ...]`` → ``{k: v}``, each v read as JSON when it is JSON, else kept as text; an item
-    without ``=`` raises :class:`~crowd_env.errors.OptionError` ``f"{usage}, got {item!r}"``, and so does a name
-    given twice (which value was meant, the command cannot know)."""
+def json_or_text(value: str):
+    """A command-line value read as JSON when it is JSON (numbers, true, false, null, lists, ...), else kept as text."""
+    try:
+        return json.loads(value)
+    except json.JSONDecodeError:
+        return value
+
+
+def key_values(items, usage: str, *, parse=json_or_text) -> dict:
+    """``["k=v", ...]`` → ``{k: v}``, each v read by ``parse`` (default :func:`json_or_text`); an item without ``=``
+    or without a name raises :class:`~crowd_env.errors.OptionError` ``f"{usage}, got {item!r}"``, and so does a name
+    given twice (which value was meant, the command cannot know). Every command's NAME=VALUE items go through here."""
     out = {}
     for item in items or []:
-        if "=" not in item:
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
             raise OptionError(f"{usage}, got {item!r}")
-        key, value = item.split("=", 1)
         if key in out:
             raise OptionError(f"{usage.split()[0]}: {key!r} is given twice ({out[key]!r} and {value!r}); give it once")
-        try:
-            out[key] = json.loads(value)
-        except json.JSONDecodeError:
-            out[key] = value
+        out[key] = parse(value)
     return out
 
 

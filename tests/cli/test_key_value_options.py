@@ -47,6 +47,21 @@ def test_a_name_given_twice_is_refused():
         key_values(["a=1", "b=2", "a=3"], "--param expects NAME=VALUE")
     with pytest.raises(OptionError, match="expects NAME=VALUE, got 'a'"):
         key_values(["a"], "--param expects NAME=VALUE")
+    with pytest.raises(OptionError, match="expects NAME=VALUE, got '=1'"):  # a value without a name
+        key_values(["=1"], "--param expects NAME=VALUE")
+    # one function for every command: the calibration's values as text, the names without blanks around them
+    assert key_values(["A = 300 ", "lambda=0.5"], "--x0 expects NAME=VALUE", parse=str.strip) == \
+        {"A": "300", "lambda": "0.5"}
+    with pytest.raises(OptionError, match="--x0: 'A' is given twice"):
+        key_values(["A=300", " A=310"], "--x0 expects NAME=VALUE", parse=str.strip)
+
+
+def test_the_fundamental_diagram_refuses_a_name_set_twice(tmp_path):
+    from crowd_env.cli.fundamental_diagram import main
+
+    for argv in (["--set", "vision_rays=3", "--set", "vision_rays=5"], ["--grid", "vision_rays=3,5", "vision_rays=7"]):
+        with pytest.raises(SystemExit, match="'vision_rays' is given twice"):
+            main(["--candidates", *argv, "--out", str(tmp_path / "x")])
 
 
 def test_the_calibration_refuses_a_parameter_start_value_or_weight_given_twice(tmp_path):
