@@ -65,6 +65,10 @@ def build_parser() -> argparse.ArgumentParser:
                          "(e.g. human_juelich), a policy file (.npz) or an import path module:attribute of an "
                          "observation policy (default: the preset's calibrated agent; the preset still sets the "
                          "physics)")
+    ap.add_argument("--policy-social-force", action="store_true",
+                    help="with --policy: add the preset's social force (Kabalan Eq. 16, as the calibrated agent adds "
+                         "it to its intent) to the policy's intents: learned walking with the model's push apart "
+                         "between walkers close to touching")
     ap.add_argument("--experiments", nargs="+", choices=EXPERIMENTS, default=list(EXPERIMENTS),
                     help="which experiments (default: all three)")
     ap.add_argument("--corridor-runs", nargs="+", choices=CORRIDOR_RUN_NAMES, default=None, metavar="RUN",
@@ -114,7 +118,8 @@ def config_from_args(args) -> dict:
     return virtual_config(params, navigation_clearance_m=clearance, pedestrian=pedestrian,
                           radius_m=preset.body_radius_m if args.radius is None else args.radius,
                           corridor_geometry=corridor_geometry, policy=args.policy,
-                          navigation_wall_slowdown=args.navigation_wall_slowdown)
+                          navigation_wall_slowdown=args.navigation_wall_slowdown,
+                          policy_social_force=args.policy_social_force)
 
 
 def main(argv=None) -> int:
@@ -129,7 +134,8 @@ def main(argv=None) -> int:
         config = config_from_args(args)
         if args.snapshot:
             return _snapshot(args, config, plan)
-        who = f"policy {args.policy} (physics: {args.preset})" if config.get("policy") else args.preset
+        who = (f"policy {args.policy}{' + the social force' if args.policy_social_force else ''} (physics: {args.preset})"
+               if config.get("policy") else args.preset)
         field = "".join(f", navigation {what} {value}" for what, value in (
             ("clearance", args.navigation_clearance), ("wall slowdown", args.navigation_wall_slowdown))
             if value is not None)

@@ -55,11 +55,15 @@ def intents_and_headings(out, state) -> tuple:
 class MixedDriver:
     """``policy(sim) -> (intents, headings)`` for the runner: the pedestrians ``learned_mask`` (N,) driven by the
     observation policy ``policy``, the others by ``calibrated`` (a ``policy(sim)``, the calibrated agent).
-    Every pedestrian learned (the mask all true) is the policy alone."""
+    Every pedestrian learned (the mask all true) is the policy alone. With ``social_force`` the learned
+    pedestrians' intents get, every step, the model's social force as the calibrated agent adds it to its own,
+    (τ/m) Σ f_social (Kabalan Eq. 14, 16; ``calibrated.social_force``): learned walking, the model's push apart
+    between walkers close to touching."""
 
-    def __init__(self, policy, scenario, calibrated, learned_mask, *, dt_s: float):
+    def __init__(self, policy, scenario, calibrated, learned_mask, *, dt_s: float, social_force: bool = False):
         self.learned_mask = np.asarray(learned_mask, bool)
         self.calibrated = calibrated
+        self.social_force = bool(social_force)
         navigation = getattr(calibrated, "navigation", None) or scenario.navigation()
         self.learned = observing_driver(policy, scenario, navigation=navigation, mask=self.learned_mask, dt_s=dt_s,
                                         velocity_bound_m_s=20.0, travel_time_bound_s=navigation.max_travel_time_s + 1.0,
@@ -68,6 +72,13 @@ class MixedDriver:
 
     def __call__(self, sim):
         intents, heading = intents_and_headings(self.learned(sim), sim.state)
+        if self.social_force and sim.active_index.size:
+            idx = sim.active_index
+            force = self.calibrated.social_force(sim, self.calibrated.desired_direction(sim, idx))
+            st = sim.state
+            learned = self.learned_mask[idx]
+            rows = idx[learned]
+            intents[rows] += (st.tau_s[rows] / st.mass_kg[rows])[:, None] * force[learned]
         if not self.learned_mask.all():
             base, base_heading = intents_and_headings(self.calibrated(sim), sim.state)
             rows = ~self.learned_mask

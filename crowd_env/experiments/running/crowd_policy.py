@@ -5,7 +5,8 @@ run_one`, :func:`crowd_env.experiments.validation.fundamental_diagram.run_fd_one
 ``{"name": spec, "learned_fraction": f}``, ``spec`` a shipped trained policy's name, a policy file (``.npz``) or an
 import path ``"module:attribute"`` of an observation policy (``actions(observations)`` and ``env_overrides``, as
 :mod:`crowd_env.envs.background` defines it), ``f`` in (0, 1] the fraction of the pedestrians it drives (evenly
-spread over the indices, as the environment's ``controlled`` option picks them; 1: all). Without it the calibrated
+spread over the indices, as the environment's ``controlled`` option picks them; 1: all), and with ``"social_force":
+true`` the model's social force added to its intents (:class:`~crowd_env.envs.drivers.MixedDriver`). Without it the calibrated
 agent (Kabalan et al. 2016, Eq. 14-16) drives everybody, the runs are the calibration's own, and the compiled
 rollout runs them.
 """
@@ -26,16 +27,23 @@ from .evaluation import import_object
 __all__ = ["policy_entry", "load_scored_policy", "crowd_policy"]
 
 
-def policy_entry(name: str, learned_fraction: float = 1.0) -> dict | None:
+def policy_entry(name: str, learned_fraction: float = 1.0, *, social_force: bool = False) -> dict | None:
     """The ``"policy"`` entry of a task for ``name`` driving ``learned_fraction`` of the crowd (None for the
-    calibrated agent driving everybody); checks the fraction and that the policy loads, naming what is wrong."""
+    calibrated agent driving everybody), with the model's social force added to its intents when ``social_force``;
+    checks the fraction and that the policy loads, naming what is wrong."""
     if not isinstance(learned_fraction, (int, float)) or not math.isfinite(learned_fraction) \
             or not 0.0 < learned_fraction <= 1.0:
         raise PolicyError(f"learned_fraction must lie in (0, 1], got {learned_fraction!r}")
     if name in CALIBRATED_NAMES:
+        if social_force:
+            raise PolicyError("social_force adds the model's social force to a learned policy's intents; the "
+                              "calibrated agent has it already")
         return None
     load_scored_policy(name)
-    return {"name": str(name), "learned_fraction": float(learned_fraction)}
+    entry = {"name": str(name), "learned_fraction": float(learned_fraction)}
+    if social_force:  # absent otherwise: the tasks (and their stored runs) of a plain policy stay as they were
+        entry["social_force"] = True
+    return entry
 
 
 def load_scored_policy(name: str):
@@ -62,4 +70,5 @@ def crowd_policy(task: dict, scenario, params):
     mask = np.zeros(n, bool)
     fraction = float(entry.get("learned_fraction", 1.0))
     mask[select_controlled("all" if fraction == 1.0 else fraction, n)] = True
-    return MixedDriver(load_scored_policy(entry["name"]), scenario, agent, mask, dt_s=params.dt_s)
+    return MixedDriver(load_scored_policy(entry["name"]), scenario, agent, mask, dt_s=params.dt_s,
+                       social_force=bool(entry.get("social_force", False)))

@@ -108,6 +108,16 @@ def test_a_learned_policy_drives_only_its_share_of_a_mixed_crowd():
     np.testing.assert_array_equal(got[~learned], want[~learned])
     assert not np.allclose(got[learned], want[learned])
     np.testing.assert_array_equal(got[learned], alone(sim)[0][learned])
+    # with the model's social force: the learned ones' intents plus (τ/m) Σ f_social, as the agent adds it to its own
+    pushed = crowd_policy({"policy": policy_entry("bottleneck_bc", 0.5, social_force=True)}, scenario, params)
+    got_pushed, _ = pushed(sim)
+    idx = sim.active_index
+    force = np.zeros((scenario.n_pedestrians, 2))
+    force[idx] = calibrated.social_force(sim, calibrated.desired_direction(sim, idx))
+    scale = (sim.state.tau_s / sim.state.mass_kg)[:, None]
+    assert np.abs(force[learned]).max() > 1.0  # the crowd stands close enough for the force to matter
+    np.testing.assert_allclose(got_pushed[learned], got[learned] + scale[learned] * force[learned], atol=1e-12)
+    np.testing.assert_array_equal(got_pushed[~learned], want[~learned])  # the calibrated ones have it already
 
 
 def test_bad_policies_are_refused_by_name():
@@ -121,6 +131,10 @@ def test_bad_policies_are_refused_by_name():
     with pytest.raises(PolicyError, match="no observation policy"):
         policy_entry("math:pi")
     assert policy_entry("calibrated") is None
+    assert policy_entry("bottleneck_bc") == {"name": "bottleneck_bc", "learned_fraction": 1.0}  # as before the option
+    assert policy_entry("bottleneck_bc", social_force=True)["social_force"] is True
+    with pytest.raises(PolicyError, match="has it already"):
+        policy_entry("calibrated", social_force=True)
 
 
 def test_the_flow_per_width_is_the_mean_of_the_runs_that_got_everybody_out():

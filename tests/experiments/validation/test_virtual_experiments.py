@@ -307,6 +307,10 @@ def test_a_learned_policy_drives_every_run_and_an_unknown_one_is_refused(capsys)
     assert not any("policy" in t for t in virtual_tasks(_config(), QUICK_PLAN))
     assert main(["--quick", "--policy", "no_such_policy", "--out", "unused"]) == 2
     assert "no_such_policy" in capsys.readouterr().err
+    pushed = virtual_config(p.params(), navigation_clearance_m=0.23, policy="bottleneck_ppo", policy_social_force=True)
+    assert pushed["policy"] == {"name": "bottleneck_ppo", "learned_fraction": 1.0, "social_force": True}
+    assert main(["--quick", "--policy-social-force", "--out", "unused"]) == 2  # a social force for no policy
+    assert "name the policy" in capsys.readouterr().err
 
 
 def test_shoulders_pass_the_070_m_exit_off_the_axis_where_no_disk_can(tmp_path, capsys, monkeypatch):
