@@ -69,6 +69,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="with --policy: add the preset's social force (Kabalan Eq. 16, as the calibrated agent adds "
                          "it to its intent) to the policy's intents: learned walking with the model's push apart "
                          "between walkers close to touching")
+    ap.add_argument("--policy-social-force-below", type=float, default=None, metavar="SPEED",
+                    help="with --policy-social-force: only to a walker slower than SPEED m/s, in full at rest and "
+                         "falling linearly to none at SPEED (a walker held still pushes back; walking, it does not)")
     ap.add_argument("--experiments", nargs="+", choices=EXPERIMENTS, default=list(EXPERIMENTS),
                     help="which experiments (default: all three)")
     ap.add_argument("--corridor-runs", nargs="+", choices=CORRIDOR_RUN_NAMES, default=None, metavar="RUN",
@@ -119,7 +122,8 @@ def config_from_args(args) -> dict:
                           radius_m=preset.body_radius_m if args.radius is None else args.radius,
                           corridor_geometry=corridor_geometry, policy=args.policy,
                           navigation_wall_slowdown=args.navigation_wall_slowdown,
-                          policy_social_force=args.policy_social_force)
+                          policy_social_force=args.policy_social_force,
+                          policy_social_force_below_m_s=args.policy_social_force_below)
 
 
 def main(argv=None) -> int:

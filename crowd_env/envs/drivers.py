@@ -19,7 +19,7 @@ from ..core.angles import direction_angles_rad
 from .background import OBSERVATION_POLICY_OPTIONS, ObservingBackground
 from .config import ENV_DEFAULTS, observation_policy_options
 
-__all__ = ["observing_driver", "intents_and_headings", "MixedDriver"]
+__all__ = ["observing_driver", "intents_and_headings", "check_social_force_gate", "MixedDriver"]
 
 
 def observing_driver(policy, scenario, *, navigation, mask, dt_s: float, velocity_bound_m_s: float,
@@ -52,18 +52,33 @@ def intents_and_headings(out, state) -> tuple:
     return intents, heading
 
 
+def check_social_force_gate(social_force: bool, below_m_s) -> float | None:
+    """``below_m_s`` as a float (None stays None), or :class:`PolicyError` naming it: the gate of the social force
+    added to a learned policy's intents (:class:`MixedDriver`) is a speed in m/s > 0, with ``social_force`` on."""
+    if below_m_s is None:
+        return None
+    if not social_force or isinstance(below_m_s, bool) or not isinstance(below_m_s, (int, float)) \
+            or not (np.isfinite(below_m_s) and below_m_s > 0.0):
+        raise PolicyError(f"social_force_below_m_s gates the social force added to a learned policy: a speed in m/s "
+                          f"> 0, with social_force on; got {below_m_s!r}")
+    return float(below_m_s)
+
+
 class MixedDriver:
     """``policy(sim) -> (intents, headings)`` for the runner: the pedestrians ``learned_mask`` (N,) driven by the
     observation policy ``policy``, the others by ``calibrated`` (a ``policy(sim)``, the calibrated agent).
     Every pedestrian learned (the mask all true) is the policy alone. With ``social_force`` the learned
     pedestrians' intents get, every step, the model's social force as the calibrated agent adds it to its own,
     (τ/m) Σ f_social (Kabalan Eq. 14, 16; ``calibrated.social_force``): learned walking, the model's push apart
-    between walkers close to touching."""
+    between walkers close to touching. With ``social_force_below_m_s`` u_g as well, only a walker nearly standing
+    gets it, in full at rest and not at all from u_g on: the share max(0, 1 − ‖u‖/u_g) of it."""
 
-    def __init__(self, policy, scenario, calibrated, learned_mask, *, dt_s: float, social_force: bool = False):
+    def __init__(self, policy, scenario, calibrated, learned_mask, *, dt_s: float, social_force: bool = False,
+                 social_force_below_m_s: float | None = None):
         self.learned_mask = np.asarray(learned_mask, bool)
         self.calibrated = calibrated
         self.social_force = bool(social_force)
+        self.social_force_below_m_s = check_social_force_gate(social_force, social_force_below_m_s)
         navigation = getattr(calibrated, "navigation", None) or scenario.navigation()
         self.learned = observing_driver(policy, scenario, navigation=navigation, mask=self.learned_mask, dt_s=dt_s,
                                         velocity_bound_m_s=20.0, travel_time_bound_s=navigation.max_travel_time_s + 1.0,
@@ -78,7 +93,11 @@ class MixedDriver:
             st = sim.state
             learned = self.learned_mask[idx]
             rows = idx[learned]
-            intents[rows] += (st.tau_s[rows] / st.mass_kg[rows])[:, None] * force[learned]
+            share = st.tau_s[rows] / st.mass_kg[rows]
+            if self.social_force_below_m_s is not None:  # nearly standing: in full at rest, none from u_g on
+                share = share * np.clip(1.0 - np.hypot(*st.velocity_m_s[rows].T) / self.social_force_below_m_s,
+                                        0.0, 1.0)
+            intents[rows] += share[:, None] * force[learned]
         if not self.learned_mask.all():
             base, base_heading = intents_and_headings(self.calibrated(sim), sim.state)
             rows = ~self.learned_mask

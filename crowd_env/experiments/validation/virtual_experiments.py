@@ -101,7 +101,8 @@ QUICK_PLAN = VirtualPlan(seeds=(0, 1), widths_m=(1.0,), sizes=(60,), corridor_ru
 
 def virtual_config(params: ModelParams, *, navigation_clearance_m: float, pedestrian: dict | None = None,
                    radius_m: float | None = None, corridor_geometry: dict | None = None, policy: str | None = None,
-                   navigation_wall_slowdown=None, policy_social_force: bool = False) -> dict:
+                   navigation_wall_slowdown=None, policy_social_force: bool = False,
+                   policy_social_force_below_m_s: float | None = None) -> dict:
     """The configuration of a folder of virtual experiments: the model, the navigation clearance of the bottleneck
     (the corridor uses the disk centres' field, as every other scenario), per-pedestrian overrides and the body's
     radius (None: Kabalan's Table 2, 0.23 m; else every scenario's, the bottleneck's clearance following it where
@@ -112,7 +113,7 @@ def virtual_config(params: ModelParams, *, navigation_clearance_m: float, pedest
     ``policy``: who drives every pedestrian of every run (a shipped trained policy's name, a policy file, an import
     path: :func:`~crowd_env.experiments.running.crowd_policy.policy_entry`, which checks that it loads); None or
     ``"calibrated"``: the calibrated agent of ``params``; ``policy_social_force``: the social force of ``params``
-    added to the policy's intents. ``navigation_wall_slowdown`` ``(distance_m,
+    added to the policy's intents (``policy_social_force_below_m_s``: only to those nearly standing). ``navigation_wall_slowdown`` ``(distance_m,
     speed_factor)``: a slower eikonal wavefront near walls (Eq. 11's V < 1) in the bottleneck's field; give the
     corridor's in ``corridor_geometry`` (the command gives both)."""
     config = {"kind": "virtual_experiments", "params": params_dict(params),
@@ -121,7 +122,8 @@ def virtual_config(params: ModelParams, *, navigation_clearance_m: float, pedest
         config["navigation_wall_slowdown"] = list(NavigationField.check_wall_slowdown(navigation_wall_slowdown))
     if policy_social_force and policy is None:
         raise InputError("policy_social_force adds the model's social force to a learned policy: name the policy")
-    entry = policy_entry(policy, social_force=policy_social_force) if policy is not None else None
+    entry = policy_entry(policy, social_force=policy_social_force,
+                         social_force_below_m_s=policy_social_force_below_m_s) if policy is not None else None
     if entry is not None:
         config["policy"] = entry
     if radius_m is not None:

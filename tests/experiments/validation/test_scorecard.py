@@ -118,6 +118,15 @@ def test_a_learned_policy_drives_only_its_share_of_a_mixed_crowd():
     assert np.abs(force[learned]).max() > 1.0  # the crowd stands close enough for the force to matter
     np.testing.assert_allclose(got_pushed[learned], got[learned] + scale[learned] * force[learned], atol=1e-12)
     np.testing.assert_array_equal(got_pushed[~learned], want[~learned])  # the calibrated ones have it already
+    # gated: in full at rest, none from the gate's speed on, linear between
+    speed = np.array([0.0, 0.05, 0.1, 0.2, 1.0, 0.0, 0.05, 0.1, 0.2, 1.0])
+    sim.state.velocity_m_s[:] = np.column_stack([speed, np.zeros(10)])
+    gated = crowd_policy({"policy": policy_entry("bottleneck_bc", 0.5, social_force=True,
+                                                 social_force_below_m_s=0.1)}, scenario, params)
+    got_gated, _ = gated(sim)
+    plain, _ = crowd_policy({"policy": policy_entry("bottleneck_bc", 0.5)}, scenario, params)(sim)  # same velocities
+    share = np.clip(1.0 - speed / 0.1, 0.0, 1.0)[:, None]
+    np.testing.assert_allclose(got_gated[learned], plain[learned] + (share * scale * force)[learned], atol=1e-12)
 
 
 def test_bad_policies_are_refused_by_name():
@@ -135,6 +144,10 @@ def test_bad_policies_are_refused_by_name():
     assert policy_entry("bottleneck_bc", social_force=True)["social_force"] is True
     with pytest.raises(PolicyError, match="has it already"):
         policy_entry("calibrated", social_force=True)
+    assert policy_entry("bottleneck_bc", social_force=True, social_force_below_m_s=0.1)["social_force_below_m_s"] == 0.1
+    for bad, on in ((0.0, True), (float("nan"), True), ("0.1", True), (0.1, False)):
+        with pytest.raises(PolicyError, match="social_force_below_m_s gates"):
+            policy_entry("bottleneck_bc", social_force=on, social_force_below_m_s=bad)
 
 
 def test_the_flow_per_width_is_the_mean_of_the_runs_that_got_everybody_out():
