@@ -120,7 +120,7 @@ def virtual_config(params: ModelParams, *, navigation_clearance_m: float, pedest
               "navigation_clearance_m": float(navigation_clearance_m), "pedestrian": dict(pedestrian or {})}
     if navigation_wall_slowdown is not None:
         config["navigation_wall_slowdown"] = list(NavigationField.check_wall_slowdown(navigation_wall_slowdown))
-    if policy_social_force and policy is None:
+    if (policy_social_force or policy_social_force_below_m_s is not None) and policy is None:
         raise InputError("policy_social_force adds the model's social force to a learned policy: name the policy")
     entry = policy_entry(policy, social_force=policy_social_force,
                          social_force_below_m_s=policy_social_force_below_m_s) if policy is not None else None

@@ -311,6 +311,10 @@ def test_a_learned_policy_drives_every_run_and_an_unknown_one_is_refused(capsys)
     assert pushed["policy"] == {"name": "bottleneck_ppo", "learned_fraction": 1.0, "social_force": True}
     assert main(["--quick", "--policy-social-force", "--out", "unused"]) == 2  # a social force for no policy
     assert "name the policy" in capsys.readouterr().err
+    assert main(["--quick", "--policy-social-force-below", "0.3", "--out", "unused"]) == 2  # its gate, likewise
+    assert "name the policy" in capsys.readouterr().err
+    assert main(["--quick", "--policy", "bottleneck_ppo", "--policy-social-force-below", "0.3", "--out", "unused"]) == 2
+    assert "with social_force on" in capsys.readouterr().err  # a gate without the force it gates
 
 
 def test_shoulders_pass_the_070_m_exit_off_the_axis_where_no_disk_can(tmp_path, capsys, monkeypatch):
