@@ -11,7 +11,9 @@ step, so another load on the machine changes it little (the copies replay the sa
 ``git worktree`` of an older commit) alternately with this one, ``--rounds`` times, and prints both and their
 ratio: how issue 38's "no slower than before" was measured. ``--terms`` runs this checkout with
 ``reward_terms_in_infos=True`` (each agent's reward terms in its info; off by default): the price of that
-option. ``--vector`` adds the vector environment (``workers=1``, 8 copies, vector_speed.py's speed rule) per
+option. ``--heading desired_direction`` steps the environment with ``heading_target="desired_direction"`` (θ_d
+from e_d every sub-step, :func:`crowd_env.walking.agent.facing_headings`) instead of the intent's angle. ``--vector``
+adds the vector environment (``workers=1``, 8 copies, vector_speed.py's speed rule) per
 copy and step, column ``vec``.
 
     python benchmarks/env_step_parts.py --n 10 100
@@ -33,9 +35,10 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMB
 PARTS = ("step", "sim", "obs", "reward", "actions")
 
 
-def measure(n: int, copies: int = 40, steps: int = 100, terms_in_infos: bool = False) -> dict:
+def measure(n: int, copies: int = 40, steps: int = 100, terms_in_infos: bool = False, heading: str = "intent") -> dict:
     """Per-step thread time (µs) of each of :data:`PARTS` for N = ``n``: the minimum over ``copies``;
-    ``terms_in_infos`` True: the environment option ``reward_terms_in_infos=True``."""
+    ``terms_in_infos`` True: the environment option ``reward_terms_in_infos=True``; ``heading``: its
+    ``heading_target``."""
     import copy
     import time
 
@@ -45,7 +48,7 @@ def measure(n: int, copies: int = 40, steps: int = 100, terms_in_infos: bool = F
 
     env = crowd_v0.parallel_env(scenario="seyfried_bottleneck", scenario_options={"n_pedestrians": n, "width_m": 1.0},
                                 controlled="all", frame_skip=1, max_steps=10**9, action_max_m_s=50.0,
-                                **_terms_option(terms_in_infos))
+                                heading_target=heading, **_terms_option(terms_in_infos))
     env.reset(seed=0)
 
     def act(e, agent):
@@ -109,11 +112,11 @@ def measure_vector(n: int, copies: int = 8, repeats: int = 12, steps: int = 100,
     return {"vec": best}
 
 
-def _run(path: str | None, n: int, terms: bool = False, vector: bool = False) -> dict:
+def _run(path: str | None, n: int, terms: bool = False, vector: bool = False, heading: str = "intent") -> dict:
     env = dict(os.environ)
     if path:
         env["PYTHONPATH"] = path
-    cmd = [sys.executable, __file__, "--json", "--n", str(n)] + (["--terms"] if terms else []) + \
+    cmd = [sys.executable, __file__, "--json", "--n", str(n), "--heading", heading] + (["--terms"] if terms else []) + \
         (["--vector"] if vector else [])
     out = subprocess.run(cmd, env=env, cwd=path or os.getcwd(),
                          capture_output=True, text=True, check=True)
@@ -129,23 +132,25 @@ def main(argv=None) -> int:
                     "agent's reward terms in its info; what that option costs)")
     ap.add_argument("--vector", action="store_true", help="also the vector environment (workers=1, 8 copies): "
                     "thread time per copy and step, column 'vec'")
+    ap.add_argument("--heading", choices=["intent", "desired_direction"], default="intent",
+                    help="the environment's heading_target (default intent)")
     ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)  # one measure, as JSON (the child)
     args = ap.parse_args(argv)
     if args.json:
-        out = measure(args.n[0], terms_in_infos=args.terms)
+        out = measure(args.n[0], terms_in_infos=args.terms, heading=args.heading)
         print(json.dumps({**out, **(measure_vector(args.n[0], terms_in_infos=args.terms) if args.vector else {})}))
         return 0
     parts = PARTS + (("vec",) if args.vector else ())
     head = " ".join(f"{p:>8}" for p in parts)
     for n in args.n:
         if not args.against:
-            m = _run(None, n, args.terms, args.vector)
+            m = _run(None, n, args.terms, args.vector, args.heading)
             print(f"N = {n:4d}  µs/step: {head}\n{'':13}{' '.join(f'{m[p]:8.1f}' for p in parts)}")
             continue
         runs = {"this": [], "other": []}
         for _ in range(args.rounds):
-            runs["other"].append(_run(os.path.abspath(args.against), n, vector=args.vector))
-            runs["this"].append(_run(None, n, args.terms, args.vector))
+            runs["other"].append(_run(os.path.abspath(args.against), n, vector=args.vector, heading=args.heading))
+            runs["this"].append(_run(None, n, args.terms, args.vector, args.heading))
         this = {p: min(r[p] for r in runs["this"]) for p in parts}
         other = {p: min(r[p] for r in runs["other"]) for p in parts}
         print(f"N = {n:4d}  µs/step       {head}")

@@ -138,8 +138,8 @@ def main(argv=None) -> int:
         config = config_from_args(args)
         if args.snapshot:
             return _snapshot(args, config, plan)
-        who = (f"policy {args.policy}{' + the social force' if args.policy_social_force else ''} (physics: {args.preset})"
-               if config.get("policy") else args.preset)
+        pushed = " + the social force" if args.policy_social_force else ""
+        who = f"policy {args.policy}{pushed} (physics: {args.preset})" if config.get("policy") else args.preset
         field = "".join(f", navigation {what} {value}" for what, value in (
             ("clearance", args.navigation_clearance), ("wall slowdown", args.navigation_wall_slowdown))
             if value is not None)
@@ -172,6 +172,7 @@ def _snapshot(args, config: dict, plan: VirtualPlan) -> int:
           f"{s['net_displacement_m'][-1]:.3f} m net over the last 20 s")
     print(f"wrote {path}")
     return 0
+
 
 if __name__ == "__main__":
     raise SystemExit(main())

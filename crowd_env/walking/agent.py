@@ -422,21 +422,23 @@ def facing_headings_rad(navigation, position_m: np.ndarray, radius_m: np.ndarray
     of ``index`` on the floor turn. ``heading_rad`` (N,): the current headings (the way a body turns); ``walls``
     (S, 4)."""
     index = np.asarray(index, np.int64)
-    facing = direction_angles_rad(desired_direction(navigation, position_m, index))
-    if rule.critical_ratio <= 0.0:
-        return facing
+    if rule.critical_ratio <= 0.0:  # the paper's model: e_d's angle, nothing more to compute
+        return direction_angles_rad(desired_direction(navigation, position_m, index))
     floor = index if floor is None else np.asarray(floor, np.int64)
     on_floor = np.isin(index, floor)
     if not on_floor.any():
-        return facing
-    walk = desired_direction(navigation, position_m, floor)
+        return direction_angles_rad(desired_direction(navigation, position_m, index))
+    walk = desired_direction(navigation, position_m, floor)  # everybody's e_d once: the walkers' and their neighbours'
     theta = np.array(heading_rad, dtype=np.float64, copy=True)
     theta[floor] = direction_angles_rad(walk)
     r_max = float(np.max(radius_m[floor]))
     pairs = grid_pairs(position_m, floor, 2.0 * r_max + shoulder_turn_reach_m(r_max, rule), period_m)
     shoulder_turn(theta, np.asarray(heading_rad, np.float64), position_m, radius_m, floor, walk, pairs, walls,
                   period_m, rule)
-    return np.where(on_floor, theta[index], facing)
+    off = index[~on_floor]  # off the floor: e_d's angle, unturned
+    if off.size:
+        theta[off] = direction_angles_rad(desired_direction(navigation, position_m, off))
+    return theta[index]
 
 
 def facing_headings(navigation, sim, index: np.ndarray) -> np.ndarray:

@@ -37,6 +37,7 @@ def policy_entry(name: str, learned_fraction: float = 1.0, *, social_force: bool
     if not isinstance(learned_fraction, (int, float)) or not math.isfinite(learned_fraction) \
             or not 0.0 < learned_fraction <= 1.0:
         raise PolicyError(f"learned_fraction must lie in (0, 1], got {learned_fraction!r}")
+    below = check_social_force_gate(social_force, social_force_below_m_s)
     if name in CALIBRATED_NAMES:
         if social_force:
             raise PolicyError("social_force adds the model's social force to a learned policy's intents; the "
@@ -44,7 +45,6 @@ def policy_entry(name: str, learned_fraction: float = 1.0, *, social_force: bool
         return None
     load_scored_policy(name)
     entry = {"name": str(name), "learned_fraction": float(learned_fraction)}
-    below = check_social_force_gate(social_force, social_force_below_m_s)
     if social_force:  # absent otherwise: the tasks (and their stored runs) of a plain policy stay as they were
         entry["social_force"] = True
     if below is not None:

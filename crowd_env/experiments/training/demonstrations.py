@@ -253,7 +253,6 @@ def _replay_headings(grid, f0: int, fps: float, step_times, scenario, options: d
     n = grid.shape[1]
     radius = scenario.radius_m()[0] if scenario.n_pedestrians else PedestrianDefaults().radius_m
     bodies = CrowdState.create(np.column_stack([np.arange(n) * 10.0, np.zeros(n)]), radius_m=radius)
-    radii = np.full(n, float(radius))
     walls = as_segments(scenario.geometry.walls)
     rule = walking_bundle(params).shoulder_turn  # with the model's shoulder turn, the shoulders turn at a narrow gap
     theta = np.zeros(n)
@@ -273,7 +272,7 @@ def _replay_headings(grid, f0: int, fps: float, step_times, scenario, options: d
         if not idx.size or s == step_times.size - 1:
             continue
         target = np.zeros(n)
-        target[idx] = facing_headings_rad(navigation, pos[s], radii, theta, idx, walls, rule)
+        target[idx] = facing_headings_rad(navigation, pos[s], bodies.radius_m, theta, idx, walls, rule)
         theta[new] = target[new]
         omega[new] = 0.0
         out[s, new] = theta[new]

@@ -35,8 +35,8 @@ from ..running.store import RunStore, check_record, config_hash, normalise_recor
 from crowd_env.files import write_csv_atomic
 
 __all__ = ["GEOMETRY_OPTIONS", "LANE_BIN_M", "RESULT_COLUMNS", "SetupError", "SweepError", "model_params",
-           "params_dict", "bottleneck_config", "check_setups", "check_records", "SUMMARY_FIELDS", "bottleneck_scenario", "run_one", "run_sweep", "write_results",
-           "summarise", "write_summary", "flow_fit"]
+           "params_dict", "bottleneck_config", "check_setups", "check_records", "SUMMARY_FIELDS", "bottleneck_scenario",
+           "run_one", "run_sweep", "write_results", "summarise", "write_summary", "flow_fit"]
 
 GEOMETRY_OPTIONS = {  # command-line flag -> seyfried_bottleneck option, with the Seyfried defaults
     "corridor_width": ("corridor_width_m", 4.0),

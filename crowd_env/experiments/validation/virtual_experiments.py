@@ -50,7 +50,8 @@ from crowd_env.files import write_atomic, write_csv_atomic
 
 __all__ = ["EXPERIMENTS", "VirtualPlan", "QUICK_PLAN", "virtual_config", "virtual_tasks", "run_virtual_task",
            "run_virtual_experiments", "virtual_rows", "ROW_COLUMNS", "format_rows", "write_virtual_outputs",
-           "virtual_figure", "snapshot_case", "run_snapshot", "snapshot_figure", "BOTTLENECK_TOLERANCE", "SINGLE_FILE_TOLERANCE_M_S",
+           "virtual_figure", "snapshot_case", "run_snapshot", "snapshot_figure", "BOTTLENECK_TOLERANCE",
+           "SINGLE_FILE_TOLERANCE_M_S",
            "PASSAGE_QUANTITIES", "passage_rows", "format_passage_rows", "approach_figure", "entry_figure",
            "spacing_rows",
            "format_spacing_rows", "spacing_figure", "LAPSE_QUANTITIES", "lapse_rows", "format_lapse_rows",
@@ -113,9 +114,9 @@ def virtual_config(params: ModelParams, *, navigation_clearance_m: float, pedest
     ``policy``: who drives every pedestrian of every run (a shipped trained policy's name, a policy file, an import
     path: :func:`~crowd_env.experiments.running.crowd_policy.policy_entry`, which checks that it loads); None or
     ``"calibrated"``: the calibrated agent of ``params``; ``policy_social_force``: the social force of ``params``
-    added to the policy's intents (``policy_social_force_below_m_s``: only to those nearly standing). ``navigation_wall_slowdown`` ``(distance_m,
-    speed_factor)``: a slower eikonal wavefront near walls (Eq. 11's V < 1) in the bottleneck's field; give the
-    corridor's in ``corridor_geometry`` (the command gives both)."""
+    added to the policy's intents (``policy_social_force_below_m_s``: only to those nearly standing).
+    ``navigation_wall_slowdown`` ``(distance_m, speed_factor)``: a slower eikonal wavefront near walls (Eq. 11's V < 1)
+    in the bottleneck's field; give the corridor's in ``corridor_geometry`` (the command gives both)."""
     config = {"kind": "virtual_experiments", "params": params_dict(params),
               "navigation_clearance_m": float(navigation_clearance_m), "pedestrian": dict(pedestrian or {})}
     if navigation_wall_slowdown is not None:
@@ -836,9 +837,10 @@ def run_snapshot(task: dict, *, at_s: float, every_s: float = 0.25) -> dict:
     """A bottleneck or corridor run of the task format (:func:`virtual_tasks`) followed step by step: the crowd at
     ``at_s`` (positions, radii, headings and the body depth, velocities, the agent's intents, who is left), the times
     its measurement line was passed (``crossing_times_s``: the corridor's exit, the bottleneck's line), and every
-    ``every_s`` how many have left the floor so far, the mean speed ‖u‖ of those left and their mean net displacement over the stall rule's window (from their positions
-    :data:`~crowd_env.experiments.running.runner.STALL_WINDOW_S` earlier): a crowd that shakes in place keeps a
-    speed while its net displacement falls to nothing. The run stops at ``at_s`` (or at its end)."""
+    ``every_s`` how many have left the floor so far, the mean speed ‖u‖ of those left and their mean net
+    displacement over the stall rule's window (from their positions
+    :data:`~crowd_env.experiments.running.runner.STALL_WINDOW_S` earlier): a crowd that shakes in place keeps a speed
+    while its net displacement falls to nothing. The run stops at ``at_s`` (or at its end)."""
     from ..running.runner import STALL_WINDOW_S, run_scenario
 
     kind = task["experiment"]
@@ -865,9 +867,9 @@ def run_snapshot(task: dict, *, at_s: float, every_s: float = 0.25) -> dict:
                                                 if old is not None and inside.any() else math.nan)
         if not snap and sim.time_s >= at_s - 1e-9:
             intents, _ = policy(sim)
-            snap.update(position_m=st.position_m.copy(), radius_m=st.radius_m.copy(), velocity_m_s=st.velocity_m_s.copy(),
-                        intent_m_s=intents.copy(), active=st.active.copy(), time_s=sim.time_s,
-                        heading_rad=st.heading_rad.copy(), body_depth_m=sim.physics.body_depth_m)
+            snap.update(position_m=st.position_m.copy(), radius_m=st.radius_m.copy(),
+                        velocity_m_s=st.velocity_m_s.copy(), intent_m_s=intents.copy(), active=st.active.copy(),
+                        time_s=sim.time_s, heading_rad=st.heading_rad.copy(), body_depth_m=sim.physics.body_depth_m)
 
     result = run_scenario(scenario, policy, params, max_time_s=min(task["max_time_s"], at_s + 1e-6),
                           line="exit" if kind == "corridor" else "bottleneck", density_areas=(), lane_area=None,
@@ -919,9 +921,8 @@ def snapshot_figure(study: dict, path, *, window_y_m: tuple | None = None, windo
                 ax.add_patch(plt.Circle(c, rc, fill=False, lw=0.8))
             ax.arrow(*p, *(0.3 * snap["velocity_m_s"][i]), color="C3", width=0.006, length_includes_head=True)
             ax.arrow(*p, *(0.15 * snap["intent_m_s"][i]), color="C0", width=0.003, alpha=0.6, length_includes_head=True)
-        ax.set_title(f"{study['run']} (seed {study.get('seed', 0)}) at t = {snap['time_s']:.1f} s: velocity × 0.3 s (red), "
-                     "intent × 0.15 s (blue)",
-                     fontsize=9)
+        ax.set_title(f"{study['run']} (seed {study.get('seed', 0)}) at t = {snap['time_s']:.1f} s: "
+                     "velocity × 0.3 s (red), intent × 0.15 s (blue)", fontsize=9)
     ax.set_xlim(*window_x_m)
     ax.set_ylim(*window_y_m)
     ax.set_aspect("equal")

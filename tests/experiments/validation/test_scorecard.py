@@ -148,6 +148,8 @@ def test_bad_policies_are_refused_by_name():
     for bad, on in ((0.0, True), (float("nan"), True), ("0.1", True), (0.1, False)):
         with pytest.raises(PolicyError, match="social_force_below_m_s gates"):
             policy_entry("bottleneck_bc", social_force=on, social_force_below_m_s=bad)
+    with pytest.raises(PolicyError, match="social_force_below_m_s gates"):  # a gate for the calibrated agent too
+        policy_entry("calibrated", social_force_below_m_s=0.3)
 
 
 def test_the_flow_per_width_is_the_mean_of_the_runs_that_got_everybody_out():
