@@ -12,12 +12,17 @@ per run on the executor; writes OUT/policy.npz (a policy file: crowd-evaluate --
 background_policy="OUT/policy.npz", crowd-virtual-experiments --policy OUT/policy.npz), progress.csv (the learning
 curves), summary.json (sizes, wall and CPU time per stage, the open-loop speed errors against the calibrated agent).
 
-select: trained policies (files or training folders) scored closed loop on the validation runs (each drives every
-pedestrian of uo-100-180-180 and uo-180-180-095 as they were run, crowd-virtual-experiments' runs and measurement),
-ranked as docs/validation/human_policy.md ranks its candidates: a candidate with a stalled run after every one
-without, then by the mean miss of density, speed and exit flow in units of their tolerances. Writes
+select: trained policies (files, training folders or shipped names) scored closed loop on the validation runs
+(each drives every pedestrian of uo-100-180-180 and uo-180-180-095 as they were run, crowd-virtual-experiments'
+runs and measurement), ranked as docs/validation/human_policy.md ranks its candidates: a candidate with a stalled
+run after every one without, then one with a run that never completed (quantities its miss cannot count) after
+every one with all measured, then by the mean miss of density, speed and exit flow in units of their tolerances
+(crowd_env.experiments.validation.virtual_experiments.selection_rank). Writes
 OUT/selection.md and OUT/policy.npz (a copy of the best); the runs are stored under OUT/runs/ (resumable). The
-training's result depends on its seed: train several (--set seed=K) and keep the one this prefers.
+training's result depends on its seed: train several (--set seed=K) and keep the one this prefers. --push-below
+scores each policy with the model's social force added to its intents as crowd-virtual-experiments
+--policy-social-force adds it (off, always, or only for walkers slower than U m/s), so that the gate U is chosen
+by the same rule, on the runs --runs names (all: the nine corridor runs, the data the policy learns from).
 
 Examples::
 
@@ -28,10 +33,12 @@ Examples::
     crowd-imitate train --out out/human --backend process --jobs 2
     crowd-imitate train --out out/human_bc --set dad_rounds=0    # behaviour cloning alone
     crowd-imitate select out/human_s0 out/human_s1 out/human_s2 --out out/human_best --backend process --jobs 2
+    crowd-imitate select human_juelich --runs all --seeds 5 --push-below off 0.1 0.3 always --out out/push_gate
 """
 from __future__ import annotations
 
 import argparse
+import math
 import resource
 import sys
 import time
@@ -41,14 +48,18 @@ from ..analysis.corridor_runs import recorded_uo_trajectories, uo_scenario
 from ..analysis.trajectories import Trajectories
 from ..errors import CrowdEnvError, OptionError
 from ..experiments.running.backends import make_backend
+from ..experiments.running.crowd_policy import load_scored_policy
 from ..experiments.training.demonstrations import DEFAULT_SMOOTHING_S, demonstrations_from_trajectories
 from ..experiments.training.human_imitation import QUICK_HUMAN_TRAINING, VALIDATION_RUNS, train_human_policy
 from ..experiments.validation.virtual_experiments import (VirtualPlan, corridor_miss, format_selection,
-                                                          run_virtual_experiments, virtual_config)
+                                                          run_virtual_experiments, selection_rank, virtual_config)
 from ..files import copy_atomic, write_atomic
 from ..scenarios import make_scenario
 from ..walking.presets import DEFAULT_PRESET, get_preset
+from ..experiments.validation.corridor_runs import CORRIDOR_RUN_NAMES
 from .options import add_key_values, key_values
+
+PUSH_OFF, PUSH_ALWAYS = "off", "always"  # --push-below: the policy alone; the push for every walker
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -88,10 +99,17 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--jobs", type=int, default=None, help="processes of the pool / CPUs of local Ray")
     se = sub.add_parser("select", help="trained policies scored closed loop on the validation runs; the best kept",
                         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    se.add_argument("policies", nargs="+", type=Path, help="policy files (.npz) or training folders (their policy.npz)")
+    se.add_argument("policies", nargs="+", type=Path,
+                    help="policy files (.npz), training folders (their policy.npz) or shipped policies by name")
     se.add_argument("--out", required=True, type=Path, help="output folder (selection.md, policy.npz, runs/)")
     se.add_argument("--runs", nargs="+", default=list(VALIDATION_RUNS), metavar="RUN",
-                    help=f"the corridor runs that score them (default the validation runs: {' '.join(VALIDATION_RUNS)})")
+                    help=f"the corridor runs that score them (default the validation runs: {' '.join(VALIDATION_RUNS)}; "
+                         "all: the nine)")
+    se.add_argument("--push-below", nargs="+", default=[PUSH_OFF], metavar="U",
+                    help="each policy scored with the model's social force added to its intents "
+                         "(crowd-virtual-experiments --policy-social-force): 'off' (default) the policy alone, "
+                         "'always' the push for every walker, a speed U in m/s only for walkers slower than U "
+                         "(--policy-social-force-below U); several: every policy with each")
     se.add_argument("--seeds", type=int, default=2, help="seeds 0..S-1 of each run (default 2, as the docs' table)")
     se.add_argument("--radius", type=float, default=None, metavar="R",
                     help="every pedestrian's radius in m (default the calibrated preset's body, as the training's)")
@@ -154,30 +172,63 @@ def _train(args) -> int:
     return 0
 
 
+def _policy_file(spec: Path) -> Path:
+    """The policy file of a ``select`` candidate: a file, a training folder's ``policy.npz``, or a shipped policy's
+    file by name; :class:`OptionError` naming it otherwise."""
+    path = spec / "policy.npz" if spec.is_dir() else spec
+    if path.is_file():
+        return path
+    if not spec.suffix and not spec.parent.name:  # a bare name: a shipped policy's
+        shipped = getattr(load_scored_policy(str(spec)), "path", None)
+        if shipped is not None:
+            return Path(shipped)
+    raise OptionError(f"no policy file at {path} (give policy files, training folders or shipped policies by name)")
+
+
+def _push_gate(value: str) -> tuple:
+    """``(social_force, social_force_below_m_s, label)`` of a ``--push-below`` value (its help)."""
+    if value == PUSH_OFF:
+        return False, None, ""
+    if value == PUSH_ALWAYS:
+        return True, None, " + push"
+    try:
+        below = float(value)
+    except ValueError:
+        below = math.nan
+    if not (math.isfinite(below) and below > 0.0):
+        raise OptionError(f"--push-below takes '{PUSH_OFF}', '{PUSH_ALWAYS}' or a speed in m/s > 0, got {value!r}")
+    return True, below, f" + push below {below:g} m/s"
+
+
 def _select(args) -> int:
-    files = [p / "policy.npz" if p.is_dir() else p for p in args.policies]
-    missing = [str(f) for f in files if not f.is_file()]
-    if missing:
-        raise OptionError(f"no policy file at {', '.join(missing)} (give policy files or training folders)")
+    files = [_policy_file(p) for p in args.policies]
+    gates = [_push_gate(v) for v in dict.fromkeys(args.push_below)]
     if args.seeds < 1:
         raise OptionError(f"--seeds must be at least 1, got {args.seeds}")
+    runs = CORRIDOR_RUN_NAMES if args.runs == ["all"] else tuple(args.runs)
     preset = get_preset(DEFAULT_PRESET)  # the physics the human policy trains in
-    plan = VirtualPlan(experiments=("corridor",), corridor_runs=tuple(args.runs), seeds=tuple(range(args.seeds)))
+    plan = VirtualPlan(experiments=("corridor",), corridor_runs=tuple(runs), seeds=tuple(range(args.seeds)))
+    candidates = [(path, gate) for path in files for gate in gates]
     scores = []
     with make_backend(args.backend, jobs=args.jobs) as backend:
-        for k, path in enumerate(files):
+        for k, (path, (pushed, below, _)) in enumerate(candidates):
             config = virtual_config(preset.params(), navigation_clearance_m=preset.navigation_clearance_m,
-                                    radius_m=args.radius, policy=str(path.resolve()))
+                                    radius_m=args.radius, policy=str(path.resolve()), policy_social_force=pushed,
+                                    policy_social_force_below_m_s=below)
             records = run_virtual_experiments(args.out / "runs" / f"candidate_{k}", config, plan, backend,
                                               desc=f"candidate {k}")
             scores.append(corridor_miss(records))
-    best = min(range(len(files)), key=lambda k: (scores[k]["failed"] > 0, scores[k]["miss"], k))
-    table = format_selection(files, scores, best)
+    best = min(range(len(candidates)), key=lambda k: (*selection_rank(scores[k]), k))
+    table = format_selection([f"{path}{label}" for path, (_, _, label) in candidates], scores, best)
     print(table)
     args.out.mkdir(parents=True, exist_ok=True)
     write_atomic(args.out / "selection.md", table + "\n")
-    copy_atomic(files[best], args.out / "policy.npz")
-    print(f"kept candidate {best} ({files[best]}); wrote {args.out / 'selection.md'}, {args.out / 'policy.npz'}")
+    path, (pushed, below, label) = candidates[best]
+    copy_atomic(path, args.out / "policy.npz")
+    how = ""
+    if pushed:  # the push is the runner's, not the file's
+        how = " (run it with --policy-social-force" + (f" --policy-social-force-below {below:g})" if below else ")")
+    print(f"kept candidate {best} ({path}{label}){how}; wrote {args.out / 'selection.md'}, {args.out / 'policy.npz'}")
     return 0
 
 

@@ -55,7 +55,7 @@ __all__ = ["EXPERIMENTS", "VirtualPlan", "QUICK_PLAN", "virtual_config", "virtua
            "PASSAGE_QUANTITIES", "passage_rows", "format_passage_rows", "approach_figure", "entry_figure",
            "spacing_rows",
            "format_spacing_rows", "spacing_figure", "LAPSE_QUANTITIES", "lapse_rows", "format_lapse_rows",
-           "lapse_figure", "corridor_miss", "format_selection"]
+           "lapse_figure", "corridor_miss", "selection_rank", "format_selection"]
 
 EXPERIMENTS = ("bottleneck", "corridor", "single_file")
 BOTTLENECK_TOLERANCE = 0.05  # J_s of N = 60 within ±5 % of Seyfried's
@@ -308,27 +308,38 @@ def corridor_miss(records: list) -> dict:
     ranked (docs/validation/human_policy.md): ``miss``, the mean over the runs and their density, speed and exit flow
     of the miss in units of the tolerance (:func:`~crowd_env.experiments.validation.corridor_runs.summarise_corridor`,
     seed means of the complete runs; a run with no complete seed counts no quantity); ``failed``, the runs that
-    stalled or stayed incomplete (a candidate with any ranks after every candidate without); ``runs``, the
-    summary's rows. Raises :class:`InputError` without corridor records."""
+    stalled or stayed incomplete (a candidate with any ranks after every candidate without); ``unmeasured``, the
+    quantities no complete seed measured (the miss leaves them out); ``runs``, the summary's rows. Raises
+    :class:`InputError` without corridor records."""
     rows = summarise_corridor(records)
     if not rows:
         raise InputError("no corridor runs among the records: nothing to score")
-    misses = [row[k] for row in rows for k in ("density_miss", "speed_miss", "flow_exit_miss")
-              if np.isfinite(row[k])]
+    values = [row[k] for row in rows for k in ("density_miss", "speed_miss", "flow_exit_miss")]
+    misses = [v for v in values if np.isfinite(v)]
     failed = sum(row["stalled"] + row["incomplete"] for row in rows)
-    return {"miss": float(np.mean(misses)) if misses else math.inf, "failed": int(failed), "runs": rows}
+    return {"miss": float(np.mean(misses)) if misses else math.inf, "failed": int(failed),
+            "unmeasured": len(values) - len(misses), "runs": rows}
+
+
+def selection_rank(score: dict) -> tuple:
+    """The order of candidates scored by :func:`corridor_miss` (smallest first): those with no stalled or incomplete
+    run first; then those whose miss covers every quantity (a mean over fewer quantities is not comparable: a run
+    that never completed has none); then the miss."""
+    return score["failed"] > 0, score["unmeasured"], score["miss"]
 
 
 def format_selection(names: list, scores: list, best: int) -> str:
     """Candidates scored by :func:`corridor_miss` as a Markdown table: each run's density / speed / exit flow (seed
-    means of the complete runs, the experiment's in the header), the miss, the stalled or incomplete runs; the
-    candidate ``best`` in bold."""
+    means of the complete runs, the experiment's in the header), the miss, the quantities it could not count (no
+    complete seed), the stalled or incomplete runs; the candidate ``best`` in bold."""
     head = ["candidate", *(f"{r['run']} ρ / v / J (exp. {r['density_exp']:.2f} / {r['speed_exp']:.2f} / "
-                           f"{r['flow_exit_exp']:.2f})" for r in scores[0]["runs"]), "miss", "stalled or incomplete"]
+                           f"{r['flow_exit_exp']:.2f})" for r in scores[0]["runs"]), "miss", "unmeasured",
+            "stalled or incomplete"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for k, (name, score) in enumerate(zip(names, scores)):
         cells = [f"{k}: {name}", *(" / ".join(_cell(r[q]) for q in ("density_per_m2", "speed_m_s", "flow_exit_per_s"))
-                                   for r in score["runs"]), _cell(score["miss"]), str(score["failed"])]
+                                   for r in score["runs"]), _cell(score["miss"]), str(score["unmeasured"]),
+                 str(score["failed"])]
         lines.append("| " + " | ".join(f"**{c}**" if k == best else c for c in cells) + " |")
     return "\n".join(lines)
 

@@ -367,9 +367,33 @@ def test_corridor_miss_is_the_mean_miss_in_tolerance_units_and_counts_stalls():
     # +30 % density (2 tolerances), +0.05 m/s (0.5), −10 % flow (1): the mean, 3.5 / 3
     off = corridor_miss([record(0, 1.3 * run.density_per_m2, run.speed_m_s + 0.05, 0.9 * run.flow_exit_per_s),
                          record(1, 0.0, 0.0, 0.0, complete=False)])
-    assert off["miss"] == pytest.approx(3.5 / 3) and off["failed"] == 1
+    assert off["miss"] == pytest.approx(3.5 / 3) and off["failed"] == 1 and off["unmeasured"] == 0
     with pytest.raises(InputError, match="no corridor runs"):
         corridor_miss([])
+
+
+def test_selection_rank_puts_stalls_then_unmeasured_quantities_before_the_miss():
+    """A candidate whose runs all complete ranks first; among those with a stalled run, one with every quantity
+    measured (some seed of each run complete) ranks before one whose miss leaves a run out, however small that
+    miss: a mean over fewer quantities is not comparable."""
+    from crowd_env.analysis.corridor_runs import uo_run
+    from crowd_env.experiments.validation.virtual_experiments import corridor_miss, selection_rank
+
+    runs = [uo_run("uo-180-180-095"), uo_run("uo-180-180-070")]
+
+    def record(run, seed, scale, complete=True):
+        return {"experiment": "corridor", "run": run.name, "seed": seed, "complete": complete, "stalled": not complete,
+                "density_per_m2": scale * run.density_per_m2, "speed_m_s": run.speed_m_s,
+                "flow_exit_per_s": run.flow_exit_per_s, "flow_y0_per_s": run.flow_exit_per_s, "min_gap_m": 0.0}
+
+    clean = corridor_miss([record(r, 0, 1.6) for r in runs])  # every run complete, far off in density
+    partial = corridor_miss([record(runs[0], 0, 1.3), record(runs[1], 0, 1.3), record(runs[1], 1, 1.0, False)])
+    left_out = corridor_miss([record(runs[0], 0, 1.0), record(runs[1], 0, 1.0, False)])  # exact, but one run never
+    assert (clean["failed"], clean["unmeasured"]) == (0, 0) and clean["miss"] == pytest.approx(4.0 / 3)
+    assert (partial["failed"], partial["unmeasured"]) == (1, 0) and partial["miss"] == pytest.approx(2.0 / 3)
+    assert (left_out["failed"], left_out["unmeasured"]) == (1, 3) and left_out["miss"] == pytest.approx(0.0, abs=1e-12)
+    ranked = sorted([left_out, partial, clean], key=selection_rank)
+    assert ranked == [clean, partial, left_out]
 
 
 def test_select_scores_policies_closed_loop_and_keeps_the_best(tmp_path, capsys):
@@ -394,3 +418,29 @@ def test_select_scores_policies_closed_loop_and_keeps_the_best(tmp_path, capsys)
     assert "kept candidate 1" in capsys.readouterr().out
     assert main(["select", str(tmp_path / "nowhere.npz"), "--out", str(tmp_path / "x")]) == 2
     assert "no policy file at" in capsys.readouterr().err
+
+
+def test_select_scores_each_policy_with_each_push_gate(tmp_path, capsys):
+    """``--push-below``: the shipped policy by name, alone and with the model's push for walkers slower than 0.3 m/s,
+    on the 0.5 m entrance (seed 0): alone it wedges there (stalled, ranked last), with the push it passes; the
+    gated candidate is kept and the command says how to run it. Bad gates are refused by name."""
+    from crowd_env.cli.imitate import main
+
+    trained = Path(__file__).resolve().parents[3] / "baselines" / "trained"
+    argv = ["select", "human_juelich", "--runs", "uo-050-180-180", "--seeds", "1", "--push-below", "off", "0.3",
+            "--out", str(tmp_path)]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "kept candidate 1" in out and "--policy-social-force --policy-social-force-below 0.3" in out
+    rows = (tmp_path / "selection.md").read_text().splitlines()
+    assert "push" not in rows[2] and rows[2].endswith("| 1 |")  # the policy alone: stalled
+    assert rows[3].startswith("| **1:") and "+ push below 0.3 m/s" in rows[3] and rows[3].endswith("| **0** |")
+    assert (tmp_path / "policy.npz").read_bytes() == (trained / "human_juelich.npz").read_bytes()
+    stored = [json.loads(p.read_text()) for p in (tmp_path / "runs" / "candidate_1").rglob("*.json")
+              if "record" in p.read_text()]
+    assert [s["task"]["policy"].get("social_force_below_m_s") for s in stored] == [0.3]
+    for bad in ("0", "-1", "fast", "nan"):
+        assert main(["select", "human_juelich", "--push-below", bad, "--out", str(tmp_path / "x")]) == 2
+        assert "--push-below takes" in capsys.readouterr().err
+    assert main(["select", "no_such_policy", "--out", str(tmp_path / "x")]) == 2
+    assert "no_such_policy" in capsys.readouterr().err
