@@ -37,6 +37,7 @@ from shapely.geometry import Polygon
 from crowd_env.errors import ExperimentError, InputError, NotFoundError
 
 from .flow import MeasurementLine, trajectory_crossings
+from .speed import centred_velocities_m_s, speed_profile
 from .trajectories import Trajectories, require_pedpy
 
 __all__ = ["SteadyStateFigures", "UORun", "juelich_uo_runs", "uo_run", "recorded_uo_trajectories", "uo_measurement_walkable_area",
@@ -392,7 +393,7 @@ def opening_entries(trajectories: Trajectories, *, upstream_y_m: float, downstre
     entered = dict(zip(ids[k].tolist(), t.tolist()))
     k, _, t = _first_crossings(ids, frame, x, y, downstream_y_m, x_range_m)
     through = sorted((t, w) for w, t in zip(ids[k].tolist(), t.tolist()) if w in entered)
-    dx, dy = _displacements(ids, frame, x, y)
+    vx, vy = centred_velocities_m_s(trajectories, frame_step=UO_SPEED_FRAME_STEP).T  # rows: as _by_walker's
     span = int(frame.max()) + 2 if frame.size else 1
     keys = ids * span + frame  # rows are sorted by walker, then frame: so are their keys
 
@@ -415,7 +416,7 @@ def opening_entries(trajectories: Trajectories, *, upstream_y_m: float, downstre
         a = t_before - f0  # its position interpolated between the frames, as the crossing times are
         figures.append(((entered[walker] - t_before) / fps, x[r0] + a * (x[r1] - x[r0]) - axis,
                         y[r0] + a * (y[r1] - y[r0]) - upstream_y_m,
-                        np.hypot(dx[r0], dy[r0]) * fps / (2 * UO_SPEED_FRAME_STEP)))
+                        np.hypot(vx[r0], vy[r0])))
     if not figures:
         return OpeningEntry(0)
     f = np.array(figures)
@@ -430,41 +431,25 @@ def approach_profile(trajectories: Trajectories, *, corridor_width_m: float, win
                      edges_y_m=tuple(np.arange(-4.0, 0.01, 0.5))) -> tuple:
     """Density (counted, 1/m²) and mean speed (m/s, over ±5 frames) in bands of the corridor between ``edges_y_m``
     (default 0.5 m bands from the exit wall y = −4 m to y = 0), over the frames of ``window_frames``: how a queue
-    thins and speeds up into its exit. Returns ``(band centres (m), density, speed)``."""
+    thins and speeds up into its exit (the speed: :func:`~crowd_env.analysis.speed.speed_profile`'s, over ±5 frames).
+    Returns ``(band centres (m), density, speed)``."""
     f0, f1 = window_frames
     fps = trajectories.frame_rate_per_s
-    ids, frame, x, y = _by_walker(trajectories)
-    s = UO_SPEED_FRAME_STEP
-    dx, dy = _displacements(ids, frame, x, y)
-    speed = np.hypot(dx, dy) * fps / (2 * s)
+    _, frame, x, y = _by_walker(trajectories)
     edges = np.asarray(edges_y_m, dtype=np.float64)
     in_window = (frame >= f0) & (frame <= f1) & (x >= 0.0) & (x <= corridor_width_m)
-    n_frames = f1 - f0 + 1
-    density, mean_speed = [], []
-    for lo, hi in zip(edges[:-1], edges[1:]):
-        m = in_window & (y >= lo) & (y < hi)
-        density.append(np.count_nonzero(m) / n_frames / ((hi - lo) * corridor_width_m))
-        v = speed[m]
-        v = v[np.isfinite(v)]
-        mean_speed.append(float(v.mean()) if v.size else float("nan"))
-    return 0.5 * (edges[:-1] + edges[1:]), np.array(density), np.array(mean_speed)
+    density = np.array([np.count_nonzero(in_window & (y >= lo) & (y < hi)) / (f1 - f0 + 1) / ((hi - lo) * corridor_width_m)
+                        for lo, hi in zip(edges[:-1], edges[1:])])
+    speed = speed_profile(trajectories, direction=(0.0, 1.0), edges_m=edges, frame_step=UO_SPEED_FRAME_STEP,
+                          window_s=(f0 / fps, f1 / fps), area=(0.0, edges[0], corridor_width_m, edges[-1]),
+                          magnitude=True).speed_m_s
+    return 0.5 * (edges[:-1] + edges[1:]), density, speed
 
 
 def _by_walker(trajectories: Trajectories) -> tuple:
     """``(id, frame, x, y)`` of ``trajectories`` sorted by walker, then frame."""
     order = np.lexsort((trajectories.frame, trajectories.id))
     return trajectories.id[order], trajectories.frame[order], trajectories.x_m[order], trajectories.y_m[order]
-
-
-def _displacements(ids, frame, x, y) -> tuple:
-    """Each row's displacement (dx, dy) from 5 frames before to 5 frames after (``UO_SPEED_FRAME_STEP``: PedPy's
-    notebook's ±5), rows sorted by walker then frame (:func:`_by_walker`); NaN where the walker is not seen at both."""
-    s = UO_SPEED_FRAME_STEP
-    dx, dy = np.full(x.size, np.nan), np.full(x.size, np.nan)
-    ok = np.flatnonzero((ids[2 * s:] == ids[:-2 * s]) & (frame[2 * s:] - frame[:-2 * s] == 2 * s)) + s
-    dx[ok] = x[ok + s] - x[ok - s]
-    dy[ok] = y[ok + s] - y[ok - s]
-    return dx, dy
 
 
 @dataclass(frozen=True)
@@ -503,10 +488,8 @@ def neighbour_spacing(trajectories: Trajectories, *, area: Polygon, window_frame
     f0, f1 = (int(f) for f in window_frames)
     if f1 < f0:
         raise ExperimentError(f"window_frames must be (first, last) with first <= last, got {window_frames!r}")
-    fps = trajectories.frame_rate_per_s
     ids, frame, x, y = _by_walker(trajectories)
-    dx, dy = _displacements(ids, frame, x, y)
-    vx, vy = dx * fps / (2 * UO_SPEED_FRAME_STEP), dy * fps / (2 * UO_SPEED_FRAME_STEP)
+    vx, vy = centred_velocities_m_s(trajectories, frame_step=UO_SPEED_FRAME_STEP).T  # rows: as _by_walker's
     rows = np.flatnonzero((frame >= f0) & (frame <= f1))
     moving = np.zeros(x.size, np.bool_)  # the walkers measured: in the window, moving, inside the area
     moving[rows] = (np.hypot(vx[rows], vy[rows]) >= min_speed_m_s) & shapely.contains_xy(area, x[rows], y[rows])
