@@ -51,12 +51,12 @@ from ..experiments.running.backends import make_backend
 from ..experiments.running.crowd_policy import load_scored_policy
 from ..experiments.training.demonstrations import DEFAULT_SMOOTHING_S, demonstrations_from_trajectories
 from ..experiments.training.human_imitation import QUICK_HUMAN_TRAINING, VALIDATION_RUNS, train_human_policy
+from ..experiments.validation.corridor_runs import CORRIDOR_RUN_NAMES
 from ..experiments.validation.virtual_experiments import (VirtualPlan, corridor_miss, format_selection,
                                                           run_virtual_experiments, selection_rank, virtual_config)
 from ..files import copy_atomic, write_atomic
 from ..scenarios import make_scenario
 from ..walking.presets import DEFAULT_PRESET, get_preset
-from ..experiments.validation.corridor_runs import CORRIDOR_RUN_NAMES
 from .options import add_key_values, key_values
 
 PUSH_OFF, PUSH_ALWAYS = "off", "always"  # --push-below: the policy alone; the push for every walker
@@ -202,7 +202,7 @@ def _push_gate(value: str) -> tuple:
 
 def _select(args) -> int:
     files = [_policy_file(p) for p in args.policies]
-    gates = [_push_gate(v) for v in dict.fromkeys(args.push_below)]
+    gates = list({gate[:2]: gate for gate in map(_push_gate, args.push_below)}.values())  # each gate once
     if args.seeds < 1:
         raise OptionError(f"--seeds must be at least 1, got {args.seeds}")
     runs = CORRIDOR_RUN_NAMES if args.runs == ["all"] else tuple(args.runs)
