@@ -50,11 +50,18 @@ through an opening at least two shoulder widths wide, and one gives way to the o
 w the labels give way only in the runs whose entrance (the opening the waiting crowd passes, the scenario's
 ``metadata['entrance_width_m']``) is narrower than w, and are the walk in the others (None: in every run).
 
+**The model's push** (``push_below_m_s`` u_g, off by default): the rollouts drive the crowd as ``crowd-virtual-
+experiments --policy-social-force --policy-social-force-below u_g`` runs it (:class:`~crowd_env.envs.drivers.
+MixedDriver`): the policy's intents plus the calibrated agent's social force (Kabalan Eq. 14, 16) for walkers slower
+than u_g, so that the rounds label the states a crowd run so reaches.
+
 :func:`calibrated_actions` gives the calibrated agent's intents (Kabalan et al. 2016, Eq. 14-16) on a recorded
 state, through a read-only view of it that answers what the agent asks a simulator (:class:`RecordedView`), with
 every desired speed the model's mean (1.34 m/s: the recording does not say anybody's).
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import shapely
@@ -67,7 +74,7 @@ from ...core.neighbors import grid_pairs
 from ...core.segments import endpoint_owners, wall_proximity
 from ...core.simulator import Simulator
 from ...core.state import CrowdState
-from ...envs.drivers import intents_and_headings, observing_driver
+from ...envs.drivers import MixedDriver, intents_and_headings, observing_driver
 from ...envs.observations import to_body_frame
 from ...scenarios.placement import place_pedestrians
 from ...walking.agent import SocialForceAgent, desired_direction
@@ -79,7 +86,7 @@ __all__ = ["DEFAULT_DAD", "GIVE_WAY_TO", "check_rollout_options", "separated", "
 
 DEFAULT_DAD = {"horizon_s": 3.0, "start_every_s": 2.0, "pull_time_s": 1.0, "max_pull_m_s": 1.0,
                "newcomer_speed_m_s": 2.0, "intent_gain": 0.0, "spawn_newcomers": False, "give_way_gap_m": None,
-               "give_way_to": "recorded_first", "give_way_below_m": None}
+               "give_way_to": "recorded_first", "give_way_below_m": None, "push_below_m_s": None}
 GIVE_WAY_TO = ("recorded_first", "nearer_exit")
 
 
@@ -175,7 +182,8 @@ def check_rollout_options(**options) -> None:
     explain = {"horizon_s": "a time in s > 0", "start_every_s": "a time in s > 0", "pull_time_s": "a time in s > 0",
                "max_pull_m_s": "a speed in m/s >= 0", "newcomer_speed_m_s": "a speed in m/s > 0",
                "intent_gain": "a gain >= 0", "give_way_gap_m": "None (nobody gives way) or a gap in m >= 0",
-               "give_way_below_m": "None (every run) or a width in m > 0"}
+               "give_way_below_m": "None (every run) or a width in m > 0",
+               "push_below_m_s": "None (no push) or a speed in m/s > 0"}
     for name in ("horizon_s", "start_every_s", "pull_time_s", "newcomer_speed_m_s"):
         number(name, lambda v: v > 0)
     for name in ("max_pull_m_s", "intent_gain"):
@@ -184,6 +192,8 @@ def check_rollout_options(**options) -> None:
         number("give_way_gap_m", lambda v: v >= 0)
     if options.get("give_way_below_m") is not None:
         number("give_way_below_m", lambda v: v > 0)
+    if options.get("push_below_m_s") is not None:
+        number("push_below_m_s", lambda v: v > 0 and math.isfinite(v))
     if "give_way_to" in options and options["give_way_to"] not in GIVE_WAY_TO:
         raise TrainingError(f"rollout option give_way_to must be one of {list(GIVE_WAY_TO)}, "
                             f"got {options['give_way_to']!r}")
@@ -200,7 +210,8 @@ def dad_rollouts(replay, scenario, policy, *, params: ModelParams | None = None,
                  spawn_newcomers: bool = DEFAULT_DAD["spawn_newcomers"],
                  give_way_gap_m: float | None = DEFAULT_DAD["give_way_gap_m"],
                  give_way_to: str = DEFAULT_DAD["give_way_to"],
-                 give_way_below_m: float | None = DEFAULT_DAD["give_way_below_m"]) -> Demonstrations:
+                 give_way_below_m: float | None = DEFAULT_DAD["give_way_below_m"],
+                 push_below_m_s: float | None = DEFAULT_DAD["push_below_m_s"]) -> Demonstrations:
     """The labelled decisions of rollouts of the observation ``policy`` from the recorded decisions ``starts``
     (indices into ``replay.time_s``; default every ``start_every_s``) of ``replay`` in ``scenario`` (module
     docstring). ``options``: the policy's (default its ``env_overrides`` over the human policy's)."""
@@ -208,7 +219,8 @@ def dad_rollouts(replay, scenario, policy, *, params: ModelParams | None = None,
     options = policy_options({**(options or {}), **{k: v for k, v in policy.env_overrides.items()}})
     check_rollout_options(horizon_s=horizon_s, start_every_s=start_every_s, pull_time_s=pull_time_s,
                           max_pull_m_s=max_pull_m_s, newcomer_speed_m_s=newcomer_speed_m_s, intent_gain=intent_gain,
-                          give_way_gap_m=give_way_gap_m, give_way_to=give_way_to, give_way_below_m=give_way_below_m)
+                          give_way_gap_m=give_way_gap_m, give_way_to=give_way_to, give_way_below_m=give_way_below_m,
+                          push_below_m_s=push_below_m_s)
     if starts is None:
         starts = np.arange(0, replay.time_s.size - 1, max(1, int(round(start_every_s / replay.decision_dt_s))))
     horizon = max(1, int(round(horizon_s / replay.decision_dt_s)))
@@ -217,7 +229,8 @@ def dad_rollouts(replay, scenario, policy, *, params: ModelParams | None = None,
     spawned = bool(spawn_newcomers) and scenario.spawn_area is not None
     gives_way = give_way_gap_m is not None and _narrow_entrance(scenario, give_way_below_m)
     setting = (scenario, params, options, horizon, pull_time_s, max_pull_m_s, newcomer_speed_m_s, float(intent_gain),
-               edges, spawned, (float(give_way_gap_m), give_way_to) if gives_way else None)
+               edges, spawned, (float(give_way_gap_m), give_way_to) if gives_way else None,
+               None if push_below_m_s is None else float(push_below_m_s))
     parts = [p for k0 in starts for p in _rollout(replay, policy, int(k0), setting)]
     if not parts:
         raise TrainingError("the rollouts reached no decision with a label")
@@ -227,6 +240,7 @@ def dad_rollouts(replay, scenario, policy, *, params: ModelParams | None = None,
             "intent_gain": float(intent_gain), "spawn_newcomers": spawned, "give_way_to": give_way_to,
             "give_way_gap_m": None if give_way_gap_m is None else float(give_way_gap_m),
             "give_way_below_m": None if give_way_below_m is None else float(give_way_below_m), "gives_way": gives_way,
+            "push_below_m_s": None if push_below_m_s is None else float(push_below_m_s),
             "n_decisions": int(arrays[1].shape[0]), "n_seen": int(arrays[7].sum())}
     return Demonstrations(*arrays, meta=meta)
 
@@ -323,7 +337,7 @@ def _targets(replay, f, k: int, k0: int, pos, arrival, point, setting: tuple, ra
 
 def _rollout(replay, policy, k0: int, setting: tuple) -> list:
     """The labelled decisions of one rollout from decision ``k0`` (:func:`dad_rollouts`), one part per decision."""
-    scenario, params, options, horizon, _, _, newcomer_speed, gain, edges, spawned, _ = setting
+    scenario, params, options, horizon, _, _, newcomer_speed, gain, edges, spawned, _, push = setting
     radius = float(scenario.radius_m()[0]) if scenario.n_pedestrians else 0.23
     rows, pos0, head0, vel0, arrival, point = _start_crowd(replay, scenario, k0, horizon, spawned, radius)
     if not rows.size:
@@ -333,9 +347,15 @@ def _rollout(replay, policy, k0: int, setting: tuple) -> list:
     sim = Simulator(state, geometry=scenario.geometry, params=params)
     recording = _Recording(policy)
     navigation = scenario.navigation()
-    driver = observing_driver(recording, scenario, navigation=navigation, mask=np.ones(rows.size, bool),
-                              dt_s=params.dt_s, velocity_bound_m_s=20.0,
-                              travel_time_bound_s=navigation.max_travel_time_s + 1.0, what="rolled-out policy: ")
+    if push is None:
+        driver = observing_driver(recording, scenario, navigation=navigation, mask=np.ones(rows.size, bool),
+                                  dt_s=params.dt_s, velocity_bound_m_s=20.0,
+                                  travel_time_bound_s=navigation.max_travel_time_s + 1.0, what="rolled-out policy: ")
+        observer = driver.observer
+    else:  # the policy plus the model's push for walkers slower than push, as the virtual experiments run it
+        driver = MixedDriver(recording, scenario, SocialForceAgent(navigation), np.ones(rows.size, bool),
+                             dt_s=params.dt_s, social_force=True, social_force_below_m_s=push)
+        observer = driver.learned.observer
     skip = int(options["frame_skip"])
     if abs(skip * params.dt_s - replay.decision_dt_s) > 1e-9:
         raise TrainingError(f"the policy decides every {skip * params.dt_s:g} s, the replay every "
@@ -347,7 +367,7 @@ def _rollout(replay, policy, k0: int, setting: tuple) -> list:
             break
         pos, theta = state.position_m[act].copy(), state.heading_rad[act].copy()
         vel = state.velocity_m_s[act].copy()
-        reach = observation_reach_m(driver.observer, state.position_m, state.active, act)
+        reach = observation_reach_m(observer, state.position_m, state.active, act)
         for _ in range(skip):
             intents, heading = intents_and_headings(driver(sim), sim.state)
             sim.step(intents, desired_heading_rad=heading)

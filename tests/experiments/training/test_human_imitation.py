@@ -87,6 +87,35 @@ def test_rollouts_label_each_decision_with_the_way_back_to_the_recording(replay)
     assert abs(lag_first) < 0.05 and lag_last < -0.5
 
 
+def test_rollouts_with_the_push_drive_the_crowd_as_the_virtual_experiments_do():
+    """``push_below_m_s``: a crowd held still by its policy gets the model's push in full (every walker is at rest).
+    In the queue before the 0.70 m exit (recorded people closer than two disks, moved apart just enough: touching)
+    the closest two labelled walkers still touch after 1 s without the push and stand apart with it. Bad gates are
+    refused before any rollout."""
+    from crowd_env.analysis.trajectories import Trajectories
+
+    run = "uo-180-180-070"
+    traj = recorded_uo_trajectories(run)
+    keep = (traj.frame >= 800) & (traj.frame < 1100)  # 50-69 s: the queue, about 75 people on the floor
+    scenario = uo_scenario(run)
+    rep = replay_trajectories(Trajectories(traj.frame[keep], traj.id[keep], traj.x_m[keep], traj.y_m[keep], None,
+                                           16.0), scenario)
+
+    def closest_at_end(demos):
+        last = np.isclose(demos.time_s, demos.time_s.max())
+        p = demos.position_m[last]
+        d = np.hypot(*(p[:, None] - p[None]).transpose(2, 0, 1))
+        return d[np.triu_indices(len(p), 1)].min()
+
+    plain = dad_rollouts(rep, scenario, _Still(), starts=[20], horizon_s=1.0)
+    pushed = dad_rollouts(rep, scenario, _Still(), starts=[20], horizon_s=1.0, push_below_m_s=0.3)
+    assert pushed.meta["push_below_m_s"] == 0.3 and plain.meta["push_below_m_s"] is None
+    assert closest_at_end(plain) < 0.46 + 1e-3 and closest_at_end(pushed) > 0.46 + 0.02
+    for bad in (0.0, -1.0, float("nan"), True):
+        with pytest.raises(TrainingError, match="push_below_m_s"):
+            dad_rollouts(rep, scenario, _Still(), starts=[20], horizon_s=1.0, push_below_m_s=bad)
+
+
 def test_newcomers_start_in_the_spawn_area_and_walk_along_e_d_to_arrive_when_they_were_recorded(replay):
     scenario, rep = replay
     first = np.argmax(rep.present, axis=0)
