@@ -62,6 +62,7 @@ every desired speed the model's mean (1.34 m/s: the recording does not say anybo
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 import shapely
@@ -228,9 +229,9 @@ def dad_rollouts(replay, scenario, policy, *, params: ModelParams | None = None,
     edges = (cKDTree(pts[~appears]) if (~appears).any() else None, cKDTree(pts[appears]) if appears.any() else None)
     spawned = bool(spawn_newcomers) and scenario.spawn_area is not None
     gives_way = give_way_gap_m is not None and _narrow_entrance(scenario, give_way_below_m)
-    setting = (scenario, params, options, horizon, pull_time_s, max_pull_m_s, newcomer_speed_m_s, float(intent_gain),
-               edges, spawned, (float(give_way_gap_m), give_way_to) if gives_way else None,
-               None if push_below_m_s is None else float(push_below_m_s))
+    setting = _Setting(scenario, params, options, horizon, pull_time_s, max_pull_m_s, newcomer_speed_m_s,
+                       float(intent_gain), edges, spawned, (float(give_way_gap_m), give_way_to) if gives_way else None,
+                       None if push_below_m_s is None else float(push_below_m_s))
     parts = [p for k0 in starts for p in _rollout(replay, policy, int(k0), setting)]
     if not parts:
         raise TrainingError("the rollouts reached no decision with a label")
@@ -303,14 +304,32 @@ def _give_way_m(pos: np.ndarray, first: np.ndarray, rows: np.ndarray, e_d: np.nd
     return out
 
 
-def _targets(replay, f, k: int, k0: int, pos, arrival, point, setting: tuple, radius_m: float) -> tuple:
+class _Setting(NamedTuple):
+    """What every rollout of one :func:`dad_rollouts` call shares (its arguments, checked and resolved)."""
+
+    scenario: object
+    params: ModelParams
+    options: dict
+    horizon: int  # decisions
+    pull_time_s: float
+    max_pull_m_s: float
+    newcomer_speed_m_s: float
+    intent_gain: float
+    edges: tuple  # the camera's edges: KD-trees of the vanishing and the appearing points
+    spawned: bool
+    give_way: tuple | None  # (gap in m, who goes first) where the labels give way
+    push_below_m_s: float | None
+
+
+def _targets(replay, f, k: int, k0: int, pos, arrival, point, setting: _Setting, radius_m: float) -> tuple:
     """``(world-frame targets, spawned rows labelled)`` at decision ``k`` of file rows ``f`` at ``pos`` in a rollout
     from ``k0``: the recorded action plus the pull (recorded rows), or the walk along e_d that covers the geodesic
     distance to the first recorded point (the travel times' difference) by the recorded time, at most
     ``newcomer_speed_m_s`` (newcomers not yet recorded, those arriving within the horizon: the ones behind them
     stand where they would); with ``give_way_gap_m``, a newcomer too close behind someone who goes first steps back
     (:func:`_give_way_m`, module docstring)."""
-    _, _, _, horizon, pull_time_s, max_pull, newcomer_speed, *_, give_way = setting
+    horizon, pull_time_s, max_pull = setting.horizon, setting.pull_time_s, setting.max_pull_m_s
+    newcomer_speed, give_way = setting.newcomer_speed_m_s, setting.give_way
     dt = replay.decision_dt_s
     rec = replay.present[k, f] & replay.present[k + 1, f]
     with np.errstate(invalid="ignore"):
@@ -321,7 +340,7 @@ def _targets(replay, f, k: int, k0: int, pos, arrival, point, setting: tuple, ra
     waiting = ~replay.present[k, f] & (arrival > t) & (arrival <= replay.time_s[k0] + horizon * dt)
     walk = np.zeros_like(pos)
     if waiting.any():  # along e_d, at the geodesic distance left over the time left
-        navigation = setting[0].navigation()
+        navigation = setting.scenario.navigation()
         e_all, travel = navigation.sample(pos)  # everybody's T: the waiting ones' walk, who is nearer the exit
         e_d, left = e_all[waiting], travel[waiting]
         _, there = navigation.sample(point[waiting])
@@ -335,9 +354,11 @@ def _targets(replay, f, k: int, k0: int, pos, arrival, point, setting: tuple, ra
     return np.where(rec[:, None], a_rec + pull, walk), waiting
 
 
-def _rollout(replay, policy, k0: int, setting: tuple) -> list:
+def _rollout(replay, policy, k0: int, setting: _Setting) -> list:
     """The labelled decisions of one rollout from decision ``k0`` (:func:`dad_rollouts`), one part per decision."""
-    scenario, params, options, horizon, _, _, newcomer_speed, gain, edges, spawned, _, push = setting
+    scenario, params, options, horizon = setting.scenario, setting.params, setting.options, setting.horizon
+    newcomer_speed, gain, edges, spawned = setting.newcomer_speed_m_s, setting.intent_gain, setting.edges, setting.spawned
+    push = setting.push_below_m_s
     radius = float(scenario.radius_m()[0]) if scenario.n_pedestrians else 0.23
     rows, pos0, head0, vel0, arrival, point = _start_crowd(replay, scenario, k0, horizon, spawned, radius)
     if not rows.size:

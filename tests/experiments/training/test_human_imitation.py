@@ -221,7 +221,7 @@ def test_who_gives_way_is_the_later_one_or_the_one_farther_from_the_exit(to):
     the exit. In the recording's order nobody owes room to anyone ahead of it; by travel time A steps back."""
     from types import SimpleNamespace
 
-    from crowd_env.experiments.training.recorded_rollouts import _targets
+    from crowd_env.experiments.training.recorded_rollouts import _Setting, _targets
 
     scenario = uo_scenario(RUN)
     k_max = 40
@@ -231,7 +231,7 @@ def test_who_gives_way_is_the_later_one_or_the_one_farther_from_the_exit(to):
     arrival = np.array([1.0, 2.0])  # A recorded first
     point = np.array([[0.9, 7.9], [0.9, 7.9]])
     gap = 0.3
-    setting = (scenario, None, None, k_max - 1, 1.0, 1.0, 5.0, 0.0, None, True, (gap, to))
+    setting = _Setting(scenario, None, None, k_max - 1, 1.0, 1.0, 5.0, 0.0, None, True, (gap, to), None)
     target, waiting = _targets(rep, np.arange(2), 0, 0, pos, arrival, point, setting, 0.23)
     assert waiting.all()
     e_d, travel = scenario.navigation().sample(pos)
