@@ -141,6 +141,10 @@ def test_newcomers_start_in_the_spawn_area_and_walk_along_e_d_to_arrive_when_the
     assert start.sum() >= 2 and np.all(np.diff(gaps) > -0.3)
     plain = dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=1.0)
     assert not np.any(plain.position_m[:, 1] > 8.3)  # without them nobody stands there
+    pushed = dad_rollouts(rep, scenario, _Still(), starts=[k0], horizon_s=2.0, newcomer_speed_m_s=50.0,
+                          spawn_newcomers=True, push_below_m_s=0.3)  # the push leaves the labels' rules alone:
+    first = np.isclose(pushed.time_s, rep.time_s[k0])  # before any step, the same decisions and labels
+    np.testing.assert_array_equal(pushed.action[first], demos.action[np.isclose(demos.time_s, rep.time_s[k0])])
 
 
 @pytest.mark.parametrize("to", ["recorded_first", "nearer_exit"])
