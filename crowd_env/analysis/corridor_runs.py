@@ -438,8 +438,8 @@ def approach_profile(trajectories: Trajectories, *, corridor_width_m: float, win
     _, frame, x, y = _by_walker(trajectories)
     edges = np.asarray(edges_y_m, dtype=np.float64)
     in_window = (frame >= f0) & (frame <= f1) & (x >= 0.0) & (x <= corridor_width_m)
-    density = np.array([np.count_nonzero(in_window & (y >= lo) & (y < hi)) / (f1 - f0 + 1) / ((hi - lo) * corridor_width_m)
-                        for lo, hi in zip(edges[:-1], edges[1:])])
+    density = np.array([np.count_nonzero(in_window & (y >= lo) & (y < hi)) / (f1 - f0 + 1)
+                        / ((hi - lo) * corridor_width_m) for lo, hi in zip(edges[:-1], edges[1:])])
     speed = speed_profile(trajectories, direction=(0.0, 1.0), edges_m=edges, frame_step=UO_SPEED_FRAME_STEP,
                           window_s=(f0 / fps, f1 / fps), area=(0.0, edges[0], corridor_width_m, edges[-1]),
                           magnitude=True).speed_m_s

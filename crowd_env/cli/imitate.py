@@ -103,8 +103,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="policy files (.npz), training folders (their policy.npz) or shipped policies by name")
     se.add_argument("--out", required=True, type=Path, help="output folder (selection.md, policy.npz, runs/)")
     se.add_argument("--runs", nargs="+", default=list(VALIDATION_RUNS), metavar="RUN",
-                    help=f"the corridor runs that score them (default the validation runs: {' '.join(VALIDATION_RUNS)}; "
-                         "all: the nine)")
+                    help="the corridor runs that score them (default the validation runs: "
+                         f"{' '.join(VALIDATION_RUNS)}; all: the nine)")
     se.add_argument("--push-below", nargs="+", default=[PUSH_OFF], metavar="U",
                     help="each policy scored with the model's social force added to its intents "
                          "(crowd-virtual-experiments --policy-social-force): 'off' (default) the policy alone, "

@@ -357,7 +357,8 @@ def _targets(replay, f, k: int, k0: int, pos, arrival, point, setting: _Setting,
 def _rollout(replay, policy, k0: int, setting: _Setting) -> list:
     """The labelled decisions of one rollout from decision ``k0`` (:func:`dad_rollouts`), one part per decision."""
     scenario, params, options, horizon = setting.scenario, setting.params, setting.options, setting.horizon
-    newcomer_speed, gain, edges, spawned = setting.newcomer_speed_m_s, setting.intent_gain, setting.edges, setting.spawned
+    newcomer_speed, gain = setting.newcomer_speed_m_s, setting.intent_gain
+    edges, spawned = setting.edges, setting.spawned
     push = setting.push_below_m_s
     radius = float(scenario.radius_m()[0]) if scenario.n_pedestrians else 0.23
     rows, pos0, head0, vel0, arrival, point = _start_crowd(replay, scenario, k0, horizon, spawned, radius)
