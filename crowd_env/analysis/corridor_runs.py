@@ -447,9 +447,8 @@ def approach_profile(trajectories: Trajectories, *, corridor_width_m: float, win
 
 
 def _by_walker(trajectories: Trajectories) -> tuple:
-    """``(id, frame, x, y)`` of ``trajectories`` sorted by walker, then frame."""
-    order = np.lexsort((trajectories.frame, trajectories.id))
-    return trajectories.id[order], trajectories.frame[order], trajectories.x_m[order], trajectories.y_m[order]
+    """``(id, frame, x, y)`` of ``trajectories``, whose rows are sorted by walker, then frame (its invariant)."""
+    return trajectories.id, trajectories.frame, trajectories.x_m, trajectories.y_m
 
 
 @dataclass(frozen=True)
