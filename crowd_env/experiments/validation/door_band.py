@@ -26,7 +26,7 @@ from ...analysis.corridor_runs import uo_run
 from ...analysis.experiment import seyfried_2009
 from ...analysis.figures import pyplot, save_figure
 
-__all__ = ["BAND_FIGURES", "band_points", "band_figure", "write_band"]
+__all__ = ["BAND_FIGURES", "band_points", "band_figure", "calibration_name", "write_band"]
 
 DOOR = "specific_flow_per_m_s b1 n60"
 QUEUE = "density_per_m2 uo-180-180-095"
@@ -108,18 +108,35 @@ def _finite(value) -> bool:
     return isinstance(value, (int, float)) and math.isfinite(value)
 
 
+def calibration_name(source) -> str:
+    """The name a calibration's points go by in the figure: the folder of its ``evaluations.jsonl`` (the ``--out``
+    of ``crowd-calibrate optimize``, above its ``optimise/`` folder)."""
+    path = Path(source)
+    folder = path.parent.parent if path.parent.name == "optimise" else path.parent
+    return folder.name or str(path)
+
+
 def band_figure(points: list, path, *, highlight=()) -> Path:
     """Two panels, the door's J_s (b = 1.0 m, N = 60) against the queue's density (left) and against the narrow
-    entrance's flow (right): every point grey, the names in ``highlight`` (presets) labelled, the experiment a
-    star."""
+    entrance's flow (right): each calibration's points (from one ``evaluations.jsonl``) in a colour of their own,
+    named by :func:`calibration_name` (grey when there is only one), the other points (presets, tables) grey, the
+    names in ``highlight`` (presets) labelled, the experiment a star."""
     if not points:
         raise InputError("no point has every figure of the band (see band_points' missing)")
     plt = pyplot()
     exp = _experiment()
+    calibrations = list(dict.fromkeys(p["source"] for p in points if p["source"].endswith(".jsonl")))
+    groups = [([p for p in points if p["source"] == s], f"C{i}" if len(calibrations) > 1 else "0.6",
+               f"calibration {calibration_name(s)}" if len(calibrations) > 1 else "calibration points")
+              for i, s in enumerate(calibrations)]
+    others = [p for p in points if p["source"] not in calibrations]
+    if others:
+        groups.append((others, "0.6" if len(calibrations) > 1 else "0.4", "presets and tables"))
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
     for ax, key, xlabel in ((axes[0], QUEUE, "density behind the 0.95 m exit (1/m²)"),
                             (axes[1], ENTRANCE, "flow through the 0.70 m entrance (1/s)")):
-        ax.scatter([p[key] for p in points], [p[DOOR] for p in points], s=14, color="0.6", label="calibration points")
+        for group, colour, name in groups:
+            ax.scatter([p[key] for p in group], [p[DOOR] for p in group], s=14, color=colour, label=name)
         for p in points:
             if p["label"] in highlight:
                 ax.scatter(p[key], p[DOOR], s=40, color="C3", zorder=3)

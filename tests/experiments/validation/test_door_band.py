@@ -83,3 +83,28 @@ def test_a_virtual_experiments_table_gives_its_point_labelled_by_its_folder(tmp_
     (folder / "virtual_experiments.csv").write_text("a,b\n1,2\n")
     with pytest.raises(InputError, match="not a table of crowd-virtual-experiments"):
         band_points([folder / "virtual_experiments.csv"])
+
+
+def test_each_calibration_is_a_family_of_its_own_named_by_its_folder(files, tmp_path, monkeypatch):
+    evaluations, targets = files
+    other = tmp_path / "calibration_vision" / "optimise" / "evaluations.jsonl"
+    other.parent.mkdir(parents=True)
+    other.write_text(json.dumps({"values": {"T": 1.0}, "failed_point": False, "figures": _figures(1.5, 2.6, 0.9)}) + "\n")
+    assert door_band.calibration_name(other) == "calibration_vision"
+    assert door_band.calibration_name(evaluations) == tmp_path.name  # not under optimise/: its own folder
+    drawn = {}
+
+    def keep(fig, path):
+        drawn["fig"] = fig
+        return path
+
+    monkeypatch.setattr(door_band, "save_figure", keep)
+    points, _ = band_points([evaluations, other, targets])
+    door_band.band_figure(points, tmp_path / "band.png")
+    ax = drawn["fig"].axes[0]
+    names = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert names == [f"calibration {tmp_path.name}", "calibration calibration_vision", "presets and tables",
+                     "experiments"]
+    offsets = [c.get_offsets() for c in ax.collections]
+    assert [len(o) for o in offsets[:3]] == [1, 1, 2]  # each family holds its own points, the presets together
+    assert tuple(offsets[1][0]) == (2.6, 1.5)
