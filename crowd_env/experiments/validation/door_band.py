@@ -126,7 +126,8 @@ def band_figure(points: list, path, *, highlight=()) -> Path:
     plt = pyplot()
     exp = _experiment()
     calibrations = list(dict.fromkeys(p["source"] for p in points if p["source"].endswith(".jsonl")))
-    groups = [([p for p in points if p["source"] == s], f"C{i}" if len(calibrations) > 1 else "0.6",
+    palette = [f"C{i}" for i in range(10) if i != 3]  # C3 marks the highlighted points
+    groups = [([p for p in points if p["source"] == s], palette[i % len(palette)] if len(calibrations) > 1 else "0.6",
                f"calibration {calibration_name(s)}" if len(calibrations) > 1 else "calibration points")
               for i, s in enumerate(calibrations)]
     others = [p for p in points if p["source"] not in calibrations]

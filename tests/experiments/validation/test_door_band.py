@@ -6,6 +6,7 @@ import json
 
 import pytest
 
+from crowd_env.analysis.figures import pyplot
 from crowd_env.errors import InputError
 from crowd_env.experiments.validation import door_band
 from crowd_env.experiments.validation.door_band import BAND_FIGURES, DOOR, ENTRANCE, QUEUE, band_points, write_band
@@ -108,3 +109,8 @@ def test_each_calibration_is_a_family_of_its_own_named_by_its_folder(files, tmp_
     offsets = [c.get_offsets() for c in ax.collections]
     assert [len(o) for o in offsets[:3]] == [1, 1, 2]  # each family holds its own points, the presets together
     assert tuple(offsets[1][0]) == (2.6, 1.5)
+    from matplotlib.colors import to_rgba
+
+    colours = [tuple(c.get_facecolor()[0]) for c in ax.collections[:2]]
+    assert colours[0] != colours[1] and to_rgba("C3") not in colours  # two families; C3 is the highlight's
+    pyplot().close(drawn["fig"])
