@@ -167,9 +167,18 @@ def model_params_from_args(args) -> ModelParams:
 
 
 def navigation_clearance_from_args(args) -> float:
-    """--navigation-clearance if given, else the preset's."""
+    """--navigation-clearance if given, else the preset's; where the preset's field is its body's configuration space
+    (clearance = its radius) and ``--radius`` gives another body, that body's (clearance = --radius), as
+    :func:`~crowd_env.experiments.validation.calibration.tasks.with_body` moves it for crowd-virtual-experiments and
+    the calibration's free radius; a point field (clearance 0) stays one."""
     value = getattr(args, "navigation_clearance", None)
-    return float(get_preset(getattr(args, "preset", DEFAULT_PRESET)).navigation_clearance_m if value is None else value)
+    if value is not None:
+        return float(value)
+    preset = get_preset(getattr(args, "preset", DEFAULT_PRESET))
+    radius = getattr(args, "radius", None)
+    if radius is not None and abs(preset.navigation_clearance_m - preset.radius_m) < 1e-12:
+        return float(radius)
+    return float(preset.navigation_clearance_m)
 
 
 def radius_from_args(args) -> float:

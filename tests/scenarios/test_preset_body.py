@@ -57,3 +57,25 @@ def test_the_bottleneck_commands_take_the_presets_body_unless_given(slim):
     assert geometry["radius_m"] == 0.2 and geometry["navigation_clearance_m"] == 0.2
     args.radius = 0.21
     assert config_of(args, model_params_from_args(args))["geometry"]["radius_m"] == 0.21
+
+
+def test_a_radius_given_on_the_command_line_moves_the_field_of_a_body_with_it(slim):
+    """crowd-calibrate targets --radius R (and every command reading config_of) ran the bottleneck with R-disks in
+    the field of the preset's body; the field now follows the body as with_body moves it for the virtual
+    experiments, unless --navigation-clearance is given or the preset's field is the point field."""
+    from crowd_env.cli.options import config_of, model_params_from_args
+    from crowd_env.cli.reproduce_bottleneck import build_parser
+    from crowd_env.experiments.validation.calibration.tasks import with_body
+
+    def geometry(*argv):
+        args = build_parser().parse_args(list(argv))
+        return config_of(args, model_params_from_args(args))["geometry"]
+
+    g = geometry("--preset", "vision", "--radius", "0.179")
+    assert (g["radius_m"], g["navigation_clearance_m"]) == (0.179, 0.179)
+    moved = with_body({"geometry": geometry("--preset", "vision")}, 0.179)["geometry"]  # the virtual experiments' way
+    assert moved["navigation_clearance_m"] == g["navigation_clearance_m"]
+    assert geometry("--preset", "vision", "--radius", "0.179", "--navigation-clearance", "0.1")[
+        "navigation_clearance_m"] == 0.1
+    assert geometry("--preset", "paper", "--radius", "0.2")["navigation_clearance_m"] == 0.0  # a point field
+    assert geometry("--preset", "slim_test", "--radius", "0.21")["navigation_clearance_m"] == 0.21
