@@ -13,6 +13,7 @@ from ..walking.model import ModelParams
 from ..errors import OptionError
 from ..walking.presets import DEFAULT_PRESET, get_preset
 from ..experiments.validation.bottleneck import GEOMETRY_OPTIONS, bottleneck_config, model_params
+from ..experiments.validation.calibration.tasks import body_clearance_m
 from ..experiments.running.evaluation import (DEFAULT_POLICY_RESOLVER, ScenarioSpec, episode_setup,
                                               recorded_env_config)
 
@@ -169,16 +170,16 @@ def model_params_from_args(args) -> ModelParams:
 def navigation_clearance_from_args(args) -> float:
     """--navigation-clearance if given, else the preset's; where the preset's field is its body's configuration space
     (clearance = its radius) and ``--radius`` gives another body, that body's (clearance = --radius), as
-    :func:`~crowd_env.experiments.validation.calibration.tasks.with_body` moves it for crowd-virtual-experiments and
+    :func:`~crowd_env.experiments.validation.calibration.tasks.body_clearance_m` (the rule of ``with_body``) moves it for crowd-virtual-experiments and
     the calibration's free radius; a point field (clearance 0) stays one."""
     value = getattr(args, "navigation_clearance", None)
     if value is not None:
         return float(value)
     preset = get_preset(getattr(args, "preset", DEFAULT_PRESET))
     radius = getattr(args, "radius", None)
-    if radius is not None and abs(preset.navigation_clearance_m - preset.radius_m) < 1e-12:
-        return float(radius)
-    return float(preset.navigation_clearance_m)
+    if radius is None:
+        return float(preset.navigation_clearance_m)
+    return body_clearance_m(preset.navigation_clearance_m, preset.radius_m, radius)
 
 
 def radius_from_args(args) -> float:

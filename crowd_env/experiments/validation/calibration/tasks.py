@@ -28,7 +28,7 @@ from ..bottleneck import params_dict, run_one
 from ..corridor_runs import corridor_tasks, run_corridor_one
 from ..fundamental_diagram import CORRIDOR_DENSITIES, SETUPS, SINGLE_FILE_DENSITIES, fd_tasks, run_fd_one
 
-__all__ = ["PEDESTRIAN_FIELDS", "SIGNIFICANT_DIGITS", "canonical", "check_pedestrian", "base_config", "make_task",
+__all__ = ["PEDESTRIAN_FIELDS", "body_clearance_m", "SIGNIFICANT_DIGITS", "canonical", "check_pedestrian", "base_config", "make_task",
            "FDPlan", "make_fd_tasks", "run_calibration_task", "with_body", "make_virtual_tasks"]
 
 # PedestrianDefaults fields a calibration may vary (per-pedestrian, drawn/set in Scenario.make_state).
@@ -151,6 +151,13 @@ def make_fd_tasks(config: dict, model: dict, pedestrian: dict, plan: FDPlan) -> 
     return [dict(t, pedestrian=ped) for t in tasks]
 
 
+def body_clearance_m(clearance_m: float, radius_m: float, new_radius_m: float) -> float:
+    """The navigation clearance for a body of ``new_radius_m`` where the field had ``clearance_m`` for a body of
+    ``radius_m``: the new radius where the field was that body's configuration space (clearance = radius), else the
+    clearance as it was (a point field, clearance 0, stays one; a chosen clearance stays chosen)."""
+    return float(new_radius_m) if abs(float(clearance_m) - float(radius_m)) < 1e-12 else float(clearance_m)
+
+
 def with_body(task: dict, radius_m: float | None) -> dict:
     """A bottleneck task (:func:`make_task`) with the pedestrians' radius ``radius_m`` (None: unchanged): the
     geometry's ``radius_m``, and its navigation clearance with it where the field is the disk centres' (clearance
@@ -159,8 +166,7 @@ def with_body(task: dict, radius_m: float | None) -> dict:
         return task
     geometry = dict(task["geometry"])
     old = float(geometry.get("radius_m", PedestrianDefaults().radius_m))
-    if abs(float(geometry.get("navigation_clearance_m", old)) - old) < 1e-12:
-        geometry["navigation_clearance_m"] = float(radius_m)
+    geometry["navigation_clearance_m"] = body_clearance_m(geometry.get("navigation_clearance_m", old), old, radius_m)
     geometry["radius_m"] = float(radius_m)
     return dict(task, geometry=geometry)
 
